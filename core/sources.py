@@ -1,0 +1,76 @@
+"""Where presses come from: the source/actuator interface and the registry that finds sources by name.
+
+A source is anything that, asked to press at a target, returns the raw streams of that press: the MuJoCo
+simulation, a recording being replayed, a Dynamixel finger with a Tekscan pad, or a human operator prompted
+in the terminal. Sources register under the entry-point group ``palpate.sources`` so that the run loop in
+core never imports MuJoCo or a serial library.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from typing import Protocol, runtime_checkable
+
+from palpate.core.errors import ValidationError
+from palpate.core.streams import PressRecording
+
+ENTRY_POINT_GROUP = "palpate.sources"
+
+
+@dataclass(frozen=True)
+class PressTarget:
+    """Where and how to press.
+
+    Attributes:
+        x, y: target location on the object's surface, m (world frame).
+        depth: indentation to reach beyond first contact, m (None if pressing to a force).
+        force: normal force to reach, N (None if pressing to a depth).
+        speed: approach/press speed, m/s.
+        hold: time held at the deepest point, s.
+        label: free text carried into the recording (e.g. "Region_3").
+    """
+
+    x: float
+    y: float
+    depth: float | None = 0.004
+    force: float | None = None
+    speed: float = 0.01
+    hold: float = 0.0
+    label: str = ""
+
+    def __post_init__(self) -> None:
+        if (self.depth is None) == (self.force is None):
+            raise ValidationError("PressTarget needs exactly one of depth (m) or force (N)")
+        if self.depth is not None and not self.depth > 0:
+            raise ValidationError(f"PressTarget.depth must be > 0 m, got {self.depth}")
+        if self.force is not None and not self.force > 0:
+            raise ValidationError(f"PressTarget.force must be > 0 N, got {self.force}")
+        if not self.speed > 0:
+            raise ValidationError(f"PressTarget.speed must be > 0 m/s, got {self.speed}")
+
+
+@runtime_checkable
+class PressSource(Protocol):
+    """A source that can be asked for one press-and-release at a target."""
+
+    def press(self, target: PressTarget) -> PressRecording:  # pragma: no cover - protocol
+        """Perform (or replay) one press-and-release and return its raw streams."""
+        ...
+
+
+def available_sources() -> dict[str, str]:
+    """Names of registered sources mapped to their import paths."""
+    return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def load_source(name: str):
+    """Return the factory registered as ``name`` in ``palpate.sources``.
+
+    Raises ValidationError naming the known sources if ``name`` is not registered.
+    """
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        if ep.name == name:
+            return ep.load()
+    known = ", ".join(sorted(available_sources())) or "none (is palpate installed?)"
+    raise ValidationError(f"unknown source {name!r}; registered sources: {known}")

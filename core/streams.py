@@ -1,0 +1,174 @@
+"""Stream types shared by every source (simulation, replay, hardware) and the perception stack.
+
+All quantities are SI: seconds, metres, square metres. Raw taxel counts stay ``uint8`` exactly as a
+Tekscan-like sensor reports them; calibration to force happens later, in :mod:`palpate.core.features`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from palpate.core.errors import ValidationError
+
+
+@dataclass(frozen=True)
+class TaxelFrame:
+    """One frame of a tactile array.
+
+    Attributes:
+        t: timestamp, s (on the taxel sensor's own clock).
+        counts: raw 8-bit counts, shape (rows, cols), dtype uint8.
+        sensel_area: area of one sensing element, m^2.
+        sensor_id: name of the array (several pads may stream at once).
+    """
+
+    t: float
+    counts: np.ndarray
+    sensel_area: float
+    sensor_id: str = "taxels"
+
+    def __post_init__(self) -> None:
+        counts = np.asarray(self.counts)
+        if counts.ndim != 2:
+            raise ValidationError(f"TaxelFrame.counts must be 2-D (rows, cols), got shape {counts.shape}")
+        if counts.dtype != np.uint8:
+            if not np.issubdtype(counts.dtype, np.integer) or counts.min(initial=0) < 0 or counts.max(
+                initial=0
+            ) > 255:
+                raise ValidationError(
+                    f"TaxelFrame.counts must be uint8 raw counts (0..255), got dtype {counts.dtype}"
+                )
+            counts = counts.astype(np.uint8)
+        object.__setattr__(self, "counts", counts)
+        if not np.isfinite(self.t):
+            raise ValidationError(f"TaxelFrame.t must be finite, got {self.t!r}")
+        if not (np.isfinite(self.sensel_area) and self.sensel_area > 0):
+            raise ValidationError(f"TaxelFrame.sensel_area must be a positive area in m^2, got {self.sensel_area!r}")
+
+
+@dataclass(frozen=True)
+class PoseSample:
+    """One pose of the fingertip (e.g. a Polhemus Liberty station).
+
+    Attributes:
+        t: timestamp, s (on the pose sensor's own clock).
+        position: (x, y, z), m, in the world frame; z points up, so pressing into an object lowers z.
+        quaternion: unit quaternion (w, x, y, z), normalised on construction.
+        sensor_id: station name.
+    """
+
+    t: float
+    position: np.ndarray
+    quaternion: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    sensor_id: str = "pose"
+
+    def __post_init__(self) -> None:
+        pos = np.asarray(self.position, dtype=float).reshape(-1)
+        quat = np.asarray(self.quaternion, dtype=float).reshape(-1)
+        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+            raise ValidationError(f"PoseSample.position must be 3 finite numbers (m), got {self.position!r}")
+        if quat.shape != (4,) or not np.all(np.isfinite(quat)):
+            raise ValidationError(f"PoseSample.quaternion must be 4 finite numbers (w,x,y,z), got {self.quaternion!r}")
+        norm = float(np.linalg.norm(quat))
+        if norm < 1e-9:
+            raise ValidationError("PoseSample.quaternion has zero norm")
+        if not np.isfinite(self.t):
+            raise ValidationError(f"PoseSample.t must be finite, got {self.t!r}")
+        object.__setattr__(self, "position", pos)
+        object.__setattr__(self, "quaternion", quat / norm)
+
+
+@dataclass(frozen=True)
+class ContactSample:
+    """Contact features at one taxel time (eq. 6.2-6.4 of seed 000).
+
+    Attributes:
+        t: time, s, on the common timeline.
+        c_P: contact intensity: sum of counts (or force in N when calibrated).
+        c_A: contact area, m^2 (active sensels x sensel area).
+        c_D: indentation along the press axis relative to the height at first contact, m (positive into the object).
+        xy: fingertip (x, y) position, m.
+        z: fingertip height, m.
+    """
+
+    t: float
+    c_P: float
+    c_A: float
+    c_D: float
+    xy: tuple[float, float]
+    z: float
+
+
+@dataclass
+class GroundTruth:
+    """What the simulation knows beside the streams (absent for real recordings).
+
+    Attributes:
+        t: times, s, shape (n,).
+        force: true normal contact force on the fingertip, N, shape (n,).
+        indentation: true indentation of the tip into the undeformed surface, m, shape (n,).
+        material: name of the material under the press, if one.
+    """
+
+    t: np.ndarray
+    force: np.ndarray
+    indentation: np.ndarray
+    material: str | None = None
+
+
+@dataclass
+class PressRecording:
+    """The raw streams of one press-and-release (or of any stretch of time).
+
+    Attributes:
+        frames: taxel frames in time order.
+        poses: pose samples in time order.
+        truth: ground truth from a simulation, or None for real data.
+        meta: free-form provenance (source name, target, parameters), JSON-serialisable.
+    """
+
+    frames: list[TaxelFrame]
+    poses: list[PoseSample]
+    truth: GroundTruth | None = None
+    meta: dict = field(default_factory=dict)
+
+
+def frames_to_arrays(frames: list[TaxelFrame]) -> tuple[np.ndarray, np.ndarray, float]:
+    """Stack taxel frames into arrays.
+
+    Returns:
+        (t [n] s, counts [n, rows, cols] uint8, sensel_area m^2). Raises ValidationError if the frames disagree
+        on shape or sensel area, or if time does not increase.
+    """
+    if not frames:
+        raise ValidationError("no taxel frames")
+    shape = frames[0].counts.shape
+    area = frames[0].sensel_area
+    for i, f in enumerate(frames):
+        if f.counts.shape != shape:
+            raise ValidationError(f"taxel frame {i} has shape {f.counts.shape}, expected {shape}")
+        if not np.isclose(f.sensel_area, area, rtol=1e-9, atol=0.0):
+            raise ValidationError(f"taxel frame {i} has sensel area {f.sensel_area}, expected {area}")
+    t = np.fromiter((f.t for f in frames), dtype=float, count=len(frames))
+    if len(t) > 1 and np.any(np.diff(t) <= 0):
+        bad = int(np.argmax(np.diff(t) <= 0)) + 1
+        raise ValidationError(f"taxel frame times must increase strictly; frame {bad} is at t={t[bad]}")
+    counts = np.stack([f.counts for f in frames])
+    return t, counts, area
+
+
+def poses_to_arrays(poses: list[PoseSample]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stack pose samples into arrays: (t [n] s, position [n, 3] m, quaternion [n, 4]).
+
+    Raises ValidationError if time does not increase strictly.
+    """
+    if not poses:
+        raise ValidationError("no pose samples")
+    t = np.fromiter((p.t for p in poses), dtype=float, count=len(poses))
+    if len(t) > 1 and np.any(np.diff(t) <= 0):
+        bad = int(np.argmax(np.diff(t) <= 0)) + 1
+        raise ValidationError(f"pose times must increase strictly; sample {bad} is at t={t[bad]}")
+    pos = np.stack([p.position for p in poses])
+    quat = np.stack([p.quaternion for p in poses])
+    return t, pos, quat

@@ -1,0 +1,1 @@
+"""Real devices (Tekscan, Polhemus Liberty, Dynamixel finger) and their wire-protocol emulators."""

@@ -1,0 +1,1 @@
+"""Polhemus Liberty motion tracker: binary/ASCII protocol driver and a pty emulator."""

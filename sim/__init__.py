@@ -1,0 +1,1 @@
+"""MuJoCo simulation of press-and-release palpation: a stream source for palpate.core."""
