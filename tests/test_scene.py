@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from palpate.core.errors import ValidationError
 from palpate.core.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, material_index_at
 
