@@ -1,0 +1,221 @@
+"""The press controller: the setpoint trajectory of one press-and-release.
+
+Phases: approach from a small gap above the surface, press to a target depth (or to the depth a target force
+needs) at a given speed, optional hold, release back to the start height. A robot follows the target exactly;
+a human-like press varies speed and depth from press to press, shifts the press point by a small lateral jitter,
+and moves with a bell-shaped (minimum-jerk) velocity instead of constant speed. Every draw comes from a seeded
+generator, so the same seed gives the same press.
+
+The trajectory is a :class:`PressProfile`; every fidelity level (analytic, rigid, flex) consumes it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.sources import PressTarget
+
+
+@dataclass
+class PressProfile:
+    """Setpoint trajectory of one press-and-release (contract shared by every fidelity level).
+
+    Attributes:
+        t: time, s, shape (n,), strictly increasing from 0, sampled at the physics timestep or finer
+            (consumers interpolate).
+        z: tip-sphere-centre height setpoint, m, world frame, shape (n,).
+        x, y: tip-sphere-centre horizontal position, m (constant during the press; lateral jitter of a
+            human-like press is already included).
+        surface_z: height of the undeformed surface under the press point, m; first contact is at
+            z = surface_z + tip radius.
+        meta: provenance, JSON-serialisable: "radius" (m), "depth" (commanded indentation, m), "speed" (m/s),
+            "hold" (s), "phases" (name -> [t_start, t_end] s), "normal" (unit surface normal, (0, 0, 1) on flat
+            tops; for a tilted normal use :meth:`centres`, the press then runs along the normal), "mode"
+            ("robot" or "human"), "force_target" (N or None).
+    """
+
+    t: np.ndarray
+    z: np.ndarray
+    x: float
+    y: float
+    surface_z: float
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def duration(self) -> float:
+        """Length of the whole press-and-release, s."""
+        return float(self.t[-1] - self.t[0])
+
+    def indentation(self) -> np.ndarray:
+        """Commanded indentation of the sphere into the undeformed surface, m, >= 0, shape (n,)."""
+        return np.maximum(self.surface_z + self.meta.get("radius", 0.0) - self.z, 0.0)
+
+    def centres(self) -> np.ndarray:
+        """Tip-sphere-centre setpoints (n, 3), m, pressing along meta["normal"] through the contact point.
+
+        On a flat top this is (x, y, z). On a tilted surface the sphere centre moves along the normal of the
+        contact point (x, y, surface_z), by the same signed distance as z moves relative to first contact.
+        """
+        n = np.asarray(self.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
+        contact = np.array([self.x, self.y, self.surface_z])
+        return contact[None, :] + n[None, :] * (self.z - self.surface_z)[:, None]
+
+    def at(self, t: float | np.ndarray) -> np.ndarray:
+        """Height setpoint at time(s) t, s, linearly interpolated, m."""
+        return np.interp(t, self.t, self.z)
+
+
+@dataclass(frozen=True)
+class Variability:
+    """How much a human-like press varies from the target (all draws seeded).
+
+    Attributes:
+        speed_cv: coefficient of variation of the press and release speeds.
+        depth_cv: coefficient of variation of the reached depth (or force).
+        lateral_std: standard deviation of the press point's offset in x and y, m.
+        hold_std: standard deviation added to the hold time, s (clipped at 0).
+        smooth: use a bell-shaped (minimum-jerk) velocity in each phase, as human reaching does.
+    """
+
+    speed_cv: float = 0.15
+    depth_cv: float = 0.10
+    lateral_std: float = 3.0e-4
+    hold_std: float = 0.02
+    smooth: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("speed_cv", "depth_cv", "lateral_std", "hold_std"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValidationError(f"Variability.{name} must be a finite value >= 0, got {v!r}")
+        if self.speed_cv >= 0.5 or self.depth_cv >= 0.5:
+            raise ValidationError("Variability.speed_cv and depth_cv must stay below 0.5 (a press cannot reverse)")
+
+
+#: An exact robot press: no variability, constant speed.
+ROBOT = Variability(speed_cv=0.0, depth_cv=0.0, lateral_std=0.0, hold_std=0.0, smooth=False)
+#: A human-like press with the default variability.
+HUMAN = Variability()
+
+
+def _ramp(n: int, smooth: bool) -> np.ndarray:
+    """Normalised position 0 -> 1 over n samples: linear (robot) or minimum-jerk (human)."""
+    s = np.linspace(0.0, 1.0, n)
+    if not smooth:
+        return s
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
+
+
+def press_profile(
+    target: PressTarget,
+    surface_z: float,
+    *,
+    radius: float,
+    timestep: float,
+    variability: Variability = ROBOT,
+    seed: int = 0,
+    depth_for_force=None,
+    approach_gap: float = 0.002,
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0),
+) -> PressProfile:
+    """Setpoint trajectory of one press-and-release at ``target``.
+
+    Args:
+        target: where and how to press (x, y m; depth m or force N; speed m/s; hold s).
+        surface_z: height of the undeformed surface at (x, y), m.
+        radius: tip sphere radius, m.
+        timestep: sampling step of the trajectory, s (the physics step or finer).
+        variability: :data:`ROBOT` for an exact press, :data:`HUMAN` (or a custom one) for a human-like press.
+        seed: seed of the variability draws.
+        depth_for_force: function force (N) -> indentation (m) used for force targets (e.g. the Hertz
+            estimate for the local material); required when ``target.force`` is set.
+        approach_gap: gap between tip and surface at the start and end, m.
+        normal: unit surface normal at the press point (pressing runs along it).
+
+    Returns:
+        a :class:`PressProfile` sampled every ``timestep`` s.
+    """
+    if not (np.isfinite(timestep) and timestep > 0):
+        raise ValidationError(f"press_profile: timestep must be > 0 s, got {timestep!r}")
+    if not (np.isfinite(radius) and radius > 0):
+        raise ValidationError(f"press_profile: radius must be > 0 m, got {radius!r}")
+    if not (np.isfinite(approach_gap) and approach_gap >= 0):
+        raise ValidationError(f"press_profile: approach_gap must be >= 0 m, got {approach_gap!r}")
+    nrm = np.asarray(normal, dtype=float)
+    if nrm.shape != (3,) or not np.all(np.isfinite(nrm)) or np.linalg.norm(nrm) < 1e-9:
+        raise ValidationError(f"press_profile: normal must be a non-zero 3-vector, got {normal!r}")
+    nrm = nrm / np.linalg.norm(nrm)
+    rng = np.random.default_rng(seed)
+    v = variability
+
+    if target.depth is not None:
+        depth = target.depth * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
+        force_target = None
+    else:
+        if depth_for_force is None:
+            raise ValidationError("press_profile: a force target needs depth_for_force (force N -> depth m)")
+        force_target = float(target.force) * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
+        depth = float(depth_for_force(force_target))
+        if not (np.isfinite(depth) and depth > 0):
+            raise ValidationError(f"press_profile: depth_for_force({force_target}) gave {depth!r}, expected > 0 m")
+    speed_in = target.speed * max(1.0 + v.speed_cv * rng.standard_normal(), 0.2)
+    speed_out = target.speed * max(1.0 + v.speed_cv * rng.standard_normal(), 0.2)
+    hold = max(target.hold + v.hold_std * rng.standard_normal(), 0.0) if v.hold_std > 0 else target.hold
+    dx, dy = (v.lateral_std * rng.standard_normal(2)) if v.lateral_std > 0 else (0.0, 0.0)
+
+    # a minimum-jerk move peaks at 1.875x its mean speed; scale its duration so the peak matches the command
+    peak = 1.875 if v.smooth else 1.0
+    travel = approach_gap + depth
+    t_in = peak * travel / speed_in
+    t_out = peak * travel / speed_out
+    n_in = max(int(np.ceil(t_in / timestep)), 2) + 1
+    n_hold = int(np.ceil(hold / timestep)) if hold > 0 else 0
+    n_out = max(int(np.ceil(t_out / timestep)), 2) + 1
+
+    z_top = surface_z + radius + approach_gap
+    z_bottom = surface_z + radius - depth
+    t = np.concatenate([
+        np.linspace(0.0, t_in, n_in),
+        t_in + np.linspace(0.0, hold, n_hold + 1)[1:],
+        t_in + hold + np.linspace(0.0, t_out, n_out)[1:],
+    ])
+    z = np.concatenate([
+        z_top + (z_bottom - z_top) * _ramp(n_in, v.smooth),
+        np.full(n_hold, z_bottom),
+        (z_bottom + (z_top - z_bottom) * _ramp(n_out, v.smooth))[1:],
+    ])
+    t_contact = t_in * _inverse_ramp(approach_gap / travel, v.smooth)
+    t_lift = t_in + hold + t_out * _inverse_ramp(depth / travel, v.smooth)
+    meta = {
+        "radius": float(radius),
+        "depth": float(depth),
+        "speed": float(target.speed),
+        "speed_in": float(speed_in),
+        "speed_out": float(speed_out),
+        "hold": float(hold),
+        "approach_gap": float(approach_gap),
+        "normal": [float(c) for c in nrm],
+        "mode": "robot" if v == ROBOT else "human",
+        "force_target": force_target,
+        "seed": int(seed),
+        "phases": {
+            "approach": [0.0, float(t_contact)],
+            "press": [float(t_contact), float(t_in)],
+            "hold": [float(t_in), float(t_in + hold)],
+            "release": [float(t_in + hold), float(t_lift)],
+            "retract": [float(t_lift), float(t[-1])],
+        },
+    }
+    return PressProfile(t=t, z=z, x=float(target.x + dx), y=float(target.y + dy), surface_z=float(surface_z),
+                        meta=meta)
+
+
+def _inverse_ramp(fraction: float, smooth: bool) -> float:
+    """Normalised time at which the ramp reaches ``fraction`` of its travel."""
+    if not smooth:
+        return fraction
+    s = np.linspace(0.0, 1.0, 2001)
+    return float(np.interp(fraction, _ramp(2001, True), s))
