@@ -24,8 +24,9 @@ class PressTarget:
 
     Attributes:
         x, y: target location on the object's surface, m (world frame).
-        depth: indentation to reach beyond first contact, m (None if pressing to a force).
-        force: normal force to reach, N (None if pressing to a depth).
+        depth: indentation to reach beyond first contact, m (None if pressing to a force only).
+        force: normal force to reach, N (None if pressing to a depth only). With both, the press stops at
+            whichever comes first, as a person pressing a hard object stops before the planned depth.
         speed: approach/press speed, m/s.
         hold: time held at the deepest point, s.
         label: free text carried into the recording (e.g. "Region_3").
@@ -40,8 +41,8 @@ class PressTarget:
     label: str = ""
 
     def __post_init__(self) -> None:
-        if (self.depth is None) == (self.force is None):
-            raise ValidationError("PressTarget needs exactly one of depth (m) or force (N)")
+        if self.depth is None and self.force is None:
+            raise ValidationError("PressTarget needs a depth (m), a force (N), or both (whichever comes first)")
         if self.depth is not None and not self.depth > 0:
             raise ValidationError(f"PressTarget.depth must be > 0 m, got {self.depth}")
         if self.force is not None and not self.force > 0:
