@@ -1,0 +1,437 @@
+"""The `flex` fidelity: a MuJoCo deformable block (trilinear flexcomp with linear elasticity) pressed by the tip.
+
+What it models: finite thickness, layers and inclusions, large indentation, with the object's bottom bonded to the
+table. What it does not: the block is a *window* of the object around the press point (at most ``window`` wide,
+full height); where the window cuts through the object its side faces are pinned (the material around it is
+treated as rigid), free object edges stay free. A cylinder is modelled by the square inscribed in it; meshes are
+not supported. Gravity is off so that the undeformed top stays at the object's height.
+
+Validity limits (see benchmarks/flex_resolution.py for the measured table):
+- The elastic field is trilinear per cell (cell edge ``resolution``, default 6.5 mm, ~0.8 tip radius), far
+  coarser than the Hertz contact radius at small indentation, so the raw block is ~2x stiffer than Hertz and its
+  force-indentation exponent is ~1.4 rather than 1.5. The modulus is divided by a calibrated factor
+  (:mod:`palpate.sim.flex_calibration`) so that a thick homogeneous block matches Hertz in 0.3-1.5 mm.
+- Layers and inclusions are resolved per cell: each cell takes the material at its centre (stiffness matrix
+  rebuilt from that material's Lame parameters). Features thinner than a cell are smeared or lost.
+- Damping is one value per flex (MuJoCo has no per-cell damping): the largest damping of the materials present.
+- Contact is frictionless (condim 1) with the direct solref form; lateral jitter of the press point is applied
+  as a fixed offset (the tip moves only vertically).
+
+Taxels: each contact's normal force is spread over the pad by the skin model, a Gaussian of width ``skin_sigma``
+on the pad plane (the pad is wrapped onto the sphere by arc length), and averaged over each sensel square exactly
+(erf products), so the pressure field conserves the force and is smooth even when only a few flex vertices touch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import ndtr
+
+from palpate.core.errors import SimulationDiverged, ValidationError
+from palpate.core.scene import FingertipSpec, Material, ObjectSpec, Scene, material_index_at
+from palpate.sim.flex_calibration import modulus_factor
+from palpate.sim.trace import PhysicsTrace
+
+#: Default cell edge of the elastic grid, m.
+DEFAULT_RESOLUTION = 0.0065
+#: Default physics step, s (the discrete integrator was stable here; 50 Hz taxels need far less).
+DEFAULT_TIMESTEP = 0.005
+#: Default lateral size of the simulated window around the press point, m.
+DEFAULT_WINDOW = 0.04
+#: Direct-form contact solref (stiffness, damping): the reference form lets the tip sink through the flex.
+CONTACT_SOLREF = (-1.0e8, -2.0e4)
+NAME = "obj"
+
+
+@dataclass(frozen=True)
+class FlexGrid:
+    """The simulated window of the object.
+
+    Attributes:
+        lower: (x, y, z) lower corner, m, world frame.
+        size: (sx, sy, sz) extents, m.
+        cells: (nx, ny, nz) trilinear cells per axis.
+        pinned: which side faces are pinned, order (x-, x+, y-, y+) (the bottom is always pinned).
+    """
+
+    lower: np.ndarray
+    size: np.ndarray
+    cells: tuple[int, int, int]
+    pinned: tuple[bool, bool, bool, bool]
+
+    @property
+    def cell(self) -> np.ndarray:
+        """Cell edge lengths (hx, hy, hz), m."""
+        return self.size / np.asarray(self.cells)
+
+    def cell_centres(self) -> np.ndarray:
+        """(n, 3) cell centres in MuJoCo's cell order (z fastest, then y, then x), m."""
+        nx, ny, nz = self.cells
+        i, j, k = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
+        idx = np.stack([i.ravel(), j.ravel(), k.ravel()], axis=1) + 0.5
+        return self.lower + idx * self.cell
+
+
+def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_RESOLUTION,
+              window: float = DEFAULT_WINDOW) -> FlexGrid:
+    """Window of ``obj`` around the press point (x, y) (m), meshed with cells of about ``resolution`` m."""
+    if not (np.isfinite(resolution) and resolution > 0):
+        raise ValidationError(f"flex: resolution must be a cell size > 0 m, got {resolution!r}")
+    if not (np.isfinite(window) and window > 0):
+        raise ValidationError(f"flex: window must be > 0 m, got {window!r}")
+    cx, cy = obj.position
+    if obj.shape == "box":
+        half = np.array(obj.size[:2], dtype=float) / 2.0
+        edges_free = True
+    elif obj.shape == "cylinder":
+        half = np.full(2, obj.size[0] / np.sqrt(2.0))
+        edges_free = False
+    else:
+        raise ValidationError(f"object {obj.name!r}: the flex fidelity supports shapes 'box' and 'cylinder', "
+                              f"not {obj.shape!r}; use fidelity 'rigid' or 'analytic' for meshes")
+    lo_obj = np.array([cx, cy]) - half
+    hi_obj = np.array([cx, cy]) + half
+    w = np.minimum(window / 2.0, half)
+    centre = np.clip(np.array([x, y], dtype=float), lo_obj + w, hi_obj - w)
+    lo, hi = centre - w, centre + w
+    eps = 1e-9
+    pinned = (
+        bool(lo[0] > lo_obj[0] + eps or not edges_free), bool(hi[0] < hi_obj[0] - eps or not edges_free),
+        bool(lo[1] > lo_obj[1] + eps or not edges_free), bool(hi[1] < hi_obj[1] - eps or not edges_free),
+    )
+    size = np.array([hi[0] - lo[0], hi[1] - lo[1], obj.height])
+    # an even lateral count puts a node column under a centred press: a cell centre there would reduce the
+    # trilinear field to one averaged spring (exponent ~1 instead of ~1.4)
+    nx, ny = (int(2 * max(1, round(s / (2.0 * resolution)))) for s in size[:2])
+    nz = int(max(2, round(size[2] / resolution)))
+    cells = (nx, ny, nz)
+    return FlexGrid(lower=np.array([lo[0], lo[1], 0.0]), size=size, cells=cells, pinned=pinned)
+
+
+def _lame(young: float, poisson: float) -> tuple[float, float]:
+    """Lame parameters (lambda, mu), Pa."""
+    return young * poisson / ((1 + poisson) * (1 - 2 * poisson)), young / (2 * (1 + poisson))
+
+
+def _cell_basis(cell: np.ndarray, verts_per_cell: int) -> tuple[np.ndarray, np.ndarray]:
+    """Stiffness blocks per unit lambda and per unit mu of one trilinear cell of edges ``cell`` (m).
+
+    MuJoCo's linear elasticity is linear in the Lame parameters, so two single-cell compiles span every material.
+    """
+    import mujoco
+
+    blocks = []
+    for young, poisson in ((1.0, 0.0), (1.0, 0.25)):
+        spec = mujoco.MjSpec()
+        body = spec.worldbody.add_body(name="b")
+        flex = body.make_flex("c", type="box", dim=3, dof="trilinear", count=[verts_per_cell + 1] * 3,
+                              cellcount=[1, 1, 1], spacing=list(cell / verts_per_cell), mass=1.0)
+        flex.young, flex.poisson = young, poisson
+        blocks.append(spec.compile().flex_stiffness.copy())
+    k_mu = blocks[0] / _lame(1.0, 0.0)[1]
+    lam1, mu1 = _lame(1.0, 0.25)
+    k_lam = (blocks[1] - mu1 * k_mu) / lam1
+    return k_lam, k_mu
+
+
+def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, x: float, y: float, z0: float, *,
+                     timestep: float = DEFAULT_TIMESTEP, factor: float = 1.0, verts_per_cell: int = 3,
+                     density: float = 1000.0, min_damping: float = 2.0e-3, kp: float | None = None):
+    """Compile the MuJoCo model: the flex window, the tip on a vertical slide joint, a position actuator.
+
+    Args:
+        scene, obj: the scene and the pressed object.
+        grid: the window (see :func:`flex_grid`).
+        x, y, z0: tip-centre start position, m.
+        timestep: physics step, s (integrator "discrete": 3D flex elasticity needs it in MuJoCo 4.0).
+        factor: calibration; every modulus is divided by it.
+        verts_per_cell: collision vertices per cell edge (contact resolution = cell / verts_per_cell).
+        density: mass density of the block, kg/m^3.
+        min_damping: floor of the flex damping, s (Kelvin-Voigt time), which keeps the grid from ringing.
+        kp: actuator stiffness, N/m; by default 50x the Hertz stiffness of the stiffest material at 4 mm.
+
+    Returns:
+        (model, info) with info holding ids ("tip_joint", "tip_geom", "flex"), per-cell material names and the
+        moduli used.
+    """
+    import mujoco
+
+    mats = obj.materials()
+    names = [m.name for m in mats]
+    centres = grid.cell_centres()
+    idx = material_index_at(obj, centres, names)
+    # cells whose centre falls outside the object (cylinder windows never do; guard anyway) take the bulk
+    idx[idx < 0] = 0
+    used = sorted(set(idx.tolist()))
+    bulk = obj.material
+
+    spec = mujoco.MjSpec()
+    spec.modelname = "palpate_flex"
+    spec.option.timestep = timestep
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_DISCRETE
+    spec.option.gravity = [0.0, 0.0, 0.0]
+    count = [c * verts_per_cell + 1 for c in grid.cells]
+    spacing = list(grid.cell / verts_per_cell)
+    centre = grid.lower + grid.size / 2.0
+    body = spec.worldbody.add_body(name=NAME, pos=list(centre))
+    flex = body.make_flex(NAME, type="box", dim=3, dof="trilinear", count=count, cellcount=list(grid.cells),
+                          spacing=spacing, mass=float(density * np.prod(grid.size)), radius=0.0)
+    flex.young = bulk.young / factor
+    flex.poisson = bulk.poisson
+    flex.damping = max([mats[i].damping for i in used] + [min_damping])
+    flex.solref = list(CONTACT_SOLREF)
+    flex.condim = 1
+    flex.selfcollide = mujoco.mjtFlexSelf.mjFLEXSELF_NONE
+
+    # pin the bottom (bonded to the table) and the faces where the window cuts through the object
+    half = grid.size / 2.0
+    tol = 1e-3 * float(grid.cell.min())
+    for node in list(spec.bodies):
+        if not node.name.startswith(NAME + "_"):
+            continue
+        p = np.asarray(node.pos)
+        faces = (p[0] < -half[0] + tol, p[0] > half[0] - tol, p[1] < -half[1] + tol, p[1] > half[1] - tol)
+        if p[2] < -half[2] + tol or any(f and pin for f, pin in zip(faces, grid.pinned, strict=True)):
+            for joint in list(node.joints):
+                spec.delete(joint)
+
+    tip_r = scene.fingertip.radius
+    tip = spec.worldbody.add_body(name="tip", pos=[x, y, z0])
+    joint = tip.add_joint(name="tip_z", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1], armature=10.0)
+    tip.add_geom(name="tip", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[tip_r, 0, 0], mass=0.01, condim=1)
+    e_max = max(mats[i].effective_modulus for i in used) / factor
+    if kp is None:
+        kp = max(1.0e4, 50.0 * 2.0 * e_max * np.sqrt(tip_r * 0.004))
+    act = spec.add_actuator(name="tip_drive", target="tip_z", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    act.set_to_position(kp=float(kp), kv=float(2.0 * np.sqrt(kp * joint.armature)))
+    model = spec.compile()
+
+    fid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, NAME)
+    if len(used) > 1:
+        ncell = int(np.prod(grid.cells))
+        stiff = model.flex_stiffness[model.flex_stiffnessadr[fid]:].reshape(ncell, -1)[:ncell]
+        k_lam, k_mu = _cell_basis(grid.cell, verts_per_cell)
+        lam_b, mu_b = _lame(bulk.young / factor, bulk.poisson)
+        ref = lam_b * k_lam + mu_b * k_mu
+        if k_lam.shape != stiff[0].shape or not np.allclose(stiff[0], ref, rtol=1e-6, atol=1e-9 * np.abs(ref).max()):
+            raise ValidationError("flex: this MuJoCo build stores cell stiffness differently; per-cell materials "
+                                  "(layers, inclusions) are not supported with it")
+        for i in used:
+            lam, mu = _lame(mats[i].young / factor, mats[i].poisson)
+            stiff[idx == i] = lam * k_lam + mu * k_mu
+    info = {
+        "tip_joint": model.joint("tip_z").id,
+        "tip_geom": model.geom("tip").id,
+        "flex": fid,
+        "cell_material": [names[i] for i in idx],
+        "young_used": {names[i]: mats[i].young / factor for i in used},
+        "kp": float(kp),
+    }
+    return model, info
+
+
+def pad_coordinates(offsets: np.ndarray, radius: float) -> np.ndarray:
+    """Map points on the tip sphere (offsets from its centre, (k, 3), m) to pad-plane coordinates (k, 2), m.
+
+    The pad is wrapped onto the sphere by arc length from the lowest point (azimuthal equidistant), so a pad
+    wider than the sphere's diameter still fits, as a flexible Tekscan pad wrapped round a fingertip does.
+    """
+    off = np.asarray(offsets, dtype=float)
+    r = np.linalg.norm(off, axis=1)
+    r = np.where(r > 0, r, 1.0)
+    cos_t = np.clip(-off[:, 2] / r, -1.0, 1.0)
+    arc = radius * np.arccos(cos_t)
+    rho = np.linalg.norm(off[:, :2], axis=1)
+    scale = np.where(rho > 1e-15, arc / np.where(rho > 1e-15, rho, 1.0), 0.0)
+    return off[:, :2] * scale[:, None]
+
+
+def sensel_pressure(pad_xy: np.ndarray, forces: np.ndarray, fingertip: FingertipSpec,
+                    skin_sigma: float) -> np.ndarray:
+    """Mean pressure over each sensel, Pa, shape (rows, cols), from point forces spread by a Gaussian skin.
+
+    Args:
+        pad_xy: (k, 2) force positions on the pad plane, m (see :func:`pad_coordinates`).
+        forces: (k,) normal forces, N, >= 0.
+        fingertip: pad layout.
+        skin_sigma: standard deviation of the skin's spreading kernel, m.
+    """
+    centres = fingertip.sensel_centres().reshape(-1, 2)
+    if len(forces) == 0:
+        return np.zeros((fingertip.rows, fingertip.cols))
+    half = fingertip.sensel_size / 2.0
+    d = centres[None, :, :] - np.asarray(pad_xy)[:, None, :]  # (k, s, 2)
+    # exact mean of a Gaussian over a square: product of 1-D erf differences
+    frac = np.prod(ndtr((d + half) / skin_sigma) - ndtr((d - half) / skin_sigma), axis=2)
+    p = np.asarray(forces) @ frac / fingertip.sensel_area
+    return p.reshape(fingertip.rows, fingertip.cols)
+
+
+def _diverged(what: str, t: float, timestep: float) -> SimulationDiverged:
+    return SimulationDiverged(
+        f"flex: {what} at t={t:.4f} s (timestep {timestep} s); reduce the timestep, the press speed or the "
+        "stiffness (a coarser resolution or softer material), or stiffen the contact solref"
+    )
+
+
+def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: float | None = None,
+                   resolution: float | None = None, seed: int = 0, window: float = DEFAULT_WINDOW,
+                   skin_sigma: float | None = None, calibrate: bool = True, verts_per_cell: int = 3,
+                   kp: float | None = None) -> PhysicsTrace:
+    """Simulate one press-and-release of ``obj`` with a deformable flex block; return the physics-rate trace.
+
+    Args:
+        scene: the scene (fingertip geometry and pad layout).
+        obj: the pressed object (box or cylinder; materials, layers, inclusions).
+        target: the press target (kept for the trace's provenance; the motion comes from ``profile``).
+        profile: a PressProfile: t (s), z (tip-centre height setpoints, m), x, y (m), surface_z (m), meta.
+        timestep: physics step, s (default 5 ms).
+        resolution: elastic cell edge, m (default 6.5 mm).
+        seed: recorded for provenance; the physics is deterministic and draws no random numbers.
+        window: lateral size of the simulated window around the press point, m.
+        skin_sigma: width of the skin's Gaussian spreading kernel, m (default: half the contact vertex spacing,
+            at least 1 mm).
+        calibrate: divide moduli by the calibrated factor (False only to measure the calibration).
+        verts_per_cell: collision vertices per cell edge.
+        kp: tip position-actuator stiffness, N/m (default from the stiffest material).
+
+    Returns:
+        PhysicsTrace with sensel_pressure (n, rows, cols) Pa, force N (total normal contact force), indentation m
+        (surface_z minus the tip's lowest point, clipped at 0).
+
+    Raises:
+        SimulationDiverged: a MuJoCo warning (bad qacc, instability), NaN, or the tip sinking through the block.
+        ValidationError: unsupported object shape or bad parameters.
+    """
+    import mujoco
+
+    dt = DEFAULT_TIMESTEP if timestep is None else float(timestep)
+    res = DEFAULT_RESOLUTION if resolution is None else float(resolution)
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValidationError(f"flex: timestep must be > 0 s, got {timestep!r}")
+    t_prof = np.asarray(profile.t, dtype=float)
+    z_prof = np.asarray(profile.z, dtype=float)
+    if t_prof.ndim != 1 or t_prof.shape != z_prof.shape or len(t_prof) < 2 or np.any(np.diff(t_prof) <= 0):
+        raise ValidationError("flex: profile.t must be strictly increasing and match profile.z in shape")
+    if not (np.all(np.isfinite(z_prof)) and np.isfinite(profile.x) and np.isfinite(profile.y)):
+        raise ValidationError("flex: profile z, x, y must be finite (m)")
+    tip = scene.fingertip
+    x, y = float(profile.x), float(profile.y)
+    surface_z = float(profile.surface_z)
+    grid = flex_grid(obj, x, y, res, window)
+    factor, extrapolated = (modulus_factor(float(grid.cell[:2].mean()), tip.radius) if calibrate else (1.0, False))
+    model, info = build_flex_model(scene, obj, grid, x, y, float(z_prof[0]), timestep=dt, factor=factor,
+                                   verts_per_cell=verts_per_cell, kp=kp)
+    data = mujoco.MjData(model)
+    sigma = skin_sigma if skin_sigma is not None else max(1.0e-3, 0.5 * float(grid.cell[:2].min()) / verts_per_cell)
+    qadr = model.jnt_qposadr[info["tip_joint"]]
+    gid = info["tip_geom"]
+    z0 = float(z_prof[0])
+    warn = data.warning
+    watched = [mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_CNSTRFULL,
+               mujoco.mjtWarning.mjWARN_CONTACTFULL]
+
+    n = int(np.floor((t_prof[-1] - t_prof[0]) / dt + 1e-9)) + 1
+    times = t_prof[0] + dt * np.arange(n)
+    setpoints = np.interp(times, t_prof, z_prof) - z0
+    tip_z = np.empty(n)
+    force = np.empty(n)
+    pressure = np.empty((n, tip.rows, tip.cols))
+    min_dist = 0.0
+    for k in range(n):
+        data.ctrl[0] = setpoints[k]
+        if k > 0:
+            mujoco.mj_step(model, data)
+        for w in watched:
+            if warn[w].number:
+                raise _diverged(f"MuJoCo warning {w.name}", times[k], dt)
+        if not np.all(np.isfinite(data.qacc)) or not np.all(np.isfinite(data.qpos)):
+            raise _diverged("non-finite state", times[k], dt)
+        zc = z0 + data.qpos[qadr]
+        tip_z[k] = zc
+        ncon = data.ncon
+        if ncon:
+            con = data.contact
+            mine = np.any(con.geom[:ncon] == gid, axis=1) & (con.efc_address[:ncon] >= 0)
+            fn = data.efc_force[con.efc_address[:ncon][mine]]
+            fn = np.clip(fn, 0.0, None)
+            pos = con.pos[:ncon][mine]
+            if mine.any():
+                min_dist = min(min_dist, float(con.dist[:ncon][mine].min()))
+            force[k] = fn.sum()
+            pressure[k] = sensel_pressure(pad_coordinates(pos - [x, y, zc], tip.radius), fn, tip, sigma)
+        else:
+            force[k] = 0.0
+            pressure[k] = 0.0
+        if zc - tip.radius < 0.02 * obj.height or min_dist < -max(0.002, 0.5 * tip.radius):
+            raise _diverged("the tip sank through the flex block", times[k], dt)
+        if not np.isfinite(force[k]):
+            raise _diverged("non-finite contact force", times[k], dt)
+
+    mat_names = set(info["cell_material"])
+    trace = PhysicsTrace(
+        t=times,
+        tip_position=np.column_stack([np.full(n, x), np.full(n, y), tip_z]),
+        tip_quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
+        sensel_pressure=pressure,
+        force=force,
+        indentation=np.clip(surface_z - (tip_z - tip.radius), 0.0, None),
+        surface_z=surface_z,
+        material=_material_under(obj, x, y),
+        meta={
+            "fidelity": "flex",
+            "timestep": dt,
+            "integrator": "discrete",
+            "resolution": res,
+            "cell": [float(c) for c in grid.cell],
+            "cells": list(grid.cells),
+            "window_lower": [float(v) for v in grid.lower],
+            "window_size": [float(v) for v in grid.size],
+            "pinned_sides": list(grid.pinned),
+            "calibration_factor": factor,
+            "calibration_extrapolated": extrapolated,
+            "young_used": info["young_used"],
+            "materials": sorted(mat_names),
+            "skin_sigma": float(sigma),
+            "contact_solref": list(CONTACT_SOLREF),
+            "kp": info["kp"],
+            "max_contact_penetration": -min_dist,
+            "seed": int(seed),
+            "target": None if target is None else {"x": target.x, "y": target.y, "depth": target.depth,
+                                                   "force": target.force, "speed": target.speed},
+            "press_end": float(profile.meta.get("phases", {}).get("press", [0.0, times[int(np.argmin(tip_z))]])[1]),
+        },
+    )
+    trace.check_finite()
+    return trace
+
+
+def _material_under(obj: ObjectSpec, x: float, y: float) -> str | None:
+    """Name of the material just under the surface at (x, y), None if outside."""
+    mats = obj.materials()
+    i = int(material_index_at(obj, np.array([[x, y, obj.height - 1e-6]]), [m.name for m in mats])[0])
+    return mats[i].name if i >= 0 else None
+
+
+def reference_press(*, young: float, poisson: float = 0.3, height: float = 0.02, radius: float = 0.008,
+                    resolution: float = DEFAULT_RESOLUTION, timestep: float = DEFAULT_TIMESTEP,
+                    depth: float = 0.004, speed: float = 0.01, window: float = DEFAULT_WINDOW,
+                    calibrate: bool = True, damping: float = 0.0,
+                    layers: tuple = (), inclusions: tuple = ()) -> PhysicsTrace:
+    """One robot press at the centre of a ``window``-wide box of one material (calibration and benchmarks).
+
+    Args: moduli Pa, lengths m, speed m/s, timestep s; layers/inclusions as in :class:`ObjectSpec`.
+    """
+    from palpate.core.sources import PressTarget
+    from palpate.sim.controller import press_profile
+
+    mat = Material("bulk", young=young, poisson=poisson, damping=damping)
+    obj = ObjectSpec(name="block", shape="box", size=(window, window, height), position=(0.0, 0.0),
+                     material=mat, layers=tuple(layers), inclusions=tuple(inclusions))
+    scene = Scene(objects=(obj,), fingertip=FingertipSpec(radius=radius))
+    target = PressTarget(x=0.0, y=0.0, depth=depth, speed=speed)
+    profile = press_profile(target, height, radius=radius, timestep=timestep)
+    return run_flex_press(scene, obj, target, profile, timestep=timestep, resolution=resolution,
+                          window=window, calibrate=calibrate)
