@@ -1,0 +1,424 @@
+"""Scenario files (TOML): what to build, what to explore, what to report — validated on load.
+
+Loading never executes code: the file is parsed with ``tomllib`` and every key is checked against the schema
+below. Unknown keys are errors, not ignored. An error names the file, the key path and what was expected, e.g.
+``scenarios/x.toml: objects[1].size_mm: expected 3 numbers for shape 'box', got 2``.
+
+Keys carry their unit in their name (``young_kpa``, ``size_mm``, ``speed_mm_s``); the loader converts to SI.
+See ``scenarios/README.md`` for the full schema with an example of every table.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from palpate.core.errors import ValidationError
+from palpate.core.scene import (
+    FingertipSpec,
+    Inclusion,
+    Layer,
+    Material,
+    ObjectSpec,
+    PoseSensorSpec,
+    TaxelSensorSpec,
+)
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+FIDELITIES = ("analytic", "rigid", "flex", "auto")
+MAP_KINDS = ("grid2d", "voxel")
+POLICIES = ("predefined", "raster", "random")
+VARIABILITY = ("human", "robot")
+_REQUIRED = object()
+
+
+@dataclass(frozen=True)
+class MaterialEntry:
+    """A material of the scenario; ``reference`` ones form the haptic memory.
+
+    ``like`` names the reference material an object made of this material should be classified as (its ground
+    truth); a reference material is its own ``like``.
+    """
+
+    material: Material
+    reference: bool
+    like: str
+
+
+@dataclass(frozen=True)
+class TrainingSpec:
+    """How the reference materials are pressed to train the haptic memory."""
+
+    presses_per_material: int = 10
+    depth: float = 0.004
+    max_force: float | None = 5.0
+    speed: float = 0.01
+    variability: str = "human"
+    memory: Path | None = None
+
+
+@dataclass(frozen=True)
+class ExplorationSpec:
+    """How each object is explored and mapped."""
+
+    map: str = "grid2d"
+    cell_size: float = 0.01
+    voxel_depth: float = 0.015
+    policy: str = "predefined"
+    budget: int = 10
+    presses_per_region: int = 2
+    depth: float = 0.004
+    max_force: float | None = 5.0
+    speed: float = 0.01
+    variability: str = "human"
+    entropy_base: float = 10.0
+    stop_mean_entropy: float | None = None
+
+
+@dataclass(frozen=True)
+class ObjectEntry:
+    """An object to explore: its physical description and where to press (1-based cells, as seed Table 6.8)."""
+
+    spec: ObjectSpec
+    regions: tuple[tuple[int, int], ...] = ()
+    grid_origin: tuple[float, float] | None = None
+    grid_shape: tuple[int, int] | None = None
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """What the run writes besides summary.json and the maps."""
+
+    figures: bool = True
+    haptic_material: bool = True
+    render_3d: bool = True
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario. Lengths in m, moduli in Pa, forces in N, speeds in m/s."""
+
+    name: str
+    path: Path | None
+    description: str
+    seed: int
+    fidelity: str
+    materials: dict[str, MaterialEntry]
+    fingertip: FingertipSpec
+    taxels: TaxelSensorSpec
+    pose: PoseSensorSpec
+    training: TrainingSpec
+    exploration: ExplorationSpec
+    objects: tuple[ObjectEntry, ...]
+    outputs: OutputSpec = field(default_factory=OutputSpec)
+    raw: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def references(self) -> list[str]:
+        """Names of the reference materials, in file order (the haptic memory's classes)."""
+        return [n for n, m in self.materials.items() if m.reference]
+
+    def truth_names(self) -> dict[str, str]:
+        """Material name -> the reference material it counts as for ground truth."""
+        return {n: m.like for n, m in self.materials.items()}
+
+
+class _Reader:
+    """Typed access to a TOML table that records the key path for error messages."""
+
+    def __init__(self, file: str, table: dict, path: str):
+        self.file, self.table, self.path = file, table, path
+        self.used: set[str] = set()
+
+    def err(self, key: str, msg: str) -> ValidationError:
+        where = f"{self.path}.{key}" if self.path else key
+        return ValidationError(f"{self.file}: {where}: {msg}")
+
+    def get(self, key: str, kind: type | tuple, default: Any = _REQUIRED) -> Any:
+        self.used.add(key)
+        if key not in self.table:
+            if default is _REQUIRED:
+                raise self.err(key, "missing (required)")
+            return default
+        value = self.table[key]
+        kinds = kind if isinstance(kind, tuple) else (kind,)
+        if float in kinds and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if isinstance(value, bool) and bool not in kinds:
+            raise self.err(key, f"expected {_kind_name(kinds)}, got a boolean")
+        if not isinstance(value, kinds):
+            raise self.err(key, f"expected {_kind_name(kinds)}, got {type(value).__name__} {value!r}")
+        return value
+
+    def number(self, key: str, default: Any = _REQUIRED, *, lo: float | None = None, hi: float | None = None,
+               lo_open: bool = False) -> float:
+        value = self.get(key, float, default)
+        if value is None or value is default and default is not _REQUIRED:
+            return value
+        if value != value or value in (float("inf"), float("-inf")):
+            raise self.err(key, "must be a finite number")
+        if lo is not None and (value < lo or (lo_open and value == lo)):
+            raise self.err(key, f"must be {'>' if lo_open else '>='} {lo}, got {value}")
+        if hi is not None and value > hi:
+            raise self.err(key, f"must be <= {hi}, got {value}")
+        return value
+
+    def integer(self, key: str, default: Any = _REQUIRED, *, lo: int | None = None) -> int:
+        value = self.get(key, int, default)
+        if lo is not None and value < lo:
+            raise self.err(key, f"must be >= {lo}, got {value}")
+        return value
+
+    def choice(self, key: str, choices: tuple[str, ...], default: Any = _REQUIRED) -> str:
+        value = self.get(key, str, default)
+        if value not in choices:
+            raise self.err(key, f"must be one of {', '.join(choices)}; got {value!r}")
+        return value
+
+    def numbers(self, key: str, count: int | tuple[int, ...], default: Any = _REQUIRED, *,
+                positive: bool = False) -> tuple[float, ...]:
+        value = self.get(key, list, default)
+        if value is default and default is not _REQUIRED:
+            return value
+        counts = count if isinstance(count, tuple) else (count,)
+        if len(value) not in counts or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                               for v in value):
+            raise self.err(key, f"expected {' or '.join(map(str, counts))} numbers, got {value!r}")
+        out = tuple(float(v) for v in value)
+        if positive and any(v <= 0 for v in out):
+            raise self.err(key, f"values must be > 0, got {value!r}")
+        return out
+
+    def sub(self, key: str, required: bool = False) -> _Reader:
+        value = self.get(key, dict, _REQUIRED if required else {})
+        return _Reader(self.file, value, f"{self.path}.{key}" if self.path else key)
+
+    def subs(self, key: str) -> list[_Reader]:
+        value = self.get(key, list, [])
+        out = []
+        for i, item in enumerate(value):
+            where = f"{self.path}.{key}[{i}]" if self.path else f"{key}[{i}]"
+            if not isinstance(item, dict):
+                raise ValidationError(f"{self.file}: {where}: expected a table, got {item!r}")
+            out.append(_Reader(self.file, item, where))
+        return out
+
+    def finish(self) -> None:
+        extra = sorted(set(self.table) - self.used)
+        if extra:
+            raise self.err(extra[0], f"unknown key (known keys here: {', '.join(sorted(self.used))})")
+
+
+def _kind_name(kinds: tuple) -> str:
+    names = {str: "a string", float: "a number", int: "an integer", bool: "true or false", list: "an array",
+             dict: "a table"}
+    return " or ".join(names.get(k, k.__name__) for k in kinds)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file. Raises ValidationError naming the file and key on any problem."""
+    p = Path(path)
+    if not p.is_file():
+        raise ValidationError(f"{p}: scenario file not found")
+    try:
+        raw = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ValidationError(f"{p}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise ValidationError(f"{p}: not a UTF-8 text file") from None
+    return parse_scenario(raw, str(p), base_dir=p.parent)
+
+
+def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = None) -> Scenario:
+    """Validate a scenario given as a parsed TOML dictionary (see :func:`load_scenario`)."""
+    base = base_dir or Path.cwd()
+    top = _Reader(file, raw, "")
+    head = top.sub("scenario", required=True)
+    name = head.get("name", str)
+    description = head.get("description", str, "")
+    seed = head.integer("seed", 0, lo=0)
+    fidelity = head.choice("fidelity", FIDELITIES, "auto")
+    head.finish()
+
+    materials: dict[str, MaterialEntry] = {}
+    for r in top.subs("materials"):
+        mname = r.get("name", str)
+        if mname in materials:
+            raise r.err("name", f"duplicate material name {mname!r}")
+        mat = Material(
+            name=mname,
+            young=r.number("young_kpa", lo=0.0, lo_open=True) * 1e3,
+            poisson=r.number("poisson", 0.3, lo=0.0, hi=0.4999),
+            damping=r.number("damping_s", 0.0, lo=0.0),
+        )
+        reference = r.get("reference", bool, True)
+        like = r.get("like", str, mname if reference else _REQUIRED)
+        r.finish()
+        materials[mname] = MaterialEntry(mat, reference, like)
+    if not materials:
+        raise ValidationError(f"{file}: materials: at least one [[materials]] table is required")
+    refs = [n for n, m in materials.items() if m.reference]
+    if len(refs) < 2:
+        raise ValidationError(f"{file}: materials: at least two reference materials are needed, got {refs}")
+    for n, m in materials.items():
+        if m.like not in refs:
+            raise ValidationError(f"{file}: materials: material {n!r} has like = {m.like!r}, "
+                                  f"which is not a reference material ({', '.join(refs)})")
+
+    ft = top.sub("fingertip")
+    fingertip = FingertipSpec(
+        radius=ft.number("radius_mm", 8.0, lo=0.0, lo_open=True) * 1e-3,
+        rows=ft.integer("rows", 4, lo=1),
+        cols=ft.integer("cols", 4, lo=1),
+        pitch=ft.number("pitch_mm", 4.0, lo=0.0, lo_open=True) * 1e-3,
+        sensel_size=ft.number("sensel_mm", 3.5, lo=0.0, lo_open=True) * 1e-3,
+    )
+    ft.finish()
+    sensors = top.sub("sensors")
+    tx = sensors.sub("taxels")
+    taxels = TaxelSensorSpec(
+        rate=tx.number("rate_hz", 50.0, lo=0.0, lo_open=True),
+        gain=tx.number("gain_counts_per_kpa", 1.0, lo=0.0, lo_open=True) * 1e-3,
+        noise_std=tx.number("noise_counts", 0.5, lo=0.0),
+        threshold=tx.integer("threshold_counts", 2, lo=0),
+        clock_offset=tx.number("clock_offset_s", 0.0),
+    )
+    tx.finish()
+    po = sensors.sub("pose")
+    pose = PoseSensorSpec(
+        rate=po.number("rate_hz", 30.0, lo=0.0, lo_open=True),
+        noise_std=po.number("noise_mm", 0.2, lo=0.0) * 1e-3,
+        clock_offset=po.number("clock_offset_s", 0.0),
+        jitter=po.number("jitter_ms", 1.0, lo=0.0) * 1e-3,
+    )
+    po.finish()
+    sensors.finish()
+
+    tr = top.sub("training")
+    memory = tr.get("memory", str, "")
+    training = TrainingSpec(
+        presses_per_material=tr.integer("presses_per_material", 10, lo=3),
+        depth=tr.number("depth_mm", 4.0, lo=0.0, lo_open=True) * 1e-3,
+        max_force=_optional_force(tr),
+        speed=tr.number("speed_mm_s", 10.0, lo=0.0, lo_open=True) * 1e-3,
+        variability=tr.choice("variability", VARIABILITY, "human"),
+        memory=_resolve(base, memory) if memory else None,
+    )
+    tr.finish()
+
+    ex = top.sub("exploration")
+    stop = ex.number("stop_mean_entropy", None, lo=0.0)
+    exploration = ExplorationSpec(
+        map=ex.choice("map", MAP_KINDS, "grid2d"),
+        cell_size=ex.number("cell_mm", 10.0, lo=0.0, lo_open=True) * 1e-3,
+        voxel_depth=ex.number("voxel_depth_mm", 15.0, lo=0.0, lo_open=True) * 1e-3,
+        policy=ex.choice("policy", POLICIES, "predefined"),
+        budget=ex.integer("budget", 10, lo=1),
+        presses_per_region=ex.integer("presses_per_region", 2, lo=1),
+        depth=ex.number("depth_mm", 4.0, lo=0.0, lo_open=True) * 1e-3,
+        max_force=_optional_force(ex),
+        speed=ex.number("speed_mm_s", 10.0, lo=0.0, lo_open=True) * 1e-3,
+        variability=ex.choice("variability", VARIABILITY, "human"),
+        entropy_base=ex.number("entropy_base", 10.0, lo=1.0, lo_open=True),
+        stop_mean_entropy=stop,
+    )
+    ex.finish()
+
+    objects = []
+    seen_names: set[str] = set()
+    for r in top.subs("objects"):
+        objects.append(_object(r, materials, base))
+        if objects[-1].spec.name in seen_names:
+            raise r.err("name", f"duplicate object name {objects[-1].spec.name!r}")
+        seen_names.add(objects[-1].spec.name)
+        if exploration.policy == "predefined" and not objects[-1].regions:
+            raise r.err("regions", "the 'predefined' policy needs a list of 1-based [column, row] cells")
+
+    out = top.sub("outputs")
+    outputs = OutputSpec(
+        figures=out.get("figures", bool, True),
+        haptic_material=out.get("haptic_material", bool, True),
+        render_3d=out.get("render_3d", bool, True),
+    )
+    out.finish()
+    top.finish()
+    return Scenario(name, Path(file) if file != "<scenario>" else None, description, seed, fidelity, materials,
+                    fingertip, taxels, pose, training, exploration, tuple(objects), outputs, raw)
+
+
+def _optional_force(r: _Reader) -> float | None:
+    value = r.number("max_force_n", 5.0, lo=0.0)
+    return None if value == 0 else value
+
+
+def _resolve(base: Path, value: str) -> Path:
+    p = Path(value)
+    if p.is_absolute() or p.exists():
+        return p
+    return base / p if (base / p).exists() else base.parent / p
+
+
+def _material(r: _Reader, key: str, materials: dict[str, MaterialEntry], default: Any = _REQUIRED) -> Material:
+    name = r.get(key, str, default)
+    if name not in materials:
+        raise r.err(key, f"unknown material {name!r}; defined materials: {', '.join(materials)}")
+    return materials[name].material
+
+
+def _object(r: _Reader, materials: dict[str, MaterialEntry], base: Path) -> ObjectEntry:
+    name = r.get("name", str)
+    shape = r.choice("shape", ("box", "cylinder", "mesh"), "box")
+    count = {"box": 3, "cylinder": 2, "mesh": 3}[shape]
+    size = tuple(v * 1e-3 for v in r.numbers("size_mm", count, positive=True))
+    position = tuple(v * 1e-3 for v in r.numbers("position_mm", 2, (0.0, 0.0)))
+    bulk = _material(r, "material", materials)
+    mesh = r.get("mesh", str, "")
+    layers = []
+    for lr in r.subs("layers"):
+        thickness = lr.number("thickness_mm", lo=0.0, lo_open=True) * 1e-3
+        layers.append(Layer(_material(lr, "material", materials), thickness))
+        lr.finish()
+    inclusions = []
+    for ir in r.subs("inclusions"):
+        ishape = ir.choice("shape", ("sphere", "box", "column"))
+        icount = {"sphere": 1, "box": 3, "column": 2}[ishape]
+        centre = ir.numbers("center_mm", (2, 3))
+        centre3 = (centre[0] * 1e-3, centre[1] * 1e-3, (centre[2] if len(centre) == 3 else 0.0) * 1e-3)
+        inclusions.append(Inclusion(_material(ir, "material", materials), ishape, centre3,
+                                    tuple(v * 1e-3 for v in ir.numbers("size_mm", icount, positive=True))))
+        ir.finish()
+    material_map = None
+    map_path = r.get("material_map", str, "")
+    if map_path:
+        from palpate.core.haptic_material import HapticMaterialMap
+
+        folder = _resolve(base, map_path)
+        hm = HapticMaterialMap.read(folder)
+        unknown = [m for m in hm.materials if m not in materials]
+        if unknown:
+            raise r.err("material_map", f"{folder} names materials {unknown} that the scenario does not define")
+        material_map = hm
+    regions = []
+    for i, cell in enumerate(r.get("regions", list, [])):
+        if not (isinstance(cell, list) and len(cell) == 2 and all(isinstance(c, int) and c >= 1 for c in cell)):
+            raise r.err(f"regions[{i}]", f"expected a 1-based [column, row] pair of integers, got {cell!r}")
+        regions.append((cell[0], cell[1]))
+    grid_origin = r.numbers("grid_origin_mm", 2, None)
+    grid_shape = r.get("grid_cells", list, None)
+    if grid_shape is not None and not (len(grid_shape) == 2 and all(isinstance(v, int) and v > 0 for v in grid_shape)):
+        raise r.err("grid_cells", f"expected [columns, rows] positive integers, got {grid_shape!r}")
+    r.finish()
+    try:
+        spec = ObjectSpec(name, shape, size, position, bulk, tuple(layers), tuple(inclusions),
+                          mesh_path=str(_resolve(base, mesh)) if mesh else None, material_map=material_map)
+    except ValidationError as exc:
+        raise ValidationError(f"{r.file}: {r.path}: {exc}") from None
+    return ObjectEntry(spec, tuple(regions),
+                       tuple(v * 1e-3 for v in grid_origin) if grid_origin else None,
+                       tuple(grid_shape) if grid_shape else None)

@@ -1,0 +1,99 @@
+"""Scenario files: the shipped ones load, and every kind of mistake names the file and the key path."""
+
+from pathlib import Path
+
+import pytest
+import tomllib
+
+from palpate.core.errors import ValidationError
+from palpate.core.scenario import load_scenario, parse_scenario
+
+SCENARIOS = sorted((Path(__file__).resolve().parent.parent / "scenarios").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", SCENARIOS, ids=[p.stem for p in SCENARIOS])
+def test_shipped_scenarios_load(path):
+    s = load_scenario(path)
+    assert len(s.references) >= 2
+    assert s.objects, "a shipped scenario explores at least one object"
+    for obj in s.objects:
+        for m in obj.spec.materials():
+            assert s.materials[m.name].like in s.references
+
+
+def test_thesis_scenario_is_the_seed_experiment():
+    s = load_scenario(Path(__file__).resolve().parent.parent / "scenarios" / "thesis_ch6.toml")
+    assert s.references == ["Material_1", "Material_2", "Material_3"]
+    assert s.training.presses_per_material == 10
+    assert [o.spec.name for o in s.objects] == ["Object_1", "Object_2", "Object_3"]
+    # Seed 000 Table 6.8, 1-based cells
+    assert s.objects[1].regions == ((5, 5), (12, 7), (5, 8), (20, 5), (20, 8))
+    assert s.exploration.cell_size == pytest.approx(0.01) and s.exploration.presses_per_region == 2
+
+
+def _base() -> dict:
+    return tomllib.loads("""
+[scenario]
+name = "t"
+[[materials]]
+name = "a"
+young_kpa = 20
+[[materials]]
+name = "b"
+young_kpa = 200
+[[objects]]
+name = "o"
+size_mm = [50, 50, 30]
+material = "a"
+regions = [[1, 1]]
+""")
+
+
+def test_minimal_scenario_converts_units():
+    s = parse_scenario(_base(), "t.toml")
+    assert s.materials["b"].material.young == pytest.approx(200e3)
+    assert s.objects[0].spec.size == pytest.approx((0.05, 0.05, 0.03))
+    assert s.fidelity == "auto"
+
+
+@pytest.mark.parametrize(
+    "mutate, key, expected",
+    [
+        (lambda d: d["scenario"].update(fidelity="fast"), "scenario.fidelity", "must be one of"),
+        (lambda d: d["scenario"].update(colour="red"), "scenario.colour", "unknown key"),
+        (lambda d: d["materials"][0].update(young_kpa="soft"), "materials[0].young_kpa", "expected a number"),
+        (lambda d: d["materials"][1].update(young_kpa=-3), "materials[1].young_kpa", "must be >"),
+        (lambda d: d["objects"][0].update(size_mm=[50, 50]), "objects[0].size_mm", "expected 3 numbers"),
+        (lambda d: d["objects"][0].update(material="steel"), "objects[0].material", "unknown material"),
+        (lambda d: d["objects"][0].update(regions=[[0, 1]]), "objects[0].regions[0]", "1-based"),
+        (lambda d: d.update(training={"presses_per_material": 1}), "training.presses_per_material", ">= 3"),
+        (lambda d: d.update(exploration={"map": "octree"}), "exploration.map", "must be one of"),
+        (lambda d: d["materials"][0].update(reference=False), "materials[0].like", "missing"),
+        (lambda d: d.pop("scenario"), "scenario", "missing"),
+    ],
+)
+def test_bad_scenarios_name_file_and_key(mutate, key, expected):
+    d = _base()
+    mutate(d)
+    with pytest.raises(ValidationError) as err:
+        parse_scenario(d, "bad.toml")
+    msg = str(err.value)
+    assert msg.startswith("bad.toml: "), msg
+    assert key in msg and expected in msg, msg
+
+
+def test_unreadable_files_are_reported(tmp_path):
+    with pytest.raises(ValidationError, match="not found"):
+        load_scenario(tmp_path / "nope.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[scenario\nname=1")
+    with pytest.raises(ValidationError, match="bad.toml: not valid TOML"):
+        load_scenario(bad)
+
+
+def test_loading_never_executes_code(tmp_path):
+    # A TOML string that looks like Python stays a string; only the schema's keys are accepted.
+    d = _base()
+    d["scenario"]["name"] = "__import__('os').system('false')"
+    s = parse_scenario(d, "t.toml")
+    assert s.name.startswith("__import__")
