@@ -1,0 +1,191 @@
+"""``analytic`` fidelity: Hertz contact of the spherical tip on an elastic half-space, in closed form.
+
+Force F = 4/3 E* sqrt(R) d^1.5, contact radius a = sqrt(R d), pressure p(r) = p0 sqrt(1 - r^2/a^2) with
+p0 = 3 F / (2 pi a^2), where E* = E / (1 - nu^2) of the local material (the tip is rigid) and d the commanded
+indentation of the press profile (the finger follows it exactly; no dynamics). Each sensel reports the mean of
+p over its square footprint, integrated exactly along x and by Gauss-Legendre along y between the points where
+the circle crosses the sensel edges, so the integrand is smooth on every piece.
+
+Validity: homogeneous material at least ~10 contact radii thick and wide (half-space), indentation small
+against the tip radius (d << R, paraboloid approximation of the sphere), quasi-static (damping ignored), flat
+surface under the tip (the object's own curvature is ignored). Outside these limits use ``rigid`` (finite and
+curved objects) or ``flex`` (layers, inclusions, thin objects). No MuJoCo is needed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.scene import Material, ObjectSpec, Scene, material_at
+from palpate.sim.controller import PressProfile
+from palpate.sim.fingertip import gauss_points, sensel_bounds
+from palpate.sim.trace import PhysicsTrace
+
+
+def hertz_force(young_eff: float, radius: float, depth: np.ndarray) -> np.ndarray:
+    """Hertz normal force, N, of a rigid sphere (radius m) pressed ``depth`` m into a half-space of E* Pa."""
+    d = np.maximum(np.asarray(depth, dtype=float), 0.0)
+    return 4.0 / 3.0 * young_eff * np.sqrt(radius) * d**1.5
+
+
+def hertz_contact_radius(radius: float, depth: np.ndarray) -> np.ndarray:
+    """Hertz contact radius a = sqrt(R d), m."""
+    return np.sqrt(radius * np.maximum(np.asarray(depth, dtype=float), 0.0))
+
+
+def hertz_depth_for_force(young_eff: float, radius: float, force: float) -> float:
+    """Indentation, m, at which the Hertz force reaches ``force`` N (inverse of :func:`hertz_force`)."""
+    if not (force > 0 and young_eff > 0 and radius > 0):
+        raise ValidationError(f"hertz_depth_for_force needs force, E*, R > 0; got {force}, {young_eff}, {radius}")
+    return float((3.0 * force / (4.0 * young_eff * np.sqrt(radius))) ** (2.0 / 3.0))
+
+
+def _chord_integral(x: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Antiderivative of sqrt(b^2 - x^2) in x, with x clipped to [-b, b] (b >= 0)."""
+    xb = np.minimum(np.maximum(x, -b), b)
+    ratio = xb / np.maximum(b, 1e-300)
+    return 0.5 * (xb * np.sqrt(np.maximum(b * b - xb * xb, 0.0)) + b * b * np.arcsin(ratio))
+
+
+def _rect_integrals(a: np.ndarray, x0: np.ndarray, x1: np.ndarray, y0: np.ndarray, y1: np.ndarray,
+                    order: int) -> np.ndarray:
+    """Integral of sqrt(a^2 - x^2 - y^2) over rectangles [x0, x1] x [y0, y1] cut by the disc r < a, all (P,)."""
+    y0 = np.maximum(y0, -a)
+    y1 = np.minimum(y1, a)
+    # the x-integral has kinks in y where the circle crosses a vertical sensel edge: split there
+    brk = [y0, y1]
+    for xe in (x0, x1):
+        h = np.sqrt(np.maximum(a**2 - xe**2, 0.0))
+        brk += [np.minimum(np.maximum(-h, y0), y1), np.minimum(np.maximum(h, y0), y1)]
+    edges = np.sort(np.stack(brk, axis=-1), axis=-1)  # (P, 6); pieces of zero width add nothing
+    s, w = gauss_points(order)
+    # smoothstep substitution: its Jacobian vanishes at both ends of a piece, which tames the (y - y_b)^1.5
+    # behaviour of the strip integral where the circle crosses a sensel edge (error ~1e-7 at order 8)
+    w = w * 6.0 * s * (1.0 - s)
+    s = s * s * (3.0 - 2.0 * s)
+    lo = edges[:, :-1, None]
+    width = edges[:, 1:, None] - lo  # (P, 5, 1)
+    y = lo + width * s  # (P, 5, order)
+    b = np.sqrt(np.maximum(a[:, None, None] ** 2 - y**2, 0.0))
+    strip = _chord_integral(x1[:, None, None], b) - _chord_integral(x0[:, None, None], b)
+    return np.sum(strip * w * width, axis=(-1, -2))
+
+
+def hertz_sensel_pressure(
+    depth: np.ndarray, young_eff: float, radius: float, bounds: np.ndarray, centre: np.ndarray | None = None,
+    order: int = 8, share_symmetric: bool = True,
+) -> np.ndarray:
+    """Mean Hertz pressure over each sensel, Pa.
+
+    Args:
+        depth: indentations, m, shape (n,).
+        young_eff: E*, Pa.
+        radius: tip radius, m.
+        bounds: sensel footprints (rows, cols, 4) as (x0, x1, y0, y1), m, in the pad plane.
+        centre: contact centre in the pad plane, m, shape (n, 2), or (2,) for a fixed centre; default the axis.
+        order: Gauss-Legendre points per smooth piece along y.
+        share_symmetric: with a fixed centre, integrate once per set of sensels that are mirror images of
+            each other about the centre (the pressure is radially symmetric), e.g. 3 of 16 for a centred pad.
+
+    Returns:
+        (n, rows, cols) mean pressure, Pa (0 where not in contact).
+    """
+    d = np.maximum(np.atleast_1d(np.asarray(depth, dtype=float)), 0.0)
+    n = d.shape[0]
+    rows, cols = bounds.shape[:2]
+    rect = bounds.reshape(-1, 4)
+    area = (rect[:, 1] - rect[:, 0]) * (rect[:, 3] - rect[:, 2])
+    a_all = np.sqrt(radius * d)
+    fixed = centre is None or np.asarray(centre).shape == (2,)
+    if fixed:
+        c = np.zeros(2) if centre is None else np.asarray(centre, dtype=float)
+        rel = rect - np.array([c[0], c[0], c[1], c[1]])
+        if share_symmetric:
+            # mirror each rectangle into x0 + x1 >= 0, y0 + y1 >= 0, then order the two axes: mirror images
+            # about the centre collapse onto one key
+            xs = np.where((rel[:, :1] + rel[:, 1:2]) < 0, -rel[:, 1::-1], rel[:, :2])
+            ys = np.where((rel[:, 2:3] + rel[:, 3:4]) < 0, -rel[:, 3:1:-1], rel[:, 2:])
+            swap = (xs[:, 0] > ys[:, 0]) | ((xs[:, 0] == ys[:, 0]) & (xs[:, 1] > ys[:, 1]))
+            canon = np.where(swap[:, None], np.hstack([ys, xs]), np.hstack([xs, ys]))
+            _, first, inverse = np.unique(np.round(canon, 12), axis=0, return_index=True, return_inverse=True)
+            uniq = canon[first]
+        else:
+            inverse = np.arange(len(rel))
+            uniq = rel
+        gap_x = np.maximum(np.maximum(uniq[:, 0], -uniq[:, 1]), 0.0)
+        gap_y = np.maximum(np.maximum(uniq[:, 2], -uniq[:, 3]), 0.0)
+        hit = (gap_x**2 + gap_y**2)[None, :] < a_all[:, None] ** 2  # (n, U)
+        vals = np.zeros(hit.shape)
+        if hit.any():
+            ti, ui = np.nonzero(hit)
+            vals[hit] = _rect_integrals(a_all[ti], uniq[ui, 0], uniq[ui, 1], uniq[ui, 2], uniq[ui, 3], order)
+        integral = vals[:, inverse.reshape(-1)]
+    else:
+        c = np.asarray(centre, dtype=float)
+        if c.shape != (n, 2):
+            raise ValidationError(f"hertz_sensel_pressure: centre must have shape (2,) or ({n}, 2), got {c.shape}")
+        rel = rect[None, :, :] - np.stack([c[:, 0], c[:, 0], c[:, 1], c[:, 1]], axis=-1)[:, None, :]
+        gap_x = np.maximum(np.maximum(rel[..., 0], -rel[..., 1]), 0.0)
+        gap_y = np.maximum(np.maximum(rel[..., 2], -rel[..., 3]), 0.0)
+        hit = gap_x**2 + gap_y**2 < a_all[:, None] ** 2
+        integral = np.zeros(hit.shape)
+        if hit.any():
+            ak = np.broadcast_to(a_all[:, None], hit.shape)[hit]
+            r = rel[hit]
+            integral[hit] = _rect_integrals(ak, r[:, 0], r[:, 1], r[:, 2], r[:, 3], order)
+    # p = p0 sqrt(1 - r^2/a^2) = (2 E* / (pi R)) sqrt(a^2 - r^2) for Hertz (p0 = 2 E* a / (pi R))
+    out = 2.0 * young_eff / (np.pi * radius) * integral / area[None, :]
+    return out.reshape(n, rows, cols)
+
+
+def local_material(obj: ObjectSpec, x: float, y: float, surface_z: float) -> Material:
+    """Material just under the surface at (x, y): the one the tip presses first."""
+    probe = np.array([[x, y, surface_z - 1e-5]])
+    mat = material_at(obj, probe)[0]
+    if mat is None:
+        raise ValidationError(f"object {obj.name!r} has no material under ({x:.4f}, {y:.4f}) m; press on the object")
+    return mat
+
+
+def run_analytic_press(
+    scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float = 100.0, order: int = 8
+) -> PhysicsTrace:
+    """Hertz press-and-release sampled at ``rate`` Hz (sensors interpolate between samples).
+
+    Args:
+        scene: the scene (fingertip geometry).
+        obj: the pressed object (local material at the press point).
+        profile: the press trajectory; the tip follows it exactly.
+        rate: sampling rate of the trace, Hz.
+        order: Gauss-Legendre order of the sensel integration.
+    """
+    if not (np.isfinite(rate) and rate > 0):
+        raise ValidationError(f"run_analytic_press: rate must be > 0 Hz, got {rate!r}")
+    tip = scene.fingertip
+    radius = tip.radius
+    if not np.isclose(profile.meta.get("radius", radius), radius):
+        raise ValidationError(
+            f"press profile was made for a tip radius {profile.meta.get('radius')} m, the scene's is {radius} m"
+        )
+    mat = local_material(obj, profile.x, profile.y, profile.surface_z)
+    e_star = mat.effective_modulus
+    n_samples = max(int(np.floor(profile.duration * rate)) + 1, 2)
+    t = profile.t[0] + np.arange(n_samples) / rate
+    z = profile.at(t)
+    depth = np.maximum(profile.surface_z + radius - z, 0.0)
+    normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
+    # the contact is where the sphere faces the surface: at -R n in the tip frame, projected on the pad plane
+    centre = -radius * normal[:2]
+    contact = np.array([profile.x, profile.y, profile.surface_z])
+    pos = contact[None, :] + normal[None, :] * (z - profile.surface_z)[:, None]
+    pressure = hertz_sensel_pressure(depth, e_star, radius, sensel_bounds(tip), centre, order=order)
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (n_samples, 1))
+    trace = PhysicsTrace(
+        t=t, tip_position=pos, tip_quaternion=quat, sensel_pressure=pressure,
+        force=hertz_force(e_star, radius, depth), indentation=depth, surface_z=profile.surface_z,
+        material=mat.name,
+        meta={"fidelity": "analytic", "rate": float(rate), "young_eff": float(e_star), "order": int(order)},
+    )
+    trace.check_finite()
+    return trace
