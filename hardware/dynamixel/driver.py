@@ -1,0 +1,414 @@
+"""Drive a Dynamixel finger through the official dynamixel-sdk (Protocol 2.0).
+
+Safety first: every command is checked against the joint limits (and the configured current limit against
+the servo model) before a byte is written; torque is switched off on any exception, on Ctrl-C, on exit of the
+context manager and at interpreter exit. A servo that stops answering ends what was running with a
+DeviceError naming its id, after torque has been switched off on the servos that still answer.
+"""
+
+from __future__ import annotations
+
+import atexit
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from palpate.core.errors import DeviceError, ValidationError
+from palpate.hardware.dynamixel import control_table as ct
+from palpate.hardware.dynamixel.finger import (
+    FingerDescription,
+    check_joint_limits,
+    fingertip_pose,
+    joints_to_ticks,
+    ticks_to_joints,
+)
+
+_STATE_START = ct.PRESENT_CURRENT[0]  # one sync read covers current (2), velocity (4), position (4)
+_STATE_LENGTH = 10
+
+
+@dataclass(frozen=True)
+class JointState:
+    """Joint state of the finger at one time.
+
+    Attributes:
+        t: time, s (the driver's monotonic clock).
+        position: joint angles, rad, shape (n,).
+        velocity: joint velocities, rad/s, shape (n,).
+        current: servo currents expressed on the joints (sign follows the joint angle), A, shape (n,).
+    """
+
+    t: float
+    position: np.ndarray
+    velocity: np.ndarray
+    current: np.ndarray
+
+
+class LostServo(DeviceError):
+    """A servo stopped answering; ``servo_id`` names it."""
+
+    def __init__(self, message: str, servo_id: int):
+        super().__init__(message)
+        self.servo_id = servo_id
+
+
+def _comm_text(packet_handler, result: int) -> str:
+    return packet_handler.getTxRxResult(result).replace("[TxRxResult] ", "")
+
+
+class DynamixelFinger:
+    """A finger of X-series servos on one bus.
+
+    Args:
+        port: serial device (e.g. /dev/ttyUSB0, or an emulator's pty).
+        baud: bus bit rate (one the SDK supports, e.g. 57600, 1000000).
+        finger: its description (ids, limits, current limit).
+        retries: times a corrupt status (bad CRC) is retried before giving up.
+        clock: time source, s.
+
+    Use as a context manager: ``with DynamixelFinger(port, 1_000_000, finger) as f: f.press(...)``.
+    """
+
+    def __init__(self, port: str, baud: int, finger: FingerDescription, *, retries: int = 3,
+                 clock: Callable[[], float] = time.monotonic):
+        self.port_name = str(port)
+        self.baud = int(baud)
+        self.finger = finger
+        self.retries = int(retries)
+        self.clock = clock
+        self.model = finger.model
+        self._port = None
+        self._ph = None
+        self._sync_read = None
+        self._sync_write = None
+        self._sdk = None
+        self._torque_on = False
+        self.lost: set[int] = set()
+        self.corrupt_retries = 0
+
+    # ---- lifetime ------------------------------------------------------------------------------------------
+    def open(self) -> DynamixelFinger:
+        """Open the port, find every servo, check its model, configure limits with torque off."""
+        import dynamixel_sdk as sdk  # optional dependency: only needed when a finger is driven
+
+        self._sdk = sdk
+        limit_units = self.finger.current_limit / self.model.current_unit
+        if not 0 < limit_units <= self.model.current_limit_max:
+            raise ValidationError(f"finger {self.finger.name!r}: current limit {self.finger.current_limit} A is "
+                                  f"outside what a {self.model.name} accepts")
+        if self._port is not None:
+            return self
+        port = sdk.PortHandler(self.port_name)
+        try:
+            opened = port.openPort()
+        except Exception as exc:  # pyserial raises SerialException (an OSError subclass on some versions)
+            raise DeviceError(f"cannot open Dynamixel port {self.port_name!r}: {exc}") from None
+        if not opened:
+            raise DeviceError(f"cannot open Dynamixel port {self.port_name!r}")
+        if not port.setBaudRate(self.baud):
+            port.closePort()
+            raise DeviceError(f"baud {self.baud} is not supported by dynamixel-sdk on {self.port_name!r}")
+        self._port, self._ph = port, sdk.PacketHandler(2.0)
+        try:
+            self._find_servos()
+            self._configure()
+        except BaseException:
+            self._close_port()
+            raise
+        self._sync_read = sdk.GroupSyncRead(port, self._ph, _STATE_START, _STATE_LENGTH)
+        self._sync_write = sdk.GroupSyncWrite(port, self._ph, ct.GOAL_POSITION[0], ct.GOAL_POSITION[1])
+        for sid in self.finger.ids:
+            self._sync_read.addParam(sid)
+        atexit.register(self.close)
+        return self
+
+    def _find_servos(self) -> None:
+        missing, wrong = [], []
+        for sid in self.finger.ids:
+            number = self._ping(sid)
+            if number is None:
+                missing.append(sid)
+            elif number != self.model.number:
+                wrong.append(f"id {sid} is a {ct.model_name(number)}")
+        if len(missing) == len(self.finger.ids):
+            raise DeviceError(f"no servo answered on {self.port_name!r} at {self.baud} baud (ids {self.finger.ids}); "
+                              "check the port, the baud rate and the servo power")
+        if missing:
+            raise LostServo(f"servo id(s) {missing} did not answer on {self.port_name!r}", missing[0])
+        if wrong:
+            raise DeviceError(f"finger {self.finger.name!r} expects {self.model.name} servos but {', '.join(wrong)}")
+
+    def _ping(self, sid: int) -> int | None:
+        for _ in range(self.retries + 1):
+            number, result, _ = self._ph.ping(self._port, sid)
+            if result == self._sdk.COMM_SUCCESS:
+                return int(number)
+            if result != self._sdk.COMM_RX_CORRUPT:
+                return None
+            self.corrupt_retries += 1
+        return None
+
+    def _configure(self) -> None:
+        # every value is checked above or at load time; EEPROM writes need torque off
+        limit_units = int(round(self.finger.current_limit / self.model.current_unit))
+        lo_t = joints_to_ticks(self.finger, self.finger.lower)
+        hi_t = joints_to_ticks(self.finger, self.finger.upper)
+        for k, sid in enumerate(self.finger.ids):
+            self._write(sid, ct.TORQUE_ENABLE, 0)
+            self._write(sid, ct.OPERATING_MODE, ct.MODE_CURRENT_POSITION)
+            self._write(sid, ct.CURRENT_LIMIT, limit_units)
+            self._write(sid, ct.MIN_POSITION_LIMIT, int(min(lo_t[k], hi_t[k])))
+            self._write(sid, ct.MAX_POSITION_LIMIT, int(max(lo_t[k], hi_t[k])))
+            self._write(sid, ct.GOAL_CURRENT, limit_units)
+
+    def close(self) -> None:
+        """Switch torque off (best effort) and close the port. Safe to call twice."""
+        atexit.unregister(self.close)
+        if self._port is None:
+            return
+        try:
+            self.disable_torque()
+        finally:
+            self._close_port()
+
+    def _close_port(self) -> None:
+        try:
+            self._port.closePort()
+        except Exception:
+            pass
+        self._port = None
+
+    def __enter__(self) -> DynamixelFinger:
+        return self.open()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ---- register access -----------------------------------------------------------------------------------
+    def _require_open(self) -> None:
+        if self._port is None:
+            raise DeviceError(f"Dynamixel finger on {self.port_name!r} is not open; call open() or use 'with'")
+
+    def _write(self, sid: int, reg: tuple[int, int], value: int) -> None:
+        """Write one register and check the status; DeviceError naming the servo otherwise."""
+        addr, size = reg
+        fn = {1: self._ph.write1ByteTxRx, 2: self._ph.write2ByteTxRx, 4: self._ph.write4ByteTxRx}[size]
+        value = int(value) & ((1 << (8 * size)) - 1)
+        for _ in range(self.retries + 1):
+            result, error = fn(self._port, sid, addr, value)
+            if result != self._sdk.COMM_RX_CORRUPT:
+                break
+            self.corrupt_retries += 1
+        if result == self._sdk.COMM_RX_TIMEOUT:
+            self.lost.add(sid)
+            raise LostServo(f"servo {sid} did not answer a write to address {addr} on {self.port_name!r}", sid)
+        if result != self._sdk.COMM_SUCCESS:
+            raise DeviceError(f"servo {sid}: write to address {addr} failed: {_comm_text(self._ph, result)}")
+        if error:
+            raise DeviceError(f"servo {sid}: write of {value} to address {addr} refused: "
+                              f"{self._ph.getRxPacketError(error).replace('[RxPacketError] ', '')}")
+
+    def read_register(self, sid: int, reg: tuple[int, int]) -> int:
+        """Read one register of one servo (unsigned)."""
+        self._require_open()
+        addr, size = reg
+        for _ in range(self.retries + 1):
+            data, result, error = self._ph.readTxRx(self._port, sid, addr, size)
+            if result != self._sdk.COMM_RX_CORRUPT:
+                break
+            self.corrupt_retries += 1
+        if result != self._sdk.COMM_SUCCESS:
+            raise DeviceError(f"servo {sid}: read of address {addr} failed: {_comm_text(self._ph, result)}")
+        return int.from_bytes(bytes(data[:size]), "little")
+
+    # ---- torque --------------------------------------------------------------------------------------------
+    def enable_torque(self) -> None:
+        """Hold the current positions, then switch torque on (all servos or none)."""
+        self._require_open()
+        with self.safety():
+            state = self.read_state()
+            self._send_goal(joints_to_ticks(self.finger, state.position))
+            for sid in self.finger.ids:
+                self._write(sid, ct.TORQUE_ENABLE, 1)
+            self._torque_on = True
+
+    def disable_torque(self) -> list[int]:
+        """Switch torque off on every servo that answers; returns the ids that confirmed. Never raises."""
+        if self._port is None:
+            return []
+        done = []
+        self._port.is_using = False  # an exception may have left a transfer half done
+        for sid in self.finger.ids:
+            if sid in self.lost:
+                continue
+            try:
+                self._write(sid, ct.TORQUE_ENABLE, 0)
+                done.append(sid)
+            except Exception:
+                pass
+        self._torque_on = False
+        return done
+
+    class _Safety:
+        def __init__(self, owner: DynamixelFinger):
+            self.owner = owner
+
+        def __enter__(self):
+            return self.owner
+
+        def __exit__(self, exc_type, exc, tb):
+            if exc_type is None:
+                return False
+            off = self.owner.disable_torque()
+            if getattr(exc, "_torque_handled", False):  # an inner safety context already reported it
+                return False
+            try:
+                exc._torque_handled = True
+            except AttributeError:
+                pass
+            if isinstance(exc, LostServo):
+                others = ", ".join(map(str, off)) or "none"
+                err = LostServo(f"{exc}; stopped and switched torque off on servo(s) {others}", exc.servo_id)
+                err._torque_handled = True
+                raise err from None
+            return False
+
+    def safety(self) -> DynamixelFinger._Safety:
+        """Context in which any exception (Ctrl-C included) switches torque off before propagating."""
+        return DynamixelFinger._Safety(self)
+
+    # ---- streaming -----------------------------------------------------------------------------------------
+    def read_state(self) -> JointState:
+        """One sync read of present current, velocity and position of every joint.
+
+        Corrupt answers are retried; a servo that does not answer raises LostServo naming it; a hardware
+        alert raises DeviceError with the servo's hardware error status.
+        """
+        self._require_open()
+        sdk, ph, port = self._sdk, self._ph, self._port
+        ids = self.finger.ids
+        raw = np.zeros((len(ids), _STATE_LENGTH), dtype=np.uint8)
+        for _ in range(self.retries + 1):
+            result = self._sync_read.txPacket()
+            if result != sdk.COMM_SUCCESS:
+                raise DeviceError(f"sync read on {self.port_name!r} could not be sent: {_comm_text(ph, result)}")
+            t = self.clock()
+            corrupt = False
+            alerts = []
+            for k, sid in enumerate(ids):
+                # per-id receive (what GroupSyncRead.rxPacket does) so the lost id and error bytes are known
+                data, result, error = ph.readRx(port, sid, _STATE_LENGTH)
+                if result == sdk.COMM_RX_CORRUPT:
+                    corrupt = True
+                    break
+                if result != sdk.COMM_SUCCESS:
+                    port.is_using = False
+                    self.lost.add(sid)
+                    raise LostServo(f"servo {sid} ({self._joint_name(sid)}) stopped answering on "
+                                    f"{self.port_name!r}", sid)
+                if error & 0x80:
+                    alerts.append(sid)
+                raw[k] = data[:_STATE_LENGTH]
+            if not corrupt:
+                break
+            self.corrupt_retries += 1
+        else:
+            raise DeviceError(f"sync read on {self.port_name!r}: {self.retries + 1} corrupt answers in a row; "
+                              "check the cable and the baud rate")
+        if alerts:
+            status = {s: self.read_register(s, ct.HARDWARE_ERROR_STATUS) for s in alerts}
+            detail = ", ".join(f"servo {s}: hardware error status 0x{v:02x}" for s, v in status.items())
+            raise DeviceError(f"hardware alert ({detail}); the servo switched its torque off, reboot it to clear")
+        current = raw[:, 0:2].copy().view("<i2").reshape(-1).astype(float) * self.model.current_unit
+        velocity = raw[:, 2:6].copy().view("<i4").reshape(-1).astype(float) * ct.VELOCITY_UNIT
+        ticks = raw[:, 6:10].copy().view("<i4").reshape(-1).astype(float)
+        d = self.finger.directions
+        return JointState(t, ticks_to_joints(self.finger, ticks), d * velocity, d * current)
+
+    def _joint_name(self, sid: int) -> str:
+        return next(j.name for j in self.finger.joints if j.servo_id == sid)
+
+    def _send_goal(self, ticks: Iterable[int]) -> None:
+        sw = self._sync_write
+        sw.clearParam()
+        for sid, tk in zip(self.finger.ids, ticks, strict=True):
+            sw.addParam(sid, list(int(tk).to_bytes(4, "little", signed=True)))
+        result = sw.txPacket()
+        if result != self._sdk.COMM_SUCCESS:
+            raise DeviceError(f"goal position sync write on {self.port_name!r} failed: {_comm_text(self._ph, result)}")
+
+    def command_joints(self, q: np.ndarray) -> None:
+        """Send goal joint angles (rad). Limits are checked first: out-of-range input writes nothing."""
+        self._require_open()
+        q = check_joint_limits(self.finger, q)
+        if not self._torque_on:
+            raise DeviceError(f"torque is off on {self.port_name!r}; call enable_torque() before commanding")
+        with self.safety():
+            self._send_goal(joints_to_ticks(self.finger, q))
+
+    def joint_torques(self, state: JointState) -> np.ndarray:
+        """Motor torques on the joints, N*m, from the present currents (torque constant of the model)."""
+        return state.current * self.model.torque_constant
+
+    def move_to(self, q: np.ndarray, tolerance: float = 0.01, timeout: float = 5.0,
+                on_state: Callable[[JointState], None] | None = None) -> JointState:
+        """Command ``q`` (rad) and stream states until every joint is within ``tolerance`` rad or ``timeout`` s."""
+        self.command_joints(q)
+        q = np.asarray(q, dtype=float)
+        t0 = self.clock()
+        with self.safety():
+            while True:
+                state = self.read_state()
+                if on_state is not None:
+                    on_state(state)
+                if np.max(np.abs(state.position - q)) <= tolerance:
+                    return state
+                if state.t - t0 > timeout:
+                    worst = int(np.argmax(np.abs(state.position - q)))
+                    raise DeviceError(f"joint {self.finger.joints[worst].name!r} (servo {self.finger.ids[worst]}) did "
+                                      f"not reach {q[worst]:.3f} rad within {timeout} s (at "
+                                      f"{state.position[worst]:.3f} rad); blocked or current limit too low?")
+
+    def pose(self, state: JointState):
+        """Fingertip PoseSample for a joint state."""
+        return fingertip_pose(self.finger, state.position, state.t)
+
+    def press(self, target, surface_z: float, **kwargs):
+        """Press and release at ``target`` (a PressTarget) on a surface at ``surface_z`` m; see press.py."""
+        from palpate.hardware.dynamixel.press import press_and_release
+
+        return press_and_release(self, target, surface_z, **kwargs)
+
+
+def scan(port: str, baud: int, ids: Iterable[int] = range(0, 253), timeout_ms: float | None = None) -> list[dict]:
+    """Ping ``ids`` on ``port``; returns ``[{"id", "model_number", "model", "firmware"}]`` for each that answers."""
+    import dynamixel_sdk as sdk
+
+    ph = sdk.PacketHandler(2.0)
+    p = sdk.PortHandler(str(port))
+    try:
+        opened = p.openPort()
+    except Exception as exc:
+        raise DeviceError(f"cannot open Dynamixel port {port!r}: {exc}") from None
+    if not opened:
+        raise DeviceError(f"cannot open Dynamixel port {port!r}")
+    try:
+        if not p.setBaudRate(int(baud)):
+            raise DeviceError(f"baud {baud} is not supported by dynamixel-sdk")
+        found = []
+        for sid in ids:
+            if not 0 <= sid <= 252:
+                raise ValidationError(f"servo ids are 0..252, got {sid}")
+            number, result, _ = ph.ping(p, sid)
+            if result == sdk.COMM_RX_CORRUPT:  # one retry: a single corrupt answer is not an absent servo
+                number, result, _ = ph.ping(p, sid)
+            if result == sdk.COMM_SUCCESS:
+                fw, r2, _ = ph.read1ByteTxRx(p, sid, ct.FIRMWARE_VERSION[0])
+                found.append({"id": sid, "model_number": int(number), "model": ct.model_name(int(number)),
+                              "firmware": int(fw) if r2 == sdk.COMM_SUCCESS else None})
+        return found
+    finally:
+        p.closePort()
+
