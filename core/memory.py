@@ -6,8 +6,8 @@ a prior P(M). The posterior of eq. 6.11 is computed in log space (log-sum-exp), 
 still gives a finite posterior; the category is its argmax (MAP, eq. 6.12 / 6.18).
 
 Parameter vectors are always ``[n1, n2, a1, a2]`` (the order of :attr:`palpate.core.fit.PressFit.params`). The
-interaction parameters are in the units of the fit (raw counts and metres for c_P, c_A, c_D), so no unit
-conversion happens here.
+interaction parameters stay in the units of the fit (:data:`palpate.core.fit.FIT_UNITS`: c_P in counts, c_D in
+mm, c_A in mm^2, as in the seed's tables); nothing here converts units.
 
 Memories are stored as versioned JSON holding the learned parameters *and* the training data, so a stored memory
 can be re-fitted and audited; nothing is ever pickled.
@@ -112,7 +112,10 @@ def regularise_covariance(cov: np.ndarray, min_eig: float, fallback_var: np.ndar
     corr = cov / np.outer(s, s)
     eig = np.linalg.eigvalsh(corr)
     e_min, e_max = float(eig[0]), float(eig[-1])
-    if e_max <= 0 or e_min >= min_eig * e_max:
+    if e_max <= 0:
+        # Identical presses: no spread was observed at all, so any loading is "the smallest"; take min_eig.
+        return cov + min_eig * np.diag(scale2), float(min_eig)
+    if e_min >= min_eig * e_max:
         return cov.copy(), 0.0
     # Exact loading for the bar, nudged up so rounding never leaves the result just under it.
     lam = float((min_eig * e_max - e_min) / (1.0 - min_eig) * (1.0 + 1e-9))

@@ -236,6 +236,17 @@ def test_regularise_covariance_constant_column_uses_fallback_scale():
         regularise_covariance(cov, 1e-6, fallback_var=np.array([1.0, 0.0]))
 
 
+def test_identical_presses_still_give_a_usable_memory():
+    """A deterministic simulation can press a material identically every time: zero covariance."""
+    x = np.vstack([np.tile([100.0, 5.0, 3.0, 10.0], (4, 1)), np.tile([400.0, -5.0, 2.0, 4.0], (4, 1))])
+    mem = HapticMemory().fit(x, ["soft"] * 4 + ["hard"] * 4)
+    assert mem.regularisation["soft"] == {"N": mem.min_eig, "A": mem.min_eig}
+    np.testing.assert_allclose(np.diag(mem.covs_N[0]), mem.min_eig * x[:, :2].var(axis=0))
+    p = mem.predict_proba(x + 1.0)
+    assert np.all(np.isfinite(p))
+    assert mem.predict(x) == ["soft"] * 4 + ["hard"] * 4
+
+
 def test_fit_presses_takes_objects_with_params(thesis):
     params, labels, _ = thesis
     fits = [SimpleNamespace(params=p) for p in params]
