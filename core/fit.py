@@ -1,0 +1,212 @@
+"""Cutaneous and kinesthetic interaction laws of one press (eq. 6.5, 6.6, 6.16, 6.17 of seed 000).
+
+    c_P = a1 c_A^(3/2) + a2     (cutaneous, A = (a1, a2), residual Phi_A)
+    c_P = n1 c_D^(3/2) + n2     (kinesthetic, N = (n1, n2), residual Phi_N)
+
+Both laws are linear in (k1, k2) once x is raised to 3/2, so least squares in x^(3/2) is the maximum-likelihood
+estimate under Gaussian noise on c_P, as the seed asks. Standard errors come from the residual variance with n - 2
+degrees of freedom.
+
+Units of the interaction parameters: fits use c_D in mm and c_A in mm^2 (see :data:`FIT_UNITS`), with c_P in
+counts (or N when calibrated). SI metres would put c_D^(3/2) around 1e-4 and c_A^(3/2) around 1e-7, giving
+parameters of order 1e6-1e9 that are badly conditioned and not comparable with the seed's Tables 6.3-6.5. So n1 is
+in counts/mm^1.5, a1 in counts/mm^3, n2 and a2 in counts.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from palpate.core.errors import FitError
+from palpate.core.segment import Press
+
+FIT_UNITS = {"c_D": "mm", "c_A": "mm^2"}
+"""Units in which c_D and c_A enter the fits (c_P stays in counts, or N when calibrated)."""
+
+_M_TO_MM = 1e3
+_M2_TO_MM2 = 1e6
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PowerLawFit:
+    """Least-squares fit of y = k1 x^exponent + k2.
+
+    Attributes:
+        k1, k2: estimates.
+        phi: sum of squared residuals (eq. 6.16 / 6.17).
+        se_k1, se_k2: standard errors from the residual variance (n - 2 degrees of freedom).
+        n: number of samples.
+        cov_k1k2: covariance of the two estimates.
+        exponent: the power applied to x.
+    """
+
+    k1: float
+    k2: float
+    phi: float
+    se_k1: float
+    se_k2: float
+    n: int
+    cov_k1k2: float = 0.0
+    exponent: float = 1.5
+
+    def predict(self, x) -> np.ndarray:
+        """Model value k1 x^exponent + k2 at x (x >= 0)."""
+        return self.k1 * np.asarray(x, dtype=float) ** self.exponent + self.k2
+
+
+def fit_power_law(x, y, exponent: float = 1.5) -> PowerLawFit:
+    """Fit y = k1 x^exponent + k2 by least squares (the MLE under Gaussian noise on y).
+
+    x^exponent is centred and scaled before solving, so the result stays accurate whatever the units of x.
+
+    Args:
+        x: abscissa, >= 0, shape (n,) (e.g. c_D in mm or c_A in mm^2).
+        y: ordinate, shape (n,) (c_P).
+        exponent: the power law's exponent (3/2 for a spherical indenter).
+
+    Returns:
+        A :class:`PowerLawFit` with finite estimates, residual sum and standard errors.
+
+    Raises:
+        FitError: fewer than 3 samples, mismatched lengths, NaN/inf, negative x, constant x, all-zero y, or a
+            result that would not be finite.
+    """
+    x = np.asarray(x, dtype=float).reshape(-1)
+    y = np.asarray(y, dtype=float).reshape(-1)
+    if not (np.isfinite(exponent) and exponent > 0):
+        raise FitError(f"exponent must be a positive finite number, got {exponent!r}")
+    if x.shape != y.shape:
+        raise FitError(f"x and y must have the same length, got {len(x)} and {len(y)}")
+    n = len(x)
+    if n < 3:
+        raise FitError(f"a 2-parameter fit needs at least 3 samples, got {n}")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        bad = int(np.argmax(~(np.isfinite(x) & np.isfinite(y))))
+        raise FitError(f"non-finite sample at index {bad}: x={x[bad]!r}, y={y[bad]!r}")
+    if np.any(x < 0):
+        bad = int(np.argmax(x < 0))
+        raise FitError(f"x must be >= 0 (an indentation or an area), got x={x[bad]!r} at index {bad}")
+    if not np.any(y != 0):
+        raise FitError(f"all {n} y samples are zero: no contact intensity to fit")
+    with np.errstate(over="ignore"):
+        u = x**exponent
+    if not np.all(np.isfinite(u)):
+        raise FitError(f"x^{exponent} overflows; x up to {x.max():g} is out of range")
+    u_mean = float(u.mean())
+    du = u - u_mean
+    scale = float(np.sqrt(np.mean(du**2)))
+    # Constant x (up to rounding) leaves the slope undefined.
+    if scale <= 1e-12 * max(abs(u_mean), float(np.abs(u).max())):
+        raise FitError(f"x is constant ({x[0]:g}) over all {n} samples: the slope k1 is undefined")
+    z = du / scale
+    y_mean = float(y.mean())
+    szz = float(z @ z)  # = n by construction, kept explicit for clarity of the formulas below
+    b1 = float(z @ (y - y_mean)) / szz
+    k1 = b1 / scale
+    k2 = y_mean - k1 * u_mean
+    resid = (y - y_mean) - b1 * z
+    phi = float(resid @ resid)
+    s2 = phi / (n - 2)
+    var_k1 = s2 / (szz * scale**2)
+    var_k2 = s2 / n + u_mean**2 * var_k1
+    cov = -u_mean * var_k1
+    out = (k1, k2, phi, var_k1, var_k2, cov)
+    if not all(np.isfinite(v) for v in out):
+        raise FitError(f"fit of {n} samples did not give finite estimates (x up to {x.max():g}, |y| up to "
+                       f"{np.abs(y).max():g}); rescale the data")
+    return PowerLawFit(k1=k1, k2=k2, phi=phi, se_k1=float(np.sqrt(var_k1)), se_k2=float(np.sqrt(var_k2)), n=n,
+                       cov_k1k2=cov, exponent=float(exponent))
+
+
+@dataclass(frozen=True)
+class PressFit:
+    """Interaction parameters of one press (units in :data:`FIT_UNITS`).
+
+    Attributes:
+        n1, n2, phi_n: kinesthetic law c_P = n1 c_D^1.5 + n2 (c_D in mm) and its residual sum Phi_N.
+        a1, a2, phi_a: cutaneous law c_P = a1 c_A^1.5 + a2 (c_A in mm^2) and its residual sum Phi_A.
+        se_n1, se_n2, se_a1, se_a2: standard errors.
+        n: number of press-phase samples used.
+        press_index: :attr:`Press.index` of the press.
+        location: (x, y) of the press, m.
+        calibrated: True when c_P (hence n1, n2, a1, a2, phi) is in N rather than counts.
+    """
+
+    n1: float
+    n2: float
+    phi_n: float
+    a1: float
+    a2: float
+    phi_a: float
+    se_n1: float
+    se_n2: float
+    se_a1: float
+    se_a2: float
+    n: int
+    press_index: int = -1
+    location: tuple[float, float] = (0.0, 0.0)
+    calibrated: bool = False
+
+    @property
+    def params(self) -> np.ndarray:
+        """[n1, n2, a1, a2] in the units of :data:`FIT_UNITS`."""
+        return np.array([self.n1, self.n2, self.a1, self.a2])
+
+    @property
+    def N(self) -> np.ndarray:  # noqa: N802 - the seed's name for the kinesthetic parameters
+        """Kinesthetic parameters (n1, n2)."""
+        return np.array([self.n1, self.n2])
+
+    @property
+    def A(self) -> np.ndarray:  # noqa: N802 - the seed's name for the cutaneous parameters
+        """Cutaneous parameters (a1, a2)."""
+        return np.array([self.a1, self.a2])
+
+
+def fit_press(press: Press) -> PressFit:
+    """Fit both interaction laws to the press phase of a press.
+
+    Raises:
+        FitError: naming the law (kinesthetic N or cutaneous A) and the press when either fit is degenerate,
+            e.g. a contact area that stays constant over the press phase.
+    """
+    where = f"press {press.index} at t={press.t_onset:.3f} s"
+    try:
+        fn = fit_power_law(np.asarray(press.c_D) * _M_TO_MM, press.c_P)
+    except FitError as exc:
+        raise FitError(f"{where}: kinesthetic fit (c_P vs c_D) failed: {exc}") from exc
+    try:
+        fa = fit_power_law(np.asarray(press.c_A) * _M2_TO_MM2, press.c_P)
+    except FitError as exc:
+        raise FitError(f"{where}: cutaneous fit (c_P vs c_A) failed: {exc}") from exc
+    return PressFit(
+        n1=fn.k1, n2=fn.k2, phi_n=fn.phi, a1=fa.k1, a2=fa.k2, phi_a=fa.phi,
+        se_n1=fn.se_k1, se_n2=fn.se_k2, se_a1=fa.se_k1, se_a2=fa.se_k2,
+        n=fn.n, press_index=press.index, location=press.location, calibrated=press.calibrated,
+    )
+
+
+@dataclass(frozen=True)
+class FitFailure:
+    """A press whose fit failed, and why."""
+
+    press_index: int
+    t_onset: float
+    reason: str
+
+
+def fit_presses_reporting(presses: list[Press]) -> tuple[list[PressFit], list[FitFailure]]:
+    """Fit every press; return the fits and, separately, the presses that could not be fitted with the reason."""
+    fits: list[PressFit] = []
+    failures: list[FitFailure] = []
+    for press in presses:
+        try:
+            fits.append(fit_press(press))
+        except FitError as exc:
+            failures.append(FitFailure(press.index, press.t_onset, str(exc)))
+    return fits, failures

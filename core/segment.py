@@ -1,0 +1,440 @@
+"""Cut a contact series into presses, keeping only each press phase (first contact to deepest point).
+
+Contact is detected on c_P with hysteresis: it starts when c_P rises above ``on_threshold`` and ends when it falls
+to ``off_threshold`` or below, so noise around either level neither splits one press in two nor merges two
+presses separated by a pause. The onset is then moved back to the first sample above ``off_threshold``, and the
+height at first contact h0 is found between the last sample without contact and the first one with it by
+extrapolating the 3/2-power law: (c_P - baseline)^(2/3) is linear in height near the onset (eq. 6.6), so its root
+is the contact height. Indentation c_D = h0 - height (eq. 6.4), clipped at 0 because it is non-negative by
+definition and pose noise near the onset would otherwise make it slightly negative.
+
+Every detected contact ends up either as a :class:`Press` or as a :class:`RejectedPress` with a reason (partial,
+too short, too shallow, too few samples, invalid pose): nothing is dropped silently.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.features import ContactSeries
+
+# Consistent scale factor of the median absolute deviation for a Gaussian.
+_MAD_TO_SIGMA = 1.4826
+# Fewest samples for the line that locates the first contact (two define it, more average the noise).
+_ONSET_FIT_MIN = 4
+
+
+@dataclass
+class Press:
+    """The press phase of one press-and-release: samples from first contact to the deepest point.
+
+    Attributes:
+        index: position of this contact among all contacts detected in the stream (accepted or rejected).
+        t_onset: time of first contact, s (interpolated between frames).
+        t_peak: time of the deepest point, s.
+        t_release: time contact ended, s (first frame at or below the off threshold).
+        h0: height at first contact along -press_axis, m.
+        location: mean fingertip (x, y) over the press phase, m.
+        depth: largest indentation c_D, m.
+        t: times of the press-phase samples, s.
+        c_P: contact intensity (counts, or N if calibrated).
+        c_A: contact area, m^2.
+        c_D: indentation relative to h0, m, >= 0.
+        xy: fingertip (x, y), m, shape (k, 2).
+        calibrated: True when c_P is in N.
+    """
+
+    index: int
+    t_onset: float
+    t_peak: float
+    t_release: float
+    h0: float
+    location: tuple[float, float]
+    depth: float
+    t: np.ndarray
+    c_P: np.ndarray
+    c_A: np.ndarray
+    c_D: np.ndarray
+    xy: np.ndarray
+    calibrated: bool = False
+
+    @property
+    def n_samples(self) -> int:
+        """Number of press-phase samples."""
+        return len(self.t)
+
+
+@dataclass(frozen=True)
+class RejectedPress:
+    """A detected contact that did not become a press, and why.
+
+    Attributes:
+        t_onset: first sample of the contact, s.
+        t_end: last sample looked at (release, or end of stream), s.
+        reason: what disqualified it, with the measured value and the limit.
+        index: position among all contacts detected in the stream.
+    """
+
+    t_onset: float
+    t_end: float
+    reason: str
+    index: int = -1
+
+
+@dataclass
+class Segmentation:
+    """Result of :func:`segment_presses`.
+
+    Attributes:
+        presses: accepted presses in time order.
+        rejected: every other detected contact, with its reason.
+        on_threshold, off_threshold: the hysteresis levels used (units of c_P).
+        baseline: c_P level without contact.
+        noise: estimated standard deviation of c_P noise.
+    """
+
+    presses: list[Press] = field(default_factory=list)
+    rejected: list[RejectedPress] = field(default_factory=list)
+    on_threshold: float = float("nan")
+    off_threshold: float = float("nan")
+    baseline: float = 0.0
+    noise: float = 0.0
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Hysteresis levels on c_P and the noise statistics they came from."""
+
+    on: float
+    off: float
+    baseline: float
+    noise: float
+
+
+def estimate_thresholds(
+    c_P: np.ndarray, on_threshold: float | None = None, off_threshold: float | None = None
+) -> Thresholds:
+    """Hysteresis levels from the data's own noise where not given.
+
+    The baseline is the 5th percentile of c_P (contact-free samples are the low ones); the noise is the robust
+    standard deviation of second differences (MAD / sqrt 6), which the smooth ramps of a press barely affect.
+    Defaults are on = baseline + max(6 noise, f) and off = baseline + max(3 noise, f / 4), where f is a
+    thousandth of the stream's range above baseline, so a perfectly clean stream still needs a real rise.
+
+    Raises:
+        ValidationError: non-finite thresholds or off >= on.
+    """
+    c = np.asarray(c_P, dtype=float)
+    if len(c) == 0:
+        raise ValidationError("cannot estimate thresholds from an empty contact series")
+    baseline = float(np.percentile(c, 5))
+    # Second differences cancel the steady ramps of pressing and releasing, which would inflate a spread of
+    # first differences in a stream that is mostly contact; for white noise their variance is 6 sigma^2.
+    d2 = np.diff(c, 2)
+    noise = float(_MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6)) if len(d2) else 0.0
+    # A floor for perfectly clean data (noise 0): contact must still rise by a thousandth of the stream's range.
+    floor = 1e-3 * (float(c.max()) - baseline) or 1.0
+    on = baseline + max(6 * noise, floor) if on_threshold is None else float(on_threshold)
+    if off_threshold is None:
+        off = baseline + max(3 * noise, 0.25 * floor)
+        if on_threshold is not None:
+            off = min(off, 0.5 * (baseline + on))
+    else:
+        off = float(off_threshold)
+    if not (np.isfinite(on) and np.isfinite(off)):
+        raise ValidationError(f"on_threshold and off_threshold must be finite, got {on!r} and {off!r}")
+    if off >= on:
+        raise ValidationError(
+            f"off_threshold ({off:g}) must be below on_threshold ({on:g}) for hysteresis (units of c_P)"
+        )
+    return Thresholds(on=on, off=off, baseline=baseline, noise=noise)
+
+
+def _check_series(series: ContactSeries) -> None:
+    for name in ("t", "c_P", "c_A", "height", "xy"):
+        arr = np.asarray(getattr(series, name), dtype=float)
+        if not np.all(np.isfinite(arr)):
+            raise ValidationError(f"ContactSeries.{name} holds NaN or inf; expected finite values")
+    if len(series.t) > 1 and np.any(np.diff(series.t) <= 0):
+        raise ValidationError("ContactSeries.t must increase strictly")
+
+
+def _check_limits(min_duration: float, min_depth: float, min_samples: int) -> None:
+    if not (np.isfinite(min_duration) and min_duration >= 0):
+        raise ValidationError(f"min_duration must be >= 0 s, got {min_duration!r}")
+    if not (np.isfinite(min_depth) and min_depth >= 0):
+        raise ValidationError(f"min_depth must be >= 0 m, got {min_depth!r}")
+    if int(min_samples) != min_samples or min_samples < 3:
+        raise ValidationError(f"min_samples must be an integer >= 3 (a fit needs 3 samples), got {min_samples!r}")
+
+
+def segment_presses(
+    series: ContactSeries,
+    *,
+    on_threshold: float | None = None,
+    off_threshold: float | None = None,
+    min_duration: float = 0.1,
+    min_depth: float = 0.0005,
+    min_samples: int = 5,
+) -> Segmentation:
+    """Find the presses in a contact series.
+
+    Args:
+        series: contact features (see :func:`palpate.core.features.contact_features`).
+        on_threshold: c_P level that starts a contact; derived from the data's noise when None.
+        off_threshold: c_P level at or below which a contact ends; derived from the noise when None.
+        min_duration: shortest contact (onset to release) accepted, s.
+        min_depth: shallowest press accepted (largest c_D), m.
+        min_samples: fewest press-phase samples accepted (>= 3, what a fit needs).
+
+    Returns:
+        A :class:`Segmentation`: accepted presses and rejected contacts with reasons ("partial: stream ends before
+        release", "partial: stream starts in contact", "too short", "too shallow", "too few samples",
+        "invalid pose").
+
+    Raises:
+        ValidationError: non-finite series, bad thresholds or limits.
+    """
+    _check_series(series)
+    _check_limits(min_duration, min_depth, min_samples)
+    th = estimate_thresholds(series.c_P, on_threshold, off_threshold)
+    presses, rejected, _ = _segment(
+        series, th, min_duration=min_duration, min_depth=min_depth, min_samples=int(min_samples),
+        final=True, first_index=0,
+    )
+    return Segmentation(presses, rejected, th.on, th.off, th.baseline, th.noise)
+
+
+def contact_intervals(c_P: np.ndarray, on: float, off: float) -> list[tuple[int, int | None]]:
+    """Contacts found by hysteresis, as (onset, release) sample indices.
+
+    onset is the first sample above ``off`` of the run that crosses ``on`` (-1 when the stream starts inside the
+    contact); release is the first sample at or below ``off`` after it (None if the stream ends first).
+    """
+    c = np.asarray(c_P, dtype=float)
+    n = len(c)
+    idx = np.arange(n)
+    last_on = np.maximum.accumulate(np.where(c > on, idx, -1))
+    last_off = np.maximum.accumulate(np.where(c <= off, idx, -1))
+    state = last_on > last_off
+    prev = np.concatenate(([False], state[:-1]))
+    starts = np.flatnonzero(state & ~prev)
+    ends = np.flatnonzero(~state & prev)
+    out: list[tuple[int, int | None]] = []
+    for s in starts:
+        k = np.searchsorted(ends, s)
+        release = int(ends[k]) if k < len(ends) else None
+        onset = int(last_off[s]) + 1 if last_off[s] >= 0 else -1
+        out.append((onset, release))
+    return out
+
+
+def _segment(
+    series: ContactSeries,
+    th: Thresholds,
+    *,
+    min_duration: float,
+    min_depth: float,
+    min_samples: int,
+    final: bool,
+    first_index: int,
+) -> tuple[list[Press], list[RejectedPress], int]:
+    """Presses and rejections of a series; also the index from which an unfinished contact resumes.
+
+    With ``final`` False a contact still open at the end is not reported, and the returned resume index points
+    at the last contact-free sample before it (or at the last sample when nothing is open).
+    """
+    t, c_p = series.t, series.c_P
+    n = len(t)
+    presses: list[Press] = []
+    rejected: list[RejectedPress] = []
+    # Resume from the last contact-free sample, so a contact rising at the end of this chunk keeps its onset.
+    free = np.flatnonzero(c_p <= th.off)
+    resume = int(free[-1]) if len(free) else 0
+    index = first_index
+    i_top = 0  # start of the approach to the next contact: the previous release
+    for onset, release in contact_intervals(c_p, th.on, th.off):
+        if release is None and not final:
+            resume = max(onset - 1, 0)
+            break
+        i0 = max(onset, 0)
+        end = n - 1 if release is None else release
+        if onset < 0:
+            rejected.append(RejectedPress(float(t[0]), float(t[end]),
+                                          "partial: stream starts in contact, first contact not observed", index))
+            index += 1
+            continue
+        if release is None:
+            rejected.append(RejectedPress(float(t[i0]), float(t[end]),
+                                          "partial: stream ends before release", index))
+            index += 1
+            continue
+        outcome = _build_press(series, th, i_top, i0, release, index,
+                               min_duration=min_duration, min_depth=min_depth, min_samples=min_samples)
+        i_top = release
+        (presses if isinstance(outcome, Press) else rejected).append(outcome)
+        index += 1
+    return presses, rejected, resume
+
+
+def _build_press(
+    series: ContactSeries,
+    th: Thresholds,
+    i_top: int,
+    i0: int,
+    release: int,
+    index: int,
+    *,
+    min_duration: float,
+    min_depth: float,
+    min_samples: int,
+) -> Press | RejectedPress:
+    t, c_p, h = series.t, series.c_P, series.height
+    t_start, t_end = float(t[i0]), float(t[release])
+    valid = series.valid[i0 - 1:release + 1]
+    if not np.all(valid):
+        bad = int(np.count_nonzero(~valid))
+        return RejectedPress(t_start, t_end,
+                             f"invalid pose: {bad} of {len(valid)} samples in a pose gap or outside the pose span",
+                             index)
+    duration = t_end - t_start
+    if duration < min_duration:
+        return RejectedPress(t_start, t_end, f"too short: {duration:.3f} s < min_duration {min_duration:g} s", index)
+    peak = i0 + int(np.argmin(h[i0:release]))
+    h0, t_onset = _first_contact(t, c_p - th.baseline, h, series.valid, i_top, i0, peak, th.on - th.baseline)
+    depth = float(h0 - h[peak])
+    if depth < min_depth:
+        return RejectedPress(t_start, t_end, f"too shallow: depth {depth * 1e3:.3f} mm < min_depth "
+                             f"{min_depth * 1e3:g} mm", index)
+    k = peak - i0 + 1
+    if k < min_samples:
+        return RejectedPress(t_start, t_end, f"too few samples: {k} press-phase samples < min_samples "
+                             f"{min_samples}", index)
+    sl = slice(i0, peak + 1)
+    xy = np.asarray(series.xy[sl], dtype=float)
+    return Press(
+        index=index,
+        t_onset=t_onset,
+        t_peak=float(t[peak]),
+        t_release=t_end,
+        h0=h0,
+        location=(float(xy[:, 0].mean()), float(xy[:, 1].mean())),
+        depth=depth,
+        t=np.asarray(t[sl], dtype=float),
+        c_P=np.asarray(c_p[sl], dtype=float),
+        c_A=np.asarray(series.c_A[sl], dtype=float),
+        c_D=np.clip(h0 - h[sl], 0.0, None),
+        xy=xy,
+        calibrated=series.calibrated,
+    )
+
+
+def _first_contact(
+    t: np.ndarray, excess: np.ndarray, h: np.ndarray, valid: np.ndarray, i_top: int, i0: int, peak: int,
+    detect: float,
+) -> tuple[float, float]:
+    """Height (m) and time (s) of first contact of the contact whose first sample above the off level is i0.
+
+    Under eq. 6.6, (c_P - baseline)^(2/3) is linear in height with its root at h0. The line is fitted to the early
+    press phase, from the on level (reliably above noise) to half the peak, where sensels hidden by noise
+    thresholds matter least and the finger still moves steadily; it falls back to the first samples after the
+    onset. h0 is clamped between the first contact sample and the highest point of the approach (samples i_top to
+    i0), and defaults to the middle of the last free / first contact bracket if no line can be fitted.
+    """
+    h_free, h_lo = float(h[i0 - 1]), float(h[i0])
+    approach = slice(i_top, i0)
+    h_hi = float(np.max(h[approach][valid[approach]], initial=h_free))
+    if h_hi <= h_lo:  # not moving into the object at the onset: the last free height is the best we know
+        return h_free, float(t[i0 - 1])
+    ex = excess[i0:peak + 1]
+    y = np.clip(ex, 0.0, None) ** (2.0 / 3.0)
+    window = np.flatnonzero((ex >= detect) & (ex <= 0.5 * ex.max()))
+    if len(window) < _ONSET_FIT_MIN:
+        window = np.arange(min(_ONSET_FIT_MIN, len(ex)))
+    x = h[i0:peak + 1][window]
+    h0 = 0.5 * (h_free + h_lo) if h_free > h_lo else h_lo
+    if len(window) >= 2 and np.ptp(x) > 0:
+        slope, intercept = np.polyfit(x, y[window], 1)
+        if slope < 0:
+            h0 = float(np.clip(-intercept / slope, h_lo, h_hi))
+    # Time of first contact: where the approach last crossed h0 going down.
+    above = np.flatnonzero(h[i_top:i0] >= h0)
+    j = i_top + int(above[-1]) if len(above) else i0 - 1
+    hj, hk = float(h[j]), float(h[j + 1])
+    frac = 0.0 if hj == hk else float(np.clip((hj - h0) / (hj - hk), 0.0, 1.0))
+    return h0, float(t[j] + frac * (t[j + 1] - t[j]))
+
+
+class PressSegmenter:
+    """Streaming segmentation: feed contact-series chunks as they arrive, get presses as they complete.
+
+    Thresholds are fixed for the whole stream: the given ones, or those estimated from the first ``warmup``
+    samples (which should include contact-free time). Rejected contacts accumulate in :attr:`rejected`.
+    """
+
+    def __init__(
+        self,
+        *,
+        on_threshold: float | None = None,
+        off_threshold: float | None = None,
+        min_duration: float = 0.1,
+        min_depth: float = 0.0005,
+        min_samples: int = 5,
+        warmup: int = 50,
+    ) -> None:
+        _check_limits(min_duration, min_depth, min_samples)
+        self._given = (on_threshold, off_threshold)
+        self._limits = dict(min_duration=min_duration, min_depth=min_depth, min_samples=int(min_samples))
+        self._warmup = int(warmup)
+        self.thresholds: Thresholds | None = None
+        self.rejected: list[RejectedPress] = []
+        self._buffer: ContactSeries | None = None
+        self._next_index = 0
+
+    def feed(self, chunk: ContactSeries) -> list[Press]:
+        """Append a chunk (times after the previous chunk's) and return the presses completed so far."""
+        _check_series(chunk)
+        buf = chunk if self._buffer is None else _concat(self._buffer, chunk)
+        self._buffer = buf
+        if self.thresholds is None:
+            if None in self._given and len(buf) < self._warmup:
+                return []
+            self.thresholds = estimate_thresholds(buf.c_P, *self._given)
+        return self._run(final=False)
+
+    def finish(self) -> list[Press]:
+        """End of stream: return the last completed presses; a contact still open is rejected as partial."""
+        if self._buffer is None or len(self._buffer) == 0:
+            return []
+        if self.thresholds is None:
+            self.thresholds = estimate_thresholds(self._buffer.c_P, *self._given)
+        out = self._run(final=True)
+        self._buffer = None
+        return out
+
+    def _run(self, final: bool) -> list[Press]:
+        buf = self._buffer
+        presses, rejected, resume = _segment(buf, self.thresholds, final=final, first_index=self._next_index,
+                                             **self._limits)
+        self.rejected.extend(rejected)
+        self._next_index += len(presses) + len(rejected)
+        self._buffer = buf.slice(resume, len(buf))
+        return presses
+
+
+def _concat(a: ContactSeries, b: ContactSeries) -> ContactSeries:
+    if len(a) and len(b) and b.t[0] <= a.t[-1]:
+        raise ValidationError(f"chunk starts at t={b.t[0]} s, not after the previous chunk's end t={a.t[-1]} s")
+    return ContactSeries(
+        t=np.concatenate([a.t, b.t]),
+        c_P=np.concatenate([a.c_P, b.c_P]),
+        c_A=np.concatenate([a.c_A, b.c_A]),
+        height=np.concatenate([a.height, b.height]),
+        xy=np.concatenate([a.xy, b.xy]),
+        valid=np.concatenate([a.valid, b.valid]),
+        calibrated=a.calibrated,
+        z=np.concatenate([a.z, b.z]),
+    )
