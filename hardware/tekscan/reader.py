@@ -331,29 +331,24 @@ def _parse_body(lines, start: int, rows: int, cols: int, name: str):
         raise ValidationError(f"{name}:{start + data_idx[j] + 1}: expected {cols} values, got {n_fields[j]}")
     line_of_row = data_idx + start + 1
     joined = ",".join(data)
-    tokens = np.array(joined.split(","))
-    if "B" in joined or "b" in joined:
+    values, is_b = _fast_values(joined, len(data) * cols)
+    if values is None:  # something unusual in the values: the slow path finds it and names its line
+        tokens = np.array(joined.split(","))
         stripped = np.char.strip(tokens)
         is_b = (stripped == "B") | (stripped == "b")
         tokens[is_b] = "0"
-    else:
-        is_b = np.zeros(tokens.shape, dtype=bool)
-    try:
-        values = tokens.astype(np.float64)
-    except ValueError:
-        values = None
-    if values is None:  # find the culprit only on failure, to keep the common path vectorised
         for k, tok in enumerate(tokens):
             try:
                 float(tok)
             except ValueError:
                 raise ValidationError(f"{name}:{line_of_row[k // cols]}: value {k % cols + 1} is {tok.strip()!r}, "
                                       "expected a number or B") from None
+        values = tokens.astype(np.float64)
     bad = ~np.isfinite(values)
     if np.any(bad):
         k = int(np.argmax(bad))
-        raise ValidationError(f"{name}:{line_of_row[k // cols]}: value {k % cols + 1} is {tokens[k].strip()!r}, "
-                              "expected a finite number")
+        raise ValidationError(f"{name}:{line_of_row[k // cols]}: value {k % cols + 1} is "
+                              f"{joined.split(',')[k].strip()!r}, expected a finite number")
     return numbers, values, line_of_row, is_b
 
 
@@ -386,6 +381,28 @@ def _count_scale(header, units_text: str, area: float, full_scale_pa, name: str)
     if not (np.isfinite(p_sat) and p_sat > 0):
         raise ValidationError(f"{name}: saturation pressure must be > 0 Pa, got {p_sat}")
     return to_pa * 255.0 / p_sat
+
+
+_PLAIN_VALUES = re.compile(r"[^0-9eE+\-.,\sBb]")
+
+
+def _fast_values(joined: str, expected: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """All values at C speed: numpy's text parser with B as NaN. (None, None) if the text holds anything else
+    (letters, empty fields, a NaN of its own), so that the caller reports exactly where."""
+    if _PLAIN_VALUES.search(joined):
+        return None, None
+    with warnings.catch_warnings():
+        # numpy signals a parse stop (e.g. an empty field) only by this warning; turn it into the slow path.
+        warnings.simplefilter("error", DeprecationWarning)
+        try:
+            values = np.fromstring(joined.replace("B", "nan").replace("b", "nan"), sep=",")
+        except (DeprecationWarning, ValueError):
+            return None, None
+    if values.shape != (expected,):
+        return None, None
+    is_b = np.isnan(values)
+    values[is_b] = 0.0
+    return values, is_b
 
 
 def _to_counts(values, scale: float | None, noise: float, line_of_row, cols: int, name: str):
