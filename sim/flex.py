@@ -24,6 +24,7 @@ on the pad plane (the pad is wrapped onto the sphere by arc length), and average
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,6 +44,10 @@ DEFAULT_WINDOW = 0.04
 #: Direct-form contact solref (stiffness, damping): the reference form lets the tip sink through the flex.
 CONTACT_SOLREF = (-1.0e8, -2.0e4)
 NAME = "obj"
+#: Contact penetration, m, beyond which (and beyond PENETRATION_FRACTION of the indentation) the run diverged.
+#: Soft blocks at large strain report up to ~55% (the sphere bulges between coarse surface vertices).
+PENETRATION_LIMIT = 5.0e-4
+PENETRATION_FRACTION = 0.65
 
 
 @dataclass(frozen=True)
@@ -129,7 +134,10 @@ def _cell_basis(cell: np.ndarray, verts_per_cell: int) -> tuple[np.ndarray, np.n
         flex = body.make_flex("c", type="box", dim=3, dof="trilinear", count=[verts_per_cell + 1] * 3,
                               cellcount=[1, 1, 1], spacing=list(cell / verts_per_cell), mass=1.0)
         flex.young, flex.poisson = young, poisson
-        blocks.append(spec.compile().flex_stiffness.copy())
+        with warnings.catch_warnings():
+            # a lone cell with no constraints is fine here: only its stiffness matrix is read
+            warnings.simplefilter("ignore", UserWarning)
+            blocks.append(spec.compile().flex_stiffness.copy())
     k_mu = blocks[0] / _lame(1.0, 0.0)[1]
     lam1, mu1 = _lame(1.0, 0.25)
     k_lam = (blocks[1] - mu1 * k_mu) / lam1
@@ -137,7 +145,7 @@ def _cell_basis(cell: np.ndarray, verts_per_cell: int) -> tuple[np.ndarray, np.n
 
 
 def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, x: float, y: float, z0: float, *,
-                     timestep: float = DEFAULT_TIMESTEP, factor: float = 1.0, verts_per_cell: int = 3,
+                     timestep: float = DEFAULT_TIMESTEP, factor: float = 1.0, verts_per_cell: int = 2,
                      density: float = 1000.0, min_damping: float = 2.0e-3, kp: float | None = None):
     """Compile the MuJoCo model: the flex window, the tip on a vertical slide joint, a position actuator.
 
@@ -199,11 +207,11 @@ def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, x: float, y:
 
     tip_r = scene.fingertip.radius
     tip = spec.worldbody.add_body(name="tip", pos=[x, y, z0])
-    joint = tip.add_joint(name="tip_z", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1], armature=10.0)
+    joint = tip.add_joint(name="tip_z", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1], armature=1.0)
     tip.add_geom(name="tip", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[tip_r, 0, 0], mass=0.01, condim=1)
     e_max = max(mats[i].effective_modulus for i in used) / factor
     if kp is None:
-        kp = max(1.0e4, 50.0 * 2.0 * e_max * np.sqrt(tip_r * 0.004))
+        kp = max(1.0e5, 50.0 * 2.0 * e_max * np.sqrt(tip_r * 0.004))
     act = spec.add_actuator(name="tip_drive", target="tip_z", trntype=mujoco.mjtTrn.mjTRN_JOINT)
     act.set_to_position(kp=float(kp), kv=float(2.0 * np.sqrt(kp * joint.armature)))
     model = spec.compile()
@@ -278,7 +286,7 @@ def _diverged(what: str, t: float, timestep: float) -> SimulationDiverged:
 
 def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: float | None = None,
                    resolution: float | None = None, seed: int = 0, window: float = DEFAULT_WINDOW,
-                   skin_sigma: float | None = None, calibrate: bool = True, verts_per_cell: int = 3,
+                   skin_sigma: float | None = None, calibrate: bool = True, verts_per_cell: int = 2,
                    kp: float | None = None) -> PhysicsTrace:
     """Simulate one press-and-release of ``obj`` with a deformable flex block; return the physics-rate trace.
 
@@ -291,7 +299,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         resolution: elastic cell edge, m (default 6.5 mm).
         seed: recorded for provenance; the physics is deterministic and draws no random numbers.
         window: lateral size of the simulated window around the press point, m.
-        skin_sigma: width of the skin's Gaussian spreading kernel, m (default: half the contact vertex spacing,
+        skin_sigma: width of the skin's Gaussian spreading kernel, m (default: 0.6 x the contact vertex spacing,
             at least 1 mm).
         calibrate: divide moduli by the calibrated factor (False only to measure the calibration).
         verts_per_cell: collision vertices per cell edge.
@@ -325,7 +333,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     model, info = build_flex_model(scene, obj, grid, x, y, float(z_prof[0]), timestep=dt, factor=factor,
                                    verts_per_cell=verts_per_cell, kp=kp)
     data = mujoco.MjData(model)
-    sigma = skin_sigma if skin_sigma is not None else max(1.0e-3, 0.5 * float(grid.cell[:2].min()) / verts_per_cell)
+    sigma = skin_sigma if skin_sigma is not None else max(1.0e-3, 0.6 * float(grid.cell[:2].min()) / verts_per_cell)
     qadr = model.jnt_qposadr[info["tip_joint"]]
     gid = info["tip_geom"]
     z0 = float(z_prof[0])
@@ -359,13 +367,20 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             fn = np.clip(fn, 0.0, None)
             pos = con.pos[:ncon][mine]
             if mine.any():
-                min_dist = min(min_dist, float(con.dist[:ncon][mine].min()))
+                pen = -float(con.dist[:ncon][mine].min())
+                min_dist = min(min_dist, -pen)
+                ind_k = surface_z - (zc - tip.radius)
+                # a sound contact penetrates a small fraction of the indentation; more means the tip is passing
+                # through the surface and the force no longer comes from the block's elasticity
+                if pen > PENETRATION_LIMIT and pen > PENETRATION_FRACTION * ind_k:
+                    raise _diverged(f"the tip penetrates the flex surface by {pen * 1e3:.2f} mm at "
+                                    f"{ind_k * 1e3:.2f} mm indentation", times[k], dt)
             force[k] = fn.sum()
             pressure[k] = sensel_pressure(pad_coordinates(pos - [x, y, zc], tip.radius), fn, tip, sigma)
         else:
             force[k] = 0.0
             pressure[k] = 0.0
-        if zc - tip.radius < 0.02 * obj.height or min_dist < -max(0.002, 0.5 * tip.radius):
+        if zc - tip.radius < 0.02 * obj.height:
             raise _diverged("the tip sank through the flex block", times[k], dt)
         if not np.isfinite(force[k]):
             raise _diverged("non-finite contact force", times[k], dt)

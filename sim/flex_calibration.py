@@ -120,8 +120,10 @@ def measure_calibration(cells_over_radius: list[float], *, radius: float = 0.008
                                 calibrate=False)
         press = trace.t <= trace.meta["press_end"]
         factor = hertz_ratio(trace.indentation[press], trace.force[press], CAL_YOUNG, CAL_POISSON, radius)
-        points.append({"cell_over_radius": float(c), "factor": round(factor, 4),
-                       "cell": float(trace.meta["cell"])})
+        # the grid rounds to an even cell count, so key the table by the cell actually used
+        cell = float(np.mean(trace.meta["cell"][:2]))
+        points.append({"cell_over_radius": round(cell / radius, 4), "factor": round(factor, 4),
+                       "cell": cell, "requested_resolution": float(c * radius)})
     table = {
         "version": FORMAT_VERSION,
         "measured_with": {
