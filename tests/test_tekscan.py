@@ -109,6 +109,7 @@ HEADER = "ROWS 2\nCOLS 3\nSENSEL_AREA 0.26 cm2\nSECONDS_PER_FRAME 0.01\nUNITS RA
     (HEADER.replace("ROWS 2\n", ""), r"grip.csv: header has no ROWS line"),
     (HEADER.replace("ROWS 2", "ROWS two"), r"grip.csv:1: ROWS must be a whole number, got 'two'"),
     (HEADER.replace("COLS 3\n", "COLS 3\nCOLS 4\n"), r"grip.csv:3: header key COLS given twice \(first on line 2\)"),
+    (HEADER.replace("0.26 cm2", "0.26 (furlong2)"), r"grip.csv:3: SENSEL_AREA must be a positive area with a unit"),
     (HEADER.replace("0.26 cm2", "0.26"), r"grip.csv:3: SENSEL_AREA must be a positive area with a unit"),
     (HEADER.replace("0.01", "0"), r"grip.csv:4: SECONDS_PER_FRAME must be > 0"),
     (HEADER.replace("RAW", "furlongs"), r"grip.csv:5: UNITS 'furlongs' not understood"),
@@ -191,6 +192,10 @@ def test_cli_bad_file_prints_error_and_exits_2(tmp_path, capsys):
     assert code == 2 and "grip.csv:10: expected 3 values, got 2" in err and "Traceback" not in err
     assert main(["import", "tekscan", str(tmp_path / "missing.csv"), "--out", str(tmp_path / "y.mcap")]) == 2
     assert "cannot read Tekscan export" in capsys.readouterr().err
+    good = tmp_path / "good.csv"
+    good.write_text(HEADER + "\nFrame 1\n1,2,3\n4,5,6\n")
+    assert main(["import", "tekscan", str(good), "--out", str(tmp_path / "no_dir" / "z.mcap")]) == 2
+    assert "cannot open for writing" in capsys.readouterr().err
 
 
 def test_import_function_summary(data_dir, tmp_path):

@@ -120,7 +120,7 @@ _REGION = re.compile(r"^\s*(\d+)\s*:\s*(\d+)\s*,\s*(\d+)\s*:\s*(\d+)\s*$")
 
 
 def _unit_key(unit: str) -> str:
-    u = unit.strip().lower().replace("²", "2").replace("^2", "2").replace(".", "").replace(" ", "")
+    u = unit.strip().strip("()[]").lower().replace("²", "2").replace("^2", "2").replace(".", "").replace(" ", "")
     if u.startswith("sq"):
         u = u[2:] + "2"
     return u
