@@ -267,7 +267,7 @@ class TaxelSensorSpec:
     """
 
     rate: float = 50.0
-    gain: float = 1.0e-3
+    gain: float = 2.0e-3
     noise_std: float = 0.5
     threshold: int = 2
     clock_offset: float = 0.0
