@@ -1,0 +1,55 @@
+"""One-call script API: ``simulate_press(young, ...)`` for notebooks and other tools."""
+
+from __future__ import annotations
+
+from palpate.core.errors import ValidationError
+from palpate.core.scene import FingertipSpec, Material, ObjectSpec, PoseSensorSpec, Scene, TaxelSensorSpec
+from palpate.core.sources import PressTarget
+from palpate.core.streams import PressRecording
+
+_OPTIONS = ("size", "thickness", "damping", "hold", "force", "variability", "timestep", "fingertip", "taxels",
+            "pose", "material_name")
+
+
+def simulate_press(
+    young: float, poisson: float = 0.3, fidelity: str = "rigid", depth: float | None = 0.004, speed: float = 0.01,
+    seed: int = 0, **scene_options,
+) -> PressRecording:
+    """Simulate one press-and-release on a block of one material (SI units).
+
+    Args:
+        young: Young's modulus, Pa.  poisson: Poisson ratio.
+        fidelity: "analytic", "rigid", "flex" or "auto".
+        depth: indentation to reach, m (None when pressing to ``force``).
+        speed: press speed, m/s.
+        seed: seed of press variability and sensor noise.
+        **scene_options: size (block side, m, 0.1), thickness (m, 0.03), damping (s, 0), hold (s, 0),
+            force (N, instead of depth), variability ("robot" or "human"), timestep (s), fingertip
+            (FingertipSpec), taxels (TaxelSensorSpec), pose (PoseSensorSpec), material_name.
+
+    Returns:
+        a PressRecording with ``.frames`` (TaxelFrame list), ``.poses`` (PoseSample list), ``.truth``
+        (GroundTruth: t s, force N, indentation m) and ``.meta``.
+    """
+    from palpate.sim.source import SimSource
+
+    unknown = sorted(set(scene_options) - set(_OPTIONS))
+    if unknown:
+        raise ValidationError(f"simulate_press: unknown scene option(s) {unknown}; known: {list(_OPTIONS)}")
+    size = float(scene_options.get("size", 0.1))
+    thickness = float(scene_options.get("thickness", 0.03))
+    mat = Material(scene_options.get("material_name", "material"), young, poisson,
+                   float(scene_options.get("damping", 0.0)))
+    block = ObjectSpec("block", "box", (size, size, thickness), (0.0, 0.0), mat)
+    scene = Scene(
+        objects=(block,),
+        fingertip=scene_options.get("fingertip", FingertipSpec()),
+        taxels=scene_options.get("taxels", TaxelSensorSpec()),
+        pose=scene_options.get("pose", PoseSensorSpec()),
+    )
+    force = scene_options.get("force")
+    target = PressTarget(0.0, 0.0, depth=None if force is not None else depth, force=force, speed=speed,
+                         hold=float(scene_options.get("hold", 0.0)))
+    source = SimSource(scene, fidelity=fidelity, seed=seed, variability=scene_options.get("variability", "robot"),
+                       timestep=scene_options.get("timestep"))
+    return source.press(target)

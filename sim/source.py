@@ -1,0 +1,128 @@
+"""The simulation as a press source (entry point ``sim`` in ``palpate.sources``).
+
+``SimSource(scene).press(target)`` runs one press-and-release at the chosen fidelity and returns the same raw
+streams a Tekscan pad and a Polhemus tracker give, with ground truth beside them.
+
+Fidelity ``auto`` models only what the pressed object requires:
+  - ``flex`` if the object has layers, inclusions or a haptic-material map (the local contact laws of the other
+    levels cannot see below the surface);
+  - ``analytic`` for a homogeneous box whose top is flat under the whole contact, at least 10 contact radii
+    (a = sqrt(R d)) thick and with the press point at least 3 contact radii plus the tip radius from every edge
+    (the half-space assumption of Hertz holds there);
+  - ``rigid`` otherwise (cylinders near their rim, meshes and curved tops, thin or small objects).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.scene import ObjectSpec, Scene
+from palpate.core.sources import PressTarget
+from palpate.core.streams import PressRecording
+from palpate.sim.analytic import hertz_depth_for_force, local_material, run_analytic_press
+from palpate.sim.controller import HUMAN, ROBOT, Variability, press_profile
+from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
+
+FIDELITIES = ("auto", "analytic", "rigid", "flex")
+
+
+def choose_fidelity(obj: ObjectSpec, target: PressTarget, radius: float) -> str:
+    """The cheapest fidelity valid for pressing ``obj`` at ``target`` (see the module docstring)."""
+    if obj.layers or obj.inclusions or obj.material_map is not None:
+        return "flex"
+    if obj.shape != "box":
+        return "rigid"
+    depth = target.depth if target.depth is not None else 0.25 * radius
+    a = np.sqrt(radius * depth)
+    half = np.asarray(obj.size[:2]) / 2.0
+    edge = float(np.min(half - np.abs(np.array([target.x, target.y]) - np.asarray(obj.position))))
+    if obj.height >= 10.0 * a and edge >= 3.0 * a + radius:
+        return "analytic"
+    return "rigid"
+
+
+class SimSource:
+    """A simulated finger pressing objects of a scene.
+
+    Args:
+        scene: objects, fingertip and sensor models.
+        fidelity: "auto", "analytic", "rigid" or "flex".
+        seed: seed of everything random (press variability, sensor noise); the n-th press of a source draws
+            from (seed, n), so a source replays identically.
+        variability: "robot" (exact), "human" (default human-like variability) or a Variability.
+        timestep: physics step, s (rigid default 2 ms, flex default 2 ms; analytic samples at 100 Hz).
+    """
+
+    def __init__(self, scene: Scene, fidelity: str = "auto", seed: int = 0,
+                 variability: str | Variability = "robot", timestep: float | None = None):
+        if fidelity not in FIDELITIES:
+            raise ValidationError(f"SimSource: fidelity must be one of {FIDELITIES}, got {fidelity!r}")
+        if isinstance(variability, str):
+            if variability not in ("robot", "human"):
+                raise ValidationError(f"SimSource: variability must be 'robot', 'human' or a Variability, "
+                                      f"got {variability!r}")
+            variability = ROBOT if variability == "robot" else HUMAN
+        if timestep is not None and not (np.isfinite(timestep) and timestep > 0):
+            raise ValidationError(f"SimSource: timestep must be > 0 s, got {timestep!r}")
+        self.scene = scene
+        self.fidelity = fidelity
+        self.seed = int(seed)
+        self.variability = variability
+        self.timestep = timestep
+        self._presses = 0
+        self._meshes: dict = {}
+
+    def _mesh(self, obj: ObjectSpec):
+        if obj.shape != "mesh":
+            return None
+        if obj.name not in self._meshes:
+            from palpate.sim.scene import load_mesh
+
+            self._meshes[obj.name] = load_mesh(obj)
+        return self._meshes[obj.name]
+
+    def press(self, target: PressTarget) -> PressRecording:
+        """One press-and-release at ``target``: taxel frames, pose samples and ground truth."""
+        from palpate.sim.scene import surface_at
+
+        obj = self.scene.object_under(target.x, target.y)
+        if obj is None:
+            raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
+        tip = self.scene.fingertip
+        fidelity = self.fidelity if self.fidelity != "auto" else choose_fidelity(obj, target, tip.radius)
+        mesh = self._mesh(obj)
+        surface_z, normal = surface_at(obj, target.x, target.y, mesh)
+        mat = local_material(obj, target.x, target.y, surface_z)
+        s_profile, s_taxel, s_pose = np.random.SeedSequence([self.seed, self._presses]).spawn(3)
+        self._presses += 1
+        timestep = self.timestep or 0.002
+        profile = press_profile(
+            target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002), variability=self.variability,
+            seed=int(s_profile.generate_state(1)[0]), normal=tuple(normal),
+            depth_for_force=lambda f: hertz_depth_for_force(mat.effective_modulus, tip.radius, f),
+        )
+        if fidelity == "analytic":
+            trace = run_analytic_press(self.scene, obj, profile)
+        elif fidelity == "rigid":
+            from palpate.sim.rigid import run_rigid_press
+
+            trace = run_rigid_press(self.scene, obj, profile, timestep=timestep, mesh=mesh)
+        else:
+            try:
+                from palpate.sim.flex import run_flex_press
+            except ImportError as exc:
+                raise ValidationError(f"fidelity 'flex' is not available: {exc}") from exc
+            trace = run_flex_press(self.scene, obj, target, profile, timestep=timestep,
+                                   seed=int(s_profile.generate_state(1)[0]))
+        frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel))
+        poses = sample_poses(trace, self.scene.pose, np.random.default_rng(s_pose))
+        meta = {
+            "source": "sim", "fidelity": fidelity, "object": obj.name, "material": trace.material,
+            "seed": self.seed, "press_index": self._presses - 1,
+            "target": {"x": target.x, "y": target.y, "depth": target.depth, "force": target.force,
+                       "speed": target.speed, "hold": target.hold, "label": target.label},
+            "profile": {k: v for k, v in profile.meta.items() if k != "phases"}, "phases": profile.meta["phases"],
+            "physics": trace.meta,
+        }
+        return PressRecording(frames=frames, poses=poses, truth=ground_truth(trace), meta=meta)
