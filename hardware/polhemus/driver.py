@@ -1,0 +1,287 @@
+"""Polhemus Liberty driver: configure the device, read single or continuous records, yield PoseSamples in SI.
+
+Time base: with the timestamp item (8) in the output list, which is the default, ``PoseSample.t`` is the
+device clock (ms since the device's timer was last reset, unwrapped past 2^32 ms) in s; it has 1 ms resolution.
+Without it, ``t`` is the host's monotonic clock when the bytes were read (``time_base`` says which).
+Positions are converted to metres from the configured units; quaternions are (w, x, y, z) as the device sends.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from palpate.core.errors import DeviceError, ValidationError
+from palpate.core.streams import PoseSample
+from palpate.hardware.polhemus.protocol import (
+    CM_PER_INCH,
+    DEFAULT_ITEMS,
+    ITEM_POSITION,
+    ITEM_QUATERNION,
+    ITEM_TIMESTAMP,
+    ErrorEvent,
+    Record,
+    RecordParser,
+    format_command,
+    output_list_command,
+    validate_items,
+    validate_station,
+)
+
+UNIT_TO_M = {"cm": 0.01, "in": CM_PER_INCH / 100.0}
+READ_CHUNK = 1 << 14
+
+
+def station_sensor_id(station: int) -> str:
+    """Sensor id of a Liberty station in PoseSamples and recordings."""
+    return f"liberty_station{station}"
+
+
+@dataclass
+class StreamStats:
+    """What a stream produced.
+
+    Attributes:
+        records: good records per station.
+        errors: error events (garbage, partial, implausible, device_error, bad_line), in arrival order.
+        stop_reason: why the stream ended: 'duration', 'count', 'stopped', 'silent' (no record within the
+            timeout) or 'link lost: ...'.
+        started, ended: host monotonic clock, s.
+    """
+
+    records: dict[int, int] = field(default_factory=dict)
+    errors: list[ErrorEvent] = field(default_factory=list)
+    stop_reason: str = ""
+    started: float = 0.0
+    ended: float = 0.0
+
+    @property
+    def total(self) -> int:
+        return int(sum(self.records.values()))
+
+    def error_counts(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for e in self.errors:
+            out[e.kind] = out.get(e.kind, 0) + 1
+        return out
+
+
+class LibertyDriver:
+    """Drive a Liberty over any byte transport (serial, pty, USB).
+
+    Args:
+        transport: an open transport (see :mod:`palpate.hardware.polhemus.transport`).
+        stations: stations to read, 1-based; records of other stations are ignored.
+        units: 'cm' (U1) or 'in' (U0) on the wire; PoseSamples are always in metres.
+        binary: F1 binary output (True) or F0 ASCII (False).
+        items: output list; must contain position (2) and quaternion (7).
+        timeout: how long to wait for an answer, s; also how long a silent stream is tolerated.
+    """
+
+    def __init__(self, transport, stations=(1,), units: str = "cm", binary: bool = True, items=DEFAULT_ITEMS,
+                 timeout: float = 0.5):
+        if units not in UNIT_TO_M:
+            raise ValidationError(f"Liberty units must be 'cm' or 'in', got {units!r}")
+        self.stations = tuple(sorted({validate_station(s) for s in stations}))
+        if not self.stations:
+            raise ValidationError("LibertyDriver needs at least one station")
+        self.items = validate_items(items)
+        for needed in (ITEM_POSITION, ITEM_QUATERNION):
+            if needed not in self.items:
+                raise ValidationError(f"Liberty output list {self.items} must contain item {needed} to make poses")
+        if not timeout > 0:
+            raise ValidationError(f"Liberty answer timeout must be > 0 s, got {timeout}")
+        self.transport = transport
+        self.units = units
+        self.binary = bool(binary)
+        self.timeout = float(timeout)
+        self.time_base = "device" if ITEM_TIMESTAMP in self.items else "host"
+        self._scale = UNIT_TO_M[units]
+        self._parser = self._new_parser()
+        self._last_ms: dict[int, int] = {}
+        self._wraps: dict[int, int] = {}
+        self.stats = StreamStats()
+        self.streaming = False
+
+    def _new_parser(self) -> RecordParser:
+        # Accept any station while parsing so a sensor that was not asked for is not mistaken for garbage.
+        return RecordParser(self.items, stations=None, binary=self.binary)
+
+    # -- setup --------------------------------------------------------------------------------------------
+
+    def configure(self) -> None:
+        """Stop any stream left running, set format, units and output list, and check the device answers.
+
+        Raises DeviceError naming the link when nothing valid comes back (wrong baud, device off, wrong port).
+        """
+        # P ends a stream left running; when idle the device answers it with one record, drained here too.
+        self.transport.write(format_command("P"))
+        self._drain(limit=max(0.2, self.timeout))
+        self.transport.write(format_command("F", 1 if self.binary else 0))
+        self.transport.write(format_command("U", 1 if self.units == "cm" else 0))
+        self.transport.write(output_list_command(self.items))
+        self._parser = self._new_parser()
+        self.single()
+
+    def _drain(self, quiet: float = 0.1, limit: float = 1.0) -> bytes:
+        """Read until the line has been quiet for ``quiet`` s (at most ``limit`` s); return what was read."""
+        got = bytearray()
+        deadline = time.monotonic() + limit
+        last = time.monotonic()
+        while time.monotonic() < deadline and time.monotonic() - last < quiet:
+            chunk = self.transport.read(READ_CHUNK)
+            if chunk:
+                got += chunk
+                last = time.monotonic()
+        return bytes(got)
+
+    # -- reading ------------------------------------------------------------------------------------------
+
+    def single(self) -> list[PoseSample]:
+        """Ask for one record per station (``P``) and return one PoseSample per requested station.
+
+        Raises DeviceError if nothing valid arrives within the timeout (with a hint at the baud rate), or if a
+        station answers only with a device error.
+        """
+        if self.streaming:
+            raise DeviceError("single() while continuous output is on; call stop() first")
+        self.transport.write(format_command("P"))
+        got: dict[int, PoseSample] = {}
+        flagged: dict[int, ErrorEvent] = {}
+        nbytes = 0
+        deadline = time.monotonic() + self.timeout
+        while time.monotonic() < deadline and len(got) < len(self.stations):
+            chunk = self.transport.read(READ_CHUNK)
+            nbytes += len(chunk)
+            t_host = time.monotonic()
+            for item in self._parse(chunk):
+                if isinstance(item, ErrorEvent):
+                    self.stats.errors.append(item)
+                    if item.record is not None and item.record.station in self.stations:
+                        flagged[item.record.station] = item
+                elif item.station in self.stations:
+                    got[item.station] = self._pose(item, t_host)
+        missing = [s for s in self.stations if s not in got]
+        if not missing:
+            return [got[s] for s in self.stations]
+        where = getattr(self.transport, "description", "the link")
+        if nbytes == 0:
+            raise DeviceError(
+                f"no answer from the Liberty on {where} within {self.timeout:g} s; check that it is powered, "
+                "that this is its port, and that the baud rate matches the device's"
+            )
+        if not got and not flagged:
+            raise DeviceError(
+                f"the Liberty on {where} sent {nbytes} bytes but no valid record within {self.timeout:g} s: "
+                "no answer at this baud rate; check the baud rate set on the device"
+            )
+        if flagged and all(s in flagged for s in missing):
+            codes = ", ".join(f"station {s}: error code {flagged[s].record.error}" for s in missing)
+            raise DeviceError(f"the Liberty on {where} reported an error ({codes})")
+        raise DeviceError(
+            f"station(s) {missing} of the Liberty on {where} did not answer within {self.timeout:g} s; "
+            "is a sensor plugged into each?"
+        )
+
+    def start_continuous(self) -> None:
+        """Start continuous output (``C``)."""
+        self._parser = self._new_parser()
+        self.stats = StreamStats(records={s: 0 for s in self.stations}, started=time.monotonic())
+        self.transport.write(format_command("C"))
+        self.streaming = True
+
+    def stream(self, seconds: float | None = None, max_records: int | None = None) -> Iterator[PoseSample]:
+        """Yield PoseSamples from continuous output until ``seconds`` of host time, ``max_records`` records, or
+        the device goes silent for ``timeout`` s, whichever comes first. Starts continuous output if needed.
+
+        Never raises for a silent device or a lost link: it ends cleanly, keeps every record received, and
+        says why in ``stats.stop_reason``. Error events are collected in ``stats.errors``.
+        """
+        if seconds is not None and not seconds > 0:
+            raise ValidationError(f"stream duration must be > 0 s, got {seconds}")
+        if not self.streaming:
+            self.start_continuous()
+        start = time.monotonic()
+        last_good = start
+        count = 0
+        while True:
+            now = time.monotonic()
+            if seconds is not None and now - start >= seconds:
+                self.stats.stop_reason = "duration"
+                break
+            if now - last_good > self.timeout:
+                self.stats.stop_reason = "silent"
+                break
+            try:
+                chunk = self.transport.read(READ_CHUNK)
+            except DeviceError as exc:
+                self.stats.stop_reason = f"link lost: {exc}"
+                break
+            t_host = time.monotonic()
+            for item in self._parse(chunk):
+                if isinstance(item, ErrorEvent):
+                    self.stats.errors.append(item)
+                    continue
+                if item.station not in self.stations:
+                    continue
+                last_good = t_host
+                self.stats.records[item.station] = self.stats.records.get(item.station, 0) + 1
+                count += 1
+                yield self._pose(item, t_host)
+                if max_records is not None and count >= max_records:
+                    self.stats.stop_reason = "count"
+                    self.stats.ended = time.monotonic()
+                    return
+        self.stats.errors.extend(self._parser.flush())
+        self.stats.ended = time.monotonic()
+
+    def stop(self) -> list[PoseSample]:
+        """Stop continuous output (``P``) and return the records that were already on their way."""
+        if not self.streaming:
+            return []
+        self.streaming = False
+        try:
+            self.transport.write(format_command("P"))
+            tail = self._drain(quiet=min(0.1, self.timeout), limit=max(0.2, self.timeout))
+        except DeviceError as exc:
+            self.stats.stop_reason = self.stats.stop_reason or f"link lost: {exc}"
+            return []
+        t_host = time.monotonic()
+        out = []
+        for item in [*self._parse(tail), *self._parser.flush()]:
+            if isinstance(item, ErrorEvent):
+                self.stats.errors.append(item)
+            elif item.station in self.stations:
+                self.stats.records[item.station] = self.stats.records.get(item.station, 0) + 1
+                out.append(self._pose(item, t_host))
+        if not self.stats.stop_reason:
+            self.stats.stop_reason = "stopped"
+        self.stats.ended = time.monotonic()
+        return out
+
+    # -- conversion ---------------------------------------------------------------------------------------
+
+    def _parse(self, chunk: bytes) -> list[Record | ErrorEvent]:
+        return self._parser.feed(chunk) if chunk else []
+
+    def _pose(self, rec: Record, t_host: float) -> PoseSample:
+        if rec.timestamp_ms is not None:
+            t = self._device_seconds(rec.station, rec.timestamp_ms)
+        else:
+            t = t_host
+        return PoseSample(
+            t=t,
+            position=np.asarray(rec.position, dtype=float) * self._scale,
+            quaternion=np.asarray(rec.quaternion, dtype=float),
+            sensor_id=station_sensor_id(rec.station),
+        )
+
+    def _device_seconds(self, station: int, ms: int) -> float:
+        last = self._last_ms.get(station)
+        if last is not None and ms < last - (1 << 31):
+            self._wraps[station] = self._wraps.get(station, 0) + 1
+        self._last_ms[station] = ms
+        return (ms + (self._wraps.get(station, 0) << 32)) / 1000.0

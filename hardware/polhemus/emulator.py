@@ -1,0 +1,371 @@
+"""A Polhemus Liberty on a pseudo-terminal, for tests and demos without the device.
+
+The emulator owns the master side of a pty and answers, in a background thread, the byte protocol of
+:mod:`palpate.hardware.polhemus.protocol`: ``F0``/``F1`` (ASCII/binary), ``U0``/``U1`` (inch/cm), ``O`` (output
+list, per station or ``*``), ``P`` (one record per station; stops continuous output when it is on) and ``C``
+(continuous output at ``rate`` Hz). Any client opens :attr:`LibertyEmulator.port` with pyserial exactly as it
+would open the device.
+
+Like the device after power-up it starts in ASCII, inches, output list 2,7,1 (the real default list also
+carries Euler angles, item 4, which palpate does not decode), so a client must configure it.
+
+Wrong baud: pyserial on a pty accepts any baud, so the emulator reads the speed the client set (the pty's
+termios, visible from the master side) and, when it differs from its own ``baud``, behaves as a UART at the
+wrong speed does: what it receives is garbage (no command is understood) and what it sends is garbled.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import termios
+import threading
+import time
+import tty
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.hardware.polhemus.protocol import (
+    CM_PER_INCH,
+    ITEM_CRLF,
+    ITEM_POSITION,
+    ITEM_QUATERNION,
+    MAX_STATIONS,
+    encode_ascii,
+    encode_binary,
+    parse_command_line,
+    validate_items,
+    validate_station,
+)
+
+Motion = Callable[[float, int], tuple[np.ndarray, np.ndarray]]
+_SPEEDS = {getattr(termios, f"B{b}"): b for b in (2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400)}
+# The device queues at most this much output for a host that does not read; more is dropped (and counted).
+MAX_QUEUED_BYTES = 1 << 20
+
+
+@dataclass(frozen=True)
+class Faults:
+    """Error injection, counted over records sent (all stations), 1-based: ``every=N`` hits records N, 2N, ...
+
+    Attributes:
+        corrupt_every: send ``corrupt_bytes`` random bytes before every Nth record (0 = never).
+        corrupt_bytes: how many garbage bytes to insert.
+        partial_every: send only the first half of every Nth record (0 = never).
+        error_every: set the error byte of every Nth record to ``error_code`` (0 = never).
+        error_code: the nonzero error code sent.
+        silent_after: after this many records, stop answering altogether (None = never).
+    """
+
+    corrupt_every: int = 0
+    corrupt_bytes: int = 7
+    partial_every: int = 0
+    error_every: int = 0
+    error_code: int = 0x45
+    silent_after: int | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("corrupt_every", "partial_every", "error_every", "corrupt_bytes"):
+            if int(getattr(self, name)) < 0:
+                raise ValidationError(f"Faults.{name} must be >= 0, got {getattr(self, name)}")
+        if self.error_code in (0, 0x20) or not 0 < self.error_code < 256:
+            raise ValidationError(f"Faults.error_code must be a nonzero byte other than space, got {self.error_code}")
+        if self.silent_after is not None and self.silent_after < 0:
+            raise ValidationError(f"Faults.silent_after must be >= 0 records, got {self.silent_after}")
+
+
+def static_motion(t: float, station: int) -> tuple[np.ndarray, np.ndarray]:
+    """Default motion: station n sits still at (0.1 n, 0, 0.2) m with identity orientation."""
+    return np.array([0.1 * station, 0.0, 0.2]), np.array([1.0, 0.0, 0.0, 0.0])
+
+
+def press_motion(
+    depth: float = 0.005, period: float = 2.0, origin=(0.0, 0.0, 0.05), tilt: float = 0.0
+) -> Motion:
+    """A fingertip pressing straight down ``depth`` m and back every ``period`` s (raised-cosine profile).
+
+    Station n is offset by 0.05 (n - 1) m along x. ``tilt`` rad rotates about y, scaled by the press depth so the
+    orientation changes too. Returns ``motion(t, station) -> (position m, quaternion w,x,y,z)``.
+    """
+    if not (depth >= 0 and period > 0):
+        raise ValidationError(f"press_motion needs depth >= 0 m and period > 0 s, got {depth}, {period}")
+    origin = np.asarray(origin, dtype=float)
+
+    def motion(t: float, station: int) -> tuple[np.ndarray, np.ndarray]:
+        s = 0.5 * (1.0 - np.cos(2.0 * np.pi * t / period))  # 0 -> 1 -> 0 over one period
+        pos = origin + np.array([0.05 * (station - 1), 0.0, -depth * s])
+        half = 0.5 * tilt * s
+        return pos, np.array([np.cos(half), 0.0, np.sin(half), 0.0])
+
+    return motion
+
+
+class LibertyEmulator:
+    """A Liberty speaking the real byte protocol on a pty.
+
+    Args:
+        rate: continuous output rate, frames per second (each frame has one record per station).
+        stations: the stations with a sensor plugged in (1-based).
+        noise: standard deviation of the position noise added to every axis, m.
+        seed: seed of the noise and of the garbage bytes.
+        motion: ``motion(t, station) -> (position m (3,), quaternion w,x,y,z (4,))``, t in s on the device clock.
+        baud: the device's baud rate; a client at another speed gets garbage (see the module docstring).
+        faults: error injection.
+
+    The device clock starts at construction; timestamps (item 8) are its ms, continuous frames are exactly
+    1/rate apart on it. Use as a context manager or call :meth:`close`.
+    """
+
+    def __init__(
+        self,
+        rate: float = 240.0,
+        stations=(1,),
+        noise: float = 0.0,
+        seed: int = 0,
+        motion: Motion | None = None,
+        baud: int = 115200,
+        faults: Faults | None = None,
+    ):
+        if not (np.isfinite(rate) and 0 < rate <= 10000):
+            raise ValidationError(f"emulator rate must be in (0, 10000] Hz, got {rate}")
+        if not (np.isfinite(noise) and noise >= 0):
+            raise ValidationError(f"emulator position noise must be >= 0 m, got {noise}")
+        self.rate = float(rate)
+        self.stations = tuple(validate_station(s) for s in stations)
+        if not self.stations:
+            raise ValidationError("emulator needs at least one station")
+        self.noise = float(noise)
+        self.motion = motion or static_motion
+        self.baud = int(baud)
+        self.faults = faults or Faults()
+        self._rng = np.random.default_rng(seed)
+        # Device state (power-up defaults).
+        self.binary = False
+        self.units = "in"
+        self.items = {s: (ITEM_POSITION, ITEM_QUATERNION, ITEM_CRLF) for s in range(1, MAX_STATIONS + 1)}
+        self.continuous = False
+        # What happened, for tests and summaries.
+        self.commands: list[str] = []
+        self.unknown_commands: list[str] = []
+        self.records_sent = 0
+        # One entry per record sent: (station, timestamp ms, faults applied such as "corrupt,partial", bytes sent
+        # that belong to no good record: the garbage, or the whole of a cut record).
+        self.log: list[tuple[int, int, str, int]] = []
+        self.frames_sent = 0
+        self.faults_injected = {"corrupt": 0, "partial": 0, "device_error": 0}
+        self.garbled_bytes_in = 0
+        self.dropped_bytes = 0
+        self._frame_count = 0
+        self._line = b""
+        self._out = bytearray()
+        self._t0 = time.monotonic()
+        self._next_frame_time = 0.0
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)  # no echo, no CR/LF translation: a serial line carries bytes as they are
+        os.set_blocking(self._master, False)
+        self.port = os.ttyname(self._slave)
+        self._thread = threading.Thread(target=self._run, name="liberty-emulator", daemon=True)
+        self._thread.start()
+
+    # -- lifecycle ----------------------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Stop the thread and release the pty."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        for fd in (self._master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+    def __enter__(self) -> LibertyEmulator:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def silent(self) -> bool:
+        """True once the injected 'go silent' fault has fired."""
+        s = self.faults.silent_after
+        return s is not None and self.records_sent >= s
+
+    def device_time(self) -> float:
+        """Seconds on the device clock."""
+        return time.monotonic() - self._t0
+
+    def start_continuous(self) -> None:
+        """Put the device in continuous mode as if a previous session had left it streaming."""
+        with self._lock:
+            self._start_continuous()
+
+    # -- thread -------------------------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            now = self.device_time()
+            wait = 0.05
+            if self.continuous and not self.silent:
+                wait = min(wait, max(0.0, self._next_frame_time - now))
+            try:
+                r, w, _ = select.select([self._master], [self._master] if self._out else [], [], wait)
+            except (OSError, ValueError):
+                return
+            if r:
+                try:
+                    data = os.read(self._master, 4096)
+                except BlockingIOError:
+                    data = b""
+                except OSError:
+                    return
+                with self._lock:
+                    self._receive(data)
+            with self._lock:
+                if self.continuous and not self.silent:
+                    self._emit_due_frames()
+            if self._out:
+                try:
+                    n = os.write(self._master, bytes(self._out[:65536]))
+                    del self._out[:n]
+                except BlockingIOError:
+                    pass
+                except OSError:
+                    return
+
+    def _client_baud(self) -> int | None:
+        try:
+            return _SPEEDS.get(termios.tcgetattr(self._master)[5])
+        except termios.error:
+            return None
+
+    def _baud_matches(self) -> bool:
+        return self._client_baud() == self.baud
+
+    # -- commands -----------------------------------------------------------------------------------------
+
+    def _receive(self, data: bytes) -> None:
+        if self.silent:
+            return
+        if not self._baud_matches():
+            self.garbled_bytes_in += len(data)
+            return
+        for byte in data:
+            ch = bytes([byte])
+            if not self._line and ch in (b"P", b"C"):
+                self.commands.append(ch.decode())
+                self._single() if ch == b"P" else self._start_continuous()
+            elif ch in (b"\r", b"\n"):
+                if self._line:
+                    self._command(self._line)
+                self._line = b""
+            else:
+                self._line += ch
+                if len(self._line) > 256:  # runaway input with no CR is not a command
+                    self._line = b""
+
+    def _command(self, line: bytes) -> None:
+        text = line.decode("ascii", errors="replace")
+        self.commands.append(text)
+        try:
+            letter, args = parse_command_line(line)
+        except ValidationError:
+            self.unknown_commands.append(text)
+            return
+        if letter == "F" and args in (["0"], ["1"]):
+            self.binary = args == ["1"]
+        elif letter == "U" and args in (["0"], ["1"]):
+            self.units = "cm" if args == ["1"] else "in"
+        elif letter == "O" and len(args) >= 2:
+            try:
+                items = validate_items(int(a) for a in args[1:])
+                targets = range(1, MAX_STATIONS + 1) if args[0] == "*" else [validate_station(int(args[0]))]
+            except (ValueError, ValidationError):
+                self.unknown_commands.append(text)
+                return
+            for s in targets:
+                self.items[s] = items
+        else:
+            self.unknown_commands.append(text)
+
+    def _single(self) -> None:
+        if self.continuous:
+            # On the Liberty, P while streaming ends continuous mode and sends nothing.
+            self.continuous = False
+            return
+        self._send_frame("P", self.device_time())
+
+    def _start_continuous(self) -> None:
+        if not self.continuous:
+            self.continuous = True
+            self._next_frame_time = self.device_time()
+
+    def _emit_due_frames(self) -> None:
+        now = self.device_time()
+        period = 1.0 / self.rate
+        while self._next_frame_time <= now and self.continuous and not self.silent:
+            self._send_frame("C", self._next_frame_time)
+            self._next_frame_time += period
+
+    # -- records ------------------------------------------------------------------------------------------
+
+    def _send_frame(self, command: str, t: float) -> None:
+        # The device samples at the instant it stamps: the motion is evaluated at the 1-ms timestamp it reports.
+        t = round(t * 1000.0) / 1000.0
+        self._frame_count += 1
+        self.frames_sent += 1
+        scale = 100.0 if self.units == "cm" else 100.0 / CM_PER_INCH
+        for station in self.stations:
+            if self.silent:
+                return
+            pos, quat = self.motion(t, station)
+            pos = np.asarray(pos, dtype=float) + (self._rng.normal(0.0, self.noise, 3) if self.noise else 0.0)
+            self._send_record(command, station, pos * scale, np.asarray(quat, dtype=float), t)
+
+    def _send_record(self, command: str, station: int, pos, quat, t: float) -> None:
+        f = self.faults
+        k = self.records_sent + 1
+        error = f.error_code if f.error_every and k % f.error_every == 0 else 0
+        items = self.items[station]
+        ts, frame = int(round(t * 1000.0)) & 0xFFFFFFFF, self._frame_count
+        if self.binary:
+            data = encode_binary(items, station, command, pos, quat, ts, frame, error)
+        else:
+            data = encode_ascii(items, station, command, pos, quat, ts, frame, error)
+        applied = []
+        if error:
+            self.faults_injected["device_error"] += 1
+            applied.append("device_error")
+        if f.corrupt_every and k % f.corrupt_every == 0:
+            # Garbage without 'L', so it cannot be taken for a header: the test knows exactly what was sent.
+            junk = self._rng.integers(0, 255, f.corrupt_bytes, dtype=np.uint8)
+            junk[junk == ord("L")] = 0x4D
+            data = junk.tobytes() + data
+            self.faults_injected["corrupt"] += 1
+            applied.append("corrupt")
+        wasted = f.corrupt_bytes if "corrupt" in applied else 0
+        if f.partial_every and k % f.partial_every == 0:
+            data = data[: len(data) // 2]
+            self.faults_injected["partial"] += 1
+            applied.append("partial")
+            wasted = len(data)
+        self.records_sent += 1
+        self.log.append((station, ts, ",".join(applied), wasted))
+        self._queue(data)
+
+    def _queue(self, data: bytes) -> None:
+        if not self._baud_matches():
+            # A UART at the wrong speed turns every byte into some other byte (and framing errors).
+            data = self._rng.integers(0, 256, len(data), dtype=np.uint8).tobytes()
+        if len(self._out) + len(data) > MAX_QUEUED_BYTES:
+            self.dropped_bytes += len(data)
+            return
+        self._out += data
+

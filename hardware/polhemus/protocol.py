@@ -1,0 +1,562 @@
+"""Polhemus Liberty wire protocol: command strings, record encoding and a resynchronising stream parser.
+
+Pure functions and plain data, no I/O, so the driver and the emulator share one definition of the bytes.
+
+Binary record (``F1``), Liberty manual Table 2-2: an 8-byte header
+
+    'L' 'Y' | station (uint8, 1-based) | initiating command (ASCII, 'P' or 'C') | error (uint8) | reserved
+    | payload size (int16 little-endian, bytes after the header)
+
+then the output-list items in order, little-endian: position x,y,z (item 2, 3 x float32, in the current
+units), quaternion w,x,y,z (item 7, 4 x float32), timestamp (item 8, uint32, ms), frame count (item 9, uint32),
+space (item 0, one byte) and CR LF (item 1, two bytes).
+
+ASCII record (``F0``): a header of the station as two digits, the initiating command and the error indicator
+(a space when there is no error), then the items as space-separated decimal fields, then CR LF.
+
+An error byte of 0 or an ASCII space both mean "no error": the manual uses a space in ASCII output and real
+units have been seen to send either in binary, so both are accepted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+
+MAGIC = b"LY"
+HEADER_SIZE = 8
+MAX_STATIONS = 16
+RECORD_COMMANDS = (ord("P"), ord("C"))
+NO_ERROR = (0, 0x20)
+CM_PER_INCH = 2.54
+
+# Output-list item numbers of the Liberty (the 'O' command) that palpate understands, with their binary layout.
+ITEM_SPACE = 0
+ITEM_CRLF = 1
+ITEM_POSITION = 2
+ITEM_QUATERNION = 7
+ITEM_TIMESTAMP = 8
+ITEM_FRAMECOUNT = 9
+ITEM_LAYOUT: dict[int, tuple[str, str, int]] = {
+    # item: (field name, numpy dtype of one value, number of values)
+    ITEM_SPACE: ("space", "u1", 1),
+    ITEM_CRLF: ("crlf", "u1", 2),
+    ITEM_POSITION: ("position", "<f4", 3),
+    ITEM_QUATERNION: ("quaternion", "<f4", 4),
+    ITEM_TIMESTAMP: ("timestamp", "<u4", 1),
+    ITEM_FRAMECOUNT: ("frame", "<u4", 1),
+}
+DEFAULT_ITEMS = (ITEM_POSITION, ITEM_QUATERNION, ITEM_TIMESTAMP, ITEM_FRAMECOUNT, ITEM_CRLF)
+# A quaternion from the device is unit to float32 precision; anything far off means the bytes are not a record.
+QUAT_NORM_TOLERANCE = 0.05
+# Positions beyond this (in device units) are outside any Liberty's range: the bytes are not a record.
+MAX_ABS_POSITION = 1.0e4
+
+
+@dataclass(frozen=True)
+class Record:
+    """One decoded Liberty record, in device units.
+
+    Attributes:
+        station: station number, 1-based.
+        command: initiating command, 'P' (single) or 'C' (continuous).
+        error: device error code (0 when none).
+        position: (x, y, z) in the configured units (cm or inch), or None if not in the output list.
+        quaternion: (w, x, y, z), or None if not in the output list.
+        timestamp_ms: device clock, ms, or None.
+        frame: device frame count, or None.
+    """
+
+    station: int
+    command: str
+    error: int
+    position: np.ndarray | None
+    quaternion: np.ndarray | None
+    timestamp_ms: int | None
+    frame: int | None
+
+
+@dataclass(frozen=True)
+class ErrorEvent:
+    """Something went wrong in the byte stream; later records are still parsed.
+
+    Attributes:
+        kind: 'garbage' (bytes skipped while resynchronising), 'partial' (a record cut short by the next header),
+            'implausible' (a well-framed record whose values cannot be a pose), 'device_error' (nonzero error
+            byte; the record is attached) or 'bad_line' (an ASCII line that does not parse).
+        message: what happened, with byte counts or the offending text.
+        nbytes: how many bytes were dropped (0 for device_error).
+        record: for 'device_error', the record the device flagged.
+    """
+
+    kind: str
+    message: str
+    nbytes: int = 0
+    record: Record | None = None
+
+
+@dataclass
+class RecordBatch:
+    """Many records as arrays (the fast path); row i of every array is record i.
+
+    Arrays whose item is not in the output list are None.
+    """
+
+    station: np.ndarray
+    command: np.ndarray
+    error: np.ndarray
+    position: np.ndarray | None
+    quaternion: np.ndarray | None
+    timestamp_ms: np.ndarray | None
+    frame: np.ndarray | None
+    events: list[ErrorEvent] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return int(self.station.shape[0])
+
+    def records(self) -> list[Record]:
+        """The batch as Record objects."""
+        n = len(self)
+        out = []
+        for i in range(n):
+            out.append(
+                Record(
+                    station=int(self.station[i]),
+                    command=chr(int(self.command[i])),
+                    error=int(self.error[i]),
+                    position=None if self.position is None else self.position[i].astype(float),
+                    quaternion=None if self.quaternion is None else self.quaternion[i].astype(float),
+                    timestamp_ms=None if self.timestamp_ms is None else int(self.timestamp_ms[i]),
+                    frame=None if self.frame is None else int(self.frame[i]),
+                )
+            )
+        return out
+
+
+# ---------------------------------------------------------------------------------------------- commands
+
+
+def validate_items(items) -> tuple[int, ...]:
+    """Check an output list: known item numbers, no repeats. Returns it as a tuple of ints."""
+    items = tuple(int(i) for i in items)
+    if not items:
+        raise ValidationError("Liberty output list is empty; expected item numbers such as 2,7,8,9,1")
+    for i in items:
+        if i not in ITEM_LAYOUT:
+            known = ", ".join(f"{k} ({v[0]})" for k, v in ITEM_LAYOUT.items())
+            raise ValidationError(f"Liberty output list item {i} is not supported; supported items: {known}")
+    if len(set(items)) != len(items):
+        raise ValidationError(f"Liberty output list {items} repeats an item")
+    return items
+
+
+def validate_station(station: int) -> int:
+    """Check a 1-based station number (1..16)."""
+    if not isinstance(station, (int, np.integer)) or not 1 <= int(station) <= MAX_STATIONS:
+        raise ValidationError(f"Liberty station must be an integer 1..{MAX_STATIONS}, got {station!r}")
+    return int(station)
+
+
+def format_command(letter: str, *args) -> bytes:
+    """Format a Liberty command: letter, comma-separated arguments, CR (e.g. ``O*,2,7,8,9,1\\r``).
+
+    ``P`` and ``C`` with no argument are single-byte commands that act at once and are sent without CR.
+    """
+    if len(letter) != 1 or not letter.isalpha():
+        raise ValidationError(f"Liberty command letter must be one letter, got {letter!r}")
+    if letter in "PC" and not args:
+        return letter.encode("ascii")
+    text = letter + ",".join(str(a) for a in args)
+    return (text + "\r").encode("ascii")
+
+
+def output_list_command(items, station: int | str = "*") -> bytes:
+    """The ``O`` command setting the output list of one station (or ``*`` for all)."""
+    items = validate_items(items)
+    if station != "*":
+        station = validate_station(station)
+    return ("O" + ",".join([str(station), *map(str, items)]) + "\r").encode("ascii")
+
+
+def parse_command_line(line: bytes) -> tuple[str, list[str]]:
+    """Split one command (without its CR) into its letter and its comma-separated arguments.
+
+    ``F1`` -> ('F', ['1']); ``O*,2,7`` -> ('O', ['*', '2', '7']). Raises ValidationError on an empty or
+    non-ASCII command.
+    """
+    try:
+        text = line.decode("ascii").strip()
+    except UnicodeDecodeError as exc:
+        raise ValidationError(f"Liberty command {line!r} is not ASCII") from exc
+    if not text or not text[0].isalpha():
+        raise ValidationError(f"Liberty command {line!r} does not start with a command letter")
+    letter, rest = text[0].upper(), text[1:]
+    return letter, ([] if rest == "" else rest.split(","))
+
+
+# ---------------------------------------------------------------------------------------------- binary
+
+
+def record_dtype(items) -> np.dtype:
+    """Numpy structured dtype of one whole binary record (header + payload) for this output list."""
+    items = validate_items(items)
+    fields = [
+        ("magic", "S2"),
+        ("station", "u1"),
+        ("command", "u1"),
+        ("error", "u1"),
+        ("reserved", "u1"),
+        ("size", "<i2"),
+    ]
+    for i in items:
+        name, dt, n = ITEM_LAYOUT[i]
+        fields.append((name, dt, (n,)) if n > 1 else (name, dt))
+    return np.dtype(fields)
+
+
+def payload_size(items) -> int:
+    """Bytes after the header in a binary record with this output list."""
+    return record_dtype(items).itemsize - HEADER_SIZE
+
+
+def encode_binary(
+    items,
+    station: np.ndarray | int,
+    command: str,
+    position: np.ndarray | None = None,
+    quaternion: np.ndarray | None = None,
+    timestamp_ms: np.ndarray | int | None = None,
+    frame: np.ndarray | int | None = None,
+    error: np.ndarray | int = 0,
+) -> bytes:
+    """Encode one or many binary records (vectorised: arrays with a leading record axis).
+
+    Position is in device units (cm or inch). Items of the output list that are not given are sent as zeros.
+    """
+    items = validate_items(items)
+    dt = record_dtype(items)
+    station = np.atleast_1d(np.asarray(station))
+    n = station.shape[0]
+    rec = np.zeros(n, dtype=dt)
+    rec["magic"] = MAGIC
+    rec["station"] = station
+    rec["command"] = ord(command)
+    rec["error"] = error
+    rec["size"] = dt.itemsize - HEADER_SIZE
+    values = {"position": position, "quaternion": quaternion, "timestamp": timestamp_ms, "frame": frame}
+    for i in items:
+        name = ITEM_LAYOUT[i][0]
+        if name == "space":
+            rec[name] = 0x20
+        elif name == "crlf":
+            rec[name] = (13, 10)
+        elif values.get(name) is not None:
+            v = np.asarray(values[name])
+            rec[name] = v.reshape(rec[name].shape) if v.size == rec[name].size else v
+    return rec.tobytes()
+
+
+class RecordParser:
+    """Streaming parser of Liberty output that resynchronises after corrupt, missing or extra bytes.
+
+    Feed it whatever the transport delivered, in any chunking; it returns the complete records found and the
+    problems met, and keeps an incomplete tail for the next call. A record is accepted when it starts with
+    'LY', a plausible station (one of ``stations``), a record command ('P'/'C'), the payload size of the
+    configured output list; when no other such header starts inside it (which would mean it was cut short);
+    and when its values can be a pose (finite, unit quaternion, position in range).
+
+    Args:
+        items: the output list the device was configured with.
+        stations: station numbers that may appear (default: any of 1..16).
+        binary: True for F1 output, False for F0 (ASCII lines).
+    """
+
+    def __init__(self, items=DEFAULT_ITEMS, stations=None, binary: bool = True):
+        self.items = validate_items(items)
+        self.binary = bool(binary)
+        stations = range(1, MAX_STATIONS + 1) if stations is None else [validate_station(s) for s in stations]
+        self._station_ok = np.zeros(256, dtype=bool)
+        self._station_ok[list(stations)] = True
+        self._command_ok = np.zeros(256, dtype=bool)
+        self._command_ok[list(RECORD_COMMANDS)] = True
+        self._dtype = record_dtype(self.items)
+        self._size = self._dtype.itemsize
+        if not self.binary and self.items[-1] != ITEM_CRLF:
+            raise ValidationError(
+                f"ASCII output list {self.items} must end with item {ITEM_CRLF} (CR/LF), which ends each record"
+            )
+        self._ascii_counts = [ITEM_LAYOUT[i][2] for i in self.items if i not in (ITEM_SPACE, ITEM_CRLF)]
+        self._pending = b""
+        self.bytes_dropped = 0
+
+    @property
+    def record_size(self) -> int:
+        """Bytes of one whole binary record (header + payload)."""
+        return self._size
+
+    def feed(self, data: bytes) -> list[Record | ErrorEvent]:
+        """Parse more bytes; return records and error events in stream order."""
+        if not self.binary:
+            return self._feed_ascii(data)
+        batch = self.feed_arrays(data)
+        return _interleave(batch)
+
+    def flush(self) -> list[ErrorEvent]:
+        """End of stream: report the incomplete tail, if any, and forget it."""
+        n = len(self._pending)
+        self._pending = b""
+        if n == 0:
+            return []
+        self.bytes_dropped += n
+        return [ErrorEvent("partial", f"stream ended inside a record: {n} bytes left incomplete", nbytes=n)]
+
+    # -- binary -------------------------------------------------------------------------------------------
+
+    def feed_arrays(self, data: bytes) -> RecordBatch:
+        """Binary fast path: parse more bytes into a RecordBatch (vectorised over records).
+
+        The batch holds the accepted records in stream order and, separately, the error events in stream order.
+        """
+        if not self.binary:
+            raise ValidationError("feed_arrays() parses binary (F1) output; this parser is configured for ASCII")
+        buf = self._pending + bytes(data)
+        arr = np.frombuffer(buf, dtype=np.uint8)
+        size = self._size
+        starts = self._header_candidates(arr)
+        if starts.size == 0:
+            # Keep the last bytes: they may be the beginning of a header whose end has not arrived yet.
+            keep = min(len(buf), HEADER_SIZE - 1)
+            dropped = len(buf) - keep
+            events = []
+            if dropped:
+                events.append(ErrorEvent("garbage", f"skipped {dropped} bytes with no record header", dropped))
+                self.bytes_dropped += dropped
+            self._pending = buf[len(buf) - keep :]
+            return self._batch(np.zeros(0, dtype=self._dtype), events)
+        nxt = np.append(starts[1:], np.iinfo(np.int64).max)
+        complete = starts + size <= len(buf)
+        cut_short = nxt < starts + size
+        whole = complete & ~cut_short
+        # Only the last header can be incomplete without a later header inside it: it waits for more bytes.
+        if not complete[-1] and not cut_short[-1]:
+            end = int(starts[-1])
+        else:
+            end = max(int(starts[-1]) + size, len(buf) - (HEADER_SIZE - 1))
+        take = starts[whole]
+        if take.size:
+            rec = arr[take[:, None] + np.arange(size)].reshape(-1).view(self._dtype)
+            plausible = self._plausible(rec)
+        else:
+            rec = np.zeros(0, dtype=self._dtype)
+            plausible = np.zeros(0, dtype=bool)
+        if take.size and not plausible[-1] and int(take[-1]) + size + HEADER_SIZE - 1 > len(buf):
+            # A bad last record may be one cut short by a header whose end has not arrived yet: decide when it has.
+            end = int(take[-1])
+            rec, plausible = rec[:-1], plausible[:-1]
+        events = self._gap_events(arr, starts, whole, cut_short, plausible, end)
+        self._pending = buf[end:]
+        good = rec[plausible]
+        flagged = ~np.isin(good["error"], NO_ERROR)
+        batch = self._batch(good[~flagged], events)
+        if flagged.any():
+            for r in self._batch(good[flagged], []).records():
+                batch.events.append(
+                    ErrorEvent("device_error", f"station {r.station} reported error code {r.error}", 0, r)
+                )
+        return batch
+
+    def _header_candidates(self, arr: np.ndarray) -> np.ndarray:
+        n = arr.shape[0] - HEADER_SIZE + 1
+        if n <= 0:
+            return np.zeros(0, dtype=np.int64)
+        pos = np.flatnonzero((arr[:n] == MAGIC[0]) & (arr[1 : n + 1] == MAGIC[1])).astype(np.int64)
+        if pos.size == 0:
+            return pos
+        ok = self._station_ok[arr[pos + 2]] & self._command_ok[arr[pos + 3]]
+        size = arr[pos + 6].astype(np.int32) | (arr[pos + 7].astype(np.int32) << 8)
+        ok &= size == self._size - HEADER_SIZE
+        return pos[ok]
+
+    def _plausible(self, rec: np.ndarray) -> np.ndarray:
+        ok = np.ones(rec.shape[0], dtype=bool)
+        names = rec.dtype.names
+        if "position" in names:
+            p = rec["position"].astype(np.float64)
+            ok &= np.all(np.isfinite(p), axis=1) & np.all(np.abs(p) < MAX_ABS_POSITION, axis=1)
+        if "quaternion" in names:
+            q = rec["quaternion"].astype(np.float64)
+            with np.errstate(invalid="ignore", over="ignore"):
+                norm = np.sqrt(np.sum(q * q, axis=1))
+            ok &= np.isfinite(norm) & (np.abs(norm - 1.0) < QUAT_NORM_TOLERANCE)
+        if "crlf" in names:
+            ok &= (rec["crlf"][:, 0] == 13) & (rec["crlf"][:, 1] == 10)
+        if "space" in names:
+            ok &= rec["space"] == 0x20
+        return ok
+
+    def _gap_events(self, arr, starts, whole, cut_short, plausible, end) -> list[ErrorEvent]:
+        """Events for the bytes in [0, end) that are not inside an accepted record."""
+        size = self._size
+        m = int(np.searchsorted(starts, end))  # headers that start before the kept tail
+        # The common case, checked vectorised: back-to-back good records from byte 0 up to the tail.
+        if (m == 0 and end == 0) or (
+            m > 0
+            and starts[0] == 0
+            and whole[:m].all()
+            and plausible.all()
+            and np.all(np.diff(starts[:m]) == size)
+            and int(starts[m - 1]) + size == end
+        ):
+            return []
+        events: list[ErrorEvent] = []
+        covered = 0
+        wi = 0
+        for k in range(m):
+            s = int(starts[k])
+            if s < covered:
+                continue  # a header-looking byte run inside an accepted record
+            if s > covered:
+                events.append(ErrorEvent("garbage", f"skipped {s - covered} bytes before a record header", s - covered))
+            if cut_short[k]:
+                nb = int(starts[k + 1]) - s
+                events.append(ErrorEvent(
+                    "partial", f"record of station {int(arr[s + 2])} cut short after {nb} of {size} bytes", nb))
+                covered = s + nb
+                continue
+            if not plausible[wi]:
+                events.append(ErrorEvent(
+                    "implausible",
+                    f"dropped a record of station {int(arr[s + 2])} whose values are not a pose "
+                    "(non-finite, non-unit quaternion or out of range)", size))
+            wi += 1
+            covered = s + size
+        if end > covered:
+            events.append(ErrorEvent("garbage", f"skipped {end - covered} bytes after the last record", end - covered))
+        self.bytes_dropped += sum(e.nbytes for e in events)
+        return events
+
+    def _batch(self, rec: np.ndarray, events) -> RecordBatch:
+        names = rec.dtype.names
+        return RecordBatch(
+            station=rec["station"].copy(),
+            command=rec["command"].copy(),
+            error=rec["error"].copy(),
+            position=rec["position"].copy() if "position" in names else None,
+            quaternion=rec["quaternion"].copy() if "quaternion" in names else None,
+            timestamp_ms=rec["timestamp"].copy() if "timestamp" in names else None,
+            frame=rec["frame"].copy() if "frame" in names else None,
+            events=list(events),
+        )
+
+    # -- ASCII --------------------------------------------------------------------------------------------
+
+    def _feed_ascii(self, data: bytes) -> list[Record | ErrorEvent]:
+        buf = self._pending + bytes(data)
+        out: list[Record | ErrorEvent] = []
+        *lines, rest = buf.split(b"\r\n")
+        # A line that never ends is not a record: bound what is kept so garbage cannot grow without limit.
+        limit = 64 + 24 * sum(self._ascii_counts)
+        if len(rest) > limit:
+            out.append(ErrorEvent("garbage", f"skipped {len(rest)} bytes with no CR/LF", len(rest)))
+            self.bytes_dropped += len(rest)
+            rest = b""
+        self._pending = rest
+        for line in lines:
+            item = decode_ascii_line(line, self.items, self._station_ok)
+            if isinstance(item, ErrorEvent):
+                self.bytes_dropped += item.nbytes
+            elif item.error not in NO_ERROR:
+                item = ErrorEvent("device_error", f"station {item.station} reported error code {item.error}", 0, item)
+            out.append(item)
+        return out
+
+
+def _interleave(batch: RecordBatch) -> list[Record | ErrorEvent]:
+    return [*batch.events, *batch.records()]
+
+
+def encode_ascii(
+    items,
+    station: int,
+    command: str,
+    position=None,
+    quaternion=None,
+    timestamp_ms: int | None = None,
+    frame: int | None = None,
+    error: int = 0,
+) -> bytes:
+    """Encode one ASCII (F0) record: header, space-separated fields in output-list order, CR LF last."""
+    items = validate_items(items)
+    err = " " if error in NO_ERROR else chr(error)
+    parts: list[str] = []
+    for i in items:
+        if i == ITEM_POSITION:
+            parts.extend(f"{v:.4f}" for v in np.asarray(position if position is not None else np.zeros(3)))
+        elif i == ITEM_QUATERNION:
+            q = quaternion if quaternion is not None else (1.0, 0.0, 0.0, 0.0)
+            parts.extend(f"{v:.6f}" for v in np.asarray(q))
+        elif i == ITEM_TIMESTAMP:
+            parts.append(str(int(timestamp_ms or 0)))
+        elif i == ITEM_FRAMECOUNT:
+            parts.append(str(int(frame or 0)))
+    text = f"{station:02d}{command}{err} " + " ".join(parts)
+    if ITEM_SPACE in items:
+        text += " "
+    if ITEM_CRLF in items:
+        text += "\r\n"
+    return text.encode("ascii")
+
+
+def decode_ascii_line(line: bytes, items, station_ok: np.ndarray | None = None) -> Record | ErrorEvent:
+    """Decode one ASCII record (without its CR LF); an ErrorEvent names what is wrong with a bad line."""
+    nbytes = len(line) + 2
+
+    def bad(why: str) -> ErrorEvent:
+        shown = line[:40]
+        return ErrorEvent("bad_line", f"ASCII record {shown!r}: {why}", nbytes)
+
+    if len(line) < 4:
+        return bad("shorter than the 4-character header")
+    try:
+        text = line.decode("ascii")
+    except UnicodeDecodeError:
+        return bad("contains non-ASCII bytes")
+    head, body = text[:4], text[4:]
+    if not head[:2].strip().isdigit():
+        return bad("does not start with a two-digit station number")
+    station = int(head[:2])
+    if station_ok is not None and not (0 <= station < len(station_ok) and station_ok[station]):
+        return bad(f"station {station} is not one of the configured stations")
+    command = head[2]
+    if ord(command) not in RECORD_COMMANDS:
+        return bad(f"initiating command {command!r} is not P or C")
+    error = 0 if head[3] == " " else ord(head[3])
+    fields = body.split()
+    values: dict[str, object] = {}
+    k = 0
+    for i in items:
+        if i in (ITEM_SPACE, ITEM_CRLF):
+            continue
+        name, _, n = ITEM_LAYOUT[i]
+        chunk = fields[k : k + n]
+        k += n
+        if len(chunk) != n:
+            return bad(f"expected {n} value(s) for item {i} ({name})")
+        try:
+            if name in ("timestamp", "frame"):
+                values[name] = int(chunk[0])
+            else:
+                values[name] = np.array([float(c) for c in chunk])
+        except ValueError:
+            return bad(f"item {i} ({name}) is not numeric: {' '.join(chunk)!r}")
+    if k != len(fields):
+        return bad(f"{len(fields)} fields where the output list gives {k}")
+    pos, quat = values.get("position"), values.get("quaternion")
+    if pos is not None and not (np.all(np.isfinite(pos)) and np.all(np.abs(pos) < MAX_ABS_POSITION)):
+        return bad("position is not finite or out of range")
+    if quat is not None and not abs(float(np.linalg.norm(quat)) - 1.0) < QUAT_NORM_TOLERANCE:
+        return bad("quaternion is not a unit quaternion")
+    return Record(station, command, error, pos, quat, values.get("timestamp"), values.get("frame"))
