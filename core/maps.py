@@ -51,13 +51,13 @@ def _check_probs(p, name: str, min_ndim: int = 1, normalised: bool = False) -> n
         raise ValidationError(f"{name} must have at least {min_ndim} dimension(s) (last = materials), got {arr.shape}")
     if arr.shape[-1] < 1:
         raise ValidationError(f"{name} has an empty materials axis, shape {arr.shape}")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        idx = _first_index(bad)
-        raise ValidationError(f"{name} must be finite; found {arr[idx]} at index {idx}")
-    neg = arr < 0
-    if neg.any():
-        idx = _first_index(neg)
+    # Two allocation-free reductions first (NaN propagates through min); locate the culprit only on failure.
+    if arr.size and not (arr.min() >= 0 and np.isfinite(arr.max())):
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            idx = _first_index(bad)
+            raise ValidationError(f"{name} must be finite; found {arr[idx]} at index {idx}")
+        idx = _first_index(arr < 0)
         raise ValidationError(f"{name} must be non-negative; found {arr[idx]} at index {idx}")
     if normalised and arr.size:
         off = np.abs(arr.sum(axis=-1) - 1.0) > _SUM_TOL_INPUT
@@ -132,8 +132,10 @@ def entropy(p, base: float = 10.0, axis: int = -1) -> np.ndarray:
 def _entropy_checked(arr: np.ndarray, base: float, axis: int = -1) -> np.ndarray:
     """Entropy of an already validated float array (the hot path of post-processing skips re-validation)."""
     # log only where p > 0, so that 0 log 0 = 0 without a divide-by-zero warning.
-    logp = np.log(arr, out=np.zeros_like(arr), where=arr > 0)
-    h = -(arr * logp).sum(axis=axis) / math.log(base)
+    plogp = np.log(arr, out=np.zeros_like(arr), where=arr > 0)
+    plogp *= arr
+    h = plogp.sum(axis=axis)
+    h *= -1.0 / math.log(base)
     # p log p <= 0 for p in [0, 1]; a tiny negative is rounding of a certain distribution.
     return np.maximum(h, 0.0)
 
@@ -229,24 +231,31 @@ def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12
     arr = _check_probs(p, "p", min_ndim=3, normalised=True)
     mask = _check_mask(explored, arr.shape[:-1], "explored")
     w = _inverse_entropy_weights(arr, h, base, _check_h_min(h_min))
+    return _extrapolate_plane(arr, mask, w)
+
+
+def _box3(a: np.ndarray) -> np.ndarray:
+    """Sum over each cell's in-grid 3x3 neighbourhood (itself included) on axes 0 and 1, separably."""
+    rows = a.copy()
+    rows[:, 1:] += a[:, :-1]
+    rows[:, :-1] += a[:, 1:]
+    out = rows.copy()
+    out[1:] += rows[:-1]
+    out[:-1] += rows[1:]
+    return out
+
+
+def _extrapolate_plane(arr: np.ndarray, mask: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Kernel of :func:`extrapolate_unexplored` on validated arrays; ``w`` = 1/H per cell."""
     w = np.where(mask, w, 0.0)
-    ny, nx = arr.shape[:2]
-    # Zero padding makes off-grid neighbours contribute nothing, which is the edge/corner rule.
-    num = np.zeros((ny + 2, nx + 2) + arr.shape[2:])
-    num[1:-1, 1:-1] = w[..., None] * arr
-    den = np.zeros((ny + 2, nx + 2) + w.shape[2:])
-    den[1:-1, 1:-1] = w
-    acc_num = np.zeros_like(arr)
-    acc_den = np.zeros_like(w)
-    for dy in (0, 1, 2):
-        for dx in (0, 1, 2):
-            if dy == 1 and dx == 1:
-                continue
-            acc_num += num[dy : dy + ny, dx : dx + nx]
-            acc_den += den[dy : dy + ny, dx : dx + nx]
+    # Unexplored cells have zero weight, so for them the 3x3 box sum is exactly the sum over the 8 neighbours
+    # (no subtraction of a huge certain centre, no cancellation); explored cells are not written. Off-grid
+    # neighbours never enter the sums, which is the edge/corner rule.
+    acc_num = _box3(w[..., None] * arr)
+    acc_den = _box3(w)
     target = ~mask & (acc_den > 0)
     out = arr.copy()
-    out[target] = acc_num[target] / acc_den[target][:, None]
+    np.divide(acc_num, acc_den[..., None], out=out, where=target[..., None])
     return out
 
 
@@ -277,15 +286,23 @@ def extrapolate_vertical(p, explored, base: float = 10.0, h_min: float = 1e-12, 
     arr = _check_probs(p, "p", min_ndim=2, normalised=True)
     mask = _check_mask(explored, arr.shape[:-1], "explored")
     w = _inverse_entropy_weights(arr, h, base, _check_h_min(h_min))
+    return _extrapolate_vertical(arr, mask, w)
+
+
+def _pair_mean(arr: np.ndarray, w: np.ndarray, idx_a: tuple, idx_b: tuple) -> np.ndarray:
+    """1/H-weighted mean of the distributions at two index sets (each a tuple of index arrays)."""
+    wa, wb = w[idx_a][:, None], w[idx_b][:, None]
+    return (wa * arr[idx_a] + wb * arr[idx_b]) / (wa + wb)
+
+
+def _extrapolate_vertical(arr: np.ndarray, mask: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Kernel of :func:`extrapolate_vertical` on validated arrays; only the gap voxels are computed."""
     out = arr.copy()
-    if arr.shape[-2] < 3:
-        return out
-    gaps = _vertical_gaps(mask)
-    w_up, w_dn = w[..., :-2], w[..., 2:]
-    mean = (w_up[..., None] * arr[..., :-2, :] + w_dn[..., None] * arr[..., 2:, :]) / (w_up + w_dn)[..., None]
-    inner = out[..., 1:-1, :]
-    g = gaps[..., 1:-1]
-    inner[g] = mean[g]
+    idx = np.nonzero(_vertical_gaps(mask))
+    if idx[0].size:
+        up = idx[:-1] + (idx[-1] - 1,)
+        down = idx[:-1] + (idx[-1] + 1,)
+        out[idx] = _pair_mean(arr, w, up, down)
     return out
 
 
@@ -310,14 +327,17 @@ def verify_continuity(p, explored, base: float = 10.0, h_min: float = 1e-12, h=N
     arr = _check_probs(p, "p", min_ndim=2, normalised=True)
     mask = _check_mask(explored, arr.shape[:-1], "explored")
     w = _inverse_entropy_weights(arr, h, base, _check_h_min(h_min))
+    return _verify_continuity(arr, mask, w)
+
+
+def _verify_continuity(arr: np.ndarray, mask: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Kernel of :func:`verify_continuity` on validated arrays; reads only ``arr`` (Jacobi), writes a copy."""
     out = arr.copy()
-    if arr.shape[-2] < 2:
-        return out
-    pair = mask[..., :-1] & mask[..., 1:]
-    w_0, w_1 = w[..., :-1], w[..., 1:]
-    mean = (w_0[..., None] * arr[..., :-1, :] + w_1[..., None] * arr[..., 1:, :]) / (w_0 + w_1)[..., None]
-    upper = out[..., :-1, :]
-    upper[pair] = mean[pair]
+    pair = np.zeros_like(mask)
+    pair[..., :-1] = mask[..., :-1] & mask[..., 1:]
+    idx = np.nonzero(pair)
+    if idx[0].size:
+        out[idx] = _pair_mean(arr, w, idx, idx[:-1] + (idx[-1] + 1,))
     return out
 
 
@@ -668,7 +688,8 @@ class Grid2D(_CategoricalMap):
         The explored mask is copied unchanged: extrapolated cells are estimates, not measurements.
         """
         out = self._empty_like()
-        out._p = extrapolate_unexplored(self._p, self._explored, base=self.base, h_min=h_min)
+        w = 1.0 / np.maximum(_entropy_checked(self._p, self.base), _check_h_min(h_min))
+        out._p = _extrapolate_plane(self._p, self._explored, w)
         out._explored = self._explored.copy()
         return out
 
@@ -819,11 +840,16 @@ class VoxelGrid(_CategoricalMap):
         estimate of seed 000 eq. 6.15 within their layer, from explored voxels only.
         The explored mask is copied unchanged.
         """
-        p = extrapolate_vertical(self._p, self._explored, base=self.base, h_min=h_min)
-        p = verify_continuity(p, self._explored, base=self.base, h_min=h_min)
+        h_min = _check_h_min(h_min)
+        # One set of weights serves both vertical stages: stage (1) changes only unexplored voxels and stage (2)
+        # reads only explored ones.
+        w = 1.0 / np.maximum(_entropy_checked(self._p, self.base), h_min)
+        p = _extrapolate_vertical(self._p, self._explored, w)
+        p = _verify_continuity(p, self._explored, w)
         if lateral:
             filled = self._explored | _vertical_gaps(self._explored)
-            side = extrapolate_unexplored(p, self._explored, base=self.base, h_min=h_min)
+            w = 1.0 / np.maximum(_entropy_checked(p, self.base), h_min)
+            side = _extrapolate_plane(p, self._explored, w)
             p = np.where(filled[..., None], p, side)
         out = VoxelGrid(self.materials, self.shape, origin=self.origin, z_top=self.z_top, cell_size=self.cell_size,
                         p_min=self.p_min, base=self.base)
