@@ -483,7 +483,7 @@ class _CategoricalMap:
             "kind": self._kind,
             "axes": self._axes,
             "materials": list(self.materials),
-            "shape": list(self._explored.shape[::-1] if self._kind == "grid2d" else self._explored.shape),
+            "shape": list(self.shape),  # (nx, ny) or (nx, ny, nz), as the constructor takes it
             "cell_size_m": self.cell_size,
             "origin_m": list(self.origin),
             "base": self.base,
