@@ -103,6 +103,11 @@ class Segmentation:
     baseline: float = 0.0
     noise: float = 0.0
 
+    @property
+    def thresholds(self) -> Thresholds:
+        """The levels used, to reuse on another stream (e.g. by :class:`PressSegmenter`)."""
+        return Thresholds(self.on_threshold, self.off_threshold, self.baseline, self.noise)
+
 
 @dataclass(frozen=True)
 class Thresholds:
@@ -242,42 +247,35 @@ def _segment(
     final: bool,
     first_index: int,
 ) -> tuple[list[Press], list[RejectedPress], int]:
-    """Presses and rejections of a series; also the index from which an unfinished contact resumes.
+    """Presses and rejections of a series; also the index from which the next chunk of a stream should resume.
 
-    With ``final`` False a contact still open at the end is not reported, and the returned resume index points
-    at the last contact-free sample before it (or at the last sample when nothing is open).
+    With ``final`` False a contact still open at the end is not reported. The resume index is the release of the
+    last finished contact (0 if none), so the approach to the next contact, which bounds its first-contact
+    height, is kept.
     """
     t, c_p = series.t, series.c_P
     n = len(t)
     presses: list[Press] = []
     rejected: list[RejectedPress] = []
-    # Resume from the last contact-free sample, so a contact rising at the end of this chunk keeps its onset.
-    free = np.flatnonzero(c_p <= th.off)
-    resume = int(free[-1]) if len(free) else 0
     index = first_index
     i_top = 0  # start of the approach to the next contact: the previous release
     for onset, release in contact_intervals(c_p, th.on, th.off):
         if release is None and not final:
-            resume = max(onset - 1, 0)
             break
         i0 = max(onset, 0)
         end = n - 1 if release is None else release
         if onset < 0:
-            rejected.append(RejectedPress(float(t[0]), float(t[end]),
-                                          "partial: stream starts in contact, first contact not observed", index))
-            index += 1
-            continue
-        if release is None:
-            rejected.append(RejectedPress(float(t[i0]), float(t[end]),
-                                          "partial: stream ends before release", index))
-            index += 1
-            continue
-        outcome = _build_press(series, th, i_top, i0, release, index,
-                               min_duration=min_duration, min_depth=min_depth, min_samples=min_samples)
-        i_top = release
+            outcome = RejectedPress(float(t[0]), float(t[end]),
+                                    "partial: stream starts in contact, first contact not observed", index)
+        elif release is None:
+            outcome = RejectedPress(float(t[i0]), float(t[end]), "partial: stream ends before release", index)
+        else:
+            outcome = _build_press(series, th, i_top, i0, release, index,
+                                   min_duration=min_duration, min_depth=min_depth, min_samples=min_samples)
         (presses if isinstance(outcome, Press) else rejected).append(outcome)
         index += 1
-    return presses, rejected, resume
+        i_top = end
+    return presses, rejected, i_top
 
 
 def _build_press(
@@ -372,7 +370,11 @@ class PressSegmenter:
     """Streaming segmentation: feed contact-series chunks as they arrive, get presses as they complete.
 
     Thresholds are fixed for the whole stream: the given ones, or those estimated from the first ``warmup``
-    samples (which should include contact-free time). Rejected contacts accumulate in :attr:`rejected`.
+    samples (which should include contact-free time), or a whole :class:`Thresholds` (e.g.
+    ``segment_presses(calibration_series).thresholds``). Rejected contacts accumulate in :attr:`rejected`. With
+    fixed thresholds the presses equal those of :func:`segment_presses` on the whole stream, as long as the
+    contact-free time between two presses stays under ``max_buffer`` samples (beyond that the buffer is cut at
+    the last contact-free sample, which can only lower the bound on the next first-contact height).
     """
 
     def __init__(
@@ -384,12 +386,15 @@ class PressSegmenter:
         min_depth: float = 0.0005,
         min_samples: int = 5,
         warmup: int = 50,
+        max_buffer: int = 100_000,
+        thresholds: Thresholds | None = None,
     ) -> None:
         _check_limits(min_duration, min_depth, min_samples)
         self._given = (on_threshold, off_threshold)
         self._limits = dict(min_duration=min_duration, min_depth=min_depth, min_samples=int(min_samples))
         self._warmup = int(warmup)
-        self.thresholds: Thresholds | None = None
+        self._max_buffer = int(max_buffer)
+        self.thresholds: Thresholds | None = thresholds
         self.rejected: list[RejectedPress] = []
         self._buffer: ContactSeries | None = None
         self._next_index = 0
@@ -421,6 +426,9 @@ class PressSegmenter:
                                              **self._limits)
         self.rejected.extend(rejected)
         self._next_index += len(presses) + len(rejected)
+        if len(buf) - resume > self._max_buffer:
+            free = np.flatnonzero(buf.c_P[resume:] <= self.thresholds.off)
+            resume += int(free[-1]) if len(free) else 0
         self._buffer = buf.slice(resume, len(buf))
         return presses
 
