@@ -6,7 +6,7 @@ indentation of the press profile (the finger follows it exactly; no dynamics). E
 p over its square footprint, integrated exactly along x and by Gauss-Legendre along y between the points where
 the circle crosses the sensel edges, so the integrand is smooth on every piece.
 
-Validity: homogeneous material at least ~10 contact radii thick and wide (half-space), indentation small
+Validity: homogeneous material at least ~5 contact radii thick and wide (half-space), indentation small
 against the tip radius (d << R, paraboloid approximation of the sphere), quasi-static (damping ignored), flat
 surface under the tip (the object's own curvature is ignored). Outside these limits use ``rigid`` (finite and
 curved objects) or ``flex`` (layers, inclusions, thin objects). No MuJoCo is needed.

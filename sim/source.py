@@ -6,7 +6,7 @@ streams a Tekscan pad and a Polhemus tracker give, with ground truth beside them
 Fidelity ``auto`` models only what the pressed object requires:
   - ``flex`` if the object has layers, inclusions or a haptic-material map (the local contact laws of the other
     levels cannot see below the surface);
-  - ``analytic`` for a homogeneous box whose top is flat under the whole contact, at least 10 contact radii
+  - ``analytic`` for a homogeneous box whose top is flat under the whole contact, at least 5 contact radii
     (a = sqrt(R d)) thick and with the press point at least 3 contact radii plus the tip radius from every edge
     (the half-space assumption of Hertz holds there);
   - ``rigid`` otherwise (cylinders near their rim, meshes and curved tops, thin or small objects).
@@ -37,7 +37,7 @@ def choose_fidelity(obj: ObjectSpec, target: PressTarget, radius: float) -> str:
     a = np.sqrt(radius * depth)
     half = np.asarray(obj.size[:2]) / 2.0
     edge = float(np.min(half - np.abs(np.array([target.x, target.y]) - np.asarray(obj.position))))
-    if obj.height >= 10.0 * a and edge >= 3.0 * a + radius:
+    if obj.height >= 5.0 * a and edge >= 3.0 * a + radius:
         return "analytic"
     return "rigid"
 

@@ -47,15 +47,6 @@ def check_run(
             f"NaN in the tip state at t={t[i]:.4f} s{context}; reduce the timestep (now {timestep} s) or the "
             f"contact stiffness (young={young:g} Pa)"
         )
-    limit_depth = 2.0 * max_depth + 0.002
-    over = indentation > limit_depth
-    if over.any():
-        i = int(np.argmax(over))
-        raise SimulationDiverged(
-            f"runaway penetration {indentation[i] * 1e3:.2f} mm (commanded {max_depth * 1e3:.2f} mm) at "
-            f"t={t[i]:.4f} s{context}; the contact is too soft for the finger drive or the step too large: "
-            f"reduce the timestep (now {timestep} s) or the press speed ({speed} m/s)"
-        )
     limit_speed = 20.0 * speed + 0.1
     fast = np.abs(velocity) > limit_speed
     if fast.any():
@@ -64,4 +55,13 @@ def check_run(
             f"runaway tip speed {abs(velocity[i]):.3g} m/s (commanded {speed} m/s) at t={t[i]:.4f} s{context}: "
             f"energy is being injected by the contact; reduce the timestep (now {timestep} s) or the contact "
             f"stiffness (young={young:g} Pa)"
+        )
+    limit_depth = 2.0 * max_depth + 0.002
+    over = indentation > limit_depth
+    if over.any():
+        i = int(np.argmax(over))
+        raise SimulationDiverged(
+            f"runaway penetration {indentation[i] * 1e3:.2f} mm (commanded {max_depth * 1e3:.2f} mm) at "
+            f"t={t[i]:.4f} s{context}; reduce the timestep (now {timestep} s), the contact stiffness "
+            f"(young={young:g} Pa) or the press speed ({speed} m/s)"
         )

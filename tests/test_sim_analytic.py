@@ -1,0 +1,147 @@
+"""analytic fidelity: Hertz force, contact radius and sensel pressure; controller; fidelity choice."""
+
+import numpy as np
+import pytest
+
+from palpate.core.errors import ValidationError
+from palpate.core.scene import FingertipSpec, Inclusion, Material, ObjectSpec, Scene, TaxelSensorSpec
+from palpate.core.sources import PressTarget
+from palpate.sim import simulate_press
+from palpate.sim.analytic import (
+    hertz_contact_radius,
+    hertz_depth_for_force,
+    hertz_force,
+    hertz_sensel_pressure,
+    run_analytic_press,
+)
+from palpate.sim.controller import HUMAN, ROBOT, press_profile
+from palpate.sim.fingertip import sensel_bounds
+from palpate.sim.source import SimSource, choose_fidelity
+
+R = 0.008
+E_STAR = 2e5 / (1 - 0.3**2)
+
+
+def _brute_force_mean(depth, bounds, centre, n=1601):
+    """Independent midpoint-rule mean of p0 sqrt(1 - r^2/a^2) over each sensel (slow, coarse)."""
+    a = np.sqrt(R * depth)
+    p0 = 3 * hertz_force(E_STAR, R, depth) / (2 * np.pi * a**2)
+    out = np.zeros(bounds.shape[:2])
+    for i, j in np.ndindex(out.shape):
+        x0, x1, y0, y1 = bounds[i, j]
+        xs = x0 + (x1 - x0) * (np.arange(n) + 0.5) / n
+        ys = y0 + (y1 - y0) * (np.arange(n) + 0.5) / n
+        gx, gy = np.meshgrid(xs - centre[0], ys - centre[1])
+        out[i, j] = np.mean(p0 * np.sqrt(np.maximum(1 - (gx**2 + gy**2) / a**2, 0.0)))
+    return out
+
+
+@pytest.mark.parametrize("depth", [1e-4, 1e-3, 4e-3])
+def test_pressure_integrates_to_the_hertz_force_to_machine_precision(depth):
+    one_big = np.array([[[-0.02, 0.02, -0.02, 0.02]]])
+    p = hertz_sensel_pressure(np.array([depth]), E_STAR, R, one_big, centre=np.array([0.0013, -0.0007]))
+    force = p[0, 0, 0] * 0.04**2
+    assert force == pytest.approx(hertz_force(E_STAR, R, depth), rel=1e-12)
+    assert hertz_depth_for_force(E_STAR, R, force) == pytest.approx(depth, rel=1e-12)
+
+
+def test_pressure_vanishes_exactly_outside_the_hertz_contact_radius():
+    depth = 2e-3
+    a = float(hertz_contact_radius(R, depth))
+    assert a == pytest.approx(np.sqrt(R * depth))
+    tiny = 1e-6
+    just_out = np.array([[[a * (1 + 1e-6), a * (1 + 1e-6) + tiny, -tiny / 2, tiny / 2]]])
+    just_in = np.array([[[a * (1 - 1e-3), a * (1 - 1e-3) + tiny, -tiny / 2, tiny / 2]]])
+    assert hertz_sensel_pressure(np.array([depth]), E_STAR, R, just_out)[0, 0, 0] == 0.0
+    inside = hertz_sensel_pressure(np.array([depth]), E_STAR, R, just_in)[0, 0, 0]
+    p0 = 3 * hertz_force(E_STAR, R, depth) / (2 * np.pi * a**2)
+    r = a * (1 - 1e-3) + tiny / 2
+    assert inside == pytest.approx(p0 * np.sqrt(1 - r**2 / a**2), rel=1e-3)
+
+
+@pytest.mark.parametrize("centre", [(0.0, 0.0), (0.0011, -0.0004)])
+def test_sensel_means_match_an_independent_brute_force_integral(centre):
+    bounds = sensel_bounds(FingertipSpec())
+    depth = 3e-3
+    fast = hertz_sensel_pressure(np.array([depth]), E_STAR, R, bounds, centre=np.array(centre))[0]
+    slow = _brute_force_mean(depth, bounds, centre)
+    np.testing.assert_allclose(fast, slow, rtol=0, atol=2e-4 * slow.max())
+    # the shared-symmetry shortcut and the per-sensel path agree
+    plain = hertz_sensel_pressure(np.array([depth]), E_STAR, R, bounds, np.array(centre), share_symmetric=False)[0]
+    np.testing.assert_allclose(fast, plain, rtol=1e-5, atol=0)
+
+
+def test_centred_press_gives_symmetric_counts_and_hertz_truth():
+    quiet = TaxelSensorSpec(noise_std=0.0, threshold=0)
+    rec = simulate_press(2e5, fidelity="analytic", depth=0.003, taxels=quiet)
+    counts = np.stack([f.counts for f in rec.frames]).astype(int)
+    assert counts.max() > 50  # the press registers
+    for view in (counts[:, ::-1, :], counts[:, :, ::-1], counts.transpose(0, 2, 1)):
+        np.testing.assert_array_equal(counts, view)
+    truth = rec.truth
+    np.testing.assert_allclose(truth.force, hertz_force(E_STAR, R, truth.indentation), rtol=1e-12)
+    assert truth.indentation.max() == pytest.approx(0.003, rel=1e-9)
+    assert rec.meta["fidelity"] == "analytic"
+
+
+def test_analytic_trace_follows_the_profile_exactly():
+    obj = ObjectSpec("b", "box", (0.1, 0.1, 0.03), (0.0, 0.0), Material("m", 2e5))
+    prof = press_profile(PressTarget(0.0, 0.0, depth=0.002, hold=0.1), 0.03, radius=R, timestep=0.001)
+    trace = run_analytic_press(Scene((obj,)), obj, prof)
+    np.testing.assert_allclose(trace.indentation, np.maximum(0.038 - prof.at(trace.t), 0.0), atol=1e-15)
+    assert trace.material == "m"
+
+
+def test_robot_profile_is_exact_and_human_profile_is_seeded():
+    target = PressTarget(0.01, -0.02, depth=0.004, speed=0.01, hold=0.2)
+    robot = press_profile(target, 0.03, radius=R, timestep=0.001, variability=ROBOT, seed=5)
+    assert (robot.x, robot.y) == (0.01, -0.02)
+    assert robot.indentation().max() == pytest.approx(0.004, rel=1e-12)
+    press = robot.meta["phases"]["press"]
+    assert press[1] - press[0] == pytest.approx(0.004 / 0.01, rel=1e-9)  # constant speed
+    assert robot.meta["phases"]["hold"][1] - robot.meta["phases"]["hold"][0] == pytest.approx(0.2)
+    assert np.all(np.diff(robot.t) > 0) and np.all(np.diff(robot.t) <= 0.001 + 1e-12)
+    h1 = press_profile(target, 0.03, radius=R, timestep=0.001, variability=HUMAN, seed=5)
+    h2 = press_profile(target, 0.03, radius=R, timestep=0.001, variability=HUMAN, seed=5)
+    h3 = press_profile(target, 0.03, radius=R, timestep=0.001, variability=HUMAN, seed=6)
+    np.testing.assert_array_equal(h1.z, h2.z)
+    assert (h1.x, h1.y) == (h2.x, h2.y)
+    assert h1.meta["depth"] != h3.meta["depth"] and (h1.x, h1.y) != (h3.x, h3.y)
+    assert abs(h1.x - 0.01) < 0.002 and abs(h1.meta["depth"] - 0.004) < 0.002
+
+
+def test_force_target_uses_the_inverse_law_and_needs_it():
+    target = PressTarget(0.0, 0.0, depth=None, force=5.0)
+    with pytest.raises(ValidationError, match="depth_for_force"):
+        press_profile(target, 0.03, radius=R, timestep=0.001)
+    prof = press_profile(target, 0.03, radius=R, timestep=0.001,
+                         depth_for_force=lambda f: hertz_depth_for_force(E_STAR, R, f))
+    assert hertz_force(E_STAR, R, prof.indentation().max()) == pytest.approx(5.0, rel=1e-9)
+
+
+def test_auto_fidelity_models_only_what_the_object_needs():
+    soft = Material("soft", 2e4)
+    hard = Material("hard", 2e6)
+    thick = ObjectSpec("thick", "box", (0.1, 0.1, 0.04), (0.0, 0.0), soft)
+    thin = ObjectSpec("thin", "box", (0.1, 0.1, 0.005), (0.0, 0.0), soft)
+    cyl = ObjectSpec("cyl", "cylinder", (0.03, 0.04), (0.0, 0.0), soft)
+    lump = ObjectSpec("lump", "box", (0.1, 0.1, 0.04), (0.0, 0.0), soft,
+                      inclusions=(Inclusion(hard, "sphere", (0.0, 0.0, 0.02), (0.005,)),))
+    centre = PressTarget(0.0, 0.0)
+    assert choose_fidelity(thick, centre, R) == "analytic"
+    assert choose_fidelity(thick, PressTarget(0.045, 0.0), R) == "rigid"  # near the edge
+    assert choose_fidelity(thin, centre, R) == "rigid"
+    assert choose_fidelity(cyl, centre, R) == "rigid"
+    assert choose_fidelity(lump, centre, R) == "flex"
+
+
+def test_bad_requests_are_rejected_with_their_name():
+    scene = Scene((ObjectSpec("b", "box", (0.1, 0.1, 0.03), (0.0, 0.0), Material("m", 2e5)),))
+    with pytest.raises(ValidationError, match="fidelity"):
+        SimSource(scene, fidelity="fem")
+    with pytest.raises(ValidationError, match="no object under"):
+        SimSource(scene, fidelity="analytic").press(PressTarget(0.5, 0.5))
+    with pytest.raises(ValidationError, match="unknown scene option"):
+        simulate_press(2e5, fidelity="analytic", thikness=0.02)
+    with pytest.raises(ValidationError, match="timestep"):
+        press_profile(PressTarget(0, 0), 0.03, radius=R, timestep=0.0)
