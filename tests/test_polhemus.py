@@ -303,15 +303,19 @@ class _BytesTransport:
 
     description = "memory"
 
-    def __init__(self, data: bytes):
+    def __init__(self, data: bytes, after_stop: bytes = b""):
         self.data = data
+        self.after_stop = after_stop
 
     def read(self, n):
         out, self.data = self.data[:n], self.data[n:]
+        if not out:
+            time.sleep(0.005)  # as a serial read timeout would
         return out
 
     def write(self, data):
-        pass
+        if data == b"P":
+            self.data += self.after_stop
 
     def reset_input(self):
         self.data = b""
@@ -325,6 +329,19 @@ def test_device_clock_unwraps_past_2_to_the_32_ms():
     drv.streaming = True
     t = [p.t for p in drv.stream(max_records=4)]
     np.testing.assert_allclose(np.diff(t), 0.002, atol=1e-9)
+
+
+def test_a_record_straddling_the_end_of_a_timed_stream_is_kept_by_stop():
+    q = np.tile([1.0, 0, 0, 0], (4, 1))
+    data = encode_binary(DEFAULT_ITEMS, np.ones(4, int), "C", np.zeros((4, 3)), q, np.arange(4) * 2, np.arange(4))
+    cut = len(data) - 20  # the timed stream ends while the 4th record is half received
+    drv = LibertyDriver(_BytesTransport(data[:cut], after_stop=data[cut:]), timeout=1.0)
+    drv.streaming = True
+    poses = list(drv.stream(seconds=0.05))
+    assert drv.stats.stop_reason == "duration" and len(poses) == 3
+    tail = drv.stop()
+    assert [p.t for p in tail] == [0.006]
+    assert drv.stats.errors == []
 
 
 # ------------------------------------------------------------------------------------------------ CLI

@@ -235,7 +235,10 @@ class LibertyDriver:
                     self.stats.stop_reason = "count"
                     self.stats.ended = time.monotonic()
                     return
-        self.stats.errors.extend(self._parser.flush())
+        if self.stats.stop_reason != "duration":
+            # The device is gone: an incomplete tail will never complete. After a duration the stream is still
+            # running and stop() parses the rest of it.
+            self.stats.errors.extend(self._parser.flush())
         self.stats.ended = time.monotonic()
 
     def stop(self) -> list[PoseSample]:
