@@ -529,7 +529,7 @@ def read_recording(path, *, salvage: bool = False) -> Recording:
             except StopIteration:
                 break
             except Exception as exc:  # noqa: BLE001 - damaged bytes make the mcap parser fail in many ways
-                damage = _describe_damage(exc, offset, size)
+                damage = _describe_damage(path, exc, offset, size)
                 break
             if isinstance(record, Footer):
                 break
@@ -574,10 +574,19 @@ def read_recording(path, *, salvage: bool = False) -> Recording:
                      salvaged=damage is not None, versions=versions)
 
 
-def _describe_damage(exc: Exception, offset: int, size: int) -> str:
-    from mcap.exceptions import EndOfFile
+def _describe_damage(path: Path, exc: Exception, offset: int, size: int) -> str:
+    """'truncated ...' when the record that failed runs past the end of the file (what a killed writer leaves),
+    else 'corrupt ...'. Every record starts with a 1-byte opcode and a uint64 length."""
+    from mcap.exceptions import InvalidMagic
 
-    if isinstance(exc, EndOfFile):
+    if isinstance(exc, InvalidMagic):
+        if size < 8:
+            return f"truncated at byte {size} (shorter than the 8-byte MCAP magic)"
+        return "not an MCAP file (its first bytes are not the MCAP magic)"
+    with open(path, "rb") as f:
+        f.seek(offset)
+        head = f.read(9)
+    if len(head) < 9 or offset + 9 + int.from_bytes(head[1:], "little") > size:
         return f"truncated at byte {size} (last complete record ends at byte {offset})"
     return f"corrupt at byte {offset} of {size} ({type(exc).__name__}: {exc})"
 

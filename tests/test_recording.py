@@ -243,3 +243,22 @@ def test_sigkill_mid_write_keeps_complete_chunks(tmp_path):
     t = np.array([f.t for f in rec.frames])
     assert np.array_equal(t, 0.01 * np.arange(n))
     assert all(np.all(f.counts == i % 256) for i, f in enumerate(rec.frames))
+
+
+def test_every_cut_point_reads_back_a_prefix(tmp_path, rng):
+    full = tmp_path / "full.mcap"
+    frames, *_ = _write_example(full, rng, n=12, chunk_size=256)
+    data = full.read_bytes()
+    ends = _chunk_message_ends(full)
+    path = tmp_path / "cut.mcap"
+    for cut in range(0, len(data) - 1, 173):  # a prime stride lands at every kind of offset within records
+        path.write_bytes(data[:cut])
+        expected = max([n for _, end, n in ends if end <= cut], default=0)
+        with pytest.raises(RecordingError, match="truncated|not a readable") as err:
+            read_recording(path)
+        assert err.value.salvaged == expected, cut
+        if "recording is truncated" in str(err.value):
+            rec = read_recording(path, salvage=True)
+            assert rec.salvaged and rec.metadata == META
+            assert all(a.t == b.t and np.array_equal(a.counts, b.counts)
+                       for a, b in zip(rec.frames, frames, strict=False))
