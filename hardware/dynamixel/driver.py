@@ -86,7 +86,9 @@ class DynamixelFinger:
         self._sdk = None
         self._torque_on = False
         self.lost: set[int] = set()
+        # Answers retried because they were corrupt (bad CRC) or late (an emulator on a loaded machine, noise).
         self.corrupt_retries = 0
+        self.timeout_retries = 0
 
     # ---- lifetime ------------------------------------------------------------------------------------------
     def open(self) -> DynamixelFinger:
@@ -145,9 +147,8 @@ class DynamixelFinger:
             number, result, _ = self._ph.ping(self._port, sid)
             if result == self._sdk.COMM_SUCCESS:
                 return int(number)
-            if result != self._sdk.COMM_RX_CORRUPT:
+            if not self._retryable(result):
                 return None
-            self.corrupt_retries += 1
         return None
 
     def _configure(self) -> None:
@@ -191,6 +192,17 @@ class DynamixelFinger:
         if self._port is None:
             raise DeviceError(f"Dynamixel finger on {self.port_name!r} is not open; call open() or use 'with'")
 
+    def _retryable(self, result: int) -> bool:
+        # a corrupt or missing answer is tried again (and counted); a servo is declared lost only when every
+        # attempt times out, so one late packet does not stop a press
+        if result == self._sdk.COMM_RX_CORRUPT:
+            self.corrupt_retries += 1
+            return True
+        if result == self._sdk.COMM_RX_TIMEOUT:
+            self.timeout_retries += 1
+            return True
+        return False
+
     def _write(self, sid: int, reg: tuple[int, int], value: int) -> None:
         """Write one register and check the status; DeviceError naming the servo otherwise."""
         addr, size = reg
@@ -198,9 +210,8 @@ class DynamixelFinger:
         value = int(value) & ((1 << (8 * size)) - 1)
         for _ in range(self.retries + 1):
             result, error = fn(self._port, sid, addr, value)
-            if result != self._sdk.COMM_RX_CORRUPT:
+            if not self._retryable(result):
                 break
-            self.corrupt_retries += 1
         if result == self._sdk.COMM_RX_TIMEOUT:
             self.lost.add(sid)
             raise LostServo(f"servo {sid} did not answer a write to address {addr} on {self.port_name!r}", sid)
@@ -216,9 +227,8 @@ class DynamixelFinger:
         addr, size = reg
         for _ in range(self.retries + 1):
             data, result, error = self._ph.readTxRx(self._port, sid, addr, size)
-            if result != self._sdk.COMM_RX_CORRUPT:
+            if not self._retryable(result):
                 break
-            self.corrupt_retries += 1
         if result != self._sdk.COMM_SUCCESS:
             raise DeviceError(f"servo {sid}: read of address {addr} failed: {_comm_text(self._ph, result)}")
         return int.from_bytes(bytes(data[:size]), "little")
@@ -283,40 +293,42 @@ class DynamixelFinger:
     def read_state(self) -> JointState:
         """One sync read of present current, velocity and position of every joint.
 
-        Corrupt answers are retried; a servo that does not answer raises LostServo naming it; a hardware
+        Corrupt or late answers are retried; a servo that never answers raises LostServo naming it; a hardware
         alert raises DeviceError with the servo's hardware error status.
         """
         self._require_open()
         sdk, ph, port = self._sdk, self._ph, self._port
         ids = self.finger.ids
         raw = np.zeros((len(ids), _STATE_LENGTH), dtype=np.uint8)
+        failure = None
         for _ in range(self.retries + 1):
             result = self._sync_read.txPacket()
             if result != sdk.COMM_SUCCESS:
                 raise DeviceError(f"sync read on {self.port_name!r} could not be sent: {_comm_text(ph, result)}")
             t = self.clock()
-            corrupt = False
+            failure = None
             alerts = []
             for k, sid in enumerate(ids):
                 # per-id receive (what GroupSyncRead.rxPacket does) so the lost id and error bytes are known
                 data, result, error = ph.readRx(port, sid, _STATE_LENGTH)
-                if result == sdk.COMM_RX_CORRUPT:
-                    corrupt = True
-                    break
                 if result != sdk.COMM_SUCCESS:
                     port.is_using = False
-                    self.lost.add(sid)
-                    raise LostServo(f"servo {sid} ({self._joint_name(sid)}) stopped answering on "
-                                    f"{self.port_name!r}", sid)
+                    failure = (sid, result)
+                    self._retryable(result)
+                    break
                 if error & 0x80:
                     alerts.append(sid)
                 raw[k] = data[:_STATE_LENGTH]
-            if not corrupt:
+            if failure is None:
                 break
-            self.corrupt_retries += 1
-        else:
-            raise DeviceError(f"sync read on {self.port_name!r}: {self.retries + 1} corrupt answers in a row; "
-                              "check the cable and the baud rate")
+        if failure is not None:
+            sid, result = failure
+            if result == sdk.COMM_RX_TIMEOUT:
+                self.lost.add(sid)
+                raise LostServo(f"servo {sid} ({self._joint_name(sid)}) stopped answering on {self.port_name!r} "
+                                f"({self.retries + 1} sync reads without its status)", sid)
+            raise DeviceError(f"sync read on {self.port_name!r}: servo {sid} gave {self.retries + 1} bad answers in "
+                              f"a row ({_comm_text(ph, result)}); check the cable and the baud rate")
         if alerts:
             status = {s: self.read_register(s, ct.HARDWARE_ERROR_STATUS) for s in alerts}
             detail = ", ".join(f"servo {s}: hardware error status 0x{v:02x}" for s, v in status.items())

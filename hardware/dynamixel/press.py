@@ -29,6 +29,8 @@ PLANE_TOLERANCE = 1e-3
 # A press to a depth ends when the measured tip is this close above the bottom (m): about one encoder tick
 # at the end of a 7 cm finger.
 DEPTH_TOLERANCE = 1.5e-4
+# Longest stretch of motion one control cycle may command, s (see the press loop).
+MAX_STEP_TIME = 0.005
 
 
 @dataclass
@@ -101,15 +103,19 @@ def press_and_release(driver, target: PressTarget, surface_z: float, *,
         if not driver._torque_on:
             driver.enable_torque()
         driver.move_to(q_top, tolerance, timeout, on_state=record)
-        t0 = driver.clock()
-        deepest = states[-1]
+        n_press_start = len(states)
+        t0 = t_prev = driver.clock()
+        z_cmd = z_top
         while True:
-            z_cmd = max(z_bottom, z_top - target.speed * (driver.clock() - t0))
+            # the servos follow a goal within milliseconds, so a late cycle must not jump the goal ahead:
+            # each step advances at most MAX_STEP_TIME of motion (the press is slower, never faster, than asked)
+            now = driver.clock()
+            z_cmd = max(z_bottom, z_cmd - target.speed * min(now - t_prev, MAX_STEP_TIME))
+            t_prev = now
             q_cmd = inverse_kinematics(finger, x, z_cmd)
             driver.command_joints(q_cmd)
             state = driver.read_state()
             record(state)
-            deepest = state
             if np.max(np.abs(state.current)) >= finger.press_current:
                 stopped_by = "current"
                 break
@@ -122,14 +128,18 @@ def press_and_release(driver, target: PressTarget, surface_z: float, *,
             if state.t - t0 > timeout:
                 raise DeviceError(f"press at x={x} m did not reach z={z_bottom} m within {timeout} s")
         # hold where the tip is (not where it was told to go) so a stop on force/current does not push on
-        driver.command_joints(np.clip(deepest.position, finger.lower, finger.upper))
+        driver.command_joints(np.clip(state.position, finger.lower, finger.upper))
+        n_pressed = len(states)
         t_hold = driver.clock()
         while driver.clock() - t_hold < target.hold:
             record(driver.read_state())
-        z_start = float(forward_kinematics(finger, states[-1].position)[0][2])
-        t1 = driver.clock()
+        n_held = len(states)
+        z_cmd = float(forward_kinematics(finger, states[-1].position)[0][2])
+        t1 = t_prev = driver.clock()
         while True:
-            z_cmd = min(z_top, z_start + target.speed * (driver.clock() - t1))
+            now = driver.clock()
+            z_cmd = min(z_top, z_cmd + target.speed * min(now - t_prev, MAX_STEP_TIME))
+            t_prev = now
             driver.command_joints(inverse_kinematics(finger, x, z_cmd))
             record(driver.read_state())
             if z_cmd >= z_top:
@@ -137,6 +147,9 @@ def press_and_release(driver, target: PressTarget, surface_z: float, *,
             if driver.clock() - t1 > timeout:
                 raise DeviceError(f"release at x={x} m did not reach z={z_top} m within {timeout} s")
         driver.move_to(q_top, tolerance, timeout, on_state=record)
+    # the deepest point of the press and hold phases (the servos may settle a little past the stop)
+    pressed = states[n_press_start:n_held] or states[n_press_start:n_pressed]
+    deepest = min(pressed, key=lambda s: forward_kinematics(finger, s.position)[0][2])
     tip_deepest = forward_kinematics(finger, deepest.position)[0]
     meta = {
         "source": "dynamixel",
