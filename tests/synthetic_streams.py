@@ -112,6 +112,7 @@ def make_recording(
     sensel_noise: float = 0.0,
     pose_gap: tuple[float, float] | None = None,
     rotate: bool = False,
+    knots: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> SyntheticRecording:
     """A recording of presses with known n1 (counts/mm^1.5).
 
@@ -122,8 +123,10 @@ def make_recording(
         sensel_noise: Gaussian noise on every sensel (clipped at 0, rounded), counts.
         pose_gap: (start, end) true-time interval with no pose samples.
         rotate: make the orientation turn steadily about z (for slerp checks).
+        knots: (t, z) of a piecewise-linear height profile replacing the one built from ``presses`` (which
+            then only give the x, y locations).
     """
-    tk, zk = height_knots(presses, surface_z, t_end)
+    tk, zk = height_knots(presses, surface_z, t_end) if knots is None else knots
     t = np.arange(0.0, t_end, 1.0 / taxel_rate)
     depth = np.clip(surface_z - np.interp(t, tk, zk), 0.0, None)
     total = n1 * (depth * 1e3) ** 1.5 + intensity_noise * rng.standard_normal(len(t)) * (depth > 0)
