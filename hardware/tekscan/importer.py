@@ -47,9 +47,9 @@ class ImportSummary:
     def text(self) -> str:
         """A short human-readable summary (areas in mm^2)."""
         r0, r1, c0, c1 = self.region
-        rate = (self.frames - 1) / self.duration if self.duration > 0 else float("nan")
+        rate = f"at {(self.frames - 1) / self.duration:.1f} Hz" if self.duration > 0 else "(one frame)"
         return (f"wrote {self.out}: {self.frames} frames of {self.shape[0]}x{self.shape[1]} sensels "
-                f"(region {r0}:{r1},{c0}:{c1}, {self.b_cells} B cells), {self.duration:.3f} s at {rate:.1f} Hz, "
+                f"(region {r0}:{r1},{c0}:{c1}, {self.b_cells} B cells), {self.duration:.3f} s {rate}, "
                 f"sensel area {self.sensel_area * 1e6:.3f} mm^2, peak c_P {self.peak_c_P}, "
                 f"peak active sensels {self.peak_active}")
 
