@@ -227,18 +227,20 @@ class ServoBusEmulator:
         current = np.zeros_like(pos)
         start = pos.copy()
         for _ in range(n_sub):
-            cand = pos + np.clip(goal - pos, -vmax_ticks * dt, vmax_ticks * dt) * enabled
-            if self.load_model is not None:
-                angles = (cand - ct.CENTER_TICK) * (2 * math.pi / ct.TICKS_PER_REV)
-                load = np.asarray(self.load_model(angles), dtype=float).reshape(-1)
-                if load.shape != pos.shape or not np.all(np.isfinite(load)):
-                    raise ValidationError(
-                        f"emulator load_model must return {len(pos)} finite torques (N*m), got {load!r}")
-            else:
-                load = np.zeros_like(pos)
-            needed = -load / kt  # the motor holds the load: current opposing the external torque
+            step = np.clip(goal - pos, -vmax_ticks * dt, vmax_ticks * dt) * enabled
+            needed = self._holding_current(pos + step, kt)
             stalled = enabled & (np.abs(needed) > limit)
-            pos = np.where(stalled, pos, cand)
+            if np.any(stalled):
+                # a stalled servo still moves as far into the step as its current allows: bisect the fraction
+                lo_f, hi_f = np.zeros_like(pos), np.ones_like(pos)
+                for _ in range(12):
+                    mid = 0.5 * (lo_f + hi_f)
+                    frac = np.where(stalled, mid, 1.0)
+                    ok = np.abs(self._holding_current(pos + frac * step, kt)) <= limit
+                    lo_f, hi_f = np.where(ok, mid, lo_f), np.where(ok, hi_f, mid)
+                step = np.where(stalled, lo_f, 1.0) * step
+                needed = self._holding_current(pos + step, kt)
+            pos = pos + step
             current = np.where(enabled, np.where(stalled, np.sign(needed) * limit, needed), 0.0)
         self._pos = pos
         velocity = (pos - start) / total / ct.TICKS_PER_REV * 2 * math.pi / ct.VELOCITY_UNIT
@@ -247,6 +249,16 @@ class ServoBusEmulator:
             self._set(k, ct.PRESENT_VELOCITY, int(round(velocity[k])))
             self._set(k, ct.PRESENT_CURRENT, int(np.clip(round(current[k] / unit), -32768, 32767)))
             self._set(k, ct.MOVING, int(abs(goal[k] - pos[k]) > 1 and enabled[k]))
+
+    def _holding_current(self, ticks: np.ndarray, kt: float) -> np.ndarray:
+        # the motor holds the external load: current opposing the torque, A
+        if self.load_model is None:
+            return np.zeros_like(ticks)
+        angles = (ticks - ct.CENTER_TICK) * (2 * math.pi / ct.TICKS_PER_REV)
+        load = np.asarray(self.load_model(angles), dtype=float).reshape(-1)
+        if load.shape != ticks.shape or not np.all(np.isfinite(load)):
+            raise ValidationError(f"emulator load_model must return {len(ticks)} finite torques (N*m), got {load!r}")
+        return -load / kt
 
     # ---- instructions --------------------------------------------------------------------------------------
     def _status(self, k: int, error: int = 0, data: bytes = b"") -> bytes:
