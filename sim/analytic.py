@@ -108,8 +108,9 @@ def hertz_sensel_pressure(
             ys = np.where((rel[:, 2:3] + rel[:, 3:4]) < 0, -rel[:, 3:1:-1], rel[:, 2:])
             swap = (xs[:, 0] > ys[:, 0]) | ((xs[:, 0] == ys[:, 0]) & (xs[:, 1] > ys[:, 1]))
             canon = np.where(swap[:, None], np.hstack([ys, xs]), np.hstack([xs, ys]))
-            _, first, inverse = np.unique(np.round(canon, 12), axis=0, return_index=True, return_inverse=True)
-            uniq = canon[first]
+            keys: dict[tuple, int] = {}
+            inverse = np.array([keys.setdefault(tuple(row), len(keys)) for row in np.round(canon, 12).tolist()])
+            uniq = canon[[int(np.argmax(inverse == u)) for u in range(len(keys))]]
         else:
             inverse = np.arange(len(rel))
             uniq = rel
@@ -149,7 +150,7 @@ def local_material(obj: ObjectSpec, x: float, y: float, surface_z: float) -> Mat
 
 
 def run_analytic_press(
-    scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float = 100.0, order: int = 8
+    scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None, order: int = 8
 ) -> PhysicsTrace:
     """Hertz press-and-release sampled at ``rate`` Hz (sensors interpolate between samples).
 
@@ -157,14 +158,16 @@ def run_analytic_press(
         scene: the scene (fingertip geometry).
         obj: the pressed object (local material at the press point).
         profile: the press trajectory; the tip follows it exactly.
-        rate: sampling rate of the trace, Hz.
+        rate: sampling rate of the trace, Hz; by default the taxel rate, so every taxel frame falls on an
+            exactly integrated sample (the pose sensor interpolates position, smooth at this rate).
         order: Gauss-Legendre order of the sensel integration.
     """
+    rate = scene.taxels.rate if rate is None else rate
     if not (np.isfinite(rate) and rate > 0):
         raise ValidationError(f"run_analytic_press: rate must be > 0 Hz, got {rate!r}")
     tip = scene.fingertip
     radius = tip.radius
-    if not np.isclose(profile.meta.get("radius", radius), radius):
+    if abs(profile.meta.get("radius", radius) - radius) > 1e-12:
         raise ValidationError(
             f"press profile was made for a tip radius {profile.meta.get('radius')} m, the scene's is {radius} m"
         )

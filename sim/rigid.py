@@ -33,36 +33,39 @@ from palpate.sim.stability import check_run, check_warnings
 from palpate.sim.trace import PhysicsTrace
 
 
-def _footprint_grid(radius: float, n: int) -> tuple[np.ndarray, float]:
-    """Cell centres (m, 2) of an n x n grid over the tip's footprint disc and the cell area, m^2."""
-    h = 2.0 * radius / n
-    g = -radius + h * (np.arange(n) + 0.5)
-    gx, gy = np.meshgrid(g, g)
-    pts = np.column_stack([gx.ravel(), gy.ravel()])
-    return pts[np.sum(pts**2, axis=1) < radius**2], h * h
+def footprint_rings(radius: float, rings: int, sectors: int) -> tuple[np.ndarray, np.ndarray]:
+    """Polar cells over the tip's footprint disc: centres (rings*sectors, 2), m, and exact cell areas, m^2.
 
-
-def force_table(gaps: np.ndarray, cell_area: float, kernel: float, s: np.ndarray) -> np.ndarray:
-    """Total force F(s) = sum_i A kernel sqrt(max(g_i - s, 0)) at sphere-bottom heights s (m), N.
-
-    gaps: per footprint cell, the height at which the sphere's surface there meets the object (surface height
-    minus the cap height), m. Binned on the grid of s, so the cost is len(s)^2, not len(s) * len(gaps).
+    Rings are concentric with the tip axis, where a press on a flat top starts, so small contacts are resolved
+    by whole rings (a flat top gives one gap value per ring).
     """
-    ds = s[1] - s[0]
-    idx = np.clip(np.floor((gaps - s[0]) / ds).astype(int), -1, len(s) - 1)
-    inside = idx >= 0
-    # weight each bin by its cells' area, at the mean gap of the cells in it
-    counts = np.bincount(idx[inside], minlength=len(s)).astype(float)
-    sums = np.bincount(idx[inside], weights=gaps[inside], minlength=len(s))
-    g_bin = np.where(counts > 0, sums / np.maximum(counts, 1.0), 0.0)
-    used = np.nonzero(counts)[0]
-    pen = g_bin[None, used] - s[:, None]
-    return kernel * cell_area * (np.sqrt(np.maximum(pen, 0.0)) @ counts[used])
+    edges = np.linspace(0.0, radius, rings + 1)
+    r = 0.5 * (edges[1:] + edges[:-1])
+    theta = (np.arange(sectors) + 0.5) * 2.0 * np.pi / sectors
+    pts = np.stack([np.outer(r, np.cos(theta)), np.outer(r, np.sin(theta))], axis=-1).reshape(-1, 2)
+    area = np.repeat(np.pi * (edges[1:] ** 2 - edges[:-1] ** 2) / sectors, sectors)
+    return pts, area
+
+
+def force_table(gaps: np.ndarray, areas: np.ndarray, kernel: float, s: np.ndarray) -> np.ndarray:
+    """Total force F(s) = kernel * sum_i A_i sqrt(max(g_i - s, 0)) at sphere-bottom heights s (m), N.
+
+    gaps: per footprint cell, the effective height at which that cell meets the object, m. Cells with the
+    same gap (to 0.1 um) are merged first, so a flat top costs one term per ring.
+    """
+    keys = np.round(gaps / 1e-7).astype(np.int64)
+    uniq, inverse = np.unique(keys, return_inverse=True)
+    weight = np.bincount(inverse, weights=areas)
+    g = np.bincount(inverse, weights=gaps * areas) / weight
+    reach = g > s[0]
+    pen = g[None, reach] - s[:, None]
+    return kernel * (np.sqrt(np.maximum(pen, 0.0)) @ weight[reach])
 
 
 def run_rigid_press(
     scene: Scene, obj: ObjectSpec, profile: PressProfile, *, timestep: float = 0.002,
-    drive: FingerDrive | None = None, grid: int = 96, order: int = 6, young: float | None = None, mesh=None,
+    drive: FingerDrive | None = None, rings: int = 96, sectors: int = 24, order: int = 6,
+    young: float | None = None, mesh=None,
 ) -> PhysicsTrace:
     """Press-and-release of the MuJoCo finger on a rigid object with the Hertz-shaped contact.
 
@@ -72,7 +75,7 @@ def run_rigid_press(
         profile: the setpoint trajectory (controller).
         timestep: physics step, s.
         drive: finger servo.
-        grid: cells across the tip footprint for the total force table.
+        rings, sectors: polar cells over the tip footprint for the total force table.
         order: Gauss-Legendre order per sensel side.
         young: override of the local Young's modulus, Pa (for stability studies).
         mesh: the object's pre-loaded trimesh mesh, if a mesh object.
@@ -100,7 +103,7 @@ def run_rigid_press(
 
     # surface sampled under the deepest tip position (the tip moves on one axis)
     deepest = centres[int(np.argmin(profile.z))]
-    pts, cell = _footprint_grid(radius, grid)
+    pts, areas = footprint_rings(radius, rings, sectors)
     gaps = surface_heights(obj, deepest[:2] + pts, mesh) - cap_height(tip, pts)
     qpts, qw = sensel_quadrature(tip, order)
     sensel_gaps = surface_heights(obj, deepest[:2] + qpts.reshape(-1, 2), mesh).reshape(qpts.shape[:-1]) - cap_height(
@@ -114,44 +117,52 @@ def run_rigid_press(
     # sphere-bottom height s = centre_z - R; the table covers every height the run can reach (plus margin)
     s_lo = float(np.min(profile.z)) - radius - 2.0 * float(profile.meta.get("depth", 0.004)) - 0.002
     s_hi = float(np.max(gaps)) + 1e-4
-    n_tab = 400
+    n_tab = 1000
     s_tab = np.linspace(s_lo, s_hi, n_tab)
-    f_tab = force_table(gaps, cell, kernel, s_tab)
+    f_tab = force_table(gaps, areas, kernel, s_tab)
     df_tab = np.gradient(f_tab, s_tab)
     inv_ds = (n_tab - 1) / (s_hi - s_lo)
     tau = mat.damping
 
     n = int(np.ceil(profile.duration / timestep)) + 1
     t = profile.t[0] + timestep * np.arange(n)
-    ctrl = np.interp(t, profile.t, q_set)
-    q = np.empty(n)
-    v = np.empty(n)
-    f = np.empty(n)
-    z0 = float(start[2])
+    ctrl = np.interp(t, profile.t, q_set).tolist()
+    q = [float("nan")] * n
+    v = [float("nan")] * n
+    f = [float("nan")] * n
+    # plain Python floats and lists: indexing numpy scalars would cost more than the MuJoCo step itself
+    base = (float(start[2]) - radius - s_lo) * inv_ds
     az = float(axis[2])
+    slope = az * inv_ds
+    ftab = f_tab.tolist()
+    dftab = df_tab.tolist()
+    top = n_tab - 1.000001
     qpos, qvel, qfrc, dctrl = data.qpos, data.qvel, data.qfrc_applied, data.ctrl
     step = mujoco.mj_step
     for k in range(n):
-        qk = qpos[0]
-        vk = qvel[0]
-        x = (z0 + qk * az - radius - s_lo) * inv_ds
-        if x != x:  # NaN: stop and report below
-            q[k:] = np.nan
-            v[k:] = np.nan
-            f[k:] = np.nan
-            break
-        i = min(max(int(x), 0), n_tab - 2)
-        w = min(max(x - i, 0.0), 1.0)
-        fk = f_tab[i] + (f_tab[i + 1] - f_tab[i]) * w
+        qk = float(qpos[0])
+        vk = float(qvel[0])
+        x = base + qk * slope
+        if not 0.0 <= x <= top:
+            if x != x:  # NaN: stop and report below
+                break
+            x = 0.0 if x < 0.0 else top  # beyond the table: deeper than any run can go, or out of contact
+        i = int(x)
+        w = x - i
+        fk = ftab[i] + (ftab[i + 1] - ftab[i]) * w
         if tau > 0.0 and fk > 0.0:
             # Kelvin-Voigt: F + tau dF/dt with dF/dt = F'(s) ds/dt, never pulling the tip in
-            fk = max(fk + tau * (df_tab[i] + (df_tab[i + 1] - df_tab[i]) * w) * vk * az, 0.0)
+            fk = max(fk + tau * (dftab[i] + (dftab[i + 1] - dftab[i]) * w) * vk * az, 0.0)
         q[k] = qk
         v[k] = vk
         f[k] = fk
         qfrc[0] = fk
         dctrl[0] = ctrl[k]
         step(model, data)
+    q = np.array(q)
+    v = np.array(v)
+    f = np.array(f)
+    z0 = float(start[2])
     context = f" (rigid, young={e_star * (1 - mat.poisson**2):g} Pa)"
     check_warnings(model, data, timestep=timestep, context=context)
     zc = z0 + q * az
@@ -176,7 +187,8 @@ def run_rigid_press(
     trace = PhysicsTrace(
         t=t, tip_position=pos, tip_quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), sensel_pressure=pressure,
         force=f, indentation=indentation, surface_z=profile.surface_z, material=mat.name,
-        meta={"fidelity": "rigid", "timestep": float(timestep), "young_eff": float(e_star), "grid": int(grid),
+        meta={"fidelity": "rigid", "timestep": float(timestep), "young_eff": float(e_star),
+              "rings": int(rings), "sectors": int(sectors),
               "drive": {"kp": drive.kp, "kv": drive.kv, "armature": drive.armature, "mass": drive.mass}},
     )
     trace.check_finite()
