@@ -1,0 +1,108 @@
+"""Speed and accuracy of each simulation fidelity: wall time per press-and-release, real-time factor, and the
+force error against the analytic Hertz solution at small indentation.
+
+Run: .venv/bin/python benchmarks/sim_fidelity.py [--quick]
+One core (BLAS threads pinned to 1). Each row presses a 3 cm block of one material to 2 mm at 10 mm/s
+(robot motion) and reports the median over repeats; "physics" times the fidelity's trace alone, "end-to-end"
+adds the press profile and the sensor models (taxel frames, pose samples, ground truth).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from palpate.core.scene import Material, ObjectSpec, Scene  # noqa: E402
+from palpate.core.sources import PressTarget  # noqa: E402
+from palpate.sim.analytic import hertz_force, run_analytic_press  # noqa: E402
+from palpate.sim.controller import press_profile  # noqa: E402
+from palpate.sim.rigid import run_rigid_press  # noqa: E402
+from palpate.sim.source import SimSource  # noqa: E402
+
+VALIDITY = {
+    "analytic": "homogeneous half-space (>= 5 contact radii thick/wide), d << R, quasi-static, flat top",
+    "rigid": "thick homogeneous object, any shape; local contact law (no layers/inclusions/thickness)",
+    "flex": "finite thickness, layers, inclusions, large indentation (see palpate.sim.flex)",
+}
+
+
+def _median_time(fn, repeats: int) -> tuple[float, object]:
+    times, out = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)), out
+
+
+def _small_indentation_error(trace, young_eff: float, radius: float) -> float:
+    d, f = trace.indentation, trace.force
+    loading = np.arange(len(d)) < int(np.argmax(d))
+    small = loading & (d > 1e-4) & (d < 5e-4)
+    if not small.any():
+        return float("nan")
+    return float(np.max(np.abs(f[small] / hertz_force(young_eff, radius, d[small]) - 1.0)))
+
+
+def _physics_call(fid: str, scene: Scene, obj: ObjectSpec, target: PressTarget, prof):
+    """The fidelity's physics alone, as a no-argument callable."""
+    if fid == "analytic":
+        return lambda: run_analytic_press(scene, obj, prof)
+    if fid == "rigid":
+        return lambda: run_rigid_press(scene, obj, prof, timestep=0.002)
+    from palpate.sim.flex import run_flex_press
+
+    return lambda: run_flex_press(scene, obj, target, prof, timestep=0.002, seed=0)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer repeats and materials")
+    args = parser.parse_args()
+    repeats = 3 if args.quick else 10
+    materials = (2e5,) if args.quick else (2e4, 2e5, 2e6)
+    fidelities = ["analytic", "rigid"]
+    try:
+        import palpate.sim.flex  # noqa: F401
+
+        fidelities.append("flex")
+    except ImportError:
+        pass
+    import mujoco  # noqa: F401  (imported once up front so no row pays for it)
+
+    print(f"{'fidelity':9} {'E [kPa]':>8} {'press [s]':>9} {'physics [ms]':>12} {'RTF phys':>9} "
+          f"{'end-to-end [ms]':>15} {'RTF e2e':>8} {'|F err| d<0.5mm':>15}")
+    for young in materials:
+        obj = ObjectSpec("block", "box", (0.1, 0.1, 0.03), (0.0, 0.0), Material("m", young))
+        scene = Scene((obj,))
+        target = PressTarget(0.0, 0.0, depth=0.002, speed=0.01)
+        radius = scene.fingertip.radius
+        e_star = obj.material.effective_modulus
+        for fid in fidelities:
+            prof = press_profile(target, obj.height, radius=radius, timestep=0.002)
+            physics = _physics_call(fid, scene, obj, target, prof)
+            reps = repeats if fid != "flex" else 1
+            try:
+                t_phys, trace = _median_time(physics, reps)
+                source = SimSource(scene, fidelity=fid, seed=0)
+                t_e2e, _ = _median_time(lambda s=source, g=target: s.press(g), reps)
+            except Exception as exc:  # report and go on: one broken fidelity must not hide the others
+                print(f"{fid:9} {young / 1e3:8.0f}  failed: {exc}")
+                continue
+            err = _small_indentation_error(trace, e_star, radius)
+            print(f"{fid:9} {young / 1e3:8.0f} {prof.duration:9.3f} {t_phys * 1e3:12.2f} "
+                  f"{prof.duration / t_phys:9.0f} {t_e2e * 1e3:15.2f} {prof.duration / t_e2e:8.0f} {err:15.2%}")
+    print()
+    for fid in fidelities:
+        print(f"{fid}: valid for {VALIDITY[fid]}")
+
+
+if __name__ == "__main__":
+    main()
