@@ -34,7 +34,7 @@ class Press:
     Attributes:
         index: position of this contact among all contacts detected in the stream (accepted or rejected).
         t_onset: time of first contact, s (interpolated between frames).
-        t_peak: time of the deepest point, s.
+        t_peak: time of the deepest point, s (the first of the deepest pose and the c_P maximum).
         t_release: time contact ended, s (first frame at or below the off threshold).
         h0: height at first contact along -press_axis, m.
         location: mean fingertip (x, y) over the press phase, m.
@@ -301,9 +301,12 @@ def _build_press(
     duration = t_end - t_start
     if duration < min_duration:
         return RejectedPress(t_start, t_end, f"too short: {duration:.3f} s < min_duration {min_duration:g} s", index)
-    peak = i0 + int(np.argmin(h[i0:release]))
+    # The deepest point by the pose and the intensity maximum coincide on good data; when a clock-offset error
+    # or a slow pose rate separates them, the samples in between contradict each other (one stream says
+    # pressing, the other releasing), so the press phase stops at the first of the two.
+    peak = i0 + min(int(np.argmin(h[i0:release])), int(np.argmax(c_p[i0:release])))
     h0, t_onset = _first_contact(t, c_p - th.baseline, h, series.valid, i_top, i0, peak, th.on - th.baseline)
-    depth = float(h0 - h[peak])
+    depth = float(np.max(h0 - h[i0:peak + 1]))
     if depth < min_depth:
         return RejectedPress(t_start, t_end, f"too shallow: depth {depth * 1e3:.3f} mm < min_depth "
                              f"{min_depth * 1e3:g} mm", index)
