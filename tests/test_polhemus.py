@@ -116,6 +116,37 @@ def test_parser_resynchronises_after_garbage_and_cut_records(rng):
     assert parser.bytes_dropped == len(junk) + 17 + 1 + size - 1
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_random_damage_loses_exactly_the_damaged_records_in_any_chunking(seed):
+    rng = np.random.default_rng(seed)
+    n = 300
+    data, _, _, ts = _stream_bytes(n, rng, station=int(rng.integers(1, 17)))
+    size = len(data) // n
+    parts, kept, wasted = [], [], 0
+    for i in range(n):
+        rec = data[i * size : (i + 1) * size]
+        if rng.random() < 0.1:
+            junk = rng.integers(0, 256, int(rng.integers(1, 60)), dtype=np.uint8)
+            junk[junk == ord("L")] = 0
+            parts.append(junk.tobytes())
+            wasted += junk.size
+        if rng.random() < 0.1:
+            rec = rec[: int(rng.integers(1, size))]
+            wasted += len(rec)
+        else:
+            kept.append(int(ts[i]))
+        parts.append(rec)
+    stream = b"".join(parts)
+    parser = RecordParser()
+    out = []
+    cuts = np.sort(rng.integers(0, len(stream), int(rng.integers(1, 400))))
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(stream)], strict=True):
+        out += parser.feed(stream[a:b])
+    out += parser.flush()
+    assert [r.timestamp_ms for r in _records(out)] == kept
+    assert parser.bytes_dropped == wasted == sum(e.nbytes for e in _events(out))
+
+
 def test_parser_drops_a_well_framed_record_whose_values_are_not_a_pose(rng):
     data, _, _, ts = _stream_bytes(5, rng)
     size = len(data) // 5
@@ -251,6 +282,14 @@ def test_corrupt_bytes_and_partial_records_lose_only_the_damaged_records(liberty
     kinds = drv.stats.error_counts()
     assert kinds["partial"] == sum("partial" in f for _, _, f, _ in sent)
     assert kinds["garbage"] >= 1
+
+
+def test_ascii_stream_recovers_from_garbage_and_cut_lines(liberty):
+    emu, drv = liberty(binary=False, faults=Faults(corrupt_every=4, corrupt_bytes=11, partial_every=9))
+    poses = list(drv.stream(seconds=0.3)) + drv.stop()
+    sent = emu.log[2:]
+    assert [round(p.t * 1000) for p in poses] == [ts for _, ts, f, _ in sent if "partial" not in f]
+    assert drv._parser.bytes_dropped == sum(w for *_, w in sent)
 
 
 def test_device_error_byte_is_reported_and_the_stream_goes_on(liberty):

@@ -20,6 +20,7 @@ units have been seen to send either in binary, so both are accepted.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -346,7 +347,11 @@ class RecordParser:
         else:
             end = max(int(starts[-1]) + size, len(buf) - (HEADER_SIZE - 1))
         take = starts[whole]
-        if take.size:
+        if take.size and int(take[-1]) - int(take[0]) == (take.size - 1) * size:
+            # Back-to-back records (the normal stream): view the bytes in place, no gather.
+            rec = np.frombuffer(buf, dtype=self._dtype, count=take.size, offset=int(take[0]))
+            plausible = self._plausible(rec)
+        elif take.size:
             rec = arr[take[:, None] + np.arange(size)].reshape(-1).view(self._dtype)
             plausible = self._plausible(rec)
         else:
@@ -383,14 +388,15 @@ class RecordParser:
     def _plausible(self, rec: np.ndarray) -> np.ndarray:
         ok = np.ones(rec.shape[0], dtype=bool)
         names = rec.dtype.names
-        if "position" in names:
-            p = rec["position"].astype(np.float64)
-            ok &= np.all(np.isfinite(p), axis=1) & np.all(np.abs(p) < MAX_ABS_POSITION, axis=1)
-        if "quaternion" in names:
-            q = rec["quaternion"].astype(np.float64)
-            with np.errstate(invalid="ignore", over="ignore"):
+        # Damaged bytes decode to NaN, signalling NaN or huge floats: expected here, and rejected below.
+        with np.errstate(invalid="ignore", over="ignore"):
+            if "position" in names:
+                p = rec["position"].astype(np.float64)
+                ok &= np.all(np.isfinite(p), axis=1) & np.all(np.abs(p) < MAX_ABS_POSITION, axis=1)
+            if "quaternion" in names:
+                q = rec["quaternion"].astype(np.float64)
                 norm = np.sqrt(np.sum(q * q, axis=1))
-            ok &= np.isfinite(norm) & (np.abs(norm - 1.0) < QUAT_NORM_TOLERANCE)
+                ok &= np.isfinite(norm) & (np.abs(norm - 1.0) < QUAT_NORM_TOLERANCE)
         if "crlf" in names:
             ok &= (rec["crlf"][:, 0] == 13) & (rec["crlf"][:, 1] == 10)
         if "space" in names:
@@ -467,11 +473,28 @@ class RecordParser:
         for line in lines:
             item = decode_ascii_line(line, self.items, self._station_ok)
             if isinstance(item, ErrorEvent):
+                skipped, item = self._resync_line(line, item)
+                if skipped:
+                    out.append(skipped)
+                    self.bytes_dropped += skipped.nbytes
+            if isinstance(item, ErrorEvent):
                 self.bytes_dropped += item.nbytes
             elif item.error not in NO_ERROR:
                 item = ErrorEvent("device_error", f"station {item.station} reported error code {item.error}", 0, item)
             out.append(item)
         return out
+
+    def _resync_line(self, line: bytes, failure: ErrorEvent) -> tuple[ErrorEvent | None, Record | ErrorEvent]:
+        """A bad line may be garbage (or a record cut short) followed by a good record: find that record."""
+        for m in _ASCII_HEADER.finditer(line, 1):
+            rec = decode_ascii_line(line[m.start() :], self.items, self._station_ok)
+            if isinstance(rec, Record):
+                n = m.start()
+                return ErrorEvent("garbage", f"skipped {n} bytes before an ASCII record", n), rec
+        return None, failure
+
+
+_ASCII_HEADER = re.compile(rb"\d\d[PC]")
 
 
 def _interleave(batch: RecordBatch) -> list[Record | ErrorEvent]:
