@@ -319,6 +319,31 @@ def test_wrong_port_names_the_port():
         SerialTransport("/dev/nonexistent-liberty", 115200)
 
 
+def test_usb_without_pyusb_says_what_to_install(monkeypatch):
+    from palpate.hardware.polhemus.transport import UsbTransport
+
+    monkeypatch.setitem(sys.modules, "usb", None)  # import usb.core fails as when pyusb is absent
+    monkeypatch.setitem(sys.modules, "usb.core", None)
+    with pytest.raises(DeviceError, match="pyusb"):
+        UsbTransport()
+
+
+def test_without_the_timestamp_item_times_come_from_the_host_clock(liberty):
+    emu, _ = liberty(configure=False)
+    transport = SerialTransport(emu.port, 115200, timeout=0.02)
+    try:
+        drv = LibertyDriver(transport, items=(2, 7, 9, 1), timeout=0.3)
+        drv.configure()
+        assert drv.time_base == "host" and emu.items[1] == (2, 7, 9, 1)
+        before = time.monotonic()
+        poses = list(drv.stream(max_records=20))
+        drv.stop()
+    finally:
+        transport.close()
+    t = np.array([p.t for p in poses])
+    assert len(t) == 20 and t[0] >= before and np.all(np.diff(t) >= 0) and t[-1] <= time.monotonic()
+
+
 def test_wrong_baud_says_no_answer_at_that_baud(liberty):
     with pytest.raises(DeviceError, match=r"at 9600 baud.*baud rate"):
         liberty(baud=9600, emu_baud=115200, timeout=0.2)

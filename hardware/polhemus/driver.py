@@ -2,7 +2,8 @@
 
 Time base: with the timestamp item (8) in the output list, which is the default, ``PoseSample.t`` is the
 device clock (ms since the device's timer was last reset, unwrapped past 2^32 ms) in s; it has 1 ms resolution.
-Without it, ``t`` is the host's monotonic clock when the bytes were read (``time_base`` says which).
+Without it, ``t`` is the host's monotonic clock when the bytes were read (``time_base`` says which); records
+that arrive in one read then share a time, so keep item 8 whenever poses feed the perception stack.
 Positions are converted to metres from the configured units; quaternions are (w, x, y, z) as the device sends.
 """
 

@@ -299,7 +299,10 @@ class RecordParser:
         return self._size
 
     def feed(self, data: bytes) -> list[Record | ErrorEvent]:
-        """Parse more bytes; return records and error events in stream order."""
+        """Parse more bytes; return the error events met, then the records found (each group in stream order).
+
+        Binary output goes through :meth:`feed_arrays`; use that directly for speed.
+        """
         if not self.binary:
             return self._feed_ascii(data)
         batch = self.feed_arrays(data)

@@ -78,11 +78,6 @@ class SerialTransport:
         except Exception as exc:  # pyserial raises SerialException or OSError when the port goes away
             raise DeviceError(f"reading from {self.description} failed: {exc}") from exc
 
-    def read_available(self, max_bytes: int = 1 << 16) -> bytes:
-        """Whatever is waiting (at least one read attempt that blocks up to the timeout)."""
-        waiting = self._serial.in_waiting
-        return self.read(min(max(waiting, 1), max_bytes))
-
     def write(self, data: bytes) -> None:
         try:
             self._serial.write(data)
@@ -141,9 +136,6 @@ class UsbTransport:
                 raise DeviceError(f"reading from {self.description} failed: {exc}") from exc
         out, self._buffer = self._buffer[:n], self._buffer[n:]
         return out
-
-    def read_available(self, max_bytes: int = 1 << 16) -> bytes:
-        return self.read(max_bytes)
 
     def write(self, data: bytes) -> None:
         try:
