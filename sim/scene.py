@@ -67,36 +67,66 @@ def load_mesh(obj: ObjectSpec):
     return mesh
 
 
+def _top_hits(mesh, xy: np.ndarray, chunk: int = 256) -> tuple[np.ndarray, np.ndarray]:
+    """Highest triangle of the mesh above each point (m, 2): its height (m; -inf where none) and face index.
+
+    A vertical ray test in numpy (point-in-triangle in the xy plane, barycentric height), so no spatial-index
+    package is needed; triangles are pre-filtered by their xy bounding boxes, points go in chunks.
+    """
+    tri = np.asarray(mesh.triangles, dtype=float)  # (T, 3, 3)
+    lo = tri[:, :, :2].min(axis=1)
+    hi = tri[:, :, :2].max(axis=1)
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    v0 = b[:, :2] - a[:, :2]
+    v1 = c[:, :2] - a[:, :2]
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    ok = np.abs(den) > 1e-18  # triangles seen edge-on from above never hold the top surface
+    height = np.full(len(xy), -np.inf)
+    face = np.full(len(xy), -1)
+    for start in range(0, len(xy), chunk):
+        p = xy[start:start + chunk]
+        cand = ok[None, :] & np.all((p[:, None, :] >= lo[None] - 1e-12) & (p[:, None, :] <= hi[None] + 1e-12), axis=2)
+        pi, ti = np.nonzero(cand)
+        if len(pi) == 0:
+            continue
+        d = p[pi] - a[ti, :2]
+        u = (d[:, 0] * v1[ti, 1] - v1[ti, 0] * d[:, 1]) / den[ti]
+        v = (v0[ti, 0] * d[:, 1] - d[:, 0] * v0[ti, 1]) / den[ti]
+        inside = (u >= -1e-12) & (v >= -1e-12) & (u + v <= 1 + 1e-12)
+        pi, ti, u, v = pi[inside], ti[inside], u[inside], v[inside]
+        z = a[ti, 2] + u * (b[ti, 2] - a[ti, 2]) + v * (c[ti, 2] - a[ti, 2])
+        order = np.lexsort((z, pi))  # per point, highest z last
+        last = np.r_[pi[order][1:] != pi[order][:-1], True]
+        sel = order[last]
+        height[start + pi[sel]] = z[sel]
+        face[start + pi[sel]] = ti[sel]
+    return height, face
+
+
 def surface_heights(obj: ObjectSpec, xy: np.ndarray, mesh=None) -> np.ndarray:
     """Height of the top surface under each point (m, 2), m; 0 (the table) off the object."""
     pts = np.atleast_2d(np.asarray(xy, dtype=float))
     if obj.shape in ("box", "cylinder"):
         return np.where(obj.contains_xy(pts), obj.height, 0.0)
     mesh = load_mesh(obj) if mesh is None else mesh
-    top = mesh.bounds[1][2] + 1.0
-    origins = np.column_stack([pts, np.full(len(pts), top)])
-    dirs = np.tile([0.0, 0.0, -1.0], (len(pts), 1))
-    loc, ray_idx, _ = mesh.ray.intersects_location(origins, dirs, multiple_hits=False)
-    out = np.zeros(len(pts))
-    out[ray_idx] = loc[:, 2]
-    return out
+    height, _ = _top_hits(mesh, pts)
+    return np.maximum(height, 0.0)
 
 
 def surface_at(obj: ObjectSpec, x: float, y: float, mesh=None) -> tuple[float, np.ndarray]:
     """Surface height (m) and outward unit normal at (x, y) on the object's top. Raises if (x, y) misses it."""
-    if not obj.contains_xy(np.array([[x, y]]))[0] and obj.shape != "mesh":
-        raise ValidationError(f"({x:.4f}, {y:.4f}) m is not on object {obj.name!r}")
     if obj.shape in ("box", "cylinder"):
+        if not obj.contains_xy(np.array([[x, y]]))[0]:
+            raise ValidationError(f"({x:.4f}, {y:.4f}) m is not on object {obj.name!r}")
         return obj.height, np.array([0.0, 0.0, 1.0])
     mesh = load_mesh(obj) if mesh is None else mesh
-    top = mesh.bounds[1][2] + 1.0
-    loc, _, tri = mesh.ray.intersects_location([[x, y, top]], [[0.0, 0.0, -1.0]], multiple_hits=False)
-    if len(loc) == 0:
+    height, face = _top_hits(mesh, np.array([[x, y]], dtype=float))
+    if face[0] < 0:
         raise ValidationError(f"({x:.4f}, {y:.4f}) m is not on mesh object {obj.name!r}")
-    normal = np.asarray(mesh.face_normals[tri[0]], dtype=float)
+    normal = np.asarray(mesh.face_normals[face[0]], dtype=float)
     if normal[2] < 0:
         normal = -normal
-    return float(loc[0, 2]), normal / np.linalg.norm(normal)
+    return float(height[0]), normal / np.linalg.norm(normal)
 
 
 def _add_object(spec, obj: ObjectSpec, mesh=None) -> None:

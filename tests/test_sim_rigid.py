@@ -106,3 +106,22 @@ def test_three_reference_materials_give_ordered_separable_interaction_parameters
     # a 2 MPa press to 5 N has a contact radius < 2.5 mm: it never reaches the outer ring of sensels (4.25 mm
     # from the axis), so c_A barely changes and a1 is huge or undefined: the 4x4 pad's resolution limit
     assert a1[2e6].min() > 10 * a1[2e5].max()
+
+
+def test_mesh_ball_is_pressed_along_its_normal_and_is_softer_than_a_flat_top(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    path = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(subdivisions=3, radius=0.5).export(path)  # unit extent: size = scale = extent
+    ball = ObjectSpec("ball", "mesh", (0.06, 0.06, 0.06), (0.0, 0.0), Material("m", 2e5), mesh_path=str(path))
+    src = SimSource(Scene((ball,)), fidelity="auto")
+    top = src.press(PressTarget(0.0, 0.0, depth=0.002))
+    side = src.press(PressTarget(0.015, 0.0, depth=0.002))
+    assert top.meta["fidelity"] == "rigid"
+    normal = np.array(side.meta["profile"]["normal"])
+    assert normal[0] == pytest.approx(0.5, abs=0.08)  # sin(30 deg) at x = r/2 on the ball, faceted
+    d = top.truth.indentation.max()
+    f = top.truth.force.max()
+    r_eff = 1.0 / (1.0 / R + 1.0 / 0.03)
+    assert hertz_force(2e5 / 0.91, r_eff, d) * 0.75 < f < hertz_force(2e5 / 0.91, R, d)
+    with pytest.raises(Exception, match="not on mesh object"):
+        src.press(PressTarget(0.029, 0.029))
