@@ -369,3 +369,31 @@ class LibertyEmulator:
             return
         self._out += data
 
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run an emulator until Ctrl-C, printing its port: ``python -m palpate.hardware.polhemus.emulator``."""
+    import argparse
+
+    ap = argparse.ArgumentParser(description="A Polhemus Liberty emulator on a pseudo-terminal.")
+    ap.add_argument("--rate", type=float, default=240.0, help="frames per second (default 240)")
+    ap.add_argument("--stations", default="1", help="comma-separated stations with a sensor (default 1)")
+    ap.add_argument("--baud", type=int, default=115200, help="the emulated device's baud rate")
+    ap.add_argument("--noise", type=float, default=1e-4, help="position noise, m (default 1e-4)")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    stations = tuple(int(s) for s in args.stations.split(","))
+    with LibertyEmulator(rate=args.rate, stations=stations, noise=args.noise, seed=args.seed,
+                         motion=press_motion(), baud=args.baud) as emu:
+        print(f"Liberty emulator on {emu.port} ({args.baud} baud, stations {list(stations)}); Ctrl-C to stop",
+              flush=True)
+        try:
+            while True:
+                time.sleep(0.5)
+        except KeyboardInterrupt:
+            pass
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
