@@ -282,20 +282,22 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     ft.finish()
     sensors = top.sub("sensors")
     tx = sensors.sub("taxels")
+    d_tx = TaxelSensorSpec()
     taxels = TaxelSensorSpec(
-        rate=tx.number("rate_hz", 50.0, lo=0.0, lo_open=True),
-        gain=tx.number("gain_counts_per_kpa", 1.0, lo=0.0, lo_open=True) * 1e-3,
-        noise_std=tx.number("noise_counts", 0.5, lo=0.0),
-        threshold=tx.integer("threshold_counts", 2, lo=0),
-        clock_offset=tx.number("clock_offset_s", 0.0),
+        rate=tx.number("rate_hz", d_tx.rate, lo=0.0, lo_open=True),
+        gain=tx.number("gain_counts_per_kpa", d_tx.gain * 1e3, lo=0.0, lo_open=True) * 1e-3,
+        noise_std=tx.number("noise_counts", d_tx.noise_std, lo=0.0),
+        threshold=tx.integer("threshold_counts", d_tx.threshold, lo=0),
+        clock_offset=tx.number("clock_offset_s", d_tx.clock_offset),
     )
     tx.finish()
     po = sensors.sub("pose")
+    d_po = PoseSensorSpec()
     pose = PoseSensorSpec(
-        rate=po.number("rate_hz", 30.0, lo=0.0, lo_open=True),
-        noise_std=po.number("noise_mm", 0.2, lo=0.0) * 1e-3,
-        clock_offset=po.number("clock_offset_s", 0.0),
-        jitter=po.number("jitter_ms", 1.0, lo=0.0) * 1e-3,
+        rate=po.number("rate_hz", d_po.rate, lo=0.0, lo_open=True),
+        noise_std=po.number("noise_mm", d_po.noise_std * 1e3, lo=0.0) * 1e-3,
+        clock_offset=po.number("clock_offset_s", d_po.clock_offset),
+        jitter=po.number("jitter_ms", d_po.jitter * 1e3, lo=0.0) * 1e-3,
     )
     po.finish()
     sensors.finish()

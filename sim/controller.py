@@ -154,6 +154,12 @@ def press_profile(
     if target.depth is not None:
         depth = target.depth * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
         force_target = None
+        if target.force is not None and depth_for_force is not None:
+            # Depth and force limit: stop at whichever comes first, as a person pressing a hard sample does.
+            force_limit = float(target.force) * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
+            depth_at_limit = float(depth_for_force(force_limit))
+            if np.isfinite(depth_at_limit) and 0 < depth_at_limit < depth:
+                depth, force_target = depth_at_limit, force_limit
     else:
         if depth_for_force is None:
             raise ValidationError("press_profile: a force target needs depth_for_force (force N -> depth m)")

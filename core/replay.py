@@ -1,0 +1,145 @@
+"""Replay a recording through the same perception stack as a live or simulated run.
+
+Two kinds of recordings:
+
+- written by ``palpate run --record``: every press carries a ``press`` annotation (phase, object, cell, planned
+  target, time window) and the metadata holds each object's map geometry, so replay cuts the stream into the
+  same presses and rebuilds the same maps, bit for bit;
+- anything else (a Tekscan import, a Liberty + finger session): the whole stream is segmented into presses and
+  mapped on a grid that covers the press locations (``cell_size`` m, default 1 cm).
+"""
+
+from __future__ import annotations
+
+import bisect
+import json
+from pathlib import Path
+
+import numpy as np
+
+from palpate.core import __version__
+from palpate.core.errors import ValidationError
+from palpate.core.progress import Progress
+from palpate.core.run import PressResult, _assert_finite, _versions, apply_press, build_map, perceive_press
+from palpate.core.streams import GroundTruth, PressRecording
+
+REPLAY_FORMAT = "palpate-replay-summary"
+
+
+def _window(rec: PressRecording, t0: float, t1: float) -> PressRecording:
+    """The part of a recording with t0 <= t <= t1 (frames, poses and truth)."""
+    ft = [f.t for f in rec.frames]
+    pt = [p.t for p in rec.poses]
+    frames = rec.frames[bisect.bisect_left(ft, t0): bisect.bisect_right(ft, t1)]
+    poses = rec.poses[bisect.bisect_left(pt, t0): bisect.bisect_right(pt, t1)]
+    truth = None
+    if rec.truth is not None:
+        keep = (rec.truth.t >= t0) & (rec.truth.t <= t1)
+        if keep.any():
+            truth = GroundTruth(rec.truth.t[keep], rec.truth.force[keep], rec.truth.indentation[keep],
+                                rec.truth.material)
+    return PressRecording(frames, poses, truth, {})
+
+
+def replay_recording(path: str | Path, memory, out_dir: str | Path, *, cell_size: float = 0.01,
+                     progress: Progress | None = None, figures: bool = True) -> dict:
+    """Run the perception stack on a recording and write maps, figures and summary.json into ``out_dir``.
+
+    Args:
+        path: MCAP recording (palpate format).
+        memory: a fitted HapticMemory.
+        out_dir: output folder (created).
+        cell_size: grid cell, m, for recordings without map geometry.
+        progress: progress bars (silent by default).
+        figures: write PNG figures.
+    """
+    from palpate.core.recording import read_recording, recording_to_press_recording
+
+    progress = progress or Progress(enabled=False)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rec = read_recording(path)
+    stream = recording_to_press_recording(rec)
+    geoms = rec.metadata.get("maps") or {}
+    windows = [a for a in rec.annotations if a.kind == "press"]
+    objects: dict[str, dict] = {}
+    if windows:
+        explore = [a for a in windows if a.data.get("phase") == "exploration"]
+        progress.start("replaying presses", len(explore))
+        for i, a in enumerate(explore):
+            name = a.data.get("object", "recording")
+            if name not in geoms:
+                raise ValidationError(f"{path}: press annotation names object {name!r}, which has no map geometry "
+                                      "in the recording's metadata")
+            state = objects.setdefault(name, {"grid": build_map(geoms[name]), "rows": [], "results": []})
+            sub = _window(stream, float(a.data["t_start"]), float(a.data["t_end"]))
+            target = tuple(float(v) for v in a.data.get("target_m", (np.nan, np.nan)))
+            res = perceive_press(sub)
+            res.target = target
+            apply_press(state["grid"], res, memory, voxel=geoms[name]["map"] == "voxel", fallback_xy=target)
+            state["results"].append(res)
+            state["rows"].append(_row(a.data.get("k", len(state["rows"]) + 1), a.data.get("cell"), res,
+                                      state["grid"]))
+            progress.update(i + 1)
+    else:
+        from palpate.core.fit import fit_press
+        from palpate.core.maps import Grid2D
+        from palpate.core.pipeline import presses_from_recording
+
+        seg = presses_from_recording(stream)
+        if not seg.presses:
+            reasons = "; ".join(sorted({r.reason for r in seg.rejected})) or "no contact in the taxel stream"
+            raise ValidationError(f"{path}: no press found to replay ({reasons})")
+        locs = np.array([p.location for p in seg.presses])
+        lo = np.floor(locs.min(axis=0) / cell_size) * cell_size
+        shape = tuple(int(v) for v in np.floor((locs.max(axis=0) - lo) / cell_size) + 1)
+        grid = Grid2D(list(memory.materials), shape, origin=tuple(lo), cell_size=cell_size)
+        state = objects.setdefault("recording", {"grid": grid, "rows": [], "results": []})
+        geoms = {"recording": {"map": "grid2d", "origin_m": list(lo), "cell_size_m": cell_size, "shape": list(shape)}}
+        progress.start("replaying presses", len(seg.presses))
+        for k, press in enumerate(seg.presses):
+            fit = fit_press(press)
+            res = PressResult(press.location, press.location, press.depth, press.t, press.c_P, press.c_A, press.c_D,
+                              np.asarray(fit.params, float),
+                              {f: float(getattr(fit, f)) for f in ("n1", "n2", "phi_n", "a1", "a2", "phi_a")})
+            apply_press(grid, res, memory, voxel=False, fallback_xy=press.location)
+            state["results"].append(res)
+            state["rows"].append(_row(k + 1, None, res, grid))
+            progress.update(k + 1)
+
+    summary_objects = []
+    (out / "maps").mkdir(exist_ok=True)
+    for name, state in objects.items():
+        grid = state["grid"]
+        post = grid.postprocessed()
+        grid.save(out / "maps" / f"{name}.npz")
+        post.save(out / "maps" / f"{name}_postprocessed.npz")
+        summary_objects.append({
+            "name": name, "map": geoms[name]["map"], "grid": {k: geoms[name][k] for k in ("origin_m", "cell_size_m",
+                                                                                          "shape")},
+            "presses": len(state["rows"]), "per_press": state["rows"],
+            "mean_entropy_after_each_press": [r["mean_entropy"] for r in state["rows"]],
+            "mean_entropy_after_postprocessing": float(post.mean_entropy()),
+        })
+        if figures and geoms[name]["map"] == "grid2d":
+            from palpate.core import figures as fig
+
+            (out / "figures").mkdir(exist_ok=True)
+            snaps = [{"label": "replayed", "probabilities": np.array(grid.probabilities),
+                      "explored": np.array(grid.explored)},
+                     {"label": "post-processed", "probabilities": np.array(post.probabilities),
+                      "explored": np.array(post.explored)}]
+            fig.plot_map_snapshots(out / "figures" / f"{name}_map.png", name, snaps, geoms[name],
+                                   list(memory.materials))
+    summary = {"format": REPLAY_FORMAT, "version": 1, "recording": str(path), "materials": list(memory.materials),
+               "source_metadata": rec.metadata, "objects": summary_objects, "versions": _versions(),
+               "palpate": __version__}
+    _assert_finite(summary)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    return summary
+
+
+def _row(k, cell, res: PressResult, grid) -> dict:
+    return {"k": k, "cell": cell, "location_m": list(res.location), "depth_m": res.depth, "fit": res.fit,
+            "posterior": None if res.posterior is None else [float(v) for v in res.posterior],
+            "mean_entropy": float(grid.mean_entropy()), "rejected": res.rejected}

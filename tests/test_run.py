@@ -1,0 +1,152 @@
+"""The run job end to end on a small analytic scenario: summary schema, outputs, determinism, replay."""
+
+import json
+
+import numpy as np
+import pytest
+import tomllib
+
+from palpate.core.cli import main
+from palpate.core.maps import Grid2D
+from palpate.core.scenario import parse_scenario
+
+SMALL = """
+[scenario]
+name = "small"
+seed = 3
+fidelity = "analytic"
+
+[[materials]]
+name = "soft"
+young_kpa = 20
+[[materials]]
+name = "medium"
+young_kpa = 115
+poisson = 0.45
+[[materials]]
+name = "hard"
+young_kpa = 450
+poisson = 0.4
+[[materials]]
+name = "foam"
+young_kpa = 25
+reference = false
+like = "soft"
+
+[fingertip]
+pitch_mm = 2.5
+sensel_mm = 2.2
+
+[sensors.taxels]
+gain_counts_per_kpa = 1.2
+
+[training]
+presses_per_material = 5
+depth_mm = 5.0
+max_force_n = 10.0
+
+[exploration]
+policy = "predefined"
+presses_per_region = 2
+
+[[objects]]
+name = "slab"
+size_mm = [60, 40, 40]
+position_mm = [30, 20]
+material = "foam"
+regions = [[2, 2], [5, 3]]
+
+[[objects.inclusions]]
+material = "hard"
+shape = "column"
+center_mm = [45, 20]
+size_mm = [20, 40]
+
+[outputs]
+render_3d = false
+"""
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    from palpate.core.run import run_scenario
+
+    out = tmp_path_factory.mktemp("run")
+    scenario = parse_scenario(tomllib.loads(SMALL), "small.toml")
+    summary = run_scenario(scenario, out, record=out / "run.mcap")
+    return scenario, summary, out
+
+
+def test_summary_follows_the_documented_schema(small_run):
+    _, summary, out = small_run
+    on_disk = json.loads((out / "summary.json").read_text())
+    assert on_disk == json.loads(json.dumps(summary))
+    assert summary["format"] == "palpate-run-summary" and summary["version"] == 1
+    assert summary["materials"] == ["soft", "medium", "hard"]
+    for key in ("scenario", "seed", "memory", "crossval", "training", "objects", "figures", "timing", "versions"):
+        assert key in summary, key
+    cv = summary["crossval"]
+    assert np.asarray(cv["confusion"]).shape == (3, 3)
+    np.testing.assert_allclose(np.asarray(cv["mean_posterior"]).sum(axis=1), 1.0, atol=1e-9)
+    (obj,) = summary["objects"]
+    assert obj["presses"] == 4 and len(obj["per_press"]) == 4
+    assert len(obj["posterior_per_cycle"]) == 2 and len(obj["posterior_per_cycle"][0]) == 2
+    for row in obj["per_press"]:
+        assert {"k", "cell", "target_m", "location_m", "depth_m", "fit", "posterior", "mean_entropy",
+                "accuracy_explored", "rejected"} <= set(row)
+    assert set(obj["accuracy"]) == {"explored_before_postprocessing", "all_cells_before_postprocessing",
+                                    "all_cells_after_postprocessing"}
+    assert set(summary["timing"]) == {"training_s", "exploration_s", "maps_s", "figures_s"}
+
+
+def test_run_writes_every_output(small_run):
+    _, summary, out = small_run
+    assert (out / "memory.json").is_file()
+    for name in ("slab.npz", "slab.json", "slab_postprocessed.npz", "slab_postprocessed.json"):
+        assert (out / "maps" / name).is_file(), name
+    for rel in summary["figures"]:
+        assert (out / rel).stat().st_size > 1000, rel
+    assert {"figures/training_series.png", "figures/interaction_profiles.png", "figures/slab_map.png",
+            "figures/slab_entropy.png", "figures/exploration_progress.png"} <= set(summary["figures"])
+    manifest = json.loads((out / "haptic_materials" / "slab" / "manifest.json").read_text())
+    assert "rate_hardness" in manifest["maps"] and "kinetic_friction" in manifest["absent"]
+
+
+def test_explored_regions_are_classified_as_their_material(small_run):
+    _, summary, _ = small_run
+    (obj,) = summary["objects"]
+    final = np.asarray(obj["posterior_per_cycle"][-1])
+    # region (2, 2) is foam (like soft), region (5, 3) lies in the hard column
+    assert final[0].argmax() == 0 and final[1].argmax() == 2
+    assert obj["accuracy"]["explored_before_postprocessing"] == 1.0
+    ent = obj["mean_entropy_after_each_press"]
+    assert ent[-1] < ent[0] and obj["mean_entropy_after_postprocessing"] < ent[-1]
+
+
+def test_replay_reproduces_the_maps_exactly(small_run, tmp_path):
+    _, _, out = small_run
+    code = main(["replay", str(out / "run.mcap"), "--memory", str(out / "memory.json"), "--out", str(tmp_path),
+                 "--quiet"])
+    assert code == 0
+    for name in ("slab", "slab_postprocessed"):
+        ran = Grid2D.load(out / "maps" / f"{name}.npz")
+        replayed = Grid2D.load(tmp_path / "maps" / f"{name}.npz")
+        np.testing.assert_array_equal(replayed.probabilities, ran.probabilities)
+        np.testing.assert_array_equal(replayed.explored, ran.explored)
+
+
+def test_same_seed_same_summary(small_run, tmp_path):
+    from palpate.core.run import run_scenario
+
+    scenario, summary, _ = small_run
+    again = run_scenario(scenario, tmp_path)
+    assert again["objects"] == summary["objects"]
+    assert again["crossval"] == summary["crossval"]
+
+
+def test_bad_scenario_exits_2_naming_the_key(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(SMALL.replace('fidelity = "analytic"', 'fidelity = "quantum"'))
+    assert main(["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err and "scenario.fidelity" in err
