@@ -272,12 +272,13 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
                                   f"which is not a reference material ({', '.join(refs)})")
 
     ft = top.sub("fingertip")
+    d_ft = FingertipSpec()
     fingertip = FingertipSpec(
-        radius=ft.number("radius_mm", 8.0, lo=0.0, lo_open=True) * 1e-3,
-        rows=ft.integer("rows", 4, lo=1),
-        cols=ft.integer("cols", 4, lo=1),
-        pitch=ft.number("pitch_mm", 4.0, lo=0.0, lo_open=True) * 1e-3,
-        sensel_size=ft.number("sensel_mm", 3.5, lo=0.0, lo_open=True) * 1e-3,
+        radius=ft.number("radius_mm", d_ft.radius * 1e3, lo=0.0, lo_open=True) * 1e-3,
+        rows=ft.integer("rows", d_ft.rows, lo=1),
+        cols=ft.integer("cols", d_ft.cols, lo=1),
+        pitch=ft.number("pitch_mm", d_ft.pitch * 1e3, lo=0.0, lo_open=True) * 1e-3,
+        sensel_size=ft.number("sensel_mm", d_ft.sensel_size * 1e3, lo=0.0, lo_open=True) * 1e-3,
     )
     ft.finish()
     sensors = top.sub("sensors")

@@ -221,15 +221,17 @@ class FingertipSpec:
     Attributes:
         radius: tip radius, m (human index fingertip ~8 mm).
         rows, cols: sensel grid.
-        pitch: centre-to-centre sensel spacing, m.
+        pitch: centre-to-centre sensel spacing, m. The default 2.5 mm pad (10 mm wide) is fine enough that the
+            contact area keeps growing through a press on soft and hard materials alike; at 4 mm a hard material's
+            contact stays inside the inner four sensels and c_A is constant (the cutaneous fit is then undefined).
         sensel_size: side of one square sensel, m (<= pitch); sensel area = sensel_size^2.
     """
 
     radius: float = 0.008
     rows: int = 4
     cols: int = 4
-    pitch: float = 0.004
-    sensel_size: float = 0.0035
+    pitch: float = 0.0025
+    sensel_size: float = 0.0022
 
     def __post_init__(self) -> None:
         if not self.radius > 0:
@@ -267,7 +269,7 @@ class TaxelSensorSpec:
     """
 
     rate: float = 50.0
-    gain: float = 2.0e-3
+    gain: float = 1.2e-3
     noise_std: float = 0.5
     threshold: int = 2
     clock_offset: float = 0.0

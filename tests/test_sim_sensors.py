@@ -45,7 +45,7 @@ def test_taxel_frames_are_50hz_on_the_sensor_clock():
     assert len(frames) == 101
     np.testing.assert_allclose(np.diff(t), 0.02, atol=1e-12)
     assert t[0] == pytest.approx(0.25)
-    assert frames[0].sensel_area == pytest.approx(0.0035**2)
+    assert frames[0].sensel_area == pytest.approx(FingertipSpec().sensel_size**2)
 
 
 def test_pose_stream_has_its_clock_offset_jitter_and_noise():
@@ -92,8 +92,10 @@ def test_same_seed_same_stream_and_default_gain_separates_the_reference_material
     assert all(np.array_equal(x.position, y.position) for x, y in zip(a.poses, b.poses, strict=True))
     assert len(a.frames) != len(c.frames) or any(
         not np.array_equal(x.counts, y.counts) for x, y in zip(a.frames, c.frames, strict=False))
-    # a human-like press to 4 mm or 5 N, whichever first: peak counts stay unsaturated and c_P is clearly
-    # ordered at equal indentation
+    # a human-like press to 4 mm or 5 N, whichever first: peak counts of the soft and medium materials stay
+    # unsaturated with the soft one well above the noise floor, and c_P is clearly ordered at equal indentation.
+    # The 2 MPa press reaches ~385 kPa peak pressure on the 2.5 mm pad: 8 bits cannot span 40x in pressure with
+    # >= 10 counts at the soft end, so its central sensels may saturate (as a real Tekscan pad would).
     peak, cp_at_half_mm = [], []
     for young in (2e4, 2e5, 2e6):
         depth = min(0.004, hertz_depth_for_force(young / 0.91, 0.008, 5.0))
@@ -104,5 +106,5 @@ def test_same_seed_same_stream_and_default_gain_separates_the_reference_material
         d = np.interp(t, rec.truth.t, rec.truth.indentation)
         cp = counts.reshape(len(t), -1).sum(axis=1)
         cp_at_half_mm.append(np.interp(5e-4, d[: np.argmax(d)], cp[: np.argmax(d)]))
-    assert max(peak) < 255 and min(peak) >= 10
+    assert max(peak[:2]) < 255 and min(peak) >= 10 and peak[0] < peak[1] <= peak[2]
     assert cp_at_half_mm[0] * 3 < cp_at_half_mm[1] and cp_at_half_mm[1] * 3 < cp_at_half_mm[2]
