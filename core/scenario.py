@@ -10,7 +10,7 @@ See ``scenarios/README.md`` for the full schema with an example of every table.
 
 from __future__ import annotations
 
-import sys
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,11 +25,6 @@ from palpate.core.scene import (
     PoseSensorSpec,
     TaxelSensorSpec,
 )
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 FIDELITIES = ("analytic", "rigid", "flex", "auto")
 MAP_KINDS = ("grid2d", "voxel")

@@ -1,10 +1,10 @@
 """The run job end to end on a small analytic scenario: summary schema, outputs, determinism, replay."""
 
 import json
+import tomllib
 
 import numpy as np
 import pytest
-import tomllib
 
 from palpate.core.cli import main
 from palpate.core.maps import Grid2D

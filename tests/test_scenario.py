@@ -1,9 +1,9 @@
 """Scenario files: the shipped ones load, and every kind of mistake names the file and the key path."""
 
+import tomllib
 from pathlib import Path
 
 import pytest
-import tomllib
 
 from palpate.core.errors import ValidationError
 from palpate.core.scenario import load_scenario, parse_scenario

@@ -13,7 +13,7 @@ the key and what was expected.
 from __future__ import annotations
 
 import math
-import sys
+import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,11 +23,6 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.streams import PoseSample
 from palpate.hardware.dynamixel import control_table as ct
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 
 @dataclass(frozen=True)

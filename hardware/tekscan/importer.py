@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -64,7 +64,7 @@ def parse_start_time(text: str | None) -> float:
         raise ValidationError(
             f"--start-time {text!r} is not an ISO 8601 date-time (e.g. 2024-05-02T14:30:00Z)") from None
     if when.tzinfo is None:
-        when = when.replace(tzinfo=timezone.utc)
+        when = when.replace(tzinfo=UTC)
     t = when.timestamp()
     if t < 0:
         raise ValidationError(f"--start-time {text!r} is before 1970-01-01, which MCAP log times cannot hold")
