@@ -163,14 +163,22 @@ def apply_press(grid, res: PressResult, memory, *, voxel: bool, fallback_xy: tup
     if res.params is None:
         return
     if voxel:
-        posts = _voxel_posteriors(res, memory, grid.cell_size, grid.shape[2])
+        if hasattr(memory, "layer_posteriors"):
+            posts = memory.layer_posteriors(res.t, res.c_P, res.c_A, res.c_D)
+        else:  # a whole-press memory only: judge every cut of the press by it
+            from palpate.core.voxel_evidence import layer_fits
+
+            posts = [None if f is None else memory.predict_proba(f[None, :])[0]
+                     for f in layer_fits(res.t, res.c_P, res.c_A, res.c_D, grid.cell_size, grid.shape[2])]
         try:
             ix, iy = grid.column_of(*res.location)
         except ValidationError:
             ix, iy = grid.column_of(*fallback_xy)
         for iz, p in enumerate(posts):
-            grid.update_voxel(ix, iy, iz, p)
-        res.posterior = posts[-1] if posts else None
+            if p is not None:
+                grid.update_voxel(ix, iy, iz, p)
+        done = [p for p in posts if p is not None]
+        res.posterior = done[-1] if done else None
         return
     p = memory.predict_proba(res.params[None, :])[0]
     try:
@@ -345,29 +353,31 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
     return summary, snapshots, results, grid, post, truth
 
 
-def _voxel_posteriors(res: PressResult, memory, cell: float, nz: int) -> list[np.ndarray]:
-    """Posterior per voxel layer the press reached, from the press samples down to that layer (seed 001 3.1)."""
-    from palpate.core.fit import fit_press
-    from palpate.core.segment import Press
+def save_layer_memories(layered, path: Path) -> None:
+    """Write the per-voxel-layer memories (JSON list, null for untrained layers) beside memory.json."""
+    doc = {"format": "palpate.layered_memory", "version": 1, "cell_size_m": layered.cell,
+           "layers": [m if m is None or isinstance(m, str) else m.to_dict() for m in layered.layers]}
+    path.write_text(json.dumps(doc))
 
-    out = []
-    for iz in range(nz):
-        bottom = (iz + 1) * cell
-        if res.depth < iz * cell + 0.25 * cell:
-            break
-        keep = res.c_D <= bottom + 1e-12
-        if keep.sum() < 5:
-            continue
-        partial = Press(index=0, t_onset=float(res.t[0]), t_peak=float(res.t[keep][-1]), t_release=float(res.t[-1]),
-                        h0=0.0, location=res.location, depth=float(res.c_D[keep].max()), t=res.t[keep],
-                        c_P=res.c_P[keep], c_A=res.c_A[keep], c_D=res.c_D[keep],
-                        xy=np.tile(np.asarray(res.location, float), (int(keep.sum()), 1)))
-        try:
-            params = np.asarray(fit_press(partial).params, dtype=float)
-        except FitError:
-            continue
-        out.append(memory.predict_proba(params[None, :])[0])
-    return out
+
+def load_layer_memories(full, path: Path):
+    """Read :func:`save_layer_memories`' file back into a LayeredMemory around ``full``."""
+    from palpate.core.memory import HapticMemory
+    from palpate.core.voxel_evidence import LayeredMemory
+
+    try:
+        doc = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValidationError(f"{path}: cannot read layered memory: {exc}") from None
+    if not isinstance(doc, dict) or doc.get("format") != "palpate.layered_memory" or doc.get("version") != 1:
+        raise ValidationError(f"{path}: key 'format' must be 'palpate.layered_memory' version 1")
+    try:
+        layers = [d if d is None or isinstance(d, str) else HapticMemory.from_dict(d, source=f"{path}: layers[{i}]")
+                  for i, d in enumerate(doc["layers"])]
+        cell = float(doc["cell_size_m"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValidationError(f"{path}: missing or malformed key {exc}") from None
+    return LayeredMemory(full, layers, cell)
 
 
 def _cell_centres(origin, cell, nx, ny) -> np.ndarray:
@@ -466,8 +476,14 @@ def _run(scenario, out, progress, make_source, seeds, timing, log) -> dict:
         crossval, training = None, {}
     else:
         memory, crossval, training = train_memory(scenario, make_source, seeds[4:], progress, log)
-    timing["training_s"] = time.perf_counter() - t0
     memory.save(out / "memory.json")
+    if scenario.exploration.map == "voxel" and training:
+        from palpate.core.voxel_evidence import train_layered_memory
+
+        nz = max(1, int(round(scenario.exploration.voxel_depth / scenario.exploration.cell_size)))
+        memory = train_layered_memory(memory, training, scenario.exploration.cell_size, nz)
+        save_layer_memories(memory, out / "memory_layers.json")
+    timing["training_s"] = time.perf_counter() - t0
 
     objects, artefacts = [], {}
     t0 = time.perf_counter()

@@ -20,6 +20,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("recording", type=Path, help="MCAP recording")
     p.add_argument("--memory", type=Path, required=True, help="trained haptic memory (JSON)")
     p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--memory-layers", type=Path, default=None,
+                   help="per-voxel-layer memories (default: memory_layers.json beside --memory, if present)")
     p.add_argument("--cell-mm", type=float, default=10.0,
                    help="grid cell for recordings without map geometry (default 10 mm)")
     p.add_argument("--no-figures", action="store_true", help="skip PNG figures")
@@ -37,6 +39,11 @@ def _replay(args: argparse.Namespace) -> int:
     if not args.cell_mm > 0:
         raise ValidationError(f"--cell-mm must be > 0, got {args.cell_mm}")
     memory = HapticMemory.load(args.memory)
+    layers = args.memory_layers or args.memory.with_name("memory_layers.json")
+    if args.memory_layers is not None or layers.is_file():
+        from palpate.core.run import load_layer_memories
+
+        memory = load_layer_memories(memory, layers)
     summary = replay_recording(args.recording, memory, args.out, cell_size=args.cell_mm * 1e-3,
                                progress=Progress(enabled=not (args.quiet or args.json)),
                                figures=not args.no_figures)
