@@ -3,13 +3,17 @@
 ``SimSource(scene).press(target)`` runs one press-and-release at the chosen fidelity and returns the same raw
 streams a Tekscan pad and a Polhemus tracker give, with ground truth beside them.
 
-Fidelity ``auto`` models only what the pressed object requires:
+Fidelity ``auto`` models only what the pressed object requires (:func:`explain_fidelity` says why; the numbers
+are from ``palpate bench`` / benchmarks/tradeoff.py, which measures them):
   - ``flex`` if the object has layers, inclusions or a haptic-material map (the local contact laws of the other
-    levels cannot see below the surface);
+    levels cannot see below the surface), or the press is deeper than 20% of the object's height (large
+    indentation: the half-space and local-kernel levels ignore the bottom);
   - ``analytic`` for a homogeneous box whose top is flat under the whole contact, at least 5 contact radii
-    (a = sqrt(R d)) thick and with the press point at least 3 contact radii plus the tip radius from every edge
-    (the half-space assumption of Hertz holds there);
-  - ``rigid`` otherwise (cylinders near their rim, meshes and curved tops, thin or small objects).
+    (a = sqrt(R d)) thick, with the press point at least 3 contact radii plus the tip radius from every edge, and
+    depth <= 0.35 tip radii: there the sphere's force stays within 5% of Hertz (measured: 1% at d/R 0.06,
+    3.7% at 0.25, 5.4% at 0.375, 7.2% at 0.5) at ~1/4 of rigid's cost per press;
+  - ``rigid`` otherwise (cylinders near their rim, meshes and curved tops, thin or small objects, deeper presses):
+    its kernel follows the real sphere and surface, converged already at 5 ms (0.05% from the 0.25 ms reference).
 """
 
 from __future__ import annotations
@@ -27,19 +31,45 @@ from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 FIDELITIES = ("auto", "analytic", "rigid", "flex")
 
 
-def choose_fidelity(obj: ObjectSpec, target: PressTarget, radius: float) -> str:
-    """The cheapest fidelity valid for pressing ``obj`` at ``target`` (see the module docstring)."""
+#: Largest depth / tip radius for ``analytic``: the sphere's force is within 5% of Hertz up to here.
+ANALYTIC_MAX_DEPTH_OVER_RADIUS = 0.35
+#: Depth / object height beyond which the press is "large indentation" and needs ``flex``.
+FLEX_DEPTH_OVER_HEIGHT = 0.2
+
+
+def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float) -> tuple[str, str]:
+    """The cheapest fidelity valid for pressing ``obj`` at ``target``, and a one-line reason (module docstring).
+
+    A force-only target is taken as 0.25 tip radii deep (a typical palpation press).
+    """
     if obj.layers or obj.inclusions or obj.material_map is not None:
-        return "flex"
-    if obj.shape != "box":
-        return "rigid"
+        what = "layers" if obj.layers else "inclusions" if obj.inclusions else "a haptic-material map"
+        return "flex", f"{obj.name}: has {what}; only flex resolves material below the surface"
     depth = target.depth if target.depth is not None else 0.25 * radius
+    if depth > FLEX_DEPTH_OVER_HEIGHT * obj.height:
+        return "flex", (f"{obj.name}: depth {depth * 1e3:.1f} mm is over {FLEX_DEPTH_OVER_HEIGHT:.0%} of its "
+                        f"{obj.height * 1e3:.1f} mm height (large indentation: the bottom matters)")
+    if obj.shape != "box":
+        return "rigid", f"{obj.name}: {obj.shape} top is curved or finite; rigid follows the real surface"
     a = np.sqrt(radius * depth)
     half = np.asarray(obj.size[:2]) / 2.0
     edge = float(np.min(half - np.abs(np.array([target.x, target.y]) - np.asarray(obj.position))))
-    if obj.height >= 5.0 * a and edge >= 3.0 * a + radius:
-        return "analytic"
-    return "rigid"
+    if obj.height < 5.0 * a:
+        return "rigid", (f"{obj.name}: {obj.height * 1e3:.1f} mm thick is under 5 contact radii "
+                         f"({5e3 * a:.1f} mm); Hertz's half-space does not hold")
+    if edge < 3.0 * a + radius:
+        return "rigid", (f"{obj.name}: press {edge * 1e3:.1f} mm from an edge, under 3 contact radii + tip radius "
+                         f"({(3 * a + radius) * 1e3:.1f} mm); Hertz's half-space does not hold")
+    if depth > ANALYTIC_MAX_DEPTH_OVER_RADIUS * radius:
+        return "rigid", (f"{obj.name}: depth {depth / radius:.2f} tip radii is over {ANALYTIC_MAX_DEPTH_OVER_RADIUS}; "
+                         "the sphere's force departs from Hertz by more than 5%")
+    return "analytic", (f"{obj.name}: homogeneous, thick and flat under the contact, depth {depth / radius:.2f} "
+                        "tip radii; Hertz within 5% at ~1/4 of rigid's cost")
+
+
+def choose_fidelity(obj: ObjectSpec, target: PressTarget, radius: float) -> str:
+    """The cheapest fidelity valid for pressing ``obj`` at ``target`` (see :func:`explain_fidelity`)."""
+    return explain_fidelity(obj, target, radius)[0]
 
 
 class SimSource:

@@ -127,10 +127,12 @@ def test_auto_fidelity_models_only_what_the_object_needs():
     cyl = ObjectSpec("cyl", "cylinder", (0.03, 0.04), (0.0, 0.0), soft)
     lump = ObjectSpec("lump", "box", (0.1, 0.1, 0.04), (0.0, 0.0), soft,
                       inclusions=(Inclusion(hard, "sphere", (0.0, 0.0, 0.02), (0.005,)),))
-    centre = PressTarget(0.0, 0.0)
+    centre = PressTarget(0.0, 0.0, depth=0.002)
     assert choose_fidelity(thick, centre, R) == "analytic"
-    assert choose_fidelity(thick, PressTarget(0.045, 0.0), R) == "rigid"  # near the edge
-    assert choose_fidelity(thin, centre, R) == "rigid"
+    assert choose_fidelity(thick, PressTarget(0.045, 0.0, depth=0.002), R) == "rigid"  # near the edge
+    assert choose_fidelity(thick, PressTarget(0.0, 0.0, depth=0.004), R) == "rigid"  # sphere departs from Hertz
+    assert choose_fidelity(thin, PressTarget(0.0, 0.0, depth=0.0005), R) == "rigid"
+    assert choose_fidelity(thin, PressTarget(0.0, 0.0, depth=0.002), R) == "flex"  # 40% of its height
     assert choose_fidelity(cyl, centre, R) == "rigid"
     assert choose_fidelity(lump, centre, R) == "flex"
 
