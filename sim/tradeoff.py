@@ -1,0 +1,443 @@
+"""Speed against accuracy, measured: sweep simulation settings and measure what each costs and what error it adds.
+
+A *setting* is one point of the trade: fidelity (analytic, rigid, flex), physics timestep, the rigid contact
+quadrature (footprint rings: the rigid level has no constraint solver, its contact is a tabulated kernel), the flex
+cell size, and the taxel sampling rate. For each setting :func:`measure_setting` presses a thick homogeneous block
+of each bench material a few times (seeded human-like variability, so the presses of a material differ) and
+reports:
+
+- wall time per press-and-release (physics + sensor models, one core) and the real-time factor;
+- peak memory of one press (tracemalloc: Python-side allocations, which hold every trace and frame array);
+- error against the reference setting (the finest stable one), per press with the same seed: relative error of
+  the peak c_P, c_A, c_D and of the fitted n1 and a1 (median over presses);
+- force error against closed-form Hertz (the block is thick and homogeneous, so Hertz applies): relative RMS of
+  F / F_Hertz(indentation) - 1 over the loading phase beyond 0.2 mm;
+- leave-one-out accuracy of a haptic memory trained on that setting's presses.
+
+:func:`pareto_front` and :func:`cheapest_within` then pick the settings worth using.
+"""
+
+from __future__ import annotations
+
+import time
+import tracemalloc
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from palpate.core.errors import FitError, PalpateError, ValidationError
+from palpate.core.scene import Material, ObjectSpec, Scene, TaxelSensorSpec
+from palpate.core.sources import PressTarget
+from palpate.core.streams import PressRecording
+
+FIDELITY_ORDER = ("analytic", "rigid", "flex")
+#: Bench materials (name, Young's modulus Pa): soft, medium, hard, a decade apart as the thesis' references.
+BENCH_MATERIALS = (("soft", 2.0e4), ("medium", 2.0e5), ("hard", 2.0e6))
+#: Thick block so Hertz (half-space) applies: 80 x 80 x 40 mm, as the run job's training block.
+BENCH_BLOCK = (0.08, 0.08, 0.04)
+FEATURES = ("c_P", "c_A", "c_D", "n1", "a1")
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One point of the speed/accuracy trade.
+
+    Attributes:
+        fidelity: "analytic", "rigid" or "flex".
+        timestep: physics step, s (ignored by analytic, which samples at the taxel rate).
+        taxel_rate: taxel frame rate, Hz.
+        rings: rigid only: polar rings of the contact-force quadrature over the tip footprint.
+        resolution: flex only: elastic cell edge, m.
+    """
+
+    fidelity: str
+    timestep: float = 0.002
+    taxel_rate: float = 50.0
+    rings: int = 96
+    resolution: float = 0.0065
+
+    def __post_init__(self) -> None:
+        if self.fidelity not in FIDELITY_ORDER:
+            raise ValidationError(f"Setting.fidelity must be one of {FIDELITY_ORDER}, got {self.fidelity!r}")
+        if not (np.isfinite(self.timestep) and self.timestep > 0):
+            raise ValidationError(f"Setting.timestep must be > 0 s, got {self.timestep!r}")
+        if not (np.isfinite(self.taxel_rate) and self.taxel_rate > 0):
+            raise ValidationError(f"Setting.taxel_rate must be > 0 Hz, got {self.taxel_rate!r}")
+        if self.rings < 4:
+            raise ValidationError(f"Setting.rings must be >= 4, got {self.rings}")
+        if not (np.isfinite(self.resolution) and self.resolution > 0):
+            raise ValidationError(f"Setting.resolution must be > 0 m, got {self.resolution!r}")
+
+    @property
+    def label(self) -> str:
+        """Short human-readable name, e.g. 'rigid dt=2ms rings=96 50Hz'."""
+        rate = f"{self.taxel_rate:g}Hz"
+        if self.fidelity == "analytic":
+            return f"analytic {rate}"
+        dt = f"dt={self.timestep * 1e3:g}ms"
+        if self.fidelity == "rigid":
+            return f"rigid {dt} rings={self.rings} {rate}"
+        return f"flex {dt} cell={self.resolution * 1e3:g}mm {rate}"
+
+
+def reference_setting() -> Setting:
+    """The finest stable setting of the bench: rigid at 0.25 ms with the full contact quadrature.
+
+    Rigid rather than flex: on a thick homogeneous block both model the same Hertz contact, and rigid converges
+    (its force error against Hertz is below 1%) while flex is limited by its cell size (~10%, see
+    benchmarks/flex_resolution.py).
+    """
+    return Setting("rigid", timestep=0.00025, rings=96)
+
+
+def quick_settings() -> list[Setting]:
+    """The CI sweep: a few minutes on two cores."""
+    return [
+        Setting("analytic", taxel_rate=50.0),
+        Setting("analytic", taxel_rate=100.0),
+        Setting("rigid", timestep=0.0005),
+        Setting("rigid", timestep=0.002),
+        Setting("rigid", timestep=0.005),
+        Setting("rigid", timestep=0.002, rings=24),
+        Setting("rigid", timestep=0.002, taxel_rate=100.0),
+        Setting("flex", timestep=0.002, resolution=0.0065),
+    ]
+
+
+def full_settings() -> list[Setting]:
+    """The workstation sweep: every timestep, quadrature, cell size and rate of the trade."""
+    out = [Setting("analytic", taxel_rate=r) for r in (25.0, 50.0, 100.0, 200.0)]
+    out += [Setting("rigid", timestep=dt) for dt in (0.0005, 0.001, 0.002, 0.005, 0.01)]
+    out += [Setting("rigid", timestep=0.002, rings=r) for r in (12, 24, 48)]
+    out += [Setting("rigid", timestep=0.002, taxel_rate=r) for r in (25.0, 100.0, 200.0)]
+    out += [Setting("flex", timestep=dt, resolution=res) for res in (0.01, 0.0065, 0.005) for dt in (0.002, 0.005)]
+    out += [Setting("flex", timestep=0.001, resolution=0.0065)]
+    return out
+
+
+def bench_scene(young: float, name: str, taxel_rate: float = 50.0) -> tuple[Scene, ObjectSpec]:
+    """A thick homogeneous block of one material under the default fingertip, at the given taxel rate."""
+    obj = ObjectSpec("block", "box", BENCH_BLOCK, (0.0, 0.0), Material(name, young, 0.3))
+    return Scene((obj,), taxels=TaxelSensorSpec(rate=taxel_rate)), obj
+
+
+def simulate(setting: Setting, young: float, name: str, seed: int, *, depth: float = 0.003,
+             speed: float = 0.01) -> PressRecording:
+    """One press-and-release of the bench block at ``setting`` (human-like variability drawn from ``seed``).
+
+    Mirrors :meth:`palpate.sim.source.SimSource.press` but passes the setting's knobs (quadrature, cell size)
+    that a SimSource keeps at their defaults.
+    """
+    from palpate.sim.analytic import hertz_depth_for_force, run_analytic_press
+    from palpate.sim.controller import HUMAN, press_profile
+    from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
+
+    scene, obj = bench_scene(young, name, setting.taxel_rate)
+    tip = scene.fingertip
+    target = PressTarget(0.0, 0.0, depth=depth, speed=speed)
+    s_profile, s_taxel, s_pose = np.random.SeedSequence([seed, 0]).spawn(3)
+    e_star = obj.material.effective_modulus
+    profile = press_profile(target, obj.height, radius=tip.radius, timestep=min(setting.timestep, 0.002),
+                            variability=HUMAN, seed=int(s_profile.generate_state(1)[0]),
+                            depth_for_force=lambda f: hertz_depth_for_force(e_star, tip.radius, f))
+    if setting.fidelity == "analytic":
+        trace = run_analytic_press(scene, obj, profile)
+    elif setting.fidelity == "rigid":
+        from palpate.sim.rigid import run_rigid_press
+
+        trace = run_rigid_press(scene, obj, profile, timestep=setting.timestep, rings=setting.rings)
+    else:
+        from palpate.sim.flex import run_flex_press
+
+        trace = run_flex_press(scene, obj, target, profile, timestep=setting.timestep,
+                               resolution=setting.resolution)
+    frames = sample_taxels(trace, scene.taxels, tip, np.random.default_rng(s_taxel))
+    poses = sample_poses(trace, scene.pose, np.random.default_rng(s_pose))
+    meta = {"source": "sim", "fidelity": setting.fidelity, "material": name, "seed": seed,
+            "duration": float(trace.t[-1] - trace.t[0])}
+    return PressRecording(frames=frames, poses=poses, truth=ground_truth(trace), meta=meta)
+
+
+@dataclass
+class PressMeasure:
+    """What one press gave: peak features, fitted (n1, a1), Hertz force error, duration and wall time."""
+
+    material: str
+    seed: int
+    wall: float
+    duration: float
+    peaks: dict[str, float]
+    hertz_error: float
+    params: np.ndarray | None = None
+
+
+def hertz_force_error(rec: PressRecording, young_eff: float, radius: float, min_depth: float = 2e-4) -> float:
+    """Relative RMS of F / F_Hertz - 1 over the loading phase beyond ``min_depth`` (m); NaN if never that deep."""
+    from palpate.sim.analytic import hertz_force
+
+    d = np.asarray(rec.truth.indentation)
+    f = np.asarray(rec.truth.force)
+    loading = (np.arange(len(d)) <= int(np.argmax(d))) & (d > min_depth)
+    if not loading.any():
+        return float("nan")
+    ratio = f[loading] / hertz_force(young_eff, radius, d[loading]) - 1.0
+    return float(np.sqrt(np.mean(ratio**2)))
+
+
+def measure_press(setting: Setting, young: float, name: str, seed: int, depth: float = 0.003) -> PressMeasure:
+    """Simulate and perceive one press; peaks are NaN where the pipeline found no press or the fit failed."""
+    from palpate.core.run import perceive_press
+
+    t0 = time.perf_counter()
+    rec = simulate(setting, young, name, seed, depth=depth)
+    wall = time.perf_counter() - t0
+    res = perceive_press(rec)
+    peaks = {k: float("nan") for k in FEATURES}
+    if len(res.c_P):
+        peaks.update(c_P=float(np.max(res.c_P)), c_A=float(np.max(res.c_A)), c_D=float(np.max(res.c_D)))
+    if res.fit is not None:
+        peaks.update(n1=res.fit["n1"], a1=res.fit["a1"])
+    herr = hertz_force_error(rec, young / (1 - 0.3**2), Scene(()).fingertip.radius)
+    return PressMeasure(name, seed, wall, rec.meta["duration"], peaks, herr, res.params)
+
+
+def peak_memory(setting: Setting, young: float, name: str, seed: int) -> float:
+    """Peak Python-side memory of one press-and-release, bytes (tracemalloc)."""
+    was = tracemalloc.is_tracing()
+    if not was:
+        tracemalloc.start()
+    tracemalloc.reset_peak()
+    base = tracemalloc.get_traced_memory()[0]
+    try:
+        simulate(setting, young, name, seed)
+        return float(tracemalloc.get_traced_memory()[1] - base)
+    finally:
+        if not was:
+            tracemalloc.stop()
+
+
+@dataclass
+class SettingResult:
+    """The measured cost and error of one setting (errors are fractions; NaN where not measurable)."""
+
+    setting: Setting
+    wall_per_press: float = float("nan")
+    realtime_factor: float = float("nan")
+    peak_memory: float = float("nan")
+    errors: dict[str, float] = field(default_factory=dict)
+    error: float = float("nan")
+    hertz_error: float = float("nan")
+    loo_accuracy: float = float("nan")
+    failed: str | None = None
+    note: str | None = None
+    presses: list[PressMeasure] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """JSON-ready row (NaN as None)."""
+        def num(v):
+            return None if v is None or not np.isfinite(v) else float(v)
+
+        return {
+            "label": self.setting.label, "setting": asdict(self.setting),
+            "wall_per_press_s": num(self.wall_per_press), "realtime_factor": num(self.realtime_factor),
+            "peak_memory_bytes": num(self.peak_memory),
+            "errors": {k: num(v) for k, v in self.errors.items()}, "error": num(self.error),
+            "hertz_error": num(self.hertz_error), "loo_accuracy": num(self.loo_accuracy), "failed": self.failed,
+            "note": self.note,
+        }
+
+
+def measure_setting(setting: Setting, *, seeds: tuple[int, ...] = (0, 1, 2, 3),
+                    materials=BENCH_MATERIALS, memory: bool = True, depth: float = 0.003) -> SettingResult:
+    """Press every bench material once per seed at ``setting``; time, memory, Hertz error and LOO accuracy.
+
+    The error against a reference is filled in later by :func:`compare_to_reference`. A setting whose physics
+    diverges or is invalid is returned with ``failed`` set (the sweep goes on).
+    """
+    from palpate.core.memory import leave_one_out
+
+    out = SettingResult(setting)
+    try:
+        for name, young in materials:
+            for seed in seeds:
+                out.presses.append(measure_press(setting, young, name, seed, depth))
+        if memory:
+            name, young = materials[0]
+            out.peak_memory = peak_memory(setting, young, name, seeds[0])
+    except PalpateError as exc:
+        out.failed = f"{type(exc).__name__}: {exc}"
+        return out
+    walls = np.array([p.wall for p in out.presses])
+    durations = np.array([p.duration for p in out.presses])
+    out.wall_per_press = float(np.median(walls))
+    out.realtime_factor = float(np.sum(durations) / np.sum(walls))
+    herr = np.array([p.hertz_error for p in out.presses])
+    out.hertz_error = float(np.nanmedian(herr)) if np.isfinite(herr).any() else float("nan")
+    fitted = [p for p in out.presses if p.params is not None]
+    try:
+        params = np.array([p.params for p in fitted])
+        out.loo_accuracy = leave_one_out(params, [p.material for p in fitted]).accuracy
+    except (ValidationError, FitError, np.linalg.LinAlgError) as exc:
+        out.note = f"leave-one-out: {exc}"
+    return out
+
+
+def compare_to_reference(result: SettingResult, reference: SettingResult) -> None:
+    """Fill ``result.errors`` (median relative error per feature over matching presses) and ``result.error``.
+
+    Presses match by (material, seed). ``error`` is the largest of the per-feature errors: a setting is only
+    as good as its worst feature.
+    """
+    if result.failed or reference.failed:
+        return
+    ref = {(p.material, p.seed): p.peaks for p in reference.presses}
+    rel: dict[str, list[float]] = {k: [] for k in FEATURES}
+    for p in result.presses:
+        r = ref.get((p.material, p.seed))
+        if r is None:
+            continue
+        for k in FEATURES:
+            if np.isfinite(r[k]) and r[k] != 0:
+                rel[k].append(abs(p.peaks[k] / r[k] - 1.0) if np.isfinite(p.peaks[k]) else np.inf)
+    result.errors = {k: float(np.median(v)) if v else float("nan") for k, v in rel.items()}
+    vals = [v for v in result.errors.values() if not np.isnan(v)]
+    result.error = float(max(vals)) if vals else float("nan")
+
+
+def pareto_front(results: list[SettingResult]) -> list[SettingResult]:
+    """Settings not beaten by another in both time per press and error (lower is better), fastest first."""
+    ok = [r for r in results if r.failed is None and np.isfinite(r.wall_per_press) and np.isfinite(r.error)]
+    ok.sort(key=lambda r: (r.wall_per_press, r.error))
+    front, best = [], np.inf
+    for r in ok:
+        if r.error < best:
+            front.append(r)
+            best = r.error
+    return front
+
+
+def cheapest_within(results: list[SettingResult], tolerance: float) -> SettingResult | None:
+    """The fastest setting whose error against the reference is at most ``tolerance`` (fraction), or None."""
+    ok = [r for r in results if r.failed is None and np.isfinite(r.error) and r.error <= tolerance]
+    return min(ok, key=lambda r: r.wall_per_press) if ok else None
+
+
+def run_tradeoff(settings: list[Setting], *, reference: Setting | None = None, seeds: tuple[int, ...] = (0, 1, 2, 3),
+                 materials=BENCH_MATERIALS, depth: float = 0.003, progress=None) -> dict:
+    """Measure every setting and the reference; return {"reference", "results", "pareto", "within_5", "within_1"}.
+
+    ``progress`` (optional) is called with each finished SettingResult.
+    """
+    reference = reference or reference_setting()
+    ref = measure_setting(reference, seeds=seeds, materials=materials, depth=depth)
+    if ref.failed:
+        raise ValidationError(f"the reference setting {reference.label} failed: {ref.failed}; choose a finer one")
+    compare_to_reference(ref, ref)
+    results = []
+    for s in settings:
+        r = ref if s == reference else measure_setting(s, seeds=seeds, materials=materials, depth=depth)
+        compare_to_reference(r, ref)
+        results.append(r)
+        if progress is not None:
+            progress(r)
+    return {"reference": ref, "results": results, "pareto": pareto_front(results),
+            "within_5": cheapest_within(results, 0.05), "within_1": cheapest_within(results, 0.01)}
+
+
+def analytic_validity(depths=(0.001, 0.002, 0.003, 0.004), *, seeds: tuple[int, ...] = (0, 1),
+                      materials=BENCH_MATERIALS) -> list[dict]:
+    """Error of the analytic level against the reference at each press depth (m): where Hertz stops being enough.
+
+    Hertz assumes a paraboloid tip and small strain; the rigid reference follows the real sphere, so their gap
+    grows with depth / tip radius: ``hertz_error`` is the reference's force against Hertz (contact mechanics
+    alone), ``error`` the worst perceived-feature gap (which also holds the finger drive's compliance, absent
+    from the analytic level's kinematic press). These are the numbers behind the ``auto`` rule's depth limit.
+    """
+    rows = []
+    for d in depths:
+        ref = measure_setting(reference_setting(), seeds=seeds, materials=materials, memory=False, depth=d)
+        ana = measure_setting(Setting("analytic"), seeds=seeds, materials=materials, memory=False, depth=d)
+        compare_to_reference(ana, ref)
+        rows.append({"depth": float(d), "depth_over_radius": float(d / Scene(()).fingertip.radius),
+                     "hertz_error": ref.hertz_error, "error": ana.error, "errors": dict(ana.errors)})
+    return rows
+
+
+def format_table(report: dict) -> str:
+    """The measured table as text (one row per setting; times per press in ms, memory in MiB, errors in %)."""
+    head = (f"{'setting':34} {'ms/press':>9} {'x RT':>7} {'MiB':>6} {'c_P%':>6} {'c_A%':>6} {'c_D%':>6} "
+            f"{'n1%':>6} {'a1%':>6} {'err%':>6} {'Hertz%':>7} {'LOO':>5}")
+    lines = [head]
+    pareto = {id(r) for r in report["pareto"]}
+
+    def pct(v):
+        return f"{100 * v:6.1f}" if v is not None and np.isfinite(v) else f"{'-':>6}"
+
+    for r in [report["reference"]] + report["results"]:
+        name = ("* " if id(r) in pareto else "  ") + r.setting.label
+        if r is report["reference"]:
+            name = "R " + r.setting.label
+        if r.failed and not np.isfinite(r.wall_per_press):
+            lines.append(f"{name:34} failed: {r.failed[:80]}")
+            continue
+        e = r.errors
+        lines.append(
+            f"{name:34} {1e3 * r.wall_per_press:9.2f} {r.realtime_factor:7.1f} {r.peak_memory / 2**20:6.2f} "
+            f"{pct(e.get('c_P'))} {pct(e.get('c_A'))} {pct(e.get('c_D'))} {pct(e.get('n1'))} {pct(e.get('a1'))} "
+            f"{pct(r.error)} {pct(r.hertz_error):>7} {r.loo_accuracy:5.2f}"
+        )
+    lines.append("R = reference (finest stable), * = Pareto front (time per press vs err%); err% = worst feature")
+    for key, tol in (("within_5", "5%"), ("within_1", "1%")):
+        r = report[key]
+        lines.append(f"cheapest within {tol} of the reference: " + (
+            f"{r.setting.label} ({1e3 * r.wall_per_press:.2f} ms/press, err {100 * r.error:.2f}%)" if r else "none"))
+    return "\n".join(lines)
+
+
+def report_to_dict(report: dict) -> dict:
+    """JSON-ready form of :func:`run_tradeoff`'s report."""
+    def lab(r):
+        return None if r is None else r.setting.label
+
+    return {
+        "format": "palpate-tradeoff", "version": 1,
+        "reference": report["reference"].to_dict(),
+        "results": [r.to_dict() for r in report["results"]],
+        "pareto": [lab(r) for r in report["pareto"]],
+        "cheapest_within_5pct": lab(report["within_5"]), "cheapest_within_1pct": lab(report["within_1"]),
+    }
+
+
+def pareto_plot(report: dict, path) -> None:
+    """Write the Pareto plot (time per press vs error against the reference, log-log) as a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    colours = {"analytic": "tab:green", "rigid": "tab:blue", "flex": "tab:red"}
+    floor = 1e-4  # the reference's own error is 0: show it at the floor of the log axis
+    for r in report["results"]:
+        if r.failed or not np.isfinite(r.error):
+            continue
+        ax.scatter(1e3 * r.wall_per_press, max(r.error, floor), color=colours[r.setting.fidelity], s=25)
+        ax.annotate(r.setting.label, (1e3 * r.wall_per_press, max(r.error, floor)), fontsize=6,
+                    xytext=(3, 3), textcoords="offset points")
+    front = report["pareto"]
+    if front:
+        ax.plot([1e3 * r.wall_per_press for r in front], [max(r.error, floor) for r in front], "k--", lw=0.8,
+                label="Pareto front")
+    for tol in (0.05, 0.01):
+        ax.axhline(tol, color="grey", lw=0.5, ls=":")
+    for fid, c in colours.items():
+        ax.scatter([], [], color=c, label=fid)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("wall time per press-and-release [ms] (one core)")
+    ax.set_ylabel("error vs reference (worst of c_P, c_A, c_D, n1, a1)")
+    ax.set_title(f"speed vs accuracy (reference: {report['reference'].setting.label})", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
