@@ -1,17 +1,134 @@
-"""Where to press next: exploration policies over a map (map in, next cell out).
+"""Where to press next: exploration policies over a map (map in, next target out), and the stop rules.
 
-A policy returns the next cell to press as integer indices (ix, iy) of a 2-D grid (a voxel grid is explored
-column by column, so the same indices serve), or None when it has nothing left to propose. Policies hold only
-their own small state (a queue, a generator); the map is passed in on each call.
+Every policy has one method, ``next_target(grid, post=None, last=None) -> Target | None``: ``grid`` is the map
+as measured (:class:`~palpate.core.maps.Grid2D` or :class:`~palpate.core.maps.VoxelGrid`), ``post`` its
+post-processed version (computed when not given), ``last`` the (ix, iy) of the previous press. A target is a
+column of the map, (ix, iy) 0-based, plus for voxel maps the depth to reach (m); None means the policy has
+nothing left to propose. Policies hold only their own small state (a queue, a generator, a table of predicted
+press outcomes); the map is passed in on each call.
+
+Scores are in entropy units of the map's base (hartleys for base 10). ``max_entropy`` and ``info_gain`` plan on
+the post-processed map, because that is the map the run reports: a cell between two certain neighbours is
+already estimated, so pressing it first would waste a press.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
+
+#: A cell counts as "certain" when its entropy is at most this fraction of the largest possible (log_b M).
+CERTAIN_FRACTION = 0.05
+#: Same floor on entropies as the maps' post-processing: certain neighbours dominate without a division by zero.
+_H_MIN = 1e-12
+_TIE = 1e-9
+
+
+@dataclass(frozen=True)
+class Target:
+    """The next press: the map column (ix, iy), 0-based, the depth to reach (m; None = the run's planned depth,
+    always None on 2-D maps) and the policy's score for it (entropy units; None for list-driven policies)."""
+
+    ix: int
+    iy: int
+    depth: float | None = None
+    score: float | None = None
+
+
+# --------------------------------------------------------------------------------------------------------------
+# map views shared by the policies
+
+
+def _is_voxel(grid) -> bool:
+    return len(grid.probabilities.shape) == 4
+
+
+def _plane_shape(grid) -> tuple[int, int]:
+    """(nx, ny) of the columns a policy chooses among."""
+    return tuple(int(v) for v in grid.shape[:2])  # type: ignore[return-value]
+
+
+def _entropy(p: np.ndarray, base: float) -> np.ndarray:
+    """Entropy along the last axis of already-valid probabilities (no checks: this is the hot path)."""
+    plogp = np.log(p, out=np.zeros_like(p), where=p > 0)
+    plogp *= p
+    h = plogp.sum(axis=-1)
+    h *= -1.0 / math.log(base)
+    return np.maximum(h, 0.0)
+
+
+def _h_max(grid) -> float:
+    return math.log(len(grid.materials)) / math.log(grid.base)
+
+
+def _layers(grid, max_depth: float | None) -> int:
+    """Voxel layers a press to ``max_depth`` (m) reaches (all of them when None)."""
+    nz = grid.shape[2]
+    if max_depth is None:
+        return nz
+    return grid.layers_reached(max_depth)
+
+
+def column_entropy(grid, post=None, max_depth: float | None = None) -> np.ndarray:
+    """Entropy a press could act on per column, shape (ny, nx): the cell's entropy on a 2-D map, the sum over the
+    reachable voxels of a column on a voxel map; of ``post`` (the post-processed map) when given."""
+    m = grid if post is None else post
+    h = _entropy(np.asarray(m.probabilities), m.base)
+    if _is_voxel(grid):
+        return h[:, :, :_layers(grid, max_depth)].sum(axis=-1).T
+    return h
+
+
+def _certain(grid, post, max_depth) -> np.ndarray:
+    """(ny, nx) mask of columns that are explored and certain in the post-processed map."""
+    h = column_entropy(grid, post, max_depth)
+    n = _layers(grid, max_depth) if _is_voxel(grid) else 1
+    explored = _explored2d(grid)
+    return explored & (h <= CERTAIN_FRACTION * _h_max(grid) * n)
+
+
+def _explored2d(grid) -> np.ndarray:
+    e = np.asarray(grid.explored)
+    return e.any(axis=2).T if e.ndim == 3 else e
+
+
+def _distance_mm(shape_yx: tuple[int, int], cell_size: float, last) -> np.ndarray:
+    """Distance of every cell centre from the last press's cell, mm, shape (ny, nx)."""
+    ny, nx = shape_yx
+    if last is None:
+        return np.zeros((ny, nx))
+    iy, ix = np.mgrid[0:ny, 0:nx]
+    return np.hypot(ix - last[0], iy - last[1]) * cell_size * 1e3
+
+
+def _argmax_cell(score: np.ndarray, allowed: np.ndarray) -> tuple[int, int] | None:
+    """(ix, iy) of the best allowed cell; ties go to the first in row order (deterministic)."""
+    if not allowed.any():
+        return None
+    s = np.where(allowed, score, -np.inf)
+    iy, ix = np.unravel_index(int(np.argmax(s)), s.shape)
+    return int(ix), int(iy)
+
+
+def _target_depth(grid, post, ix: int, iy: int, max_depth: float | None) -> float | None:
+    """Voxel maps: press down to the bottom of the deepest reachable voxel that is not certain yet (m), so a
+    column whose deep part is known is not pressed deeper than needed; None on 2-D maps."""
+    if not _is_voxel(grid):
+        return None
+    k = _layers(grid, max_depth)
+    h = _entropy(np.asarray(post.probabilities[ix, iy, :k]), post.base)
+    uncertain = np.flatnonzero(h > CERTAIN_FRACTION * _h_max(grid))
+    layers = int(uncertain[-1]) + 1 if uncertain.size else k
+    depth = layers * grid.cell_size
+    return depth if max_depth is None else min(depth, max_depth)
+
+
+# --------------------------------------------------------------------------------------------------------------
+# list-driven policies
 
 
 @dataclass
@@ -19,7 +136,8 @@ class Predefined:
     """Press a fixed list of cells, cycling through the list ``repeats`` times (seed 000 Table 6.8: 5 regions x 2).
 
     Cells are 0-based (ix, iy). The k-th press goes to cells[k % len(cells)], so one "exploration cycle" visits every
-    region once, as the seed's Tables 6.9-6.11 report it.
+    region once, as the seed's Tables 6.9-6.11 report it. The list is the protocol being reproduced, so cells are
+    revisited even when certain; a cell outside the map is an error, never pressed.
     """
 
     cells: list[tuple[int, int]]
@@ -36,29 +154,32 @@ class Predefined:
     def budget(self) -> int:
         return len(self.cells) * self.repeats
 
-    def next_cell(self, shape: tuple[int, int], explored: np.ndarray | None = None) -> tuple[int, int] | None:
+    def next_target(self, grid, post=None, last=None) -> Target | None:
         """Next cell of the list, or None after the last repeat."""
         if self._k >= self.budget:
             return None
         cell = self.cells[self._k % len(self.cells)]
-        self._k += 1
-        nx, ny = shape
+        nx, ny = _plane_shape(grid)
         if not (0 <= cell[0] < nx and 0 <= cell[1] < ny):
-            raise ValidationError(f"predefined cell {cell} (0-based) is outside the {nx}x{ny} grid")
-        return cell
+            raise ValidationError(f"predefined cell {cell[0] + 1},{cell[1] + 1} (1-based column, row) is outside "
+                                  f"the {nx}x{ny} grid")
+        self._k += 1
+        return Target(int(cell[0]), int(cell[1]))
 
 
 @dataclass
 class Raster:
-    """Boustrophedon raster over the grid with a stride (cells), row by row along x."""
+    """Boustrophedon raster over the grid with a stride (cells), row by row along x; skips columns that are
+    already explored and certain (e.g. pressed before the raster started)."""
 
     stride: int = 1
     _order: list[tuple[int, int]] | None = field(default=None, init=False)
     _k: int = field(default=0, init=False)
 
-    def next_cell(self, shape: tuple[int, int], explored: np.ndarray | None = None) -> tuple[int, int] | None:
+    def next_target(self, grid, post=None, last=None) -> Target | None:
+        """Next cell of the raster that is not already certain, or None at the end of the raster."""
+        nx, ny = _plane_shape(grid)
         if self._order is None:
-            nx, ny = shape
             s = max(1, int(self.stride))
             off_x, off_y = (nx - 1) % s // 2, (ny - 1) % s // 2
             order = []
@@ -66,38 +187,313 @@ class Raster:
                 xs = list(range(off_x, nx, s))
                 order.extend((ix, iy) for ix in (xs if n % 2 == 0 else xs[::-1]))
             self._order = order
-        if self._k >= len(self._order):
-            return None
-        self._k += 1
-        return self._order[self._k - 1]
+        certain = None
+        while self._k < len(self._order):
+            ix, iy = self._order[self._k]
+            self._k += 1
+            if certain is None:
+                certain = _certain(grid, grid, None)
+            if not certain[iy, ix]:
+                return Target(ix, iy)
+        return None
 
 
 @dataclass
 class RandomCells:
-    """Uniformly random cells, preferring cells not yet explored; seeded."""
+    """Uniformly random cells, seeded: first among unexplored columns, then among those not yet certain; None
+    once every column is explored and certain."""
 
     seed: int = 0
     _rng: np.random.Generator | None = field(default=None, init=False)
 
-    def next_cell(self, shape: tuple[int, int], explored: np.ndarray | None = None) -> tuple[int, int] | None:
+    def next_target(self, grid, post=None, last=None) -> Target | None:
         if self._rng is None:
             self._rng = np.random.default_rng(self.seed)
-        nx, ny = shape
-        if explored is not None:
-            free = np.argwhere(~np.asarray(explored, dtype=bool))  # rows of (iy, ix)
-            if len(free):
-                iy, ix = free[self._rng.integers(len(free))]
-                return int(ix), int(iy)
-        return int(self._rng.integers(nx)), int(self._rng.integers(ny))
+        free = ~_explored2d(grid)
+        if not free.any():
+            free = ~_certain(grid, grid, None)
+        cells = np.argwhere(free)  # rows of (iy, ix)
+        if not len(cells):
+            return None
+        iy, ix = cells[self._rng.integers(len(cells))]
+        return Target(int(ix), int(iy))
+
+
+# --------------------------------------------------------------------------------------------------------------
+# map-driven policies
+
+
+@dataclass
+class MaxEntropy:
+    """Press the column with the highest entropy of the post-processed map, less an optional travel cost.
+
+    Args:
+        travel_cost_per_mm: entropy units subtracted per mm between a cell and the last press (0 = none).
+        max_depth: voxel maps: deepest press, m (None = the whole column).
+    """
+
+    travel_cost_per_mm: float = 0.0
+    max_depth: float | None = None
+
+    def next_target(self, grid, post=None, last=None) -> Target | None:
+        """The best column, or None when every column is explored and certain."""
+        post = grid.postprocessed() if post is None else post
+        h = column_entropy(grid, post, self.max_depth)
+        score = h - self.travel_cost_per_mm * _distance_mm(h.shape, grid.cell_size, last)
+        cell = _argmax_cell(score, ~_certain(grid, post, self.max_depth))
+        if cell is None:
+            return None
+        ix, iy = cell
+        return Target(ix, iy, _target_depth(grid, post, ix, iy, self.max_depth), float(score[iy, ix]))
+
+
+def outcome_posteriors(memory, samples_per_material: int = 6, seed: int = 0) -> np.ndarray:
+    """Predicted per-press posteriors, shape (M, S, M): row [t, s] is the memory's posterior for the s-th
+    parameter vector drawn from material t's Gaussians N(mu_N, Sigma_N) x N(mu_A, Sigma_A) (seed 000 eq. 6.13-6.14).
+
+    Seeded, so a run is deterministic.
+    """
+    if isinstance(samples_per_material, bool) or not isinstance(samples_per_material, (int, np.integer)) \
+            or samples_per_material < 1:
+        raise ValidationError(f"samples_per_material must be an integer >= 1, got {samples_per_material!r}")
+    if getattr(memory, "means_N", None) is None:
+        raise ValidationError("info_gain needs a trained haptic memory (means and covariances per material)")
+    rng = np.random.default_rng(seed)
+    m = len(memory.materials)
+    draws = []
+    for t in range(m):
+        n = rng.multivariate_normal(memory.means_N[t], memory.covs_N[t], samples_per_material)
+        a = rng.multivariate_normal(memory.means_A[t], memory.covs_A[t], samples_per_material)
+        draws.append(np.hstack([n, a]))
+    q = memory.predict_proba(np.vstack(draws)).reshape(m, samples_per_material, m)
+    return np.asarray(q, dtype=float)
+
+
+def outcome_table(q: np.ndarray, resolution: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """Merge predicted outcomes that differ by less than ``resolution`` in every probability.
+
+    A well-separated memory predicts nearly the same posterior for most draws of a material; merging them keeps
+    the expectation the same to that resolution and makes :func:`expected_gain` several times cheaper.
+
+    Args:
+        q: (M, S, M) from :func:`outcome_posteriors`.
+        resolution: probability bin width.
+
+    Returns:
+        (outcomes (U, M): the mean posterior of each merged group, rows summing to 1;
+         likelihood (M, U): fraction of material t's draws that fell in group u, rows summing to 1).
+    """
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 3 or q.shape[0] != q.shape[2] or q.shape[1] < 1:
+        raise ValidationError(f"outcome posteriors must have shape (M, S, M), got {q.shape}")
+    if not np.all(np.isfinite(q)) or (q < 0).any():
+        raise ValidationError("outcome posteriors must be finite and non-negative")
+    m, s, _ = q.shape
+    flat = q.reshape(m * s, m)
+    _, group = np.unique(np.round(flat / resolution), axis=0, return_inverse=True)
+    group = group.reshape(-1)
+    u = int(group.max()) + 1
+    outcomes = np.zeros((u, m))
+    np.add.at(outcomes, group, flat)
+    outcomes /= np.bincount(group, minlength=u)[:, None]
+    outcomes /= outcomes.sum(axis=1, keepdims=True)
+    likelihood = np.zeros((m, u))
+    np.add.at(likelihood, (np.repeat(np.arange(m), s), group), 1.0 / s)
+    return outcomes, likelihood
+
+
+def _entropy0(p: np.ndarray, log_base: float) -> np.ndarray:
+    """Entropy over the FIRST axis (materials first: the sum is a few whole-array adds, the hot path's layout)."""
+    plogp = np.log(p, out=np.zeros_like(p), where=p > 0)
+    plogp *= p
+    h = plogp.sum(axis=0)
+    h *= -1.0 / log_base
+    return np.maximum(h, 0.0, out=h)
+
+
+def _box3_last2(a: np.ndarray) -> np.ndarray:
+    """Sum over each cell's in-grid 3x3 neighbourhood on the last two axes (the maps' eq. 6.15 kernel)."""
+    rows = a.copy()
+    rows[..., 1:] += a[..., :-1]
+    rows[..., :-1] += a[..., 1:]
+    out = rows.copy()
+    out[..., 1:, :] += rows[..., :-1, :]
+    out[..., :-1, :] += rows[..., 1:, :]
+    return out
+
+
+_OFFSETS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dy, dx) != (0, 0)]
+
+
+def _shift_slices(dy: int, dx: int, ny: int, nx: int) -> tuple[tuple[slice, slice], tuple[slice, slice]]:
+    """Slices of the candidates c and of their neighbours c + (dy, dx) that are both inside the grid."""
+    cand = (slice(max(0, -dy), ny - max(0, dy)), slice(max(0, -dx), nx - max(0, dx)))
+    nb = (slice(max(0, dy), ny - max(0, -dy)), slice(max(0, dx), nx - max(0, -dx)))
+    return cand, nb
+
+
+def _plane_gain(p_raw: np.ndarray, p_post: np.ndarray, explored: np.ndarray, outcomes: np.ndarray,
+                likelihood: np.ndarray, base: float, p_min: float, spread: bool) -> np.ndarray:
+    """Expected entropy reduction of the post-processed plane from one press per cell, shape p_raw.shape[:2].
+
+    p_raw/p_post: (ny, nx, M) measured and post-processed probabilities; outcomes (U, M) and likelihood (M, U)
+    from :func:`outcome_table`. The outcome of a press is predicted from the post-processed belief P(t) (the best
+    estimate of what is there), the update (seed 001 eq. 2, clamped as the map clamps) is applied to the
+    measured value (what the map will fuse it into), and with ``spread`` the change is carried to the unexplored
+    8-neighbours through eq. 6.15's 1/H-weighted mean of explored neighbours.
+    """
+    lb = math.log(base)
+    pr = np.moveaxis(p_raw, -1, 0)  # (M, ny, nx)
+    pp = np.moveaxis(p_post, -1, 0)
+    new = pr[:, None] * outcomes.T[:, :, None, None]  # (M, U, ny, nx)
+    new /= new.sum(axis=0)
+    np.maximum(new, p_min, out=new)
+    new /= new.sum(axis=0)
+    w_o = np.einsum("myx,mu->uyx", pp, likelihood)  # P(outcome u) = sum_t P(t) P(u | t)
+    h_new = _entropy0(new, lb)  # (U, ny, nx)
+    h_post = _entropy0(pp, lb)  # (ny, nx)
+    gain = h_post - (w_o * h_new).sum(axis=0)
+    if not spread:
+        return gain
+    ny, nx = h_post.shape
+    w_raw = np.where(explored, 1.0 / np.maximum(_entropy0(pr, lb), _H_MIN), 0.0)
+    c_old = w_raw * pr  # each explored cell's term of eq. 6.15 (zero if unexplored)
+    num_all = _box3_last2(c_old)
+    w_new = 1.0 / np.maximum(h_new, _H_MIN)
+    c_new = w_new * new  # (M, U, ny, nx): the pressed cell's term after each outcome
+    for dy, dx in _OFFSETS:
+        (cy, cx), (ky, kx) = _shift_slices(dy, dx, ny, nx)
+        free = ~explored[ky, kx]
+        if not free.any():
+            continue
+        # Neighbour's eq. 6.15 numerator with the candidate's term swapped for its predicted one.
+        num = (num_all[:, ky, kx] - c_old[:, cy, cx])[:, None] + c_new[:, :, cy, cx]
+        np.maximum(num, 1e-300, out=num)  # rounding of the subtraction only; keeps log finite
+        den = num.sum(axis=0)
+        s = (num * np.log(num)).sum(axis=0)
+        h = (np.log(den) - s / den) / lb
+        np.maximum(h, 0.0, out=h)
+        delta = h_post[ky, kx] - (w_o[:, cy, cx] * h).sum(axis=0)
+        gain[cy, cx] += np.where(free, delta, 0.0)
+    return gain
+
+
+def expected_gain(grid, post, table: tuple[np.ndarray, np.ndarray], max_depth: float | None = None) -> np.ndarray:
+    """Expected reduction of the post-processed map's total entropy from one press on each column, (ny, nx).
+
+    2-D maps: the pressed cell plus, through eq. 6.15, its unexplored 8-neighbours. Voxel maps: the sum over the
+    voxels the press reaches, each predicted with the same outcome table (post-processing is vertical and a press
+    fills a column from the top, so it opens no gap to extrapolate into).
+
+    Args:
+        grid: the measured map (Grid2D or VoxelGrid).
+        post: its post-processed version.
+        table: (outcomes (U, M), likelihood (M, U)) from :func:`outcome_table`.
+        max_depth: voxel maps: deepest press, m.
+    """
+    outcomes, likelihood = (np.asarray(v, dtype=float) for v in table)
+    m = len(grid.materials)
+    if outcomes.ndim != 2 or outcomes.shape[1] != m or likelihood.shape != (m, outcomes.shape[0]):
+        raise ValidationError(f"outcome table must be (U, {m}) outcomes and ({m}, U) likelihoods for materials "
+                              f"{grid.materials}, got {outcomes.shape} and {likelihood.shape}")
+    p_raw = np.asarray(grid.probabilities)
+    p_post = np.asarray(post.probabilities)
+    if _is_voxel(grid):
+        k = _layers(grid, max_depth)
+        nx, ny = grid.shape[:2]
+        # The reachable voxels as one column of independent cells (no lateral spread).
+        g = _plane_gain(p_raw[:, :, :k].reshape(-1, 1, m), p_post[:, :, :k].reshape(-1, 1, m),
+                        np.asarray(grid.explored)[:, :, :k].reshape(-1, 1), outcomes, likelihood, grid.base,
+                        grid.p_min, spread=False)
+        return g.reshape(nx, ny, k).sum(axis=-1).T
+    return _plane_gain(p_raw, p_post, np.asarray(grid.explored), outcomes, likelihood, grid.base, grid.p_min,
+                       spread=True)
+
+
+@dataclass
+class InfoGain:
+    """Press the column with the largest expected reduction of the post-processed map's entropy, less an
+    optional travel cost (see :func:`expected_gain`).
+
+    Args:
+        memory: the trained haptic memory whose Gaussians predict a press's outcome.
+        travel_cost_per_mm: entropy units subtracted per mm between a cell and the last press (0 = none).
+        max_depth: voxel maps: deepest press, m (None = the whole column).
+        samples_per_material: parameter vectors drawn per material to predict outcomes.
+        seed: seed of those draws.
+    """
+
+    memory: object
+    travel_cost_per_mm: float = 0.0
+    max_depth: float | None = None
+    samples_per_material: int = 6
+    seed: int = 0
+    _table: tuple[np.ndarray, np.ndarray] | None = field(default=None, init=False, repr=False)
+
+    def gains(self, grid, post=None) -> np.ndarray:
+        """Expected gain of every column, (ny, nx), entropy units."""
+        if self._table is None:
+            self._table = outcome_table(outcome_posteriors(self.memory, self.samples_per_material, self.seed))
+        post = grid.postprocessed() if post is None else post
+        return expected_gain(grid, post, self._table, self.max_depth)
+
+    def next_target(self, grid, post=None, last=None) -> Target | None:
+        """The column with the best gain less travel cost; its ``score`` is the gain itself (what the
+        ``stop_min_gain`` rule compares). None when every column is explored and certain."""
+        post = grid.postprocessed() if post is None else post
+        gain = self.gains(grid, post)
+        score = gain - self.travel_cost_per_mm * _distance_mm(gain.shape, grid.cell_size, last)
+        cell = _argmax_cell(score, ~_certain(grid, post, self.max_depth))
+        if cell is None:
+            return None
+        ix, iy = cell
+        # The stop rule asks whether any cell is still worth a press, travel aside: report the best gain.
+        best = float(np.max(np.where(_certain(grid, post, self.max_depth), -np.inf, gain)))
+        return Target(ix, iy, _target_depth(grid, post, ix, iy, self.max_depth), best)
+
+
+# --------------------------------------------------------------------------------------------------------------
+# building policies and stopping
+
+
+POLICY_NAMES = ("predefined", "raster", "random", "max_entropy", "info_gain")
 
 
 def make_policy(name: str, *, cells: list[tuple[int, int]] | None = None, repeats: int = 1, seed: int = 0,
-                stride: int = 1):
-    """Build a policy by name: "predefined" (needs cells), "raster" or "random"."""
+                stride: int = 1, memory=None, travel_cost_per_mm: float = 0.0, max_depth: float | None = None,
+                samples_per_material: int = 6):
+    """Build a policy by name (one of :data:`POLICY_NAMES`); ``predefined`` needs ``cells``, ``info_gain`` a
+    trained ``memory``."""
+    if not (np.isfinite(travel_cost_per_mm) and travel_cost_per_mm >= 0):
+        raise ValidationError(f"travel_cost_per_mm must be a finite number >= 0, got {travel_cost_per_mm!r}")
     if name == "predefined":
         return Predefined(list(cells or []), repeats)
     if name == "raster":
         return Raster(stride)
     if name == "random":
         return RandomCells(seed)
-    raise ValidationError(f"unknown exploration policy {name!r}; known: predefined, raster, random")
+    if name == "max_entropy":
+        return MaxEntropy(travel_cost_per_mm, max_depth)
+    if name == "info_gain":
+        if memory is None:
+            raise ValidationError("the info_gain policy needs a trained haptic memory")
+        return InfoGain(memory, travel_cost_per_mm, max_depth, samples_per_material, seed)
+    raise ValidationError(f"unknown exploration policy {name!r}; known: {', '.join(POLICY_NAMES)}")
+
+
+def stop_reason(post, *, mean_entropy: float | None = None, max_entropy: float | None = None) -> str | None:
+    """Which entropy stop rule the post-processed map meets ("mean_entropy" or "max_entropy"), or None.
+
+    Args:
+        post: the post-processed map (the one the run reports).
+        mean_entropy: stop once the mean cell entropy is at most this (map's base units).
+        max_entropy: stop once every cell's entropy is at most this.
+    """
+    if mean_entropy is None and max_entropy is None:
+        return None
+    h = _entropy(np.asarray(post.probabilities), post.base)
+    if mean_entropy is not None and float(h.mean()) <= mean_entropy:
+        return "mean_entropy"
+    if max_entropy is not None and float(h.max()) <= max_entropy:
+        return "max_entropy"
+    return None

@@ -262,7 +262,16 @@ def ground_truth_cells(entry: ObjectEntry, scenario: Scenario, centres_xy: np.nd
 
 def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, seed: int, progress: Progress,
                    log: PressLog | None = None):
-    """Explore one object with the scenario's policy; returns (object summary dict, map snapshots, results)."""
+    """Explore one object with the scenario's policy; returns (object summary dict, map snapshots, results).
+
+    The closed loop, per press: policy (next target from the map) -> actuator (``make_source(...)`` returns
+    anything with ``press(PressTarget) -> PressRecording``: the simulated finger, a Dynamixel finger, a human
+    operator; one with ``show_map(grid, post)`` is shown the map first) -> perception -> map update ->
+    post-processing -> stop rules (press budget, no expected gain above ``stop_min_gain``, mean or max entropy of
+    the post-processed map under ``stop_mean_entropy`` / ``stop_max_entropy``).
+    """
+    from palpate.core.explore import stop_reason
+
     ex = scenario.exploration
     geom = map_geometry(scenario)[entry.spec.name]
     grid = build_map(geom)
@@ -286,11 +295,16 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
     regions0 = [(c - 1, r - 1) for c, r in entry.regions]
     if ex.policy == "predefined":
         budget = len(regions0) * ex.presses_per_region
-        policy = make_policy("predefined", cells=regions0, repeats=ex.presses_per_region)
     else:
         budget = ex.budget
-        policy = make_policy(ex.policy, seed=seed)
+    policy = make_policy(ex.policy, cells=regions0, repeats=ex.presses_per_region, seed=seed, memory=memory,
+                         travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None)
+    # Any actuator will do: the simulated finger, a Dynamixel finger, a human operator, a replay.
     source = make_source((entry.spec,), seed, ex.variability)
+    if not callable(getattr(source, "press", None)):
+        raise ValidationError(f"exploring {entry.spec.name}: the source/actuator {type(source).__name__} has no "
+                              "press(target) method")
+    show_map = getattr(source, "show_map", None)
 
     def snapshot(label: str) -> dict:
         probs = grid.probabilities
@@ -299,27 +313,40 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
     snapshots = [snapshot("k = 0")]
     per_press, results = [], []
     cycle_posteriors = []
+    post = grid.postprocessed()
+    last, stop = None, "budget"
     progress.start(f"exploring {entry.spec.name}", budget)
     for k in range(budget):
-        explored2d = grid.explored if not voxel else grid.explored.any(axis=2).T
-        cell = policy.next_cell((nx, ny), explored2d)
-        if cell is None:
+        target = policy.next_target(grid, post, last)
+        if target is None:
+            stop = "policy_exhausted"
             break
+        if ex.stop_min_gain is not None and target.score is not None and target.score < ex.stop_min_gain:
+            stop = "min_gain"
+            break
+        cell = (target.ix, target.iy)
+        depth = ex.depth if target.depth is None else target.depth
         x, y = (float(v) for v in cells_xy[cell[1], cell[0]])
-        rec = source.press(PressTarget(x, y, depth=ex.depth, force=ex.max_force, speed=ex.speed,
+        if callable(show_map):
+            show_map(grid, post)
+        rec = source.press(PressTarget(x, y, depth=depth, force=ex.max_force, speed=ex.speed,
                                        label=f"{entry.spec.name} cell {cell[0] + 1},{cell[1] + 1}"))
         if log is not None:
             rec = log.add(rec, {"phase": "exploration", "object": entry.spec.name, "k": k + 1,
                                 "cell": [cell[0] + 1, cell[1] + 1], "target_m": [x, y]})
         res = perceive_press(rec)
         res.target = (x, y)
-        row = {"k": k + 1, "cell": [cell[0] + 1, cell[1] + 1], "target_m": [x, y],
-               "location_m": list(res.location), "depth_m": res.depth, "fit": res.fit,
+        row = {"k": k + 1, "cell": [cell[0] + 1, cell[1] + 1], "target_m": [x, y], "planned_depth_m": depth,
+               "score": target.score, "location_m": list(res.location), "depth_m": res.depth, "fit": res.fit,
                "rejected": res.rejected}
         apply_press(grid, res, memory, voxel=voxel, fallback_xy=(x, y))
+        post = grid.postprocessed()
+        last = cell
         row["posterior"] = None if res.posterior is None else [float(v) for v in res.posterior]
         row["mean_entropy"] = float(grid.mean_entropy())
+        row["mean_entropy_postprocessed"] = float(post.mean_entropy())
         row["accuracy_explored"] = _accuracy(grid, truth, explored_only=True)
+        row["accuracy_all_cells_postprocessed"] = _accuracy(post, truth, explored_only=False)
         per_press.append(row)
         results.append(res)
         if ex.policy == "predefined" and (k + 1) % len(regions0) == 0:
@@ -327,11 +354,12 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
         if (k + 1) == budget // 2:
             snapshots.append(snapshot(f"k = {k + 1}"))
         progress.update(k + 1)
-        if ex.stop_mean_entropy is not None and row["mean_entropy"] <= ex.stop_mean_entropy:
+        reason = stop_reason(post, mean_entropy=ex.stop_mean_entropy, max_entropy=ex.stop_max_entropy)
+        if reason is not None:
+            stop = reason
             break
     snapshots.append(snapshot(f"k = {len(per_press)}"))
     acc_before = _accuracy(grid, truth, explored_only=False)
-    post = grid.postprocessed()
     acc_after = _accuracy(post, truth, explored_only=False)
     snapshots.append({"label": "post-processed", "probabilities": np.array(post.probabilities),
                       "explored": np.array(post.explored)})
@@ -340,6 +368,8 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
         "map": ex.map,
         "grid": {"origin_m": list(origin), "cell_size_m": ex.cell_size, "shape": list(grid.probabilities.shape[:-1])},
         "presses": len(per_press),
+        "policy": ex.policy,
+        "stop_reason": stop,
         "per_press": per_press,
         "regions": [[c + 1, r + 1] for c, r in regions0],
         "posterior_per_cycle": cycle_posteriors,

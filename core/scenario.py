@@ -28,7 +28,7 @@ from palpate.core.scene import (
 
 FIDELITIES = ("analytic", "rigid", "flex", "auto")
 MAP_KINDS = ("grid2d", "voxel")
-POLICIES = ("predefined", "raster", "random")
+POLICIES = ("predefined", "raster", "random", "max_entropy", "info_gain")
 VARIABILITY = ("human", "robot")
 _REQUIRED = object()
 
@@ -74,6 +74,9 @@ class ExplorationSpec:
     variability: str = "human"
     entropy_base: float = 10.0
     stop_mean_entropy: float | None = None
+    stop_max_entropy: float | None = None
+    stop_min_gain: float | None = None
+    travel_cost_per_mm: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -325,7 +328,15 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         variability=ex.choice("variability", VARIABILITY, "human"),
         entropy_base=ex.number("entropy_base", 10.0, lo=1.0, lo_open=True),
         stop_mean_entropy=stop,
+        stop_max_entropy=ex.number("stop_max_entropy", None, lo=0.0),
+        stop_min_gain=ex.number("stop_min_gain", None, lo=0.0),
+        travel_cost_per_mm=ex.number("travel_cost_per_mm", 0.0, lo=0.0),
     )
+    if exploration.stop_min_gain is not None and exploration.policy != "info_gain":
+        raise ex.err("stop_min_gain", f"only the info_gain policy predicts a gain; policy is {exploration.policy!r}")
+    if exploration.travel_cost_per_mm > 0 and exploration.policy not in ("max_entropy", "info_gain"):
+        raise ex.err("travel_cost_per_mm", "only max_entropy and info_gain weigh travel; policy is "
+                     f"{exploration.policy!r}")
     ex.finish()
 
     objects = []
