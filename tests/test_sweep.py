@@ -1,0 +1,147 @@
+"""palpate sweep: grid of scenario variants, validation, resume after an interruption, local pool and Ray."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from palpate.core.errors import ValidationError
+from palpate.core.sweep import is_finished, load_sweep, run_sweep, set_key
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = ROOT / "scenarios" / "sweeps" / "tiny.toml"
+
+
+def _sweep_file(tmp_path: Path, body: str) -> Path:
+    path = tmp_path / "s.toml"
+    path.write_text(f'[sweep]\nname = "t"\nbase = "{(TINY.parent / "tiny_base.toml").as_posix()}"\n{body}')
+    return path
+
+
+def test_grid_is_the_product_of_axes_with_overrides_applied():
+    sweep = load_sweep(TINY)
+    assert [v.overrides for v in sweep.variants] == [
+        {"scenario.seed": s, "objects.Block.material": m} for s in (1, 2) for m in ("soft", "hard")
+    ]
+    v = sweep.variants[3]
+    assert v.raw["scenario"]["seed"] == 2 and v.raw["objects"][0]["material"] == "hard"
+    assert len({v.id for v in sweep.variants}) == 4
+
+
+def test_list_entries_are_addressed_by_name_or_index():
+    raw = {"materials": [{"name": "a", "young_kpa": 1.0}, {"name": "b", "young_kpa": 2.0}]}
+    set_key(raw, "materials.b.young_kpa", 5.0, "here")
+    set_key(raw, "materials.0.poisson", 0.4, "here")
+    assert raw["materials"] == [{"name": "a", "young_kpa": 1.0, "poisson": 0.4}, {"name": "b", "young_kpa": 5.0}]
+    with pytest.raises(ValidationError, match="no entry named 'c'"):
+        set_key(raw, "materials.c.young_kpa", 1.0, "here")
+    with pytest.raises(ValidationError, match="has no 'explorashun'"):
+        set_key({"exploration": {}}, "explorashun.budget", 3, "here")
+
+
+@pytest.mark.parametrize("body, message", [
+    ('[[axes]]\nkey = "scenario.fidelity"\nvalues = ["analytic", "warp"]\n', "fidelity"),
+    ('[[axes]]\nkey = "materials.soft.young_kpa"\nvalues = [-1.0]\n', "young_kpa"),
+    ('[[axes]]\nkey = "scenario.seed"\n', "needs exactly 'key'"),
+    ('[axes]\nkey = "scenario.seed"\n', "array of tables"),
+    ('[sweeep]\n', "unknown top-level"),
+])
+def test_bad_sweeps_name_the_variant_and_key(tmp_path, body, message):
+    with pytest.raises(ValidationError, match=message) as err:
+        load_sweep(_sweep_file(tmp_path, body))
+    assert "s.toml" in str(err.value)
+
+
+def test_missing_base_is_named(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text('[sweep]\nname = "t"\nbase = "nowhere.toml"\n')
+    with pytest.raises(ValidationError, match="nowhere.toml.*not found"):
+        load_sweep(path)
+
+
+def _precreate_finished(out: Path, variant) -> float:
+    """A finished run of ``variant`` that a rerun must keep (its summary carries a marker)."""
+    run = out / "runs" / variant.id
+    run.mkdir(parents=True)
+    (run / "variant.json").write_text(json.dumps({"id": variant.id, "overrides": variant.overrides}))
+    (run / "summary.json").write_text(json.dumps({"marker": "kept", "objects": [], "crossval": None}))
+    return (run / "summary.json").stat().st_mtime_ns
+
+
+def test_local_pool_runs_the_rest_and_keeps_a_finished_run(tmp_path):
+    sweep = load_sweep(TINY)
+    out = tmp_path / "out"
+    mtime = _precreate_finished(out, sweep.variants[0])
+    # a run of another variant's overrides in the folder is not a finished run of this one
+    stale = out / "runs" / sweep.variants[1].id
+    stale.mkdir(parents=True)
+    (stale / "variant.json").write_text(json.dumps({"overrides": {"scenario.seed": 99}}))
+    (stale / "summary.json").write_text("{}")
+    rows = run_sweep(sweep, out, workers=2, log=lambda s: None)
+    assert [r["variant"] for r in rows] == [v.id for v in sweep.variants]
+    assert rows[0]["status"] == "done (earlier)"
+    assert all(r["status"] == "done" for r in rows[1:])
+    first = out / "runs" / sweep.variants[0].id / "summary.json"
+    assert first.stat().st_mtime_ns == mtime and json.loads(first.read_text())["marker"] == "kept"
+    assert all(is_finished(out / "runs" / v.id, v) for v in sweep.variants)
+    table = (out / "sweep.csv").read_text().splitlines()
+    assert table[0].startswith("variant,status,wall_s,crossval_accuracy") and len(table) == 5
+    doc = json.loads((out / "sweep.json").read_text())
+    assert [r["variant"] for r in doc["rows"]] == [v.id for v in sweep.variants]
+    # the hard block is perceived as hard in most cells, the soft one as soft: the variants really differ
+    assert all(0.0 <= r["map_accuracy"] <= 1.0 for r in rows[1:])
+
+
+def test_killed_sweep_resumes_without_redoing_finished_runs(tmp_path):
+    out = tmp_path / "out"
+    cli = "import sys; from palpate.core.cli import main; sys.exit(main())"
+    cmd = [sys.executable, "-c", cli, "sweep", str(TINY), "--out", str(out), "--workers", "1"]
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+                            start_new_session=True)
+    deadline = time.monotonic() + 120
+    done: list[Path] = []
+    while time.monotonic() < deadline and proc.poll() is None:
+        done = list(out.glob("runs/*/summary.json"))
+        if done:
+            break
+        time.sleep(0.05)
+    assert done, "no run finished within 120 s"
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    finished = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("runs/*/summary.json")}
+    assert 1 <= len(finished) < 4, "the kill came too late to interrupt the sweep"
+    rows = run_sweep(load_sweep(TINY), out, workers=1, log=lambda s: None)
+    assert {r["variant"] for r in rows if r["status"] == "done (earlier)"} == set(finished)
+    assert sum(r["status"] == "done" for r in rows) == 4 - len(finished)
+    for name, mtime in finished.items():
+        assert (out / "runs" / name / "summary.json").stat().st_mtime_ns == mtime
+
+
+def test_ray_runs_the_sweep_and_resumes(tmp_path):
+    ray = pytest.importorskip("ray", reason="Ray is not installed (pip install 'palpate[ray]')")
+    sweep = load_sweep(TINY)
+    out = tmp_path / "out"
+    mtime = _precreate_finished(out, sweep.variants[2])
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        rows = run_sweep(sweep, out, ray="auto", log=lambda s: None)
+        assert [r["status"] for r in rows] == ["done", "done", "done (earlier)", "done"]
+        again = run_sweep(sweep, out, ray="auto", log=lambda s: None)
+        assert all(r["status"] == "done (earlier)" for r in again)
+    finally:
+        ray.shutdown()
+    assert (out / "runs" / sweep.variants[2].id / "summary.json").stat().st_mtime_ns == mtime
+
+
+def test_missing_ray_is_a_clear_error(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray now raises ImportError
+    with pytest.raises(ValidationError, match="Ray is not installed"):
+        run_sweep(load_sweep(TINY), tmp_path, ray="auto", log=lambda s: None)
