@@ -234,9 +234,7 @@ class SettingResult:
 
     def to_dict(self) -> dict:
         """JSON-ready row (NaN as None)."""
-        def num(v):
-            return None if v is None or not np.isfinite(v) else float(v)
-
+        num = _num
         return {
             "label": self.setting.label, "setting": asdict(self.setting),
             "wall_per_press_s": num(self.wall_per_press), "realtime_factor": num(self.realtime_factor),
@@ -359,8 +357,24 @@ def analytic_validity(depths=(0.001, 0.002, 0.003, 0.004), *, seeds: tuple[int, 
         ana = measure_setting(Setting("analytic"), seeds=seeds, materials=materials, memory=False, depth=d)
         compare_to_reference(ana, ref)
         rows.append({"depth": float(d), "depth_over_radius": float(d / Scene(()).fingertip.radius),
-                     "hertz_error": ref.hertz_error, "error": ana.error, "errors": dict(ana.errors)})
+                     "hertz_error": _num(ref.hertz_error), "error": _num(ana.error),
+                     "errors": {k: _num(v) for k, v in ana.errors.items()}})
     return rows
+
+
+def _num(v):
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
+def format_validity(rows: list[dict]) -> str:
+    """The analytic level's validity against depth, as text."""
+    lines = ["analytic (Hertz) against depth: sphere force vs Hertz, and analytic's features vs the reference",
+             f"{'depth mm':>8} {'d/R':>5} {'F vs Hertz %':>12} {'features %':>10}"]
+    for r in rows:
+        h = "-" if r["hertz_error"] is None else f"{100 * r['hertz_error']:.1f}"
+        e = "-" if r["error"] is None else f"{100 * r['error']:.1f}"
+        lines.append(f"{1e3 * r['depth']:8.1f} {r['depth_over_radius']:5.2f} {h:>12} {e:>10}")
+    return "\n".join(lines)
 
 
 def format_table(report: dict) -> str:

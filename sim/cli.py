@@ -1,0 +1,57 @@
+"""``palpate bench``: the speed/accuracy trade of the simulation, measured (see :mod:`palpate.sim.tradeoff`).
+
+Writes tradeoff.txt (the table), tradeoff.json and pareto.png into --out, and prints the table (or the JSON with
+--json). ``--quick`` is the CI sweep (a few minutes on two cores); without it, the workstation sweep.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+from palpate.core.errors import RecordingError
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``bench`` command."""
+    p = sub.add_parser("bench", help="measure simulation speed against accuracy (table, JSON, Pareto plot)")
+    p.add_argument("--quick", action="store_true", help="the CI sweep: fewer settings and presses")
+    p.add_argument("--out", type=Path, default=Path("bench"), help="folder for tradeoff.txt/.json, pareto.png")
+    p.add_argument("--json", action="store_true", help="print the JSON report instead of the table")
+    p.set_defaults(func=run_bench)
+
+
+def run_bench(args: argparse.Namespace) -> int:
+    """Run the sweep, write the outputs, print the table; returns the exit code."""
+    # one core, as the table's real-time factors claim
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+    from palpate.sim import tradeoff
+
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RecordingError(f"bench: cannot create the output folder {args.out}: {exc}") from exc
+    settings = tradeoff.quick_settings() if args.quick else tradeoff.full_settings()
+    seeds = (0, 1, 2, 3) if args.quick else (0, 1, 2, 3, 4, 5)
+
+    def progress(r) -> None:
+        state = "failed" if r.failed else f"{1e3 * r.wall_per_press:.1f} ms/press"
+        print(f"  {r.setting.label}: {state}", file=sys.stderr, flush=True)
+
+    report = tradeoff.run_tradeoff(settings, seeds=seeds, progress=progress)
+    validity = tradeoff.analytic_validity(seeds=(0, 1))
+    doc = tradeoff.report_to_dict(report)
+    doc["analytic_validity"] = validity
+    table = tradeoff.format_table(report) + "\n\n" + tradeoff.format_validity(validity)
+    try:
+        (args.out / "tradeoff.txt").write_text(table + "\n")
+        (args.out / "tradeoff.json").write_text(json.dumps(doc, indent=1, allow_nan=False))
+        tradeoff.pareto_plot(report, args.out / "pareto.png")
+    except OSError as exc:
+        raise RecordingError(f"bench: cannot write into {args.out}: {exc}") from exc
+    print(json.dumps(doc, indent=1) if args.json else table)
+    return 0
