@@ -319,6 +319,9 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     res = DEFAULT_RESOLUTION if resolution is None else float(resolution)
     if not (np.isfinite(dt) and dt > 0):
         raise ValidationError(f"flex: timestep must be > 0 s, got {timestep!r}")
+    from palpate.sim.stability import check_resolves_press
+
+    check_resolves_press(profile, dt, " (flex)")
     t_prof = np.asarray(profile.t, dtype=float)
     z_prof = np.asarray(profile.z, dtype=float)
     if t_prof.ndim != 1 or t_prof.shape != z_prof.shape or len(t_prof) < 2 or np.any(np.diff(t_prof) <= 0):

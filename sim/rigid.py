@@ -29,7 +29,7 @@ from palpate.sim.analytic import local_material
 from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import cap_height, sensel_quadrature
 from palpate.sim.scene import FingerDrive, build_press_model, surface_heights
-from palpate.sim.stability import check_run, check_warnings
+from palpate.sim.stability import check_resolves_press, check_run, check_warnings
 from palpate.sim.trace import PhysicsTrace
 
 
@@ -85,6 +85,7 @@ def run_rigid_press(
     """
     import mujoco
 
+    check_resolves_press(profile, timestep, " (rigid)")
     drive = FingerDrive() if drive is None else drive
     tip = scene.fingertip
     radius = tip.radius

@@ -65,3 +65,24 @@ def check_run(
             f"t={t[i]:.4f} s{context}; reduce the timestep (now {timestep} s), the contact stiffness "
             f"(young={young:g} Pa) or the press speed ({speed} m/s)"
         )
+
+
+#: Fewest physics steps the press phase (first contact to deepest point) may span.
+MIN_PRESS_STEPS = 10
+
+
+def check_resolves_press(profile, timestep: float, context: str = "") -> None:
+    """Raise ValidationError if the press phase lasts fewer than MIN_PRESS_STEPS physics steps.
+
+    A step longer than the press itself lets the servo skip the contact: the run "succeeds" with zero force
+    (found by the stability matrix: flex at 10 ms, a 1 mm press at 0.2 m/s never touched the block).
+    """
+    from palpate.core.errors import ValidationError
+
+    t0, t1 = profile.meta.get("phases", {}).get("press", (0.0, profile.duration))
+    steps = (t1 - t0) / timestep
+    if steps < MIN_PRESS_STEPS:
+        raise ValidationError(
+            f"the press phase lasts {t1 - t0:.4f} s, only {steps:.1f} physics steps of {timestep} s{context}; "
+            f"use a timestep of at most {(t1 - t0) / MIN_PRESS_STEPS:.2g} s, a slower press or a deeper one"
+        )
