@@ -165,6 +165,10 @@ def run_analytic_press(
     rate = scene.taxels.rate if rate is None else rate
     if not (np.isfinite(rate) and rate > 0):
         raise ValidationError(f"run_analytic_press: rate must be > 0 Hz, got {rate!r}")
+    from palpate.sim.stability import check_resolves_press
+
+    # a press shorter than two samples would be missed: zero force, silently (the sensor could not see it either)
+    check_resolves_press(profile, 1.0 / rate, f" (analytic, sampled at the {rate:g} Hz taxel rate)", min_steps=2)
     tip = scene.fingertip
     radius = tip.radius
     if abs(profile.meta.get("radius", radius) - radius) > 1e-12:

@@ -71,8 +71,8 @@ def check_run(
 MIN_PRESS_STEPS = 10
 
 
-def check_resolves_press(profile, timestep: float, context: str = "") -> None:
-    """Raise ValidationError if the press phase lasts fewer than MIN_PRESS_STEPS physics steps.
+def check_resolves_press(profile, timestep: float, context: str = "", min_steps: int = MIN_PRESS_STEPS) -> None:
+    """Raise ValidationError if the press phase lasts fewer than ``min_steps`` steps of ``timestep`` (s).
 
     A step longer than the press itself lets the servo skip the contact: the run "succeeds" with zero force
     (found by the stability matrix: flex at 10 ms, a 1 mm press at 0.2 m/s never touched the block).
@@ -81,8 +81,8 @@ def check_resolves_press(profile, timestep: float, context: str = "") -> None:
 
     t0, t1 = profile.meta.get("phases", {}).get("press", (0.0, profile.duration))
     steps = (t1 - t0) / timestep
-    if steps < MIN_PRESS_STEPS:
+    if steps < min_steps:
         raise ValidationError(
-            f"the press phase lasts {t1 - t0:.4f} s, only {steps:.1f} physics steps of {timestep} s{context}; "
-            f"use a timestep of at most {(t1 - t0) / MIN_PRESS_STEPS:.2g} s, a slower press or a deeper one"
+            f"the press phase lasts {t1 - t0:.4f} s, only {steps:.1f} steps of {timestep:g} s{context}; "
+            f"use a timestep of at most {(t1 - t0) / min_steps:.2g} s, a slower press or a deeper one"
         )
