@@ -340,7 +340,8 @@ def _plane_gain(p_raw: np.ndarray, p_post: np.ndarray, explored: np.ndarray, out
     from :func:`outcome_table`. The outcome of a press is predicted from the post-processed belief P(t) (the best
     estimate of what is there), the update (seed 001 eq. 2, clamped as the map clamps) is applied to the
     measured value (what the map will fuse it into), and with ``spread`` the change is carried to the unexplored
-    8-neighbours through eq. 6.15's 1/H-weighted mean of explored neighbours.
+    8-neighbours through eq. 6.15's 1/H-weighted mean of explored neighbours (each outcome's rise of a
+    neighbour's entropy counted as zero).
     """
     lb = math.log(base)
     pr = np.moveaxis(p_raw, -1, 0)  # (M, ny, nx)
@@ -372,8 +373,12 @@ def _plane_gain(p_raw: np.ndarray, p_post: np.ndarray, explored: np.ndarray, out
         den = num.sum(axis=0)
         s = (num * np.log(num)).sum(axis=0)
         h = (np.log(den) - s / den) / lb
-        np.maximum(h, 0.0, out=h)
-        delta = h_post[ky, kx] - (w_o[:, cy, cx] * h).sum(axis=0)
+        # Only reductions count. Eq. 6.15 is not a Bayesian posterior, so a press that contradicts an
+        # extrapolation raises the neighbour's entropy without a balancing fall elsewhere; counting the rise
+        # steers the policy away from material boundaries, exactly where the map is wrong (benchmark: about
+        # half the presses to 95% accuracy with the clip).
+        red = np.maximum(h_post[ky, kx] - h, 0.0)
+        delta = (w_o[:, cy, cx] * red).sum(axis=0)
         gain[cy, cx] += np.where(free, delta, 0.0)
     return gain
 
