@@ -173,6 +173,13 @@ def run_rigid_press(
               max_depth=float(profile.meta.get("depth", 0.004)), speed=float(profile.meta.get("speed", 0.01)),
               timestep=timestep, young=e_star * (1 - mat.poisson**2), context=context)
 
+    if not indentation.max() > 0.0:
+        # the servo lags a very fast, shallow press and never reaches the surface: zero force, silently
+        raise ValidationError(
+            f"rigid: the finger never reached the surface{context} (commanded {profile.meta.get('depth', 0) * 1e3:.2f}"
+            f" mm at {profile.meta.get('speed', 0.0)} m/s): the press is faster than the finger drive follows; "
+            "slow the press speed or press deeper"
+        )
     # sensel pressures from the same kernel, only at steps in contact
     pressure = np.zeros((n,) + qpts.shape[:2])
     touching = s_run < float(np.max(sensel_gaps))
