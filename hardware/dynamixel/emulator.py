@@ -52,6 +52,7 @@ from palpate.hardware.dynamixel.protocol import (
 )
 
 LoadModel = Callable[[np.ndarray], np.ndarray]
+Observer = Callable[[float, np.ndarray], None]
 
 # Integration step of the servo dynamics; lazily integrated up to "now" before every answer.
 _MAX_SUBSTEP = 0.002
@@ -81,6 +82,9 @@ class ServoBusEmulator:
             the centre tick), both in ``ids`` order. None means no load.
         initial_ticks: present positions at start (ticks, default the centre 2048).
         clock: time source in s (monotonic by default).
+        observer: called as ``observer(t, angles)`` after every integration substep with the time (s, on
+            ``clock``) and the shaft angles reached (rad, 0 at the centre tick, ``ids`` order), so a physics
+            backend can record what the servos actually did (the load model also sees trial positions).
     """
 
     def __init__(
@@ -91,6 +95,7 @@ class ServoBusEmulator:
         load_model: LoadModel | None = None,
         initial_ticks: Iterable[float] | None = None,
         clock: Callable[[], float] = time.monotonic,
+        observer: Observer | None = None,
     ):
         self.ids = [int(i) for i in ids]
         if not self.ids or len(set(self.ids)) != len(self.ids) or not all(0 <= i <= 252 for i in self.ids):
@@ -100,6 +105,7 @@ class ServoBusEmulator:
         self.model = ct.MODELS[model_number]
         self.baud = int(baud)
         self.load_model = load_model
+        self.observer = observer
         self._clock = clock
         self._index = {sid: k for k, sid in enumerate(self.ids)}
         n = len(self.ids)
@@ -206,6 +212,7 @@ class ServoBusEmulator:
         total = now - self._last
         if total <= 0:
             return
+        t_start = self._last
         self._last = now
         torque = self._column(ct.TORQUE_ENABLE) == 1
         mode = self._column(ct.OPERATING_MODE)
@@ -226,7 +233,7 @@ class ServoBusEmulator:
         pos = self._pos
         current = np.zeros_like(pos)
         start = pos.copy()
-        for _ in range(n_sub):
+        for i_sub in range(n_sub):
             step = np.clip(goal - pos, -vmax_ticks * dt, vmax_ticks * dt) * enabled
             needed = self._holding_current(pos + step, kt)
             stalled = enabled & (np.abs(needed) > limit)
@@ -242,6 +249,8 @@ class ServoBusEmulator:
                 needed = self._holding_current(pos + step, kt)
             pos = pos + step
             current = np.where(enabled, np.where(stalled, np.sign(needed) * limit, needed), 0.0)
+            if self.observer is not None:
+                self.observer(t_start + (i_sub + 1) * dt, (pos - ct.CENTER_TICK) * (2 * math.pi / ct.TICKS_PER_REV))
         self._pos = pos
         velocity = (pos - start) / total / ct.TICKS_PER_REV * 2 * math.pi / ct.VELOCITY_UNIT
         for k in range(len(pos)):

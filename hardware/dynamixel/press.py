@@ -170,15 +170,62 @@ class FingerActuator:
         driver: an open DynamixelFinger.
         surface_z: height of the surface pressed, m.
         on_state: passed to :func:`press_and_release` (e.g. a recorder).
+        streams: where the taxel frames come from: ``streams(t0, t1) -> (frames, truth)`` for the press's
+            time span on the driver's clock (a tactile pad's reader, or the simulated finger's
+            :meth:`~palpate.sim.finger_physics.FingerPhysics.actuator_streams`); None for poses only.
+        pose_noise: standard deviation of Polhemus-like noise added to each fingertip position, m per axis.
+        seed: seed of the pose noise.
+
+    If a press fails (a lost servo, Ctrl-C), the error propagates after torque is off, and ``partial`` holds
+    the streams received until then.
     """
 
-    def __init__(self, driver, surface_z: float, on_state: Callable | None = None):
+    def __init__(self, driver, surface_z: float, on_state: Callable | None = None, *,
+                 streams: Callable | None = None, pose_noise: float = 0.0, seed: int = 0):
+        if not (np.isfinite(pose_noise) and pose_noise >= 0):
+            raise ValidationError(f"FingerActuator: pose_noise must be >= 0 m, got {pose_noise!r}")
         self.driver = driver
         self.surface_z = float(surface_z)
         self.on_state = on_state
+        self.streams = streams
+        self.pose_noise = float(pose_noise)
+        self._rng = np.random.default_rng(seed)
         self.last: FingerPress | None = None
+        self.partial: PressRecording | None = None
 
     def press(self, target: PressTarget) -> PressRecording:
-        """Press and release at ``target``; returns its raw streams (poses; taxels come from a separate pad)."""
-        self.last = press_and_release(self.driver, target, self.surface_z, on_state=self.on_state)
+        """Press and release at ``target``; returns its raw streams (poses, and taxels if ``streams`` is set)."""
+        poses: list[PoseSample] = []
+
+        def record(state, pose) -> None:
+            poses.append(pose)
+            if self.on_state is not None:
+                self.on_state(state, pose)
+
+        self.partial = None
+        t0 = self.driver.clock()
+        try:
+            self.last = press_and_release(self.driver, target, self.surface_z, on_state=record)
+        except BaseException:
+            meta = {"source": "dynamixel", "finger": self.driver.finger.name, "incomplete": True}
+            try:
+                self.partial = self._recording(poses, t0, meta)
+            except Exception:  # what was received is kept even if the pad has nothing for that span
+                self.partial = PressRecording(frames=[], poses=self._noisy(poses), meta=meta)
+            raise
+        self.last.recording = self._recording(self.last.recording.poses, t0, self.last.recording.meta)
         return self.last.recording
+
+    def _noisy(self, poses: list[PoseSample]) -> list[PoseSample]:
+        if self.pose_noise == 0 or not poses:
+            return list(poses)
+        noise = self.pose_noise * self._rng.standard_normal((len(poses), 3))
+        return [PoseSample(p.t, p.position + e, p.quaternion, p.sensor_id) for p, e in zip(poses, noise, strict=True)]
+
+    def _recording(self, poses: list[PoseSample], t0: float, meta: dict) -> PressRecording:
+        frames, truth = [], None
+        if self.streams is not None:
+            # taxel frames only where there are poses to place them (the sync step rejects the others)
+            t0, t1 = (poses[0].t, poses[-1].t) if len(poses) > 1 else (t0, self.driver.clock())
+            frames, truth = self.streams(t0, t1)
+        return PressRecording(frames=list(frames), poses=self._noisy(poses), truth=truth, meta=dict(meta))
