@@ -77,6 +77,8 @@ class FingerPhysics:
         order: Gauss-Legendre order per sensel side for the sensel pressures.
         retable: the footprint's surface sampling is redone when the tip centre moves more than this in
             x or y, m (on a flat top it never changes; it matters near edges).
+        max_states: the recorded history is cut to its newer half when it grows past this many states (the
+            emulator records one per 2 ms substep while the servos move: 200 000 is several minutes).
 
     Thread-safe: the emulator's thread calls :meth:`load` and :meth:`observe`, the test or run loop reads the
     trace. The emulator's thread only evaluates the force (tens of microseconds) and stores the angles it was
@@ -84,13 +86,15 @@ class FingerPhysics:
     """
 
     def __init__(self, finger: FingerDescription, scene: Scene, *, rings: int = 96, sectors: int = 24,
-                 order: int = 6, retable: float = 1e-4):
+                 order: int = 6, retable: float = 1e-4, max_states: int = 200_000):
         import mujoco
 
         if not scene.objects:
             raise ValidationError("FingerPhysics: the scene has no object to press")
         if not (np.isfinite(retable) and retable > 0):
             raise ValidationError(f"FingerPhysics: retable must be > 0 m, got {retable!r}")
+        if max_states < 4:
+            raise ValidationError(f"FingerPhysics: max_states must be >= 4, got {max_states!r}")
         self.finger = finger
         self.scene = scene
         self.radius = float(scene.fingertip.radius)
@@ -109,6 +113,7 @@ class FingerPhysics:
         self._qpts_tip = np.concatenate(
             [qpts, -np.sqrt(np.maximum(self.radius**2 - np.sum(qpts**2, -1), 0.0))[..., None]], axis=-1)
         self._retable = float(retable)
+        self.max_states = int(max_states)
         self._tables: dict[tuple, tuple] = {}
         self._lock = threading.RLock()
         self._t: list[float] = []
@@ -243,6 +248,9 @@ class FingerPhysics:
                 return  # the emulator never goes back in time; a repeated stamp adds nothing
             self._t.append(float(t))
             self._angles.append(np.array(servo_angles, dtype=float))
+            if len(self._t) > self.max_states:
+                half = len(self._t) // 2
+                del self._t[:half], self._angles[:half]
 
     def reset(self) -> None:
         """Forget the recorded history."""

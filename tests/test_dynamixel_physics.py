@@ -242,3 +242,17 @@ def test_the_emulator_observer_sees_every_substep_in_time_order(finger):
     assert np.all(np.diff(times) > 0) and times[-1] == pytest.approx(0.05)
     assert len(times) == math.ceil(0.05 / 0.002)  # one call per 2 ms substep
     np.testing.assert_allclose(angles[-1], (final - ct.CENTER_TICK) * 2 * math.pi / ct.TICKS_PER_REV)
+
+
+def test_recorded_history_is_bounded_and_keeps_the_newest_states(finger):
+    physics = FingerPhysics(finger, _scene(2e5), max_states=10)
+    q = inverse_kinematics(finger, X, TOP + 0.002)
+    servo = finger.directions * (q - finger.offsets)
+    for k in range(25):
+        physics.observe(0.01 * k, servo)
+    physics.observe(0.2, servo)  # a repeated or earlier stamp is ignored
+    trace = physics.trace()
+    assert 5 <= len(trace.t) <= 10
+    assert trace.t[-1] == pytest.approx(0.24)
+    assert np.all(np.diff(trace.t) > 0)
+    assert not trace.force.any()  # 2 mm above the block

@@ -8,7 +8,8 @@ stops answering, corrupted CRCs on status packets, a hardware-error alert.
 
 The load on the joints comes from a pluggable ``load_model(angles) -> torques`` (servo shaft angles in rad,
 0 at the centre tick, to the external torque on each shaft in N*m), so a test can put a virtual surface under
-the fingertip and a fuller setup can back it with the MuJoCo finger.
+the fingertip and a fuller setup can back it with the MuJoCo finger (``palpate.sim.finger_physics.physics_bus``
+gives both the load model and an ``observer`` that turns what the servos did into taxel frames).
 
 Run ``python -m palpate.hardware.dynamixel.emulator --ids 1,2`` to serve a bus from its own process.
 """
