@@ -251,8 +251,6 @@ def ground_truth_cells(entry: ObjectEntry, scenario: Scenario, centres_xy: np.nd
     """Reference-material index (or -1) at each point: the object's material mapped through ``like``."""
     spec = entry.spec
     names = [m.name for m in spec.materials()]
-    if spec.material_map is not None:
-        names += [n for n in spec.material_map.materials if n not in names]  # type: ignore[attr-defined]
     idx = material_index_at(spec, np.column_stack([centres_xy, z]), names)
     refs = scenario.references
     like = scenario.truth_names()
@@ -517,6 +515,8 @@ def _run(scenario, out, progress, make_source, seeds, timing, log) -> dict:
 
     objects, artefacts = [], {}
     t0 = time.perf_counter()
+    for entry in scenario.objects:
+        _say_fidelity(entry, scenario, make_source, progress)
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
         summary_i, snaps, results, grid, post, truth = explore_object(scenario, entry, memory, make_source,
@@ -568,6 +568,17 @@ def _run(scenario, out, progress, make_source, seeds, timing, log) -> dict:
     _assert_finite(summary)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
+
+
+def _say_fidelity(entry: ObjectEntry, scenario: Scenario, make_source, progress: Progress) -> None:
+    """Print which fidelity the source will use for an object, and why (the ``auto`` rule's reason)."""
+    source = make_source((entry.spec,), 0, "robot")
+    if not hasattr(source, "explain"):
+        return
+    ex = scenario.exploration
+    x, y = entry.spec.position
+    fidelity, reason = source.explain(PressTarget(x, y, depth=ex.depth, force=ex.max_force, speed=ex.speed))
+    progress.message(f"fidelity {fidelity}: {reason}")
 
 
 def export_haptic_material(post, grid, results: list[PressResult], scenario: Scenario, folder: Path, name: str):

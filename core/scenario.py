@@ -424,8 +424,10 @@ def _object(r: _Reader, materials: dict[str, MaterialEntry], base: Path) -> Obje
         raise r.err("grid_cells", f"expected [columns, rows] positive integers, got {grid_shape!r}")
     r.finish()
     try:
+        map_materials = tuple(materials[n].material for n in material_map.materials) if material_map else ()
         spec = ObjectSpec(name, shape, size, position, bulk, tuple(layers), tuple(inclusions),
-                          mesh_path=str(_resolve(base, mesh)) if mesh else None, material_map=material_map)
+                          mesh_path=str(_resolve(base, mesh)) if mesh else None, material_map=material_map,
+                          map_materials=map_materials)
     except ValidationError as exc:
         raise ValidationError(f"{r.file}: {r.path}: {exc}") from None
     return ObjectEntry(spec, tuple(regions),

@@ -117,6 +117,7 @@ class ObjectSpec:
         mesh_path: for shape "mesh", path of the mesh file (relative paths resolve against models/).
         material_map: optional haptic-material map (see palpate.core.haptic_material) giving a spatially
             varying surface material; None for none.
+        map_materials: the Materials the map's category names stand for (the map stores names only).
     """
 
     name: str
@@ -128,6 +129,7 @@ class ObjectSpec:
     inclusions: tuple[Inclusion, ...] = ()
     mesh_path: str | None = None
     material_map: object | None = None
+    map_materials: tuple[Material, ...] = ()
 
     def __post_init__(self) -> None:
         expected = {"box": 3, "cylinder": 2, "mesh": 3}
@@ -144,6 +146,12 @@ class ObjectSpec:
             raise ValidationError(f"object {self.name!r}: shape 'mesh' needs mesh_path")
         if len(self.position) != 2:
             raise ValidationError(f"object {self.name!r}: position must be (x, y) in m, got {self.position}")
+        if self.material_map is not None:
+            known = {m.name for m in self.map_materials}
+            missing = [n for n in getattr(self.material_map, "materials", []) if n not in known]
+            if missing:
+                raise ValidationError(f"object {self.name!r}: its material map names {missing}, which "
+                                      "map_materials does not define")
 
     @property
     def height(self) -> float:
@@ -157,7 +165,8 @@ class ObjectSpec:
     def materials(self) -> list[Material]:
         """Every distinct material of the object, bulk first, in order of appearance."""
         seen: dict[str, Material] = {self.material.name: self.material}
-        for m in [layer.material for layer in self.layers] + [inc.material for inc in self.inclusions]:
+        for m in ([layer.material for layer in self.layers] + list(self.map_materials)
+                  + [inc.material for inc in self.inclusions]):
             seen.setdefault(m.name, m)
         return list(seen.values())
 

@@ -81,7 +81,7 @@ class SimSource:
         seed: seed of everything random (press variability, sensor noise); the n-th press of a source draws
             from (seed, n), so a source replays identically.
         variability: "robot" (exact), "human" (default human-like variability) or a Variability.
-        timestep: physics step, s (rigid default 2 ms, flex default 2 ms; analytic samples at 100 Hz).
+        timestep: physics step, s (rigid default 2 ms, flex default 5 ms; analytic samples at the taxel rate).
     """
 
     def __init__(self, scene: Scene, fidelity: str = "auto", seed: int = 0,
@@ -111,6 +111,15 @@ class SimSource:
 
             self._meshes[obj.name] = load_mesh(obj)
         return self._meshes[obj.name]
+
+    def explain(self, target: PressTarget) -> tuple[str, str]:
+        """The fidelity a press at ``target`` would use, and why (for ``auto``: the rule that chose it)."""
+        obj = self.scene.object_under(target.x, target.y)
+        if obj is None:
+            raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
+        if self.fidelity != "auto":
+            return self.fidelity, f"{obj.name}: fidelity {self.fidelity!r} set by the scenario"
+        return explain_fidelity(obj, target, self.scene.fingertip.radius)
 
     def press(self, target: PressTarget) -> PressRecording:
         """One press-and-release at ``target``: taxel frames, pose samples and ground truth."""
@@ -143,7 +152,9 @@ class SimSource:
                 from palpate.sim.flex import run_flex_press
             except ImportError as exc:
                 raise ValidationError(f"fidelity 'flex' is not available: {exc}") from exc
-            trace = run_flex_press(self.scene, obj, target, profile, timestep=timestep,
+            # flex has its own default step (5 ms: >= 1x real time at the default resolution, see
+            # benchmarks/flex_resolution.py); the rigid default of 2 ms would make it 2.5x slower.
+            trace = run_flex_press(self.scene, obj, target, profile, timestep=self.timestep,
                                    seed=int(s_profile.generate_state(1)[0]))
         frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel))
         poses = sample_poses(trace, self.scene.pose, np.random.default_rng(s_pose))

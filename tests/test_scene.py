@@ -44,3 +44,18 @@ def test_sensel_centres_are_symmetric_about_the_axis():
     assert c.shape == (4, 4, 2)
     np.testing.assert_allclose(c.reshape(-1, 2).mean(axis=0), 0.0, atol=1e-15)
     assert c[0, 0, 1] > c[-1, 0, 1]  # row 0 is at +y
+
+
+def test_a_material_map_sets_the_surface_material_and_its_materials_must_be_defined():
+    from palpate.core.haptic_material import HapticMaterialMap
+
+    p = np.zeros((1, 2, 2))
+    p[0, 0] = [1, 0]
+    p[0, 1] = [0, 1]
+    hm = HapticMaterialMap((0.0, 0.0), 0.05, ["soft", "hard"], p)
+    obj = ObjectSpec("o", "box", (0.1, 0.05, 0.02), (0.05, 0.025), MID, material_map=hm, map_materials=(SOFT, HARD))
+    assert [m.name for m in obj.materials()] == ["medium", "soft", "hard"]
+    idx = material_index_at(obj, np.array([[0.02, 0.02, 0.019], [0.07, 0.02, 0.019]]), ["soft", "medium", "hard"])
+    assert idx.tolist() == [0, 2]
+    with pytest.raises(ValidationError, match="map_materials"):
+        ObjectSpec("o", "box", (0.1, 0.05, 0.02), (0.05, 0.025), MID, material_map=hm, map_materials=(SOFT,))
