@@ -132,12 +132,16 @@ def test_bad_setups_are_clear_errors(finger):
         physics.trace()
     with pytest.raises(ValidationError, match="pose_noise"):
         FingerActuator(None, TOP, pose_noise=-1.0)
+    with pytest.raises(ValidationError, match="inside an object"):
+        physics_bus(finger, _scene(2e5), inverse_kinematics(finger, X, TOP - 0.002))
+    with pytest.raises(ValidationError, match="outside its limits"):
+        physics_bus(finger, _scene(2e5), finger.upper + 0.1)
 
 
 # ---- through the wire ----------------------------------------------------------------------------------------
 
 def _bus(finger, young, name="block"):
-    return physics_bus(finger, _scene(young, name=name), start=inverse_kinematics(finger, X, TOP + 0.003))
+    return physics_bus(finger, _scene(young, name=name), inverse_kinematics(finger, X, TOP + 0.003))
 
 
 def test_presses_through_the_wire_fit_the_three_halves_law_ordered_by_stiffness(finger):
