@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import DeviceError, ValidationError
-from palpate.core.fit import fit_power_law
+from palpate.core.fit import fit_power_law, fit_press
+from palpate.core.memory import HapticMemory
 from palpate.core.pipeline import PipelineConfig, presses_from_recording
 from palpate.core.scene import Material, ObjectSpec, Scene
 from palpate.core.sources import PressTarget
@@ -33,6 +34,7 @@ from palpate.hardware.dynamixel.press import FingerActuator
 from palpate.sim.analytic import hertz_force, hertz_sensel_pressure
 from palpate.sim.finger_physics import FingerPhysics, physics_bus
 from palpate.sim.fingertip import sensel_bounds
+from palpate.sim.source import SimSource
 
 BAUD = 1_000_000
 X = 0.07  # press point, m (in the finger's plane y = 0)
@@ -43,6 +45,7 @@ MATERIALS = {"soft": 2e4, "medium": 1e5, "firm": 5e5}
 # Poses arrive at ~200 Hz, but on a loaded machine a thread can stall for 0.1 s (the default pose gap limit);
 # the press is slow (6 mm/s), so interpolating across such a stall is harmless.
 CONFIG = PipelineConfig(max_gap=0.3)
+TARGET = dict(depth=0.004, force=8.0, speed=0.006)  # 4 mm or 8 N, whichever first, at 6 mm/s
 
 
 @pytest.fixture
@@ -144,13 +147,13 @@ def _bus(finger, young, name="block"):
     return physics_bus(finger, _scene(young, name=name), inverse_kinematics(finger, X, TOP + 0.003))
 
 
-def test_presses_through_the_wire_fit_the_three_halves_law_ordered_by_stiffness(finger):
-    n1, stopped, peaks = {}, {}, {}
+def test_presses_through_the_wire_fit_the_three_halves_law_and_match_a_memory_trained_in_simulation(finger):
+    n1, stopped, peaks, wire_params = {}, {}, {}, []
     for k, (name, young) in enumerate(MATERIALS.items()):
         emu, physics = _bus(finger, young, name)
         with emu, DynamixelFinger(emu.port, BAUD, finger) as drv:
             act = FingerActuator(drv, TOP, streams=physics.actuator_streams(seed=k), pose_noise=5e-5, seed=k)
-            rec = act.press(PressTarget(X, 0.0, depth=0.004, force=8.0, speed=0.006))
+            rec = act.press(PressTarget(X, 0.0, **TARGET))
         stopped[name] = act.last.stopped_by
         peaks[name] = (rec.truth.force.max(), rec.truth.indentation.max(), act.last.force)
         assert max(int(f.counts.max()) for f in rec.frames) < 255  # no saturated sensel
@@ -168,6 +171,7 @@ def test_presses_through_the_wire_fit_the_three_halves_law_ordered_by_stiffness(
         r2 = 1.0 - fit.phi / np.sum((c_p - c_p.mean()) ** 2)
         assert r2 > 0.95, (name, r2)
         n1[name] = fit.k1
+        wire_params.append(fit_press(press).params)
     assert stopped == {"soft": "depth", "medium": "depth", "firm": "force"}
     assert 3 * n1["soft"] < n1["medium"] and 3 * n1["medium"] < n1["firm"], n1
     # the soft and medium blocks reached the depth, the firm one stopped near the force read from the currents
@@ -176,6 +180,17 @@ def test_presses_through_the_wire_fit_the_three_halves_law_ordered_by_stiffness(
     force, depth, estimated = peaks["firm"]
     assert depth < 0.003
     assert estimated >= 8.0 and force == pytest.approx(estimated, abs=0.5)
+    # what the simulation taught is what the wire shows: a haptic memory trained on simulated presses
+    # (rigid fidelity, human-like, same materials and target) recognises each press made through the wire
+    params, labels = [], []
+    for k, (name, young) in enumerate(MATERIALS.items()):
+        source = SimSource(_scene(young, name=name), fidelity="rigid", seed=k, variability="human")
+        for _ in range(5):
+            rec = source.press(PressTarget(X, 0.0, **TARGET))
+            params.append(fit_press(presses_from_recording(rec).presses[0]).params)
+            labels.append(name)
+    memory = HapticMemory().fit(np.array(params), labels)
+    assert memory.predict(np.array(wire_params)) == list(MATERIALS)
 
 
 def test_currents_read_back_are_the_physics_force_within_the_current_resolution(finger):
