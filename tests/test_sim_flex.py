@@ -200,19 +200,19 @@ def test_three_materials_are_ordered_and_separable():
 
 @pytest.mark.physics
 def test_soft_layer_over_hard_base_is_stiffer_at_depth_than_soft_bulk():
-    soft, hard = Material("soft", 2e4), Material("hard", 2e6)
-    bulk = flex.reference_press(young=2e4, depth=0.006, resolution=0.005)
-    layered = flex.reference_press(young=2e6, depth=0.006, resolution=0.005,
-                                   layers=(Layer(soft, 0.01),))
+    # 3 mm into a 20 kPa block: deeper, the 5 mm flex mesh lets the tip sink between surface vertices and the
+    # divergence check stops the press (the force falls while the indentation grows).
+    soft = Material("soft", 2e4)
+    bulk = flex.reference_press(young=2e4, depth=0.003, resolution=0.005)
+    layered = flex.reference_press(young=2e5, depth=0.003, resolution=0.005, layers=(Layer(soft, 0.004),))
     assert layered.meta["materials"] == ["bulk", "soft"]
     db, fb = _press_part(bulk)
     dl, fl = _press_part(layered)
-    # shallow: both feel the soft layer (within a factor 2); deep: the hard base shows
+    # shallow: both feel the soft layer (within a factor 2); deep: the stiffer base shows
     shallow = 0.001
     assert np.interp(shallow, dl, fl) < 2.0 * np.interp(shallow, db, fb)
-    deep = 0.005
+    deep = 0.0025
     assert np.interp(deep, dl, fl) > 1.5 * np.interp(deep, db, fb)
-    del hard
 
 
 @pytest.mark.physics
