@@ -17,7 +17,12 @@ from palpate.core.errors import RecordingError
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``bench`` command."""
-    p = sub.add_parser("bench", help="measure simulation speed against accuracy (table, JSON, Pareto plot)")
+    p = sub.add_parser(
+        "bench", help="measure simulation speed against accuracy (table, JSON, Pareto plot)",
+        description="Sweep fidelity, timestep, contact resolution and sensor rate; per setting print wall time per "
+        "press, real-time factor, peak memory, feature and fit errors against the finest stable reference and "
+        "Hertz, and leave-one-out accuracy; name the cheapest settings within 5% and 1%. --quick is the CI sweep.",
+    )
     p.add_argument("--quick", action="store_true", help="the CI sweep: fewer settings and presses")
     p.add_argument("--out", type=Path, default=Path("bench"), help="folder for tradeoff.txt/.json, pareto.png")
     p.add_argument("--json", action="store_true", help="print the JSON report instead of the table")

@@ -14,7 +14,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Run every variant of a sweep file into DIR/runs/<variant>/ and gather DIR/sweep.csv and "
         "DIR/sweep.json. Finished runs are kept: re-running an interrupted sweep only runs what is missing.",
     )
-    p.add_argument("sweep", type=Path, help="sweep file (TOML), e.g. scenarios/sweeps/fidelity_seeds.toml")
+    p.add_argument("sweep", type=Path, help="sweep file (TOML), e.g. scenarios/sweeps/thesis_fidelity.toml")
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
                    help="local processes (default: up to 2)")
