@@ -1,15 +1,18 @@
 """``analytic`` fidelity: Hertz contact of the spherical tip on an elastic half-space, in closed form.
 
 Force F = 4/3 E* sqrt(R) d^1.5, contact radius a = sqrt(R d), pressure p(r) = p0 sqrt(1 - r^2/a^2) with
-p0 = 3 F / (2 pi a^2), where E* = E / (1 - nu^2) of the local material (the tip is rigid) and d the commanded
-indentation of the press profile (the finger follows it exactly; no dynamics). Each sensel reports the mean of
+p0 = 3 F / (2 pi a^2), where E* is the depth-weighted effective modulus E*_eff(a) under the contact
+(:mod:`palpate.sim.effective_modulus`; E / (1 - nu^2) of the material on a homogeneous object, the tip is rigid),
+evaluated at the current contact radius, and d the commanded indentation of the press profile (the finger follows
+it exactly; no dynamics). Each sensel reports the mean of
 p over its square footprint, integrated exactly along x and by Gauss-Legendre along y between the points where
 the circle crosses the sensel edges, so the integrand is smooth on every piece.
 
-Validity: homogeneous material at least ~5 contact radii thick and wide (half-space), indentation small
-against the tip radius (d << R, paraboloid approximation of the sphere), quasi-static (damping ignored), flat
-surface under the tip (the object's own curvature is ignored). Outside these limits use ``rigid`` (finite and
-curved objects) or ``flex`` (layers, inclusions, thin objects). No MuJoCo is needed.
+Validity: material at least ~5 contact radii thick and wide (half-space), indentation small against the tip
+radius (d << R, paraboloid approximation of the sphere), quasi-static (damping ignored), flat surface under the
+tip (the object's own curvature is ignored). Layers and inclusions enter only through E*_eff (first order; see
+its module for where that fails: thin stiff skins, large indentation). Outside these limits use ``rigid`` (finite
+and curved objects) or ``flex`` (thin objects, stiff skins, large deformation). No MuJoCo is needed.
 """
 
 from __future__ import annotations
@@ -80,7 +83,7 @@ def hertz_sensel_pressure(
 
     Args:
         depth: indentations, m, shape (n,).
-        young_eff: E*, Pa.
+        young_eff: E*, Pa, one value or one per depth (n,).
         radius: tip radius, m.
         bounds: sensel footprints (rows, cols, 4) as (x0, x1, y0, y1), m, in the pad plane.
         centre: contact centre in the pad plane, m, shape (n, 2), or (2,) for a fixed centre; default the axis.
@@ -135,8 +138,13 @@ def hertz_sensel_pressure(
             ak = np.broadcast_to(a_all[:, None], hit.shape)[hit]
             r = rel[hit]
             integral[hit] = _rect_integrals(ak, r[:, 0], r[:, 1], r[:, 2], r[:, 3], order)
+    ye = np.asarray(young_eff, dtype=float)
+    if ye.ndim:
+        if ye.shape != (n,):
+            raise ValidationError(f"hertz_sensel_pressure: young_eff must be one value or shape ({n},), got {ye.shape}")
+        ye = ye[:, None]
     # p = p0 sqrt(1 - r^2/a^2) = (2 E* / (pi R)) sqrt(a^2 - r^2) for Hertz (p0 = 2 E* a / (pi R))
-    out = 2.0 * young_eff / (np.pi * radius) * integral / area[None, :]
+    out = 2.0 * ye / (np.pi * radius) * integral / area[None, :]
     return out.reshape(n, rows, cols)
 
 
@@ -149,6 +157,25 @@ def local_material(obj: ObjectSpec, x: float, y: float, surface_z: float) -> Mat
     return mat
 
 
+def effective_modulus_along(obj: ObjectSpec, x: float, y: float, surface_z: float, radius: float,
+                            depth: np.ndarray) -> float | np.ndarray:
+    """E*_eff, Pa, felt at each indentation ``depth`` (m) of a tip of ``radius`` m pressing at (x, y).
+
+    One value (the material's E*, exactly as before) where the object is one material under the whole press,
+    else one per depth from a per-press table in the contact radius sqrt(R d).
+    """
+    from palpate.sim.effective_modulus import modulus_along_depth
+
+    d = np.asarray(depth, dtype=float)
+    deepest = float(np.max(d)) if d.size else 0.0
+    if not deepest > 0:
+        return local_material(obj, x, y, surface_z).effective_modulus
+    _, moduli, at = modulus_along_depth(obj, x, y, surface_z, radius, deepest)
+    if np.all(moduli == moduli[0]):
+        return float(moduli[0])
+    return at(d)
+
+
 def run_analytic_press(
     scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None, order: int = 6
 ) -> PhysicsTrace:
@@ -156,7 +183,7 @@ def run_analytic_press(
 
     Args:
         scene: the scene (fingertip geometry).
-        obj: the pressed object (local material at the press point).
+        obj: the pressed object (E*_eff under the press point; the trace names the material at the surface).
         profile: the press trajectory; the tip follows it exactly.
         rate: sampling rate of the trace, Hz; by default the taxel rate, so every taxel frame falls on an
             exactly integrated sample (the pose sensor interpolates position, smooth at this rate).
@@ -176,11 +203,11 @@ def run_analytic_press(
             f"press profile was made for a tip radius {profile.meta.get('radius')} m, the scene's is {radius} m"
         )
     mat = local_material(obj, profile.x, profile.y, profile.surface_z)
-    e_star = mat.effective_modulus
     n_samples = max(int(np.floor(profile.duration * rate)) + 1, 2)
     t = profile.t[0] + np.arange(n_samples) / rate
     z = profile.at(t)
     depth = np.maximum(profile.surface_z + radius - z, 0.0)
+    e_star = effective_modulus_along(obj, profile.x, profile.y, profile.surface_z, radius, depth)
     normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
     # the contact is where the sphere faces the surface: at -R n in the tip frame, projected on the pad plane
     centre = -radius * normal[:2]
@@ -192,7 +219,8 @@ def run_analytic_press(
         t=t, tip_position=pos, tip_quaternion=quat, sensel_pressure=pressure,
         force=hertz_force(e_star, radius, depth), indentation=depth, surface_z=profile.surface_z,
         material=mat.name,
-        meta={"fidelity": "analytic", "rate": float(rate), "young_eff": float(e_star), "order": int(order)},
+        meta={"fidelity": "analytic", "rate": float(rate), "young_eff": float(np.max(e_star)),
+              "young_eff_surface": float(mat.effective_modulus), "order": int(order)},
     )
     trace.check_finite()
     return trace

@@ -14,7 +14,12 @@ The force as a function of tip height is tabulated once per press (the tip moves
 MuJoCo step and a table look-up. Sensel pressures are the same kernel averaged over each sensel (Gauss-Legendre).
 Kelvin-Voigt damping of the material scales the force by (1 + tau * d(log F)/dt).
 
-Validity: thick homogeneous objects (the kernel ignores finite thickness, layers and inclusions: use ``flex``),
+Layers, inclusions and haptic-material maps enter through the depth-weighted effective modulus E*_eff(a) of
+:mod:`palpate.sim.effective_modulus`, tabulated per press against the contact radius a = sqrt(R d): the force
+table and the sensel pressures are scaled by E*_eff(a(d)) / E*(surface); damping is the surface material's.
+
+Validity: thick objects (the kernel ignores finite thickness; layers and inclusions only to first order, see
+:mod:`palpate.sim.effective_modulus` for where that fails: thin stiff skins, large indentation: use ``flex``),
 moderate indentation (the kernel is local: no coupling between neighbouring points, so pressure at sharp edges is
 not smoothed), vertical surface sampling (on a tilted top the surface is sampled along z under the tip).
 """
@@ -25,7 +30,7 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.scene import ObjectSpec, Scene
-from palpate.sim.analytic import local_material
+from palpate.sim.analytic import effective_modulus_along, local_material
 from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import cap_height, sensel_quadrature
 from palpate.sim.scene import FingerDrive, build_press_model, surface_heights
@@ -71,13 +76,15 @@ def run_rigid_press(
 
     Args:
         scene: the scene (fingertip, objects).
-        obj: the pressed object; its local material at the press point sets E* and damping.
+        obj: the pressed object; its material at the press point sets damping and the trace's material name,
+            its depth-weighted E*_eff (layers, inclusions) the stiffness.
         profile: the setpoint trajectory (controller).
         timestep: physics step, s.
         drive: finger servo.
         rings, sectors: polar cells over the tip footprint for the total force table.
         order: Gauss-Legendre order per sensel side.
-        young: override of the local Young's modulus, Pa (for stability studies).
+        young: override of the local Young's modulus, Pa (for stability studies; the object is then taken as
+            homogeneous).
         mesh: the object's pre-loaded trimesh mesh, if a mesh object.
 
     Raises:
@@ -121,6 +128,15 @@ def run_rigid_press(
     n_tab = 1000
     s_tab = np.linspace(s_lo, s_hi, n_tab)
     f_tab = force_table(gaps, areas, kernel, s_tab)
+    # what the press feels below the surface: E*_eff at the contact radius of each table height, relative to
+    # the surface E* the kernel was built with (1 everywhere on one material, so nothing changes there)
+    e_scale = None
+    if young is None:
+        e_tab = effective_modulus_along(obj, profile.x, profile.y, profile.surface_z, radius,
+                                        np.maximum(g_ref - s_tab, 0.0))
+        if np.ndim(e_tab):
+            e_scale = (s_tab, np.asarray(e_tab) / e_star)
+            f_tab = f_tab * e_scale[1]
     df_tab = np.gradient(f_tab, s_tab)
     inv_ds = (n_tab - 1) / (s_hi - s_lo)
     tau = mat.damping
@@ -186,6 +202,8 @@ def run_rigid_press(
     if touching.any():
         pen = sensel_gaps[None] - s_run[touching, None, None, None]
         p = kernel * np.sqrt(np.maximum(pen, 0.0)) @ qw
+        if e_scale is not None:
+            p = p * np.interp(s_run[touching], *e_scale)[:, None, None]
         if tau > 0:
             elastic = np.interp(s_run[touching], s_tab, f_tab)
             ratio = np.divide(f[touching], elastic, out=np.ones_like(elastic), where=elastic > 0)
@@ -195,7 +213,9 @@ def run_rigid_press(
     trace = PhysicsTrace(
         t=t, tip_position=pos, tip_quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), sensel_pressure=pressure,
         force=f, indentation=indentation, surface_z=profile.surface_z, material=mat.name,
-        meta={"fidelity": "rigid", "timestep": float(timestep), "young_eff": float(e_star),
+        meta={"fidelity": "rigid", "timestep": float(timestep),
+              "young_eff": float(e_star if e_scale is None else e_star * np.interp(s_run.min(), *e_scale)),
+              "young_eff_surface": float(e_star),
               "rings": int(rings), "sectors": int(sectors),
               "drive": {"kp": drive.kp, "kv": drive.kv, "armature": drive.armature, "mass": drive.mass}},
     )

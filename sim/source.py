@@ -24,8 +24,9 @@ from palpate.core.errors import ValidationError
 from palpate.core.scene import ObjectSpec, Scene
 from palpate.core.sources import PressTarget
 from palpate.core.streams import PressRecording
-from palpate.sim.analytic import hertz_depth_for_force, local_material, run_analytic_press
+from palpate.sim.analytic import run_analytic_press
 from palpate.sim.controller import HUMAN, ROBOT, Variability, press_profile
+from palpate.sim.effective_modulus import depth_for_force
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 
 FIDELITIES = ("auto", "analytic", "rigid", "flex")
@@ -132,14 +133,14 @@ class SimSource:
         fidelity = self.fidelity if self.fidelity != "auto" else choose_fidelity(obj, target, tip.radius)
         mesh = self._mesh(obj)
         surface_z, normal = surface_at(obj, target.x, target.y, mesh)
-        mat = local_material(obj, target.x, target.y, surface_z)
         s_profile, s_taxel, s_pose = np.random.SeedSequence([self.seed, self._presses]).spawn(3)
         self._presses += 1
         timestep = self.timestep or 0.002
         profile = press_profile(
             target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002), variability=self.variability,
             seed=int(s_profile.generate_state(1)[0]), normal=tuple(normal),
-            depth_for_force=lambda f: hertz_depth_for_force(mat.effective_modulus, tip.radius, f),
+            # E*_eff at the radius the press reaches (layers, inclusions): exactly Hertz on one material
+            depth_for_force=lambda f: depth_for_force(obj, target.x, target.y, surface_z, tip.radius, f),
         )
         if fidelity == "analytic":
             trace = run_analytic_press(self.scene, obj, profile)
