@@ -216,3 +216,24 @@ def test_bad_input_is_refused_with_a_clear_error():
         effective_modulus(obj, 0.0, 0.0, 0.0, 1e-3)
     with pytest.raises(ValidationError, match="n, rings, sectors"):
         effective_modulus(obj, 0.0, 0.0, H, 1e-3, n=0)
+
+
+@pytest.mark.physics
+def test_layer_stiffening_agrees_with_flex_within_15_percent():
+    # measured: flex 1.56 / 1.78 / 1.98 / 2.04 against E*_eff 1.56 / 1.70 / 1.82 / 1.92 at 1 / 1.5 / 2 / 2.5 mm
+    pytest.importorskip("mujoco")
+    from palpate.sim import flex
+
+    def press_part(tr):
+        press = tr.t <= tr.meta["press_end"]
+        return tr.indentation[press], tr.force[press]
+
+    bulk = flex.reference_press(young=2e4, depth=0.003, resolution=0.005)
+    layered = flex.reference_press(young=2e5, depth=0.003, resolution=0.005, layers=(Layer(SOFT, 0.004),))
+    db, fb = press_part(bulk)
+    dl, fl = press_part(layered)
+    obj = ObjectSpec("block", "box", (0.06, 0.06, 0.02), (0, 0), Material("bulk", 2e5), layers=(Layer(SOFT, 0.004),))
+    for d in (0.001, 0.0015, 0.002, 0.0025):
+        flex_ratio = np.interp(d, dl, fl) / np.interp(d, db, fb)
+        eff_ratio = effective_modulus(obj, 0.0, 0.0, 0.02, np.sqrt(R * d)) / SOFT.effective_modulus
+        assert eff_ratio == pytest.approx(flex_ratio, rel=0.15), d
