@@ -168,7 +168,8 @@ def effective_modulus_along(obj: ObjectSpec, x: float, y: float, surface_z: floa
 
     d = np.asarray(depth, dtype=float)
     deepest = float(np.max(d)) if d.size else 0.0
-    if not deepest > 0:
+    one_material = not (obj.layers or obj.inclusions or obj.material_map is not None)
+    if one_material or not deepest > 0:
         return local_material(obj, x, y, surface_z).effective_modulus
     _, moduli, at = modulus_along_depth(obj, x, y, surface_z, radius, deepest)
     if np.all(moduli == moduli[0]):
