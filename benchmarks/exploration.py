@@ -41,7 +41,7 @@ MATERIALS = [
 NAMES = ["soft", "medium", "hard", "foam", "rubber", "lump"]
 
 
-def scene_dict(seed: int, fidelity: str, policy: str, budget: int) -> dict:
+def scene_dict(seed: int, fidelity: str, policy: str, budget: int, passes: int | None = 1) -> dict:
     """A seeded heterogeneous scene as a scenario dictionary (the TOML schema), one object."""
     rng = np.random.default_rng(seed)
     sx, sy, sz = rng.uniform(90, 130), rng.uniform(70, 100), 40.0
@@ -73,7 +73,7 @@ def scene_dict(seed: int, fidelity: str, policy: str, budget: int) -> dict:
     # The predefined list: a planned stride-3 pattern, as a person would lay out regions in advance.
     obj["regions"] = [[c + 1, r + 1] for r in range(1, cells[1], 3) for c in range(1, cells[0], 3)]
     ex = {"policy": policy, "budget": budget, "presses_per_region": 1, "cell_mm": CELL_MM, "depth_mm": 4.0,
-          "max_force_n": 10.0, "variability": "human"}
+          "max_force_n": 10.0, "variability": "human", "extrapolation_passes": "all" if passes is None else passes}
     return {"scenario": {"name": f"scene{seed}", "seed": seed, "fidelity": fidelity},
             "materials": MATERIALS, "training": {"presses_per_material": 10, "depth_mm": 4.0, "max_force_n": 10.0},
             "exploration": ex, "objects": [obj], "outputs": {"figures": False, "haptic_material": False}}
@@ -132,9 +132,12 @@ def main() -> None:
     parser.add_argument("--fidelity", default="analytic", choices=("analytic", "rigid"))
     parser.add_argument("--entropy", type=float, default=0.05,
                         help="mean-entropy threshold of the post-processed map, log10 units (max 0.477)")
+    parser.add_argument("--passes", default="1",
+                        help='eq. 6.15 passes of the post-processing, the same for every policy: an integer or "all"')
     parser.add_argument("--plot", default="/tmp/palpate_exploration.png", help="PNG of accuracy/entropy vs presses")
     args = parser.parse_args()
     n_scenes = args.scenes or (6 if args.quick else 24)
+    passes = None if args.passes == "all" else int(args.passes)
 
     t0 = time.perf_counter()
     base = parse_scenario(scene_dict(0, args.fidelity, "raster", 1), "bench")
@@ -155,7 +158,7 @@ def main() -> None:
         budget = nx * ny
         caps.append(budget)
         for policy in POLICIES:
-            sc = parse_scenario(scene_dict(s, args.fidelity, policy, budget), f"scene{s}")
+            sc = parse_scenario(scene_dict(s, args.fidelity, policy, budget, passes), f"scene{s}")
             t1 = time.perf_counter()
             summary, *_ = explore_object(sc, sc.objects[0], memory, make_source_for(sc), 7000 + s,
                                          Progress(enabled=False))
@@ -170,7 +173,8 @@ def main() -> None:
               + ", ".join(f"{p} {to_acc[p][-1]}" for p in POLICIES), flush=True)
 
     print()
-    print(f"{n_scenes} scenes, fidelity {args.fidelity}, {CELL_MM:.0f} mm cells, budget = number of cells "
+    print(f"{n_scenes} scenes, fidelity {args.fidelity}, {CELL_MM:.0f} mm cells, eq. 6.15 passes {args.passes}, "
+          "budget = number of cells "
           f"(median {int(np.median(caps))}); 'never' runs count as budget + 1 in the quartiles")
     print(f"{'policy':<12} {'presses to ' + format(ACCURACY, '.0%') + ' accuracy':>30} "
           f"{'presses to mean H <= ' + format(args.entropy, 'g'):>32} {'wall s':>8}")

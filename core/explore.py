@@ -73,6 +73,12 @@ def _layers(grid, max_depth: float | None) -> int:
     return grid.layers_reached(max_depth)
 
 
+def _post(grid, passes: int | None = 1):
+    """The post-processed map the run reports: eq. 6.15 repeated ``passes`` times on a 2-D map; a voxel map's
+    own post-processing (``passes`` does not apply to it)."""
+    return grid.postprocessed() if _is_voxel(grid) else grid.postprocessed(passes=passes)
+
+
 def column_entropy(grid, post=None, max_depth: float | None = None) -> np.ndarray:
     """Entropy a press could act on per column, shape (ny, nx): the cell's entropy on a 2-D map, the sum over the
     reachable voxels of a column on a voxel map; of ``post`` (the post-processed map) when given."""
@@ -230,14 +236,16 @@ class MaxEntropy:
     Args:
         travel_cost_per_mm: entropy units subtracted per mm between a cell and the last press (0 = none).
         max_depth: voxel maps: deepest press, m (None = the whole column).
+        passes: eq. 6.15 passes of the post-processing computed when ``post`` is not given (2-D maps).
     """
 
     travel_cost_per_mm: float = 0.0
     max_depth: float | None = None
+    passes: int | None = 1
 
     def next_target(self, grid, post=None, last=None) -> Target | None:
         """The best column, or None when every column is explored and certain."""
-        post = grid.postprocessed() if post is None else post
+        post = _post(grid, self.passes) if post is None else post
         h = column_entropy(grid, post, self.max_depth)
         score = h - self.travel_cost_per_mm * _distance_mm(h.shape, grid.cell_size, last)
         cell = _argmax_cell(score, ~_certain(grid, post, self.max_depth))
@@ -426,6 +434,7 @@ class InfoGain:
         max_depth: voxel maps: deepest press, m (None = the whole column).
         samples_per_material: parameter vectors drawn per material to predict outcomes.
         seed: seed of those draws.
+        passes: eq. 6.15 passes of the post-processing computed when ``post`` is not given (2-D maps).
     """
 
     memory: object
@@ -433,19 +442,20 @@ class InfoGain:
     max_depth: float | None = None
     samples_per_material: int = 6
     seed: int = 0
+    passes: int | None = 1
     _table: tuple[np.ndarray, np.ndarray] | None = field(default=None, init=False, repr=False)
 
     def gains(self, grid, post=None) -> np.ndarray:
         """Expected gain of every column, (ny, nx), entropy units."""
         if self._table is None:
             self._table = outcome_table(outcome_posteriors(self.memory, self.samples_per_material, self.seed))
-        post = grid.postprocessed() if post is None else post
+        post = _post(grid, self.passes) if post is None else post
         return expected_gain(grid, post, self._table, self.max_depth)
 
     def next_target(self, grid, post=None, last=None) -> Target | None:
         """The column with the best gain less travel cost; its ``score`` is the gain itself (what the
         ``stop_min_gain`` rule compares). None when every column is explored and certain."""
-        post = grid.postprocessed() if post is None else post
+        post = _post(grid, self.passes) if post is None else post
         gain = self.gains(grid, post)
         score = gain - self.travel_cost_per_mm * _distance_mm(gain.shape, grid.cell_size, last)
         cell = _argmax_cell(score, ~_certain(grid, post, self.max_depth))
@@ -466,9 +476,9 @@ POLICY_NAMES = ("predefined", "raster", "random", "max_entropy", "info_gain")
 
 def make_policy(name: str, *, cells: list[tuple[int, int]] | None = None, repeats: int = 1, seed: int = 0,
                 stride: int = 1, memory=None, travel_cost_per_mm: float = 0.0, max_depth: float | None = None,
-                samples_per_material: int = 6):
+                samples_per_material: int = 6, passes: int | None = 1):
     """Build a policy by name (one of :data:`POLICY_NAMES`); ``predefined`` needs ``cells``, ``info_gain`` a
-    trained ``memory``."""
+    trained ``memory``; ``passes`` is the post-processing's eq. 6.15 passes (see ``Grid2D.postprocessed``)."""
     if not (np.isfinite(travel_cost_per_mm) and travel_cost_per_mm >= 0):
         raise ValidationError(f"travel_cost_per_mm must be a finite number >= 0, got {travel_cost_per_mm!r}")
     if name == "predefined":
@@ -478,11 +488,11 @@ def make_policy(name: str, *, cells: list[tuple[int, int]] | None = None, repeat
     if name == "random":
         return RandomCells(seed)
     if name == "max_entropy":
-        return MaxEntropy(travel_cost_per_mm, max_depth)
+        return MaxEntropy(travel_cost_per_mm, max_depth, passes)
     if name == "info_gain":
         if memory is None:
             raise ValidationError("the info_gain policy needs a trained haptic memory")
-        return InfoGain(memory, travel_cost_per_mm, max_depth, samples_per_material, seed)
+        return InfoGain(memory, travel_cost_per_mm, max_depth, samples_per_material, seed, passes)
     raise ValidationError(f"unknown exploration policy {name!r}; known: {', '.join(POLICY_NAMES)}")
 
 

@@ -202,7 +202,8 @@ def _inverse_entropy_weights(p: np.ndarray, h, base: float, h_min: float) -> np.
     return 1.0 / np.maximum(hh, h_min)
 
 
-def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12, h=None) -> np.ndarray:
+def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12, h=None,
+                           passes: int | None = 1) -> np.ndarray:
     """Estimate unexplored cells from their explored 8-neighbours, weighted by 1/H (seed 000 eq. 6.15).
 
     Seed 000 writes the sum over "the eight grid cells surrounding" v, and motivates it as estimating unexplored
@@ -221,17 +222,55 @@ def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12
         base: entropy base for the weights.
         h_min: floor on H (in units of ``base``), > 0.
         h: optional entropies to weight by, shape ``p.shape[:-1]`` (default: computed from ``p``); useful when
-            ``p`` was rounded for display and the entropies of the unrounded values are known.
+            ``p`` was rounded for display and the entropies of the unrounded values are known. Used for the
+            first pass only; later passes weight the cells they filled by those cells' own entropies.
+        passes: how many times to repeat eq. 6.15 (see :func:`_extrapolate_passes`): 1 (default) is the seed's
+            single step; k > 1 lets each pass treat the cells filled by the previous passes as sources, so an
+            estimate reaches k cells from the explored ones; None repeats until no unexplored cell that can be
+            reached is left.
 
     Returns:
-        A new array: unexplored cells with at least one explored in-grid neighbour get the weighted mean; explored
-        cells and unexplored cells without an explored neighbour (edges and corners count only in-grid cells) keep
+        A new array: unexplored cells within ``passes`` cells (8-connected, in-grid) of an explored cell get the
+        weighted mean of their already-known neighbours; explored cells and unexplored cells further away keep
         their values.
     """
     arr = _check_probs(p, "p", min_ndim=3, normalised=True)
     mask = _check_mask(explored, arr.shape[:-1], "explored")
-    w = _inverse_entropy_weights(arr, h, base, _check_h_min(h_min))
-    return _extrapolate_plane(arr, mask, w)
+    n = _check_passes(passes)
+    h_min = _check_h_min(h_min)
+    w = _inverse_entropy_weights(arr, h, base, h_min)
+    return _extrapolate_passes(arr, mask, w, n, _check_base(base), h_min)
+
+
+def _check_passes(passes) -> int | None:
+    if passes is None:
+        return None
+    if isinstance(passes, bool) or not isinstance(passes, (int, np.integer)) or passes < 1:
+        raise ValidationError(f"passes must be an integer >= 1 or None (until every reachable cell is filled), "
+                              f"got {passes!r}")
+    return int(passes)
+
+
+def _extrapolate_passes(arr: np.ndarray, mask: np.ndarray, w: np.ndarray, passes: int | None, base: float,
+                        h_min: float) -> np.ndarray:
+    """Eq. 6.15 repeated: pass k fills the unfilled cells next to a cell known after pass k - 1 (explored or
+    filled), each weighted by 1/H of its current values; stops after ``passes`` passes or when a pass fills
+    nothing. One pass is exactly :func:`_extrapolate_plane`."""
+    out = _extrapolate_plane(arr, mask, w)
+    if passes == 1:
+        return out
+    known = mask | (_box3(mask.astype(float)) > 0)
+    k = 1
+    while passes is None or k < passes:
+        if known.all():
+            break
+        grown = known | (_box3(known.astype(float)) > 0)
+        if not (grown & ~known).any():
+            break  # the remaining cells have no known cell anywhere in their plane
+        w = 1.0 / np.maximum(_entropy_checked(out, base), h_min)
+        out, known = _extrapolate_plane(out, known, w), grown
+        k += 1
+    return out
 
 
 def _box3(a: np.ndarray) -> np.ndarray:
@@ -682,14 +721,17 @@ class Grid2D(_CategoricalMap):
             raise ValidationError(f"p_meas must have shape ({len(self.materials)},) (one value per material "
                                   f"{self.materials}), got {shape}")
 
-    def postprocessed(self, h_min: float = 1e-12) -> Grid2D:
+    def postprocessed(self, h_min: float = 1e-12, passes: int | None = 1) -> Grid2D:
         """A new grid with unexplored cells extrapolated by :func:`extrapolate_unexplored`; self is untouched.
 
-        The explored mask is copied unchanged: extrapolated cells are estimates, not measurements.
+        ``passes`` repeats eq. 6.15 from the cells filled by the previous pass (1 = the seed; None = until every
+        cell is filled). The explored mask is copied unchanged: extrapolated cells are estimates, not
+        measurements.
         """
         out = self._empty_like()
-        w = 1.0 / np.maximum(_entropy_checked(self._p, self.base), _check_h_min(h_min))
-        out._p = _extrapolate_plane(self._p, self._explored, w)
+        h_min = _check_h_min(h_min)
+        w = 1.0 / np.maximum(_entropy_checked(self._p, self.base), h_min)
+        out._p = _extrapolate_passes(self._p, self._explored, w, _check_passes(passes), self.base, h_min)
         out._explored = self._explored.copy()
         return out
 

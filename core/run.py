@@ -296,7 +296,10 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
     else:
         budget = ex.budget
     policy = make_policy(ex.policy, cells=regions0, repeats=ex.presses_per_region, seed=seed, memory=memory,
-                         travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None)
+                         travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None,
+                         passes=ex.extrapolation_passes)
+    # The one post-processing the policies plan on, the run reports and the map files hold.
+    postprocess = grid.postprocessed if voxel else (lambda: grid.postprocessed(passes=ex.extrapolation_passes))
     # Any actuator will do: the simulated finger, a Dynamixel finger, a human operator, a replay.
     source = make_source((entry.spec,), seed, ex.variability)
     if not callable(getattr(source, "press", None)):
@@ -311,7 +314,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
     snapshots = [snapshot("k = 0")]
     per_press, results = [], []
     cycle_posteriors = []
-    post = grid.postprocessed()
+    post = postprocess()
     last, stop = None, "budget"
     progress.start(f"exploring {entry.spec.name}", budget)
     for k in range(budget):
@@ -338,7 +341,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
                "score": target.score, "location_m": list(res.location), "depth_m": res.depth, "fit": res.fit,
                "rejected": res.rejected}
         apply_press(grid, res, memory, voxel=voxel, fallback_xy=(x, y))
-        post = grid.postprocessed()
+        post = postprocess()
         last = cell
         row["posterior"] = None if res.posterior is None else [float(v) for v in res.posterior]
         row["mean_entropy"] = float(grid.mean_entropy())

@@ -77,6 +77,7 @@ class ExplorationSpec:
     stop_max_entropy: float | None = None
     stop_min_gain: float | None = None
     travel_cost_per_mm: float = 0.0
+    extrapolation_passes: int | None = 1
 
 
 @dataclass(frozen=True)
@@ -331,9 +332,13 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         stop_max_entropy=ex.number("stop_max_entropy", None, lo=0.0),
         stop_min_gain=ex.number("stop_min_gain", None, lo=0.0),
         travel_cost_per_mm=ex.number("travel_cost_per_mm", 0.0, lo=0.0),
+        extrapolation_passes=_extrapolation_passes(ex),
     )
     if exploration.stop_min_gain is not None and exploration.policy != "info_gain":
         raise ex.err("stop_min_gain", f"only the info_gain policy predicts a gain; policy is {exploration.policy!r}")
+    if exploration.extrapolation_passes != 1 and exploration.map != "grid2d":
+        raise ex.err("extrapolation_passes", "iterated eq. 6.15 extrapolation is a grid2d post-processing; map is "
+                     f"{exploration.map!r} (leave the key out)")
     if exploration.travel_cost_per_mm > 0 and exploration.policy not in ("max_entropy", "info_gain"):
         raise ex.err("travel_cost_per_mm", "only max_entropy and info_gain weigh travel; policy is "
                      f"{exploration.policy!r}")
@@ -364,6 +369,19 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
 def _optional_force(r: _Reader) -> float | None:
     value = r.number("max_force_n", 5.0, lo=0.0)
     return None if value == 0 else value
+
+
+def _extrapolation_passes(r: _Reader) -> int | None:
+    """``extrapolation_passes``: an integer >= 1 (1 = seed 000 eq. 6.15 once) or "all" (None: repeat until every
+    cell is filled)."""
+    value = r.get("extrapolation_passes", (int, str), 1)
+    if isinstance(value, str):
+        if value != "all":
+            raise r.err("extrapolation_passes", f'expected an integer >= 1 or "all", got {value!r}')
+        return None
+    if value < 1:
+        raise r.err("extrapolation_passes", f'must be >= 1 (or "all"), got {value}')
+    return value
 
 
 def _resolve(base: Path, value: str) -> Path:

@@ -258,6 +258,9 @@ def _scenario(**exploration):
     ("travel_cost_per_mm", 0.01, "random", "travel_cost_per_mm: only max_entropy and info_gain"),
     ("stop_max_entropy", -0.1, "raster", "stop_max_entropy: must be >= 0.0"),
     ("policy", "spiral", "raster", "exploration.policy: must be one of .*max_entropy, info_gain"),
+    ("extrapolation_passes", 0, "raster", 'exploration.extrapolation_passes: must be >= 1 \\(or "all"\\)'),
+    ("extrapolation_passes", "many", "raster", 'extrapolation_passes: expected an integer >= 1 or "all"'),
+    ("extrapolation_passes", 2.0, "raster", "extrapolation_passes: expected"),
 ])
 def test_scenario_rejects_bad_exploration_keys_naming_them(key, value, policy, match):
     with pytest.raises(ValidationError, match=match):
@@ -338,3 +341,24 @@ def test_loop_drives_any_object_with_press_and_rejects_one_without(trained):
     assert [list(r["target_m"]) for r in s["per_press"]] == [[x, y] for x, y, _ in pressed]
     with pytest.raises(ValidationError, match="has no press"):
         _explore(trained, make_source=lambda *a: object(), budget=1)
+
+
+def test_scenario_extrapolation_passes_default_all_and_voxel_refusal():
+    assert _scenario().exploration.extrapolation_passes == 1
+    assert _scenario(extrapolation_passes="all").exploration.extrapolation_passes is None
+    assert _scenario(extrapolation_passes=3).exploration.extrapolation_passes == 3
+    with pytest.raises(ValidationError, match="extrapolation_passes: iterated eq. 6.15 .* map is 'voxel'"):
+        _scenario(extrapolation_passes=2, map="voxel")
+
+
+def test_loop_reports_and_returns_the_iterated_post_processing(trained):
+    from palpate.core.progress import Progress
+    from palpate.core.run import _source_factory, explore_object
+
+    sc = _scenario(policy="raster", budget=2, extrapolation_passes="all")
+    summary, _, _, grid, post, _ = explore_object(sc, sc.objects[0], trained, _source_factory(sc), 21,
+                                                  Progress(enabled=False))
+    assert np.array_equal(post.probabilities, grid.postprocessed(passes=None).probabilities)
+    # Two presses in one corner fill the whole 4x3 map: no cell is left at the uniform prior.
+    assert not np.isclose(post.probabilities, 0.5).all(axis=-1).any()
+    assert summary["per_press"][-1]["mean_entropy_postprocessed"] == pytest.approx(float(post.mean_entropy()))

@@ -537,3 +537,74 @@ def test_voxel_save_load_round_trip_and_accuracy(tmp_path):
     _corrupt_json(sidecar, "z_top_m", KeyError)
     with pytest.raises(ValidationError, match="vox.json: missing key 'z_top_m'"):
         VoxelGrid.load(tmp_path / "vox.npz")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# iterated eq. 6.15 (extrapolation passes)
+
+
+def _random_plane(rng, shape=(7, 9, 3), frac=0.15):
+    p = rng.dirichlet(np.ones(shape[-1]), shape[:-1])
+    explored = rng.random(shape[:-1]) < frac
+    explored[0, 0] = True
+    return p, explored
+
+
+def test_one_extrapolation_pass_is_the_seed_function_exactly():
+    rng = np.random.default_rng(11)
+    p, explored = _random_plane(rng)
+    ref = maps.extrapolate_unexplored(p, explored)
+    assert np.array_equal(maps.extrapolate_unexplored(p, explored, passes=1), ref)
+    g = Grid2D(["a", "b", "c"], (9, 7))
+    g._p, g._explored = p.copy(), explored.copy()
+    assert np.array_equal(g.postprocessed().probabilities, ref)
+    assert np.array_equal(g.postprocessed(passes=1).probabilities, ref)
+
+
+def test_a_cell_two_away_is_filled_on_the_second_pass_not_the_first():
+    g = Grid2D(["a", "b", "c"], (5, 5))
+    q = np.array([0.8, 0.15, 0.05])
+    g.update_cell(0, 0, q)
+    u = np.full(3, 1 / 3)
+    one, two = g.postprocessed(passes=1).probabilities, g.postprocessed(passes=2).probabilities
+    # Cell (ix, iy) = (2, 1) is two columns from the only explored cell: no explored 8-neighbour.
+    assert np.allclose(one[1, 2], u) and np.allclose(one[1, 1], g.probabilities[0, 0])
+    # On pass 2 its known neighbours are (1, 0) and (1, 1), both copies of the press: it becomes the press.
+    assert np.allclose(two[1, 2], g.probabilities[0, 0], atol=1e-12)
+    assert np.allclose(two[3, 3], u)  # three away: still untouched after two passes
+    full = g.postprocessed(passes=None).probabilities
+    assert np.allclose(full, g.probabilities[0, 0], atol=1e-12)
+    assert g.postprocessed(passes=None).explored.sum() == 1  # estimates are not measurements
+
+
+def test_later_passes_weight_filled_cells_by_their_own_entropy():
+    # Row of 5 cells: a vague press at x=0, a certain press at x=4; x=2 is filled on pass 2 from x=1 and x=3.
+    p = np.full((1, 5, 2), 0.5)
+    p[0, 0], p[0, 4] = [0.7, 0.3], [0.01, 0.99]
+    explored = np.zeros((1, 5), bool)
+    explored[0, [0, 4]] = True
+    out = maps.extrapolate_unexplored(p, explored, passes=2)
+    w1, w3 = 1 / maps.entropy(p[0, 0]), 1 / maps.entropy(p[0, 4])
+    assert np.allclose(out[0, 1], p[0, 0]) and np.allclose(out[0, 3], p[0, 4])
+    assert np.allclose(out[0, 2], (w1 * p[0, 0] + w3 * p[0, 4]) / (w1 + w3))
+
+
+def test_iterated_extrapolation_stays_normalised_and_finite_even_with_certain_cells():
+    rng = np.random.default_rng(12)
+    for passes in (2, 3, None):
+        p, explored = _random_plane(rng, (12, 10, 4), frac=0.05)
+        p[explored] = np.eye(4)[rng.integers(4, size=int(explored.sum()))]  # H = 0: the h_min floor
+        out = maps.extrapolate_unexplored(p, explored, passes=passes)
+        assert np.all(np.isfinite(out)) and (out >= 0).all()
+        assert np.allclose(out.sum(axis=-1), 1.0, atol=1e-12)
+        assert np.array_equal(out[explored], p[explored])
+    # "until done" leaves only cells with no explored cell anywhere in their plane unfilled: here none.
+    assert not np.isclose(out, 0.25).all(axis=-1).any()
+
+
+def test_extrapolation_passes_no_explored_cell_leaves_the_map_and_rejects_bad_passes():
+    p = np.full((3, 4, 2), 0.5)
+    assert np.array_equal(maps.extrapolate_unexplored(p, np.zeros((3, 4), bool), passes=None), p)
+    for bad in (0, -1, 1.5, True, "all"):
+        with pytest.raises(ValidationError, match="passes must be an integer >= 1 or None"):
+            maps.extrapolate_unexplored(p, np.zeros((3, 4), bool), passes=bad)
