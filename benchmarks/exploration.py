@@ -8,7 +8,11 @@ post-processed map's mean entropy under a threshold (median, quartiles, how many
 info_gain's median ratio to raster. It writes a plot of accuracy and mean entropy against presses
 (median over scenes) to --plot.
 
-Run: .venv/bin/python benchmarks/exploration.py [--quick] [--scenes N] [--fidelity analytic|rigid] [--plot PNG]
+--passes sets exploration.extrapolation_passes (eq. 6.15 repeated; 1 = the seed, "all" = until every cell is
+filled) for every policy alike, so the comparison stays fair.
+
+Run: .venv/bin/python benchmarks/exploration.py [--quick] [--scenes N] [--fidelity analytic|rigid] [--passes K|all]
+     [--plot PNG]
 """
 
 from __future__ import annotations
@@ -125,6 +129,12 @@ def _stats(values: list[int | None], budget_cap: list[int]) -> str:
     return f"{med:7.1f} [{q1:5.1f}, {q3:5.1f}]    {len(got):2d}/{len(values)}"
 
 
+def _passes_arg(text: str) -> str:
+    if text != "all" and not (text.isdigit() and int(text) >= 1):
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1 or "all", got {text!r}')
+    return text
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="6 scenes (a short smoke run)")
@@ -132,7 +142,7 @@ def main() -> None:
     parser.add_argument("--fidelity", default="analytic", choices=("analytic", "rigid"))
     parser.add_argument("--entropy", type=float, default=0.05,
                         help="mean-entropy threshold of the post-processed map, log10 units (max 0.477)")
-    parser.add_argument("--passes", default="1",
+    parser.add_argument("--passes", default="1", type=_passes_arg,
                         help='eq. 6.15 passes of the post-processing, the same for every policy: an integer or "all"')
     parser.add_argument("--plot", default="/tmp/palpate_exploration.png", help="PNG of accuracy/entropy vs presses")
     args = parser.parse_args()
