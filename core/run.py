@@ -30,7 +30,7 @@ from palpate.core.errors import FitError, PalpateError, ValidationError
 from palpate.core.explore import make_policy
 from palpate.core.progress import Progress
 from palpate.core.scenario import ObjectEntry, Scenario
-from palpate.core.scene import Material, ObjectSpec, Scene, material_index_at
+from palpate.core.scene import ObjectSpec, Scene, material_index_at
 from palpate.core.sources import PressTarget, load_source
 
 SUMMARY_FORMAT = "palpate-run-summary"
@@ -68,7 +68,9 @@ def perceive_press(recording, pipeline_config=None) -> PressResult:
     cfg = pipeline_config or PipelineConfig()
     seg = presses_from_recording(recording, cfg)
     meta = recording.meta or {}
-    target = tuple(meta.get("target_xy", (np.nan, np.nan)))
+    # The planned target, when the source says it (SimSource does); callers that know it overwrite it anyway.
+    planned = meta.get("target") if isinstance(meta.get("target"), dict) else {}
+    target = (float(planned.get("x", np.nan)), float(planned.get("y", np.nan)))
     reasons = [f"{r.reason}" for r in seg.rejected]
     truth = recording.truth
     tf = None if truth is None else np.asarray(truth.force)
@@ -648,4 +650,4 @@ def _assert_finite(obj, path: str = "summary") -> None:
             _assert_finite(v, f"{path}[{i}]")
 
 
-__all__ = ["run_scenario", "perceive_press", "train_memory", "explore_object", "PressResult", "Material"]
+__all__ = ["run_scenario", "perceive_press", "train_memory", "explore_object", "PressResult"]
