@@ -423,6 +423,30 @@ def expected_gain(grid, post, table: tuple[np.ndarray, np.ndarray], max_depth: f
                        spread=True)
 
 
+def disagreement(grid, reach: int = 2) -> np.ndarray:
+    """Chance that an unexplored cell's material differs from what most of its measured neighbours say, (ny, nx).
+
+    Per unexplored cell: 1 - the largest share of one material among the explored cells within ``reach`` cells
+    (Chebyshev), weighted 1 / distance^2 and voting with their most probable material; 0 on explored cells and
+    where no explored cell is in reach. Eq. 6.15 extrapolates confidently from a certain neighbour, so its entropy
+    misses that a cell between a soft and a hard measurement is a coin toss: this term is what finds boundaries.
+    """
+    p = np.asarray(grid.probabilities)
+    explored = np.asarray(grid.explored)
+    ny, nx, m = p.shape
+    vote = np.where(explored[..., None], np.eye(m)[np.argmax(p, axis=-1)], 0.0)
+    acc = np.zeros((ny, nx, m))
+    for dy in range(-reach, reach + 1):
+        for dx in range(-reach, reach + 1):
+            if dy == 0 and dx == 0:
+                continue
+            (cy, cx), (ky, kx) = _shift_slices(dy, dx, ny, nx)
+            acc[cy, cx] += vote[ky, kx] / (dy * dy + dx * dx)
+    total = acc.sum(axis=-1)
+    share = np.divide(acc.max(axis=-1), total, out=np.ones_like(total), where=total > 0)
+    return np.where(explored, 0.0, 1.0 - share)
+
+
 @dataclass
 class InfoGain:
     """Press the column with the largest expected reduction of the post-processed map's entropy, less an
@@ -443,6 +467,8 @@ class InfoGain:
     samples_per_material: int = 6
     seed: int = 0
     passes: int | None = 1
+    spread_stride: int = 3
+    boundary_weight: float = 1.0
     _table: tuple[np.ndarray, np.ndarray] | None = field(default=None, init=False, repr=False)
 
     def gains(self, grid, post=None) -> np.ndarray:
@@ -452,12 +478,35 @@ class InfoGain:
         post = _post(grid, self.passes) if post is None else post
         return expected_gain(grid, post, self._table, self.max_depth)
 
+    def _spread_cell(self, grid, last) -> tuple[int, int] | None:
+        """First an even lattice (every ``spread_stride``-th cell, centred) until each of its cells is explored:
+        the entropy gain of a blank map is flat, so greedy choices cluster, while a lattice finds every feature
+        at least 2 strides wide before the boundaries are refined. The nearest unexplored lattice cell to the
+        last press, or None once the lattice is done (or ``spread_stride`` < 2)."""
+        s = int(self.spread_stride)
+        if s < 2:
+            return None
+        nx, ny = _plane_shape(grid)
+        lat = np.zeros((ny, nx), dtype=bool)
+        lat[(ny - 1) % s // 2::s, (nx - 1) % s // 2::s] = True
+        free = lat & ~_explored2d(grid)
+        if not free.any():
+            return None
+        d = _distance_mm((ny, nx), 1.0, last if last is not None else (0, 0))
+        return _argmax_cell(-d, free)
+
     def next_target(self, grid, post=None, last=None) -> Target | None:
         """The column with the best gain less travel cost; its ``score`` is the gain itself (what the
         ``stop_min_gain`` rule compares). None when every column is explored and certain."""
         post = _post(grid, self.passes) if post is None else post
         gain = self.gains(grid, post)
+        seed_cell = self._spread_cell(grid, last)
+        if seed_cell is not None:
+            return Target(seed_cell[0], seed_cell[1], _target_depth(grid, post, *seed_cell, self.max_depth),
+                          float(np.max(gain)))
         score = gain - self.travel_cost_per_mm * _distance_mm(gain.shape, grid.cell_size, last)
+        if self.boundary_weight > 0 and not _is_voxel(grid):
+            score = score + self.boundary_weight * disagreement(grid)
         cell = _argmax_cell(score, ~_certain(grid, post, self.max_depth))
         if cell is None:
             return None

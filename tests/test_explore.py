@@ -13,6 +13,7 @@ from palpate.core.explore import (
     Predefined,
     RandomCells,
     Raster,
+    disagreement,
     expected_gain,
     make_policy,
     outcome_posteriors,
@@ -362,3 +363,33 @@ def test_loop_reports_and_returns_the_iterated_post_processing(trained):
     # Two presses in one corner fill the whole 4x3 map: no cell is left at the uniform prior.
     assert not np.isclose(post.probabilities, 0.5).all(axis=-1).any()
     assert summary["per_press"][-1]["mean_entropy_postprocessed"] == pytest.approx(float(post.mean_entropy()))
+
+
+def test_disagreement_is_high_between_two_materials_and_zero_inside_one():
+    g = _grid((7, 3))
+    g.update_cell(1, 1, CERTAIN[0])
+    g.update_cell(5, 1, CERTAIN[2])
+    g.update_cell(0, 0, CERTAIN[0])
+    d = disagreement(g)  # (ny, nx)
+    assert d[1, 3] == pytest.approx(0.5, abs=0.15)  # two apart from each: a coin toss, one soft corner aside
+    assert d[0, 1] == 0.0 and d[1, 0] == 0.0  # only material 0 in reach
+    assert d[1, 1] == 0.0 and d[1, 5] == 0.0  # explored
+    assert np.all(np.isfinite(d)) and d.min() >= 0.0 and d.max() < 1.0
+
+
+def test_info_gain_starts_with_a_spread_lattice_then_goes_to_the_boundary(memory):
+    q = outcome_posteriors(memory)
+    g = _grid((9, 9))
+    policy = InfoGain(memory)
+    first, last = [], None
+    for _ in range(9):
+        t = policy.next_target(g, None, last)
+        first.append((t.ix, t.iy))
+        # Left third material 0, the rest material 2: the boundary lies between columns 1 and 4.
+        g.update_cell(t.ix, t.iy, q[0, 0] if t.ix < 3 else q[2, 0])
+        last = (t.ix, t.iy)
+    assert sorted(first) == [(x, y) for x in (1, 4, 7) for y in (1, 4, 7)]
+    t = policy.next_target(g, None, last)
+    assert t.ix in (2, 3)  # between the two materials, not inside the known region on the right
+    flat = InfoGain(memory, spread_stride=1, boundary_weight=0.0)
+    assert flat.next_target(_grid((9, 9))) is not None
