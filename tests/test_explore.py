@@ -19,6 +19,7 @@ from palpate.core.explore import (
     outcome_posteriors,
     outcome_table,
     stop_reason,
+    uncovered,
 )
 from palpate.core.maps import Grid2D, VoxelGrid
 from palpate.core.memory import HapticMemory
@@ -393,3 +394,12 @@ def test_info_gain_starts_with_a_spread_lattice_then_goes_to_the_boundary(memory
     assert t.ix in (2, 3)  # between the two materials, not inside the known region on the right
     flat = InfoGain(memory, spread_stride=1, boundary_weight=0.0)
     assert flat.next_target(_grid((9, 9))) is not None
+
+
+def test_uncovered_marks_cells_with_no_pressed_cell_among_themselves_and_their_4_neighbours():
+    g = _grid((5, 4))
+    g.update_cell(1, 1, CERTAIN[0])
+    u = uncovered(g)  # (ny, nx)
+    assert u[1, 1] == 0 and u[0, 1] == 0 and u[1, 0] == 0 and u[2, 1] == 0 and u[1, 2] == 0
+    assert u[0, 0] == 1 and u[2, 2] == 1 and u[3, 4] == 1
+    assert u.sum() == 20 - 5
