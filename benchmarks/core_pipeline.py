@@ -14,6 +14,7 @@ import argparse
 import time
 
 import numpy as np
+from bench_timing import median_of
 
 from palpate.core.fit import fit_press
 from palpate.core.maps import Grid2D, VoxelGrid, extrapolate_unexplored
@@ -37,13 +38,8 @@ def _recordings(n_per: int) -> dict[str, list]:
 
 
 def _median_time(fn, items, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for it in items:
-            fn(it)
-        times.append((time.perf_counter() - t0) / len(items))
-    return float(np.median(times))
+    """Median over ``repeats`` passes of the mean time per item, s."""
+    return median_of(lambda: [fn(it) for it in items], repeats)[0] / len(items)
 
 
 def main() -> None:

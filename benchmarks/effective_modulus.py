@@ -17,9 +17,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+from bench_timing import median_of  # noqa: E402
 
 from palpate.core.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, Scene  # noqa: E402
 from palpate.core.sources import PressTarget  # noqa: E402
@@ -51,15 +51,6 @@ def _objects() -> dict[str, tuple[ObjectSpec, float, float]]:
     return out
 
 
-def _median(fn, repeats: int):
-    times, out = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)), out
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats, no rigid press")
@@ -69,16 +60,16 @@ def main() -> None:
     print(f"{'object':<16} {'table ms':>9} {'analytic ms':>12} {'rigid ms':>9} {'E*eff/E*surf':>13}")
     for name, (obj, x, y) in _objects().items():
         scene = Scene(objects=(obj,), fingertip=FingertipSpec(radius=R))
-        t_tab, _ = _median(lambda obj=obj, x=x, y=y: effective_modulus_table(obj, x, y, H, radii), repeats)
+        t_tab, _ = median_of(lambda obj=obj, x=x, y=y: effective_modulus_table(obj, x, y, H, radii), repeats)
         profile = press_profile(PressTarget(x, y, depth=0.005, speed=0.01), H, radius=R, timestep=0.002)
-        t_an, tr = _median(lambda scene=scene, obj=obj, profile=profile: run_analytic_press(scene, obj, profile),
+        t_an, tr = median_of(lambda scene=scene, obj=obj, profile=profile: run_analytic_press(scene, obj, profile),
                            repeats)
         ratio = tr.meta["young_eff"] / tr.meta["young_eff_surface"]
         t_rig = float("nan")
         if not args.quick:
             from palpate.sim.rigid import run_rigid_press
 
-            t_rig, _ = _median(lambda scene=scene, obj=obj, profile=profile: run_rigid_press(scene, obj, profile),
+            t_rig, _ = median_of(lambda scene=scene, obj=obj, profile=profile: run_rigid_press(scene, obj, profile),
                                max(repeats // 3, 1))
         print(f"{name:<16} {t_tab * 1e3:9.2f} {t_an * 1e3:12.2f} {t_rig * 1e3:9.1f} {ratio:13.2f}")
 

@@ -6,22 +6,16 @@ Prints a table. Run: .venv/bin/python benchmarks/maps_postprocess.py [--quick] [
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
 import tracemalloc
 
 import numpy as np
+from bench_timing import median_of
 
 from palpate.core import maps
 
 
 def _median_time(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    return median_of(fn, repeats)[0]
 
 
 def _peak_bytes(fn) -> int:

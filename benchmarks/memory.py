@@ -4,25 +4,16 @@ leave-one-out on the seed's data. Prints a table; run ``.venv/bin/python benchma
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import numpy as np
+from bench_timing import best_of
 from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
 from palpate.core.memory import HapticMemory, leave_one_out, read_params_csv
 
 THESIS_CSV = Path(__file__).resolve().parent.parent / "tests" / "data" / "thesis_ch6_params.csv"
-
-
-def _best_of(fn, repeats: int) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def _scipy_loop(mem: HapticMemory, x: np.ndarray) -> np.ndarray:
@@ -52,12 +43,12 @@ def main() -> None:
         x_train = np.repeat(centres, 10, axis=0) + rng.normal(0, 20, (10 * m, 4))
         mem = HapticMemory().fit(x_train, [f"M{k}" for k in range(m) for _ in range(10)])
         x = rng.normal(0, 800, (n, 4))
-        t_vec = _best_of(lambda mem=mem, x=x: mem.predict_proba(x), repeats)
+        t_vec = best_of(lambda mem=mem, x=x: mem.predict_proba(x), repeats)
         n_loop = min(n, 2_000)
-        t_loop = _best_of(lambda mem=mem, x=x[:n_loop]: _scipy_loop(mem, x), 1) * n / n_loop
+        t_loop = best_of(lambda mem=mem, x=x[:n_loop]: _scipy_loop(mem, x), 1) * n / n_loop
         diff = np.abs(mem.predict_proba(x[:n_loop]) - _scipy_loop(mem, x[:n_loop])).max()
         print(f"{m:>9} {n:>8} {t_vec:>16.4f} {n / t_vec:>12.3g} {t_loop:>13.3f} {t_loop / t_vec:>9.0f} {diff:>11.1e}")
-    t_loo = _best_of(lambda: leave_one_out(params, labels), repeats)
+    t_loo = best_of(lambda: leave_one_out(params, labels), repeats)
     print(f"\nleave-one-out on seed 000 Tables 6.3-6.5 (30 presses, 3 materials): {t_loo * 1e3:.1f} ms")
     print("(scipy loop time extrapolated from 2000 presses)")
 

@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
+from bench_timing import best_of  # noqa: E402
 from synthetic_streams import PressSpec, make_recording  # noqa: E402
 
 from palpate.core.features import contact_features  # noqa: E402
@@ -33,15 +33,6 @@ def _specs(n: int, rng: np.random.Generator) -> list[PressSpec]:
             for i in range(n)]
 
 
-def _best_of(fn, repeats: int) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
 def timing_table(n_presses: int, repeats: int) -> None:
     rng = np.random.default_rng(1)
     rec = make_recording(_specs(n_presses, rng), rng=rng, t_end=0.3 + 1.4 * n_presses + 0.2, n1=N1,
@@ -51,11 +42,11 @@ def timing_table(n_presses: int, repeats: int) -> None:
     seg = segment_presses(series)
     n_frames = len(rec.frames)
     rows = [
-        ("synchronise", _best_of(lambda: synchronise(rec.frames, rec.poses), repeats)),
-        ("contact_features", _best_of(lambda: contact_features(stream), repeats)),
-        ("segment_presses", _best_of(lambda: segment_presses(series), repeats)),
-        ("fit_presses", _best_of(lambda: fit_presses(seg.presses), repeats)),
-        ("presses_from_recording + fit", _best_of(lambda: fit_presses(presses_from_recording(rec).presses),
+        ("synchronise", best_of(lambda: synchronise(rec.frames, rec.poses), repeats)),
+        ("contact_features", best_of(lambda: contact_features(stream), repeats)),
+        ("segment_presses", best_of(lambda: segment_presses(series), repeats)),
+        ("fit_presses", best_of(lambda: fit_presses(seg.presses), repeats)),
+        ("presses_from_recording + fit", best_of(lambda: fit_presses(presses_from_recording(rec).presses),
                                                   repeats)),
     ]
     print(f"\nTable 1. Time per stage: {n_frames} taxel frames ({n_frames / 50:.0f} s at 50 Hz), {len(rec.poses)} "

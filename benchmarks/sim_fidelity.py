@@ -15,9 +15,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+from bench_timing import median_of  # noqa: E402
 
 from palpate.core.scene import Material, ObjectSpec, Scene  # noqa: E402
 from palpate.core.sources import PressTarget  # noqa: E402
@@ -31,15 +31,6 @@ VALIDITY = {
     "rigid": "thick homogeneous object, any shape; local contact law (no layers/inclusions/thickness)",
     "flex": "finite thickness, layers, inclusions, large indentation (see palpate.sim.flex)",
 }
-
-
-def _median_time(fn, repeats: int) -> tuple[float, object]:
-    times, out = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)), out
 
 
 def _small_indentation_error(trace, young_eff: float, radius: float) -> float:
@@ -90,9 +81,9 @@ def main() -> None:
             physics = _physics_call(fid, scene, obj, target, prof)
             reps = repeats if fid != "flex" else 1
             try:
-                t_phys, trace = _median_time(physics, reps)
+                t_phys, trace = median_of(physics, reps)
                 source = SimSource(scene, fidelity=fid, seed=0)
-                t_e2e, _ = _median_time(lambda s=source, g=target: s.press(g), reps)
+                t_e2e, _ = median_of(lambda s=source, g=target: s.press(g), reps)
             except Exception as exc:  # report and go on: one broken fidelity must not hide the others
                 print(f"{fid:9} {young / 1e3:8.0f}  failed: {exc}")
                 continue
