@@ -511,6 +511,12 @@ class _CategoricalMap:
             raise ValidationError("accuracy: no cell with a truth label (and inside mask) to count")
         return float((self.map_estimate()[keep] == truth[keep]).sum() / n)
 
+    def _with_arrays(self, p: np.ndarray, explored: np.ndarray):
+        """Install loaded (already validated) arrays; returns self."""
+        self._p = p.astype(float)
+        self._explored = explored.copy()
+        return self
+
     def _update_at(self, index: tuple, p_meas) -> None:
         self._p[index] = update(self._p[index], p_meas, p_min=self.p_min)
         self._explored[index] = True
@@ -620,6 +626,16 @@ def _construct(sidecar: Path, build):
         if str(exc).startswith(str(sidecar)):
             raise
         raise ValidationError(f"{sidecar}: {exc}") from None
+
+
+def _common_meta(meta: dict, sidecar: Path) -> dict:
+    """The constructor keywords every map kind reads from its JSON sidecar, each validated."""
+    return {
+        "origin": _meta_value(meta, "origin_m", sidecar, lambda v: _check_finite_tuple(v, 2, "origin")),
+        "cell_size": _meta_value(meta, "cell_size_m", sidecar, lambda v: _check_positive(v, "cell_size")),
+        "p_min": _meta_value(meta, "p_min", sidecar, _check_p_min),
+        "base": _meta_value(meta, "base", sidecar, _check_base),
+    }
 
 
 def _check_p_min(value) -> float:
@@ -749,16 +765,8 @@ class Grid2D(_CategoricalMap):
             raise ValidationError(f"{path}: 'probabilities' shape {p.shape} does not match {sidecar} shape "
                                   f"(nx, ny) = ({nx}, {ny}) (arrays are [iy, ix, m])")
         grid = _construct(sidecar, lambda: cls(
-            _meta_value(meta, "materials", sidecar, _check_materials),
-            (nx, ny),
-            origin=_meta_value(meta, "origin_m", sidecar, lambda v: _check_finite_tuple(v, 2, "origin")),
-            cell_size=_meta_value(meta, "cell_size_m", sidecar, lambda v: _check_positive(v, "cell_size")),
-            p_min=_meta_value(meta, "p_min", sidecar, _check_p_min),
-            base=_meta_value(meta, "base", sidecar, _check_base),
-        ))
-        grid._p = p.astype(float)
-        grid._explored = explored.copy()
-        return grid
+            _meta_value(meta, "materials", sidecar, _check_materials), (nx, ny), **_common_meta(meta, sidecar)))
+        return grid._with_arrays(p, explored)
 
 
 class VoxelGrid(_CategoricalMap):
@@ -910,14 +918,7 @@ class VoxelGrid(_CategoricalMap):
         if p.shape[:-1] != shape:
             raise ValidationError(f"{path}: 'probabilities' shape {p.shape} does not match {sidecar} shape {shape}")
         grid = _construct(sidecar, lambda: cls(
-            _meta_value(meta, "materials", sidecar, _check_materials),
-            shape,
-            origin=_meta_value(meta, "origin_m", sidecar, lambda v: _check_finite_tuple(v, 2, "origin")),
+            _meta_value(meta, "materials", sidecar, _check_materials), shape,
             z_top=_meta_value(meta, "z_top_m", sidecar, lambda v: _check_finite_tuple((v,), 1, "z_top")[0]),
-            cell_size=_meta_value(meta, "cell_size_m", sidecar, lambda v: _check_positive(v, "cell_size")),
-            p_min=_meta_value(meta, "p_min", sidecar, _check_p_min),
-            base=_meta_value(meta, "base", sidecar, _check_base),
-        ))
-        grid._p = p.astype(float)
-        grid._explored = explored.copy()
-        return grid
+            **_common_meta(meta, sidecar)))
+        return grid._with_arrays(p, explored)
