@@ -20,7 +20,15 @@ import numpy as np
 from palpate.core import __version__
 from palpate.core.errors import ValidationError
 from palpate.core.progress import Progress
-from palpate.core.run import PressResult, _assert_finite, _versions, apply_press, build_map, perceive_press
+from palpate.core.run import (
+    PressResult,
+    _assert_finite,
+    _versions,
+    apply_press,
+    build_map,
+    fit_summary,
+    perceive_press,
+)
 from palpate.core.streams import GroundTruth, PressRecording
 
 REPLAY_FORMAT = "palpate-replay-summary"
@@ -101,7 +109,7 @@ def replay_recording(path: str | Path, memory, out_dir: str | Path, *, cell_size
             fit = fit_press(press)
             res = PressResult(press.location, press.location, press.depth, press.t, press.c_P, press.c_A, press.c_D,
                               np.asarray(fit.params, float),
-                              {f: float(getattr(fit, f)) for f in ("n1", "n2", "phi_n", "a1", "a2", "phi_a")})
+                              fit_summary(fit))
             apply_press(grid, res, memory, voxel=False, fallback_xy=press.location)
             state["results"].append(res)
             state["rows"].append(_row(k + 1, None, res, grid))

@@ -57,6 +57,11 @@ class PressResult:
     truth_indentation: np.ndarray | None = None
 
 
+def fit_summary(fit) -> dict:
+    """The per-press fit as reported in summaries: n1, n2, phi_n, a1, a2, phi_a (c_D in mm, c_A in mm^2)."""
+    return {k: float(getattr(fit, k)) for k in ("n1", "n2", "phi_n", "a1", "a2", "phi_a")}
+
+
 def perceive_press(recording, pipeline_config=None) -> PressResult:
     """Turn one press's raw streams into features and a 3/2-power fit (no memory involved).
 
@@ -85,7 +90,7 @@ def perceive_press(recording, pipeline_config=None) -> PressResult:
     try:
         fit = fit_press(press)
         params = np.asarray(fit.params, dtype=float)
-        fit_dict = {k: float(getattr(fit, k)) for k in ("n1", "n2", "phi_n", "a1", "a2", "phi_a")}
+        fit_dict = fit_summary(fit)
     except FitError as exc:
         params, fit_dict = None, None
         reasons.append(f"fit failed: {exc}")
