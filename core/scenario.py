@@ -30,6 +30,10 @@ FIDELITIES = ("analytic", "rigid", "flex", "auto")
 MAP_KINDS = ("grid2d", "voxel")
 POLICIES = ("predefined", "raster", "random", "max_entropy", "info_gain")
 VARIABILITY = ("human", "robot")
+ACTUATORS = ("sim", "operator", "dynamixel")
+# Keys of [actuator] beside ``kind``, per kind (a key of another kind is an error that says whose it is).
+ACTUATOR_KEYS = {"sim": (), "operator": ("recordings_dir", "figures"),
+                 "dynamixel": ("port", "baud", "finger", "emulate", "pose_noise_mm", "approach_mm")}
 _REQUIRED = object()
 
 
@@ -56,6 +60,7 @@ class TrainingSpec:
     speed: float = 0.01
     variability: str = "human"
     memory: Path | None = None
+    source: str = "sim"
 
 
 @dataclass(frozen=True)
@@ -91,6 +96,34 @@ class ObjectEntry:
 
 
 @dataclass(frozen=True)
+class ActuatorSpec:
+    """What presses during exploration (``[actuator]``; built by :mod:`palpate.core.actuators`).
+
+    Attributes:
+        kind: "sim" (the registered simulated source), "operator" (a person shown each target) or "dynamixel".
+        recordings_dir: operator: folder of MCAP recordings, one per press, taken in name order (with several
+            objects, one subfolder per object, named as the object).
+        figures: operator: also write a PNG of the grid with the target before each press.
+        port: dynamixel: serial port of the servo bus (None with ``emulate``).
+        baud: dynamixel: bus bit rate.
+        finger: dynamixel: finger description file (models/fingers/*.toml).
+        emulate: dynamixel: press through the servo emulator on a pty, backed by MuJoCo physics of the scene.
+        pose_noise: dynamixel: standard deviation of noise added to each fingertip position, m per axis.
+        approach_height: dynamixel: height above the surface where each press starts, m (None: the finger file's).
+    """
+
+    kind: str = "sim"
+    recordings_dir: Path | None = None
+    figures: bool = True
+    port: str | None = None
+    baud: int = 1_000_000
+    finger: Path | None = None
+    emulate: bool = False
+    pose_noise: float = 0.0
+    approach_height: float | None = None
+
+
+@dataclass(frozen=True)
 class OutputSpec:
     """What the run writes besides summary.json and the maps."""
 
@@ -117,6 +150,7 @@ class Scenario:
     objects: tuple[ObjectEntry, ...]
     outputs: OutputSpec = field(default_factory=OutputSpec)
     raw: dict = field(default_factory=dict, repr=False)
+    actuator: ActuatorSpec = field(default_factory=ActuatorSpec)
 
     @property
     def references(self) -> list[str]:
@@ -311,6 +345,7 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         speed=tr.number("speed_mm_s", 10.0, lo=0.0, lo_open=True) * 1e-3,
         variability=tr.choice("variability", VARIABILITY, "human"),
         memory=_resolve(base, memory) if memory else None,
+        source=_training_source(tr),
     )
     tr.finish()
 
@@ -361,9 +396,61 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         render_3d=out.get("render_3d", bool, True),
     )
     out.finish()
+    actuator = _actuator(top.sub("actuator"), base)
     top.finish()
     return Scenario(name, Path(file) if file != "<scenario>" else None, description, seed, fidelity, materials,
-                    fingertip, taxels, pose, training, exploration, tuple(objects), outputs, raw)
+                    fingertip, taxels, pose, training, exploration, tuple(objects), outputs, raw, actuator)
+
+
+def parse_actuator(table: dict, file: str = "<scenario>", base: Path | None = None) -> ActuatorSpec:
+    """Validate an ``[actuator]`` table (already parsed from TOML); relative paths resolve against ``base``."""
+    if not isinstance(table, dict):
+        raise ValidationError(f"{file}: actuator: expected a table, got {table!r}")
+    return _actuator(_Reader(file, table, "actuator"), base or Path.cwd())
+
+
+def _actuator(r: _Reader, base: Path) -> ActuatorSpec:
+    kind = r.choice("kind", ACTUATORS, "sim")
+    for key in r.table:
+        owner = next((k for k, keys in ACTUATOR_KEYS.items() if key in keys), None)
+        if owner is not None and owner != kind:
+            raise r.err(key, f"is a key of kind {owner!r}, but kind is {kind!r}")
+    d = ActuatorSpec()
+    if kind == "operator":
+        folder = r.get("recordings_dir", str)
+        if not folder:
+            raise r.err("recordings_dir", "must name a folder of MCAP recordings, one per press")
+        spec = ActuatorSpec(kind, recordings_dir=_resolve(base, folder), figures=r.get("figures", bool, True))
+    elif kind == "dynamixel":
+        emulate = r.get("emulate", bool, False)
+        port = r.get("port", str, "") or None
+        if emulate and port:
+            raise r.err("port", "not used with emulate = true (the emulator opens its own pseudo-terminal); "
+                        "leave one of them out")
+        if not emulate and not port:
+            raise r.err("port", "missing: the servo bus's serial port (e.g. /dev/ttyUSB0), or emulate = true")
+        finger = r.get("finger", str)
+        if not finger:
+            raise r.err("finger", "must name a finger description file (models/fingers/*.toml)")
+        approach = r.number("approach_mm", None, lo=0.0, lo_open=True)
+        spec = ActuatorSpec(kind, port=port, baud=r.integer("baud", d.baud, lo=1), finger=_resolve(base, finger),
+                            emulate=emulate, pose_noise=r.number("pose_noise_mm", 0.0, lo=0.0) * 1e-3,
+                            approach_height=None if approach is None else approach * 1e-3)
+    else:
+        spec = d
+    r.finish()
+    return spec
+
+
+def _training_source(r: _Reader) -> str:
+    """``training.source``: the registered source that presses the reference materials (a simulation)."""
+    value = r.get("source", str, "sim")
+    if value in ("operator", "dynamixel"):
+        raise r.err("source", f"{value!r} is an exploration actuator ([actuator] kind); the reference materials "
+                    "are pressed by a registered simulated source (e.g. 'sim'), or give training.memory")
+    if not value:
+        raise r.err("source", "must name a registered source, e.g. 'sim'")
+    return value
 
 
 def _optional_force(r: _Reader) -> float | None:

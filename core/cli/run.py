@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from palpate.core.scenario import ACTUATORS
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``run`` command."""
@@ -20,7 +22,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="output folder (default: runs/<scenario name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--json", action="store_true", help="print summary.json to stdout instead of a text report")
-    p.add_argument("--source", default="sim", help="registered source to press with (default: sim)")
+    p.add_argument("--source", default=None,
+                   help="registered simulated source that trains the memory and, with actuator sim, explores "
+                   "(default: the scenario's training.source, 'sim')")
+    a = p.add_argument_group("actuator (who presses during exploration; overrides the scenario's [actuator])")
+    a.add_argument("--actuator", choices=ACTUATORS, default=None,
+                   help="sim: the simulated finger; operator: a person shown each cell (terminal + PNG), presses "
+                   "read from --recordings; dynamixel: the finger of --finger on --port, or --emulate")
+    a.add_argument("--recordings", type=Path, default=None, metavar="DIR",
+                   help="operator: folder of MCAP recordings, one per press, in name order")
+    a.add_argument("--port", default=None, help="dynamixel: serial port of the servo bus, e.g. /dev/ttyUSB0")
+    a.add_argument("--emulate", action="store_true",
+                   help="dynamixel: press through the servo emulator on a pty, backed by MuJoCo physics of the object")
+    a.add_argument("--finger", type=Path, default=None, help="dynamixel: finger description (models/fingers/*.toml)")
     p.add_argument("--record", type=Path, default=None,
                    help="also record every press's raw streams to this MCAP file (palpate replay reproduces the maps)")
     p.set_defaults(func=_run)
@@ -31,10 +45,11 @@ def _run(args: argparse.Namespace) -> int:
     from palpate.core.run import run_scenario
     from palpate.core.scenario import load_scenario
 
-    scenario = load_scenario(args.scenario)
+    scenario = with_actuator_options(load_scenario(args.scenario), args)
     out = args.out or Path("runs") / scenario.name
     progress = Progress(enabled=not (args.quiet or args.json))
-    progress.message(f"palpate run {scenario.name}: fidelity {scenario.fidelity}, seed {scenario.seed} -> {out}")
+    progress.message(f"palpate run {scenario.name}: fidelity {scenario.fidelity}, seed {scenario.seed}, "
+                     f"actuator {scenario.actuator.kind} -> {out}")
     summary = run_scenario(scenario, out, progress=progress, source=args.source, record=args.record)
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
@@ -42,6 +57,37 @@ def _run(args: argparse.Namespace) -> int:
     elif not args.quiet:
         print(format_report(summary, out))
     return 0
+
+
+def with_actuator_options(scenario, args: argparse.Namespace):
+    """The scenario with its ``[actuator]`` changed by ``--actuator``, ``--recordings``, ``--port``, ``--emulate``
+    and ``--finger``, validated like the file (an error names the option's key).
+
+    The scenario's own keys stay when the kind does not change; paths given on the command line are relative to
+    the working directory; ``--port`` replaces ``emulate`` and ``--emulate`` replaces ``port``.
+    """
+    import dataclasses
+
+    from palpate.core.scenario import parse_actuator
+
+    options = {"recordings_dir": args.recordings, "port": args.port, "finger": args.finger,
+               "emulate": True if args.emulate else None}
+    given = {k: v for k, v in options.items() if v is not None}
+    if args.actuator is None and not given:
+        return scenario
+    raw = scenario.raw.get("actuator", {}) if isinstance(scenario.raw.get("actuator", {}), dict) else {}
+    kind = args.actuator or raw.get("kind", "sim")
+    table = dict(raw) if raw.get("kind", "sim") == kind else {}
+    table["kind"] = kind
+    base = scenario.path.parent if scenario.path else Path.cwd()
+    # command-line paths are the user's, relative to where they typed them
+    table.update({k: str(Path(v).resolve()) if isinstance(v, Path) else v for k, v in given.items()})
+    if "port" in given:
+        table.pop("emulate", None)
+    if "emulate" in given:
+        table.pop("port", None)
+    where = f"{scenario.path or 'scenario'} with the command line's actuator options"
+    return dataclasses.replace(scenario, actuator=parse_actuator(table, where, base))
 
 
 def format_report(summary: dict, out: Path) -> str:

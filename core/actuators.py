@@ -1,0 +1,258 @@
+"""Which actuator presses during exploration: the simulated finger, a person, or a Dynamixel finger.
+
+The exploration loop (:func:`palpate.core.run.explore_object`) presses through whatever ``make(objects, seed,
+variability)`` returns. :func:`open_actuators` gives the run that function for the scenario's ``[actuator]``:
+
+- ``sim``: the registered simulated source (``training.source``, default ``sim``), the one that trains the memory;
+- any other kind: a factory registered under the entry-point group ``palpate.actuators`` (so core never imports
+  hardware or sim), called once per explored object with one signature::
+
+      factory(request: ActuatorRequest, *, check_only: bool = False) -> PressSource | None
+
+  With ``check_only`` the factory validates all it can without touching a device (files, ports named, the reach
+  of every cell the policy may press) and returns None: the run does this for every object before training, so a
+  scenario the actuator cannot do fails at once, before any servo moves. The source it returns has
+  ``press(PressTarget) -> PressRecording`` and may have ``close()``, which the run calls when the object is
+  explored (or the run fails). ``operator`` is :func:`operator_actuator` below; ``dynamixel`` is
+  :func:`palpate.hardware.dynamixel.actuator_source.dynamixel_actuator`.
+
+Training with a non-sim actuator: the haptic memory comes from ``training.memory`` (a memory.json) when given,
+else it is trained in simulation by ``training.source``; if that source cannot be loaded the run stops at once
+with an error that says to give ``training.memory``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from pathlib import Path
+from typing import TextIO
+
+import numpy as np
+
+from palpate.core.errors import PalpateError, RecordingError, ValidationError
+from palpate.core.scenario import ActuatorSpec, Scenario
+from palpate.core.scene import ObjectSpec, Scene
+from palpate.core.sources import PressTarget
+from palpate.core.streams import PressRecording
+
+ACTUATOR_GROUP = "palpate.actuators"
+MAX_PROMPTS = 5
+
+
+@dataclass(frozen=True)
+class ActuatorRequest:
+    """Everything an actuator factory gets for one explored object (lengths m, forces N, speeds m/s).
+
+    Attributes:
+        spec: the scenario's ``[actuator]`` (kind and kind-specific options).
+        scene: the object explored (``scene.objects[0]``) with the scenario's fingertip and sensor models.
+        origin: (x0, y0) corner of the object's map grid, m.
+        cell_size: grid cell side, m.
+        shape: (nx, ny) cells.
+        cells: 0-based (ix, iy) of every cell the policy may press (the regions for ``predefined``, else all).
+        targets: (n, 2) press points of ``cells`` (cell centres), m.
+        depth: deepest press the exploration plans, m.
+        max_force: force limit of a press, N (None: none).
+        speed: press speed, m/s.
+        seed: the object's seed (sensor noise of emulated devices).
+        variability: "human" or "robot" (what the scenario asks; a robot actuator ignores it).
+        materials: reference material names (the map's classes).
+        n_objects: how many objects the scenario explores.
+        out_dir: the run's output folder (figures), or None.
+        input, output: text streams a person answers on and is prompted on.
+    """
+
+    spec: ActuatorSpec
+    scene: Scene
+    origin: tuple[float, float]
+    cell_size: float
+    shape: tuple[int, int]
+    cells: tuple[tuple[int, int], ...]
+    targets: np.ndarray
+    depth: float
+    max_force: float | None
+    speed: float
+    seed: int
+    variability: str
+    materials: tuple[str, ...]
+    n_objects: int = 1
+    out_dir: Path | None = None
+    input: TextIO | None = None
+    output: TextIO | None = None
+
+    @property
+    def obj(self) -> ObjectSpec:
+        """The object explored."""
+        return self.scene.objects[0]
+
+
+def load_actuator(kind: str):
+    """The factory registered as ``kind`` in ``palpate.actuators``; ValidationError naming the known kinds."""
+    found = {ep.name: ep for ep in entry_points(group=ACTUATOR_GROUP)}
+    if kind not in found:
+        known = ", ".join(sorted(found)) or "none (is palpate installed?)"
+        raise ValidationError(f"actuator kind {kind!r} is not registered in {ACTUATOR_GROUP}; registered: {known}")
+    try:
+        return found[kind].load()
+    except ImportError as exc:
+        raise ValidationError(f"actuator kind {kind!r} needs an optional dependency that is missing: {exc}. "
+                              "Install it with: pip install 'palpate[all]'") from None
+
+
+def actuator_requests(scenario: Scenario, geometry: dict, out_dir: Path | None = None,
+                      input: TextIO | None = None, output: TextIO | None = None) -> dict[str, ActuatorRequest]:
+    """One request per object of the scenario, keyed by object name; ``geometry`` is ``run.map_geometry``'s."""
+    ex = scenario.exploration
+    out = {}
+    for entry in scenario.objects:
+        geom = geometry[entry.spec.name]
+        nx, ny = (int(v) for v in geom["shape"][:2])
+        if ex.policy == "predefined":
+            cells = tuple(dict.fromkeys((c - 1, r - 1) for c, r in entry.regions))
+        else:
+            cells = tuple((ix, iy) for iy in range(ny) for ix in range(nx))
+        origin = (float(geom["origin_m"][0]), float(geom["origin_m"][1]))
+        cell = float(geom["cell_size_m"])
+        targets = np.array([[origin[0] + (ix + 0.5) * cell, origin[1] + (iy + 0.5) * cell] for ix, iy in cells],
+                           dtype=float).reshape(-1, 2)
+        out[entry.spec.name] = ActuatorRequest(
+            spec=scenario.actuator, scene=Scene((entry.spec,), scenario.fingertip, scenario.taxels, scenario.pose),
+            origin=origin, cell_size=cell, shape=(nx, ny), cells=cells, targets=targets, depth=ex.depth,
+            max_force=ex.max_force, speed=ex.speed, seed=0, variability=ex.variability,
+            materials=tuple(scenario.references), n_objects=len(scenario.objects), out_dir=out_dir,
+            input=input, output=output)
+    return out
+
+
+@contextlib.contextmanager
+def open_actuators(scenario: Scenario, out_dir: Path | None, geometry: dict, sim_source: Callable[[], Callable]):
+    """The run's source makers: yields ``(make_training, make_exploring)``, each ``(objects, seed, variability)
+    -> source``; ``make_training`` is None when the memory comes from ``training.memory`` and the actuator is not
+    simulated.
+
+    ``sim_source()`` returns the registered simulated source's maker (it may raise if that source cannot load).
+    Every object's actuator request is checked before this yields (nothing moves before that); an actuator with
+    ``close()`` is closed when the next object's is made and when the block ends. Prompts go to stderr (stdout
+    carries the run's report) and answers come from stdin.
+    """
+    kind = scenario.actuator.kind
+    needs_training = scenario.training.memory is None
+    make_sim = None
+    if kind == "sim" or needs_training:
+        try:
+            make_sim = sim_source()
+        except (ValidationError, ImportError) as exc:
+            if kind == "sim":
+                raise
+            raise ValidationError(f"actuator {kind!r} explores, and the haptic memory is trained in simulation "
+                                  f"(training.source = {scenario.training.source!r}), which is unavailable: {exc}. "
+                                  "Give training.memory = a memory.json (from palpate run or palpate memory "
+                                  "train) instead") from None
+    if kind == "sim":
+        yield make_sim, make_sim
+        return
+    factory = load_actuator(kind)
+    requests = actuator_requests(scenario, geometry, out_dir, sys.stdin, sys.stderr)
+    where = str(scenario.path) if scenario.path else "scenario"
+    for request in requests.values():
+        try:
+            factory(request, check_only=True)
+        except ValidationError as exc:
+            raise ValidationError(f"{where}: {exc}") from None
+    current: list = []
+
+    def close_current() -> None:
+        while current:
+            close = getattr(current.pop(), "close", None)
+            if callable(close):
+                close()
+
+    def make(objects: tuple[ObjectSpec, ...], seed: int, variability: str):
+        close_current()
+        request = requests.get(objects[0].name) if len(objects) == 1 else None
+        if request is None:
+            raise ValidationError(f"actuator {kind!r} presses the scenario's objects one at a time; asked for "
+                                  f"{[o.name for o in objects]}")
+        from dataclasses import replace
+
+        source = factory(replace(request, seed=int(seed), variability=variability))
+        current.append(source)
+        return source
+
+    try:
+        yield make_sim, make
+    finally:
+        close_current()
+
+
+def recordings_folder(folder: Path | None, obj: str, n_objects: int) -> Path:
+    """The folder holding one object's press recordings: ``folder`` itself for a one-object scenario, else its
+    subfolder named as the object. ValidationError naming ``actuator.recordings_dir`` if it is not there."""
+    if folder is None:
+        raise ValidationError("actuator.recordings_dir: missing (required for kind 'operator': a folder of MCAP "
+                              "recordings, one per press)")
+    if not Path(folder).is_dir():
+        raise ValidationError(f"actuator.recordings_dir: {folder} is not a folder (expected MCAP recordings, one "
+                              "per press, taken in name order)")
+    if n_objects == 1:
+        return Path(folder)
+    sub = Path(folder) / obj
+    if not sub.is_dir():
+        raise ValidationError(f"actuator.recordings_dir: the scenario explores {n_objects} objects, so each has a "
+                              f"subfolder named as the object; {sub} is missing")
+    return sub
+
+
+def folder_streams(folder: Path, input: TextIO, output: TextIO) -> Callable[[PressTarget, int], PressRecording]:
+    """Streams for :class:`~palpate.core.operator.HumanOperator`: press k is the k-th ``*.mcap`` of ``folder`` in
+    name order (name them so they sort in press order: press_001.mcap, ...).
+
+    The folder is listed again at every press, so recordings may arrive while the session runs (the person
+    presses, the Tekscan/Liberty recording is imported); if press k's file is not there yet the person is asked
+    to add it and confirm again. RecordingError if it never comes.
+    """
+    from palpate.core.operator import ABORT, recordings_from_files
+
+    def take(target: PressTarget, k: int) -> PressRecording:
+        for _ in range(MAX_PROMPTS):
+            files = sorted(Path(folder).glob("*.mcap"))
+            if k < len(files):
+                return recordings_from_files(files)(target, k)
+            output.write(f"   no recording for press {k + 1} in {folder} yet ({len(files)} file(s)); record or "
+                         "import it there, then Enter (q to stop): ")
+            output.flush()
+            line = input.readline()
+            if line == "":
+                break
+            if line.strip().lower() in ABORT:
+                raise PalpateError("the operator stopped the exploration")
+        raise RecordingError(f"{folder}: press {k + 1} needs its recording (the {k + 1}-th *.mcap in name order), "
+                             f"but the folder holds {len(files)}")
+
+    return take
+
+
+def operator_actuator(request: ActuatorRequest, *, check_only: bool = False):
+    """Factory of kind ``operator``: a :class:`~palpate.core.operator.HumanOperator` shown each target cell (text
+    grid, and a PNG under ``<out>/figures/operator/<object>/`` when ``figures``), whose presses are read from
+    ``recordings_dir``. With ``check_only``, only checks the folder."""
+    from palpate.core.operator import HumanOperator
+
+    spec = request.spec
+    folder = recordings_folder(spec.recordings_dir, request.obj.name, request.n_objects)
+    if check_only:
+        return None
+    input = request.input if request.input is not None else sys.stdin
+    output = request.output if request.output is not None else sys.stderr
+    figure_dir = None
+    if spec.figures and request.out_dir is not None:
+        figure_dir = Path(request.out_dir) / "figures" / "operator" / request.obj.name
+    output.write(f"\nOperator: explore {request.obj.name} ({request.shape[0]} x {request.shape[1]} cells of "
+                 f"{request.cell_size * 1e3:.0f} mm, corner at x = {request.origin[0] * 1e3:.1f} mm, "
+                 f"y = {request.origin[1] * 1e3:.1f} mm); press recordings from {folder}\n")
+    return HumanOperator(request.origin, request.cell_size, request.shape, folder_streams(folder, input, output),
+                         input=input, output=output, figure_dir=figure_dir, materials=request.materials)
