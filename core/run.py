@@ -480,29 +480,35 @@ def map_geometry(scenario: Scenario) -> dict:
 
 
 def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress | None = None,
-                 source: str = "sim", record: str | Path | None = None) -> dict:
+                 source: str | None = None, record: str | Path | None = None) -> dict:
     """Run a scenario end to end and write its outputs into ``out_dir``. Returns the summary (also summary.json).
 
-    With ``record``, every press's raw streams (and ground truth) go to that MCAP file, annotated so that
-    ``palpate replay`` rebuilds the same maps.
+    ``source`` names the registered simulated source that trains the memory and, with ``[actuator] kind = "sim"``,
+    explores (default: ``training.source``); another actuator kind explores through
+    :func:`palpate.core.actuators.open_actuators`. With ``record``, every press's raw streams (and ground truth)
+    go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps.
     """
+    from palpate.core.actuators import open_actuators
+
     progress = progress or Progress(enabled=False)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     timing: dict[str, float] = {}
     seeds = np.random.SeedSequence(scenario.seed).generate_state(4 + len(scenario.references) + len(scenario.objects))
-    make_source = _source_factory(scenario, source)
-    log = PressLog(Path(record) if record else None,
-                   {"scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
-                                 "seed": scenario.seed, "fidelity": scenario.fidelity},
-                    "sources": [source], "maps": map_geometry(scenario)})
-    try:
-        return _run(scenario, out, progress, make_source, seeds, timing, log)
-    finally:
-        log.close()
+    source = source or scenario.training.source
+    kind = scenario.actuator.kind
+    with open_actuators(scenario, out, map_geometry(scenario), lambda: _source_factory(scenario, source)) as makers:
+        log = PressLog(Path(record) if record else None,
+                       {"scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
+                                     "seed": scenario.seed, "fidelity": scenario.fidelity},
+                        "sources": [source] if kind == "sim" else [source, kind], "maps": map_geometry(scenario)})
+        try:
+            return _run(scenario, out, progress, *makers, seeds, timing, log)
+        finally:
+            log.close()
 
 
-def _run(scenario, out, progress, make_source, seeds, timing, log) -> dict:
+def _run(scenario, out, progress, make_source, make_actuator, seeds, timing, log) -> dict:
     t0 = time.perf_counter()
     if scenario.training.memory is not None:
         from palpate.core.memory import HapticMemory
@@ -526,10 +532,11 @@ def _run(scenario, out, progress, make_source, seeds, timing, log) -> dict:
     objects, artefacts = [], {}
     t0 = time.perf_counter()
     for entry in scenario.objects:
-        _say_fidelity(entry, scenario, make_source, progress)
+        if scenario.actuator.kind == "sim":
+            _say_fidelity(entry, scenario, make_source, progress)
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
-        summary_i, snaps, results, grid, post, truth = explore_object(scenario, entry, memory, make_source,
+        summary_i, snaps, results, grid, post, truth = explore_object(scenario, entry, memory, make_actuator,
                                                                       seed_i, progress, log)
         objects.append(summary_i)
         artefacts[entry.spec.name] = (snaps, results, grid, post, truth)
