@@ -312,6 +312,19 @@ def test_the_emulated_finger_explores_through_the_wire_and_closes_the_bus(repo_d
     assert obj["accuracy"]["explored_before_postprocessing"] == 1.0
 
 
+def test_the_command_line_switches_the_finger_to_a_real_port_and_is_refused(repo_dir, tmp_path, monkeypatch,
+                                                                            capsys):
+    from palpate.core.cli import main
+
+    _forbid_motion(monkeypatch)
+    code = main(["run", str(repo_dir / "scenarios" / "explore_dynamixel.toml"), "--port", "/dev/ttyUSB7",
+                 "--out", str(tmp_path), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "explore_dynamixel.toml: actuator.port = '/dev/ttyUSB7': a real Dynamixel finger" in err
+    assert not (tmp_path / "memory.json").exists()
+
+
 def test_travel_between_cells_stays_above_the_object(repo_dir):
     from palpate.core.actuators import actuator_requests
     from palpate.hardware.dynamixel.actuator_source import dynamixel_actuator
