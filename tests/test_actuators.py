@@ -297,7 +297,7 @@ def test_the_emulated_finger_explores_through_the_wire_and_closes_the_bus(repo_d
                              objects={"regions": [[1, 1], [5, 1]]},
                              actuator={"approach_mm": 3.0}, outputs={"figures": False, "haptic_material": False})
     threads = threading.active_count()
-    summary = run_scenario(sc, tmp_path)
+    summary = run_scenario(sc, tmp_path, record=tmp_path / "run.mcap")
     assert threading.active_count() == threads  # the emulator's thread stopped, the port closed
     (obj,) = summary["objects"]
     rows = obj["per_press"]
@@ -310,6 +310,14 @@ def test_the_emulated_finger_explores_through_the_wire_and_closes_the_bus(repo_d
     assert rows[0]["depth_m"] == pytest.approx(0.004, abs=7e-4) and rows[1]["depth_m"] < 0.003
     assert rows[0]["posterior"][0] > 0.99 and rows[1]["posterior"][1] > 0.99
     assert obj["accuracy"]["explored_before_postprocessing"] == 1.0
+    # the recorded run (simulated training, finger exploration: one pose stream) replays to the same map
+    from palpate.core.cli import main
+    from palpate.core.maps import Grid2D
+
+    assert main(["replay", str(tmp_path / "run.mcap"), "--memory", str(tmp_path / "memory.json"), "--out",
+                 str(tmp_path / "replay"), "--quiet"]) == 0
+    ran, replayed = (Grid2D.load(d / "maps" / "Strip.npz") for d in (tmp_path, tmp_path / "replay"))
+    np.testing.assert_array_equal(replayed.probabilities, ran.probabilities)
 
 
 def test_the_command_line_switches_the_finger_to_a_real_port_and_is_refused(repo_dir, tmp_path, monkeypatch,

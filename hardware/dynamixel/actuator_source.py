@@ -41,6 +41,9 @@ TRAVEL_TOLERANCE = 0.02  # rad: waypoints need not be reached exactly, only the 
 # an emulator on a loaded machine stalls for 0.1 s now and then) loses its taxel frames in the gap, so it is
 # pressed again, at most this many times.
 REPEATS = 2
+# The fingertip poses are the run's pose stream: named as the simulated sources name theirs, so that a recorded
+# run (training in simulation, exploration with the finger) holds one pose sensor and replays.
+POSE_SENSOR = "pose"
 
 
 class FingerSession:
@@ -73,6 +76,7 @@ class FingerSession:
             gap = float(np.max(np.diff(t))) if len(t) > 1 else float("inf")
             if gap <= max_gap or attempts > REPEATS:
                 break
+        rec.poses = [dataclasses.replace(p, sensor_id=POSE_SENSOR) for p in rec.poses]
         rec.meta = {**rec.meta, "attempts": attempts}
         if gap > max_gap:
             rec.meta["pose_gap_s"] = gap if np.isfinite(gap) else None
