@@ -304,7 +304,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
         budget = ex.budget
     policy = make_policy(ex.policy, cells=regions0, repeats=ex.presses_per_region, seed=seed, memory=memory,
                          travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None,
-                         passes=ex.extrapolation_passes)
+                         passes=ex.extrapolation_passes, objective=ex.objective, feature_size=ex.feature_size)
     # The one post-processing the policies plan on, the run reports and the map files hold.
     postprocess = grid.postprocessed if voxel else (lambda: grid.postprocessed(passes=ex.extrapolation_passes))
     # Any actuator will do: the simulated finger, a Dynamixel finger, a human operator, a replay.
@@ -568,6 +568,7 @@ def _run(scenario, out, progress, make_source, make_actuator, seeds, timing, log
         "version": SUMMARY_VERSION,
         "scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
                      "fidelity": scenario.fidelity, "description": scenario.description},
+        "actuator": scenario.actuator.kind,
         "seed": scenario.seed,
         "materials": list(scenario.references),
         "memory": {"file": "memory.json", "trained": scenario.training.memory is None},

@@ -29,6 +29,8 @@ from palpate.core.scene import (
 FIDELITIES = ("analytic", "rigid", "flex", "auto")
 MAP_KINDS = ("grid2d", "voxel")
 POLICIES = ("predefined", "raster", "random", "max_entropy", "info_gain")
+#: What info_gain plans on, 2-D maps (palpate.core.explore.InfoGain): expected cells set right, or entropy.
+OBJECTIVES = ("accuracy", "entropy")
 VARIABILITY = ("human", "robot")
 ACTUATORS = ("sim", "operator", "dynamixel")
 # Keys of [actuator] beside ``kind``, per kind (a key of another kind is an error that says whose it is).
@@ -83,6 +85,8 @@ class ExplorationSpec:
     stop_min_gain: float | None = None
     travel_cost_per_mm: float = 0.0
     extrapolation_passes: int | None = 1
+    objective: str = "accuracy"
+    feature_size: float = 0.06
 
 
 @dataclass(frozen=True)
@@ -368,9 +372,14 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         stop_min_gain=ex.number("stop_min_gain", None, lo=0.0),
         travel_cost_per_mm=ex.number("travel_cost_per_mm", 0.0, lo=0.0),
         extrapolation_passes=_extrapolation_passes(ex),
+        objective=ex.choice("objective", OBJECTIVES, "accuracy"),
+        feature_size=ex.number("feature_size_mm", 60.0, lo=0.0, lo_open=True) * 1e-3,
     )
     if exploration.stop_min_gain is not None and exploration.policy != "info_gain":
         raise ex.err("stop_min_gain", f"only the info_gain policy predicts a gain; policy is {exploration.policy!r}")
+    for key in ("objective", "feature_size_mm"):
+        if key in ex.table and exploration.policy != "info_gain":
+            raise ex.err(key, f"only the info_gain policy uses it; policy is {exploration.policy!r}")
     if exploration.extrapolation_passes != 1 and exploration.map != "grid2d":
         raise ex.err("extrapolation_passes", "iterated eq. 6.15 extrapolation is a grid2d post-processing; map is "
                      f"{exploration.map!r} (leave the key out)")

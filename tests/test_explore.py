@@ -263,10 +263,25 @@ def _scenario(**exploration):
     ("extrapolation_passes", 0, "raster", 'exploration.extrapolation_passes: must be >= 1 \\(or "all"\\)'),
     ("extrapolation_passes", "many", "raster", 'extrapolation_passes: expected an integer >= 1 or "all"'),
     ("extrapolation_passes", 2.0, "raster", "extrapolation_passes: expected"),
+    ("objective", "entropy", "max_entropy", "exploration.objective: only the info_gain policy"),
+    ("objective", "speed", "info_gain", "exploration.objective: must be one of accuracy, entropy"),
+    ("feature_size_mm", 0.0, "info_gain", "exploration.feature_size_mm: must be > 0.0"),
+    ("feature_size_mm", 40.0, "random", "feature_size_mm: only the info_gain policy"),
 ])
 def test_scenario_rejects_bad_exploration_keys_naming_them(key, value, policy, match):
     with pytest.raises(ValidationError, match=match):
         _scenario(**{"policy": policy, key: value})
+
+
+def test_info_gain_settings_reach_the_policy(trained):
+    sc = _scenario(objective="entropy", feature_size_mm=45.0)
+    assert (sc.exploration.objective, sc.exploration.feature_size) == ("entropy", pytest.approx(0.045))
+    pol = make_policy("info_gain", memory=trained, objective=sc.exploration.objective,
+                      feature_size=sc.exploration.feature_size)
+    assert (pol.objective, pol.correlation_mm, pol.coverage_weight) == ("entropy", pytest.approx(45.0), 0.3)
+    assert _scenario().exploration.objective == "accuracy"
+    with pytest.raises(ValidationError, match="objective must be one of accuracy, entropy"):
+        InfoGain(trained, objective="speed")
 
 
 @pytest.fixture(scope="module")
@@ -390,8 +405,8 @@ def test_info_gain_starts_with_a_spread_lattice_then_goes_to_the_boundary(memory
         g.update_cell(t.ix, t.iy, q[0, 0] if t.ix < 3 else q[2, 0])
         last = (t.ix, t.iy)
     assert sorted(first) == [(x, y) for x in (1, 4, 7) for y in (1, 4, 7)]
-    t = policy.next_target(g, None, last)
-    assert t.ix in (2, 3)  # between the two materials, not inside the known region on the right
+    t = InfoGain(memory, objective="entropy").next_target(g, None, last)
+    assert t.ix in (2, 3)
     flat = InfoGain(memory, spread_stride=1, boundary_weight=0.0)
     assert flat.next_target(_grid((9, 9))) is not None
 
