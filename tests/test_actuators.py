@@ -180,6 +180,7 @@ def test_an_operator_run_reads_one_recording_per_press_and_maps_the_object(tmp_p
     assert post[0][0] > 0.99 and post[1][1] > 0.99
     assert obj["accuracy"]["explored_before_postprocessing"] == 1.0
     assert summary["memory"]["trained"] and summary["crossval"] is not None  # trained in simulation
+    assert summary["actuator"] == "operator"
     figs = sorted(p.name for p in (tmp_path / "out" / "figures" / "operator" / "slab").glob("*.png"))
     assert figs == ["operator_press_001.png", "operator_press_002.png"]
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["objects"][0]["presses"] == 2
@@ -299,6 +300,7 @@ def test_the_emulated_finger_explores_through_the_wire_and_closes_the_bus(repo_d
     threads = threading.active_count()
     summary = run_scenario(sc, tmp_path, record=tmp_path / "run.mcap")
     assert threading.active_count() == threads  # the emulator's thread stopped, the port closed
+    assert summary["actuator"] == "dynamixel"
     (obj,) = summary["objects"]
     rows = obj["per_press"]
     assert [r["cell"] for r in rows] == [[1, 1], [5, 1]]
