@@ -134,13 +134,19 @@ def _label_decided(post: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return label, (top - runner_up) > _UNDECIDED
 
 
-def _label_decided_t(num: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_label_decided` of unnormalised eq. 6.15 numerators laid out materials-first, (M, ny, nx)."""
-    label = np.argmax(num, axis=0)
-    top = np.take_along_axis(num, label[None], axis=0)[0]
-    runner_up = np.max(np.where(np.arange(num.shape[0])[:, None, None] == label, -np.inf, num), axis=0)
-    tot = num.sum(axis=0)
-    return label, (top - runner_up) > _UNDECIDED * tot
+def _decided_top(num: np.ndarray) -> np.ndarray:
+    """One-hot (float) of the most probable material of unnormalised eq. 6.15 numerators laid out
+    materials-first, (M, ny, nx); all zero where undecided (another material within the tie tolerance). Built
+    from plane-wise max/compare/sum: numpy's argmax and choose over a short first axis are several times slower."""
+    top = num.max(axis=0)
+    is_top = num >= (top - _UNDECIDED * num.sum(axis=0))
+    return is_top * (is_top.sum(axis=0) == 1)
+
+
+def _planes(a: np.ndarray) -> np.ndarray:
+    """(ny, nx, M) -> contiguous (M, ny, nx). Contiguous matters: a moveaxis view keeps M innermost in memory,
+    and every reduction over the first axis of it (and of arrays computed from it) is ~10x slower."""
+    return np.ascontiguousarray(np.moveaxis(a, -1, 0))
 
 
 def _gather(a: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -206,11 +212,15 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
     pp_label, pp_decided = _label_decided(pp)
     p_named = belief @ conf  # (ny, nx, M): chance the press names material o
     # The neighbour loop runs materials-first, (M, ny, nx): reductions over M become a few whole-plane ops.
-    log_b = np.moveaxis(logits + np.log(freq), -1, 0)
-    num_t = np.moveaxis(num_all, -1, 0)
-    c_old_t = np.moveaxis(c_old, -1, 0)
-    old_vote = np.where(explored, labels, -1)  # the material an explored candidate votes for now
+    log_b = _planes(logits + np.log(freq))
+    # A per-cell shift keeps exp() in range; a press changes a neighbour's logits by at most one vote.
+    log_b -= log_b.max(axis=0)
+    num_t = _planes(num_all)
+    c_old_t = _planes(c_old)
     mats = np.arange(m)[:, None, None]
+    old_vote = (mats == labels) & explored  # (M, ny, nx): what an explored candidate votes for now
+    pp_top = ((mats == pp_label) & pp_decided).astype(float)  # (M, ny, nx): each cell's decided label now
+    free_f = (~explored).astype(float)
     gain = np.zeros((ny, nx))
     for o in range(m):
         # The truth given that the press named o (Bayes with the memory's confusion).
@@ -224,25 +234,20 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
         # the pressed cell: right after minus right before, both under the truth given the outcome
         g = _gather(post_t, new_label) - _gather(post_t, pp_label) * pp_decided
         h_new = np.maximum(-(new * np.log(new)).sum(axis=-1) / lb, 0.0)
-        c_new_t = np.moveaxis(new / np.maximum(h_new, _H_MIN)[..., None], -1, 0)
+        c_new_t = _planes(new / np.maximum(h_new, _H_MIN)[..., None])
+        vote_change = (mats == new_label).astype(float) - old_vote  # (M, ny, nx): the candidate's vote, after - now
         for dy, dx in _offsets(1, ny, nx):
             (cy, cx), (ky, kx) = _slices(dy, dx, ny, nx)
-            free = ~explored[ky, kx]
+            free = free_f[ky, kx]
             if not free.any():
                 continue
             # the neighbour's eq. 6.15 after the press: the candidate's term swapped for its new one
             num = num_t[:, ky, kx] - c_old_t[:, cy, cx] + c_new_t[:, cy, cx]
             np.maximum(num, 0.0, out=num)
-            lab_n, dec_n = _label_decided_t(num)
             # the neighbour's belief with the candidate now voting for what it was read as
             w = _vote_weight(math.hypot(dy, dx), freq, correlation_cells, temperature)[:, None, None]
-            lg = log_b[:, ky, kx] + w * ((mats == new_label[cy, cx]).astype(float)
-                                         - (mats == old_vote[cy, cx]).astype(float))
-            lg -= lg.max(axis=0)
-            e = np.exp(lg)
-            z = e.sum(axis=0)
-            after = np.take_along_axis(e, lab_n[None], axis=0)[0] * dec_n
-            before = np.take_along_axis(e, pp_label[ky, kx][None], axis=0)[0] * pp_decided[ky, kx]
-            g[cy, cx] += np.where(free, (after - before) / z, 0.0)
+            e = np.exp(log_b[:, ky, kx] + w * vote_change[:, cy, cx])
+            right = ((_decided_top(num) - pp_top[:, ky, kx]) * e).sum(axis=0)  # after - before, unnormalised
+            g[cy, cx] += right * free / e.sum(axis=0)
         gain += p_named[..., o] * g
     return gain
