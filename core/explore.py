@@ -482,8 +482,8 @@ class InfoGain:
             the truth); "entropy" = the expected reduction of the post-processed map's entropy
             (:func:`expected_gain`) plus the boundary term. Voxel maps always use the entropy gain.
         boundary_weight: "entropy" objective: score added per unit of :func:`disagreement` (0 = pure entropy gain).
-        coverage_weight: 2-D maps: score added on :func:`uncovered` cells (0 = none; None = 0.6 with the
-            accuracy objective, 0.3 with the entropy one).
+        coverage_weight: 2-D maps: score added on :func:`uncovered` cells (0 = none; None = 1.0 with the
+            accuracy objective, i.e. checking a hole is worth about one cell, 0.3 with the entropy one).
         correlation_mm: "accuracy" objective: correlation length of the belief, mm (about the size of the
             features to find; rho(d) = exp(-d / L)).
         belief_reach: "accuracy" objective: explored cells within this many cells vote in the belief.
@@ -518,7 +518,8 @@ class InfoGain:
         if not (np.isfinite(self.correlation_mm) and self.correlation_mm > 0):
             raise ValidationError(f"correlation_mm must be a finite number > 0 mm, got {self.correlation_mm!r}")
         if self.coverage_weight is None:
-            self.coverage_weight = 0.6 if self.objective == "accuracy" else 0.3
+            # accuracy: a press that checks an unpressed hole is worth about one cell; entropy: tuned in hartleys
+            self.coverage_weight = 1.0 if self.objective == "accuracy" else 0.3
 
     def _accuracy_mode(self, grid) -> bool:
         return self.objective == "accuracy" and not _is_voxel(grid)
