@@ -1,0 +1,122 @@
+"""Exploration policies on many scenes in seconds: presses answered from the haptic memory, no physics.
+
+The same seeded scenes as benchmarks/exploration.py (its scene generator), the same trained memory and the same
+policies, map and post-processing; only the press is replaced: pressing a cell returns a posterior drawn from
+the memory's predicted outcomes for the cell's true material (palpate.core.explore.outcome_posteriors, the
+Gaussians of seed 000 eq. 6.13-6.14). That is what the physics benchmark's presses look like on these scenes
+(walls are kept away from cell centres there), and on seeds 0-23 this script reproduces its info_gain/raster
+median. Use it to compare policies or settings on enough scenes for the median to mean something, and on seeds
+the settings were not tuned on (--seed0 100).
+
+Run: .venv/bin/python benchmarks/exploration_offline.py [--scenes N] [--seed0 S] [--policies a,b]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from exploration import ACCURACY, ROWS, make_source_for, scene_dict  # noqa: E402
+
+from palpate.core.explore import make_policy, outcome_posteriors  # noqa: E402
+from palpate.core.progress import Progress  # noqa: E402
+from palpate.core.run import build_map, ground_truth_cells, map_geometry, train_memory  # noqa: E402
+from palpate.core.scenario import parse_scenario  # noqa: E402
+
+
+def truth_grid(scenario) -> tuple[np.ndarray, dict]:
+    """(ny, nx) true reference-material index of each cell of the scene's only object, and its map geometry:
+    the material half-way down the planned press, as palpate run scores 2-D maps."""
+    entry = scenario.objects[0]
+    geom = map_geometry(scenario)[entry.spec.name]
+    nx, ny = geom["shape"][:2]
+    (x0, y0), cell = geom["origin_m"], geom["cell_size_m"]
+    gx, gy = np.meshgrid(x0 + (np.arange(nx) + 0.5) * cell, y0 + (np.arange(ny) + 0.5) * cell)
+    z = np.full(nx * ny, entry.spec.height - scenario.exploration.depth / 2)
+    truth = ground_truth_cells(entry, scenario, np.column_stack([gx.ravel(), gy.ravel()]), z).reshape(ny, nx)
+    return truth, geom
+
+
+def accuracy(post, truth: np.ndarray) -> float:
+    """Share of cells whose most probable material is the true one; a tie counts as wrong (as palpate run)."""
+    p = np.asarray(post.probabilities)
+    top2 = np.sort(p, axis=-1)[..., -2:]
+    right = (np.argmax(p, axis=-1) == truth) & ((top2[..., 1] - top2[..., 0]) > 1e-9)
+    return float(np.mean(right[truth >= 0]))
+
+
+def presses_to_accuracy(policy, geom: dict, truth: np.ndarray, answers: np.ndarray, seed: int) -> int | None:
+    """Presses until the post-processed map reaches ACCURACY (None if the policy stops or the budget, one press
+    per cell, runs out first)."""
+    grid = build_map(geom)
+    rng = np.random.default_rng(seed)
+    last = None
+    for k in range(truth.size + 1):
+        post = grid.postprocessed()
+        if accuracy(post, truth) >= ACCURACY:
+            return k
+        if k == truth.size:
+            return None
+        t = policy.next_target(grid, post, last)
+        if t is None:
+            return None
+        grid.update_cell(t.ix, t.iy, answers[truth[t.iy, t.ix], rng.integers(answers.shape[1])])
+        last = (t.ix, t.iy)
+    return None
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", type=int, default=72, help="number of seeded scenes (default 72)")
+    parser.add_argument("--seed0", type=int, default=0, help="first scene seed (default 0)")
+    parser.add_argument("--policies", default="raster,max_entropy,info_gain_entropy,info_gain",
+                        help=f"comma-separated rows (known: {','.join(ROWS)}); raster is always run")
+    parser.add_argument("--samples", type=int, default=40, help="predicted outcomes per material to draw from")
+    args = parser.parse_args()
+    chosen = [p.strip() for p in args.policies.split(",") if p.strip()]
+    if set(chosen) - set(ROWS):
+        parser.error(f"unknown policies {sorted(set(chosen) - set(ROWS))}; known: {', '.join(ROWS)}")
+    rows = [p for p in ROWS if p in chosen or p == "raster"]
+
+    t0 = time.perf_counter()
+    base = parse_scenario(scene_dict(0, "analytic", "raster", 1), "bench")
+    memory, _, _ = train_memory(base, make_source_for(base), np.arange(3) + 1000, Progress(enabled=False))
+    answers = outcome_posteriors(memory, args.samples, seed=99)
+    needed: dict[str, list[int | None]] = {p: [] for p in rows}
+    cells: list[int] = []
+    seeds = range(args.seed0, args.seed0 + args.scenes)
+    for s in seeds:
+        cells.append(int(truth_grid(parse_scenario(scene_dict(s, "analytic", "raster", 1), "x"))[0].size))
+        for row in rows:
+            kind, objective = ROWS[row]
+            sc = parse_scenario(scene_dict(s, "analytic", kind, 1, 1, objective), f"scene{s}")
+            ex = sc.exploration
+            truth, geom = truth_grid(sc)
+            regions = [(c - 1, r - 1) for c, r in sc.objects[0].regions]
+            policy = make_policy(kind, cells=regions, seed=s, memory=memory, objective=ex.objective,
+                                 feature_size=ex.feature_size)
+            needed[row].append(presses_to_accuracy(policy, geom, truth, answers, s))
+    print(f"{args.scenes} scenes (seeds {seeds.start}-{seeds.stop - 1}), presses answered from the memory's predicted "
+          f"outcomes; presses to {ACCURACY:.0%} accuracy of the post-processed map")
+    print(f"{'policy':<18} {'median':>7} {'reached':>8} {'ratio to raster: median [q1, q3]':>34} {'mean':>6}")
+    raster = needed["raster"]
+    for row in rows:
+        got = needed[row]
+        reached = [v for v in got if v is not None]
+        # a scene never mapped counts as one press more than there are cells, so failures cannot flatter it
+        vals = [v if v is not None else c + 1 for v, c in zip(got, cells, strict=True)]
+        ratios = np.array([v / r for v, r in zip(vals, raster, strict=True) if r])
+        print(f"{row:<18} {np.median(vals):7.1f} {len(reached):>4}/{len(got):<3} "
+              f"{np.median(ratios):14.3f} [{np.percentile(ratios, 25):.2f}, {np.percentile(ratios, 75):.2f}]"
+              f"{np.mean(ratios):12.3f}")
+    print(f"total {time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
