@@ -418,3 +418,24 @@ def test_uncovered_marks_cells_with_no_pressed_cell_among_themselves_and_their_4
     assert u[1, 1] == 0 and u[0, 1] == 0 and u[1, 0] == 0 and u[2, 1] == 0 and u[1, 2] == 0
     assert u[0, 0] == 1 and u[2, 2] == 1 and u[3, 4] == 1
     assert u.sum() == 20 - 5
+
+
+def test_the_shipped_info_gain_scenario_maps_the_block_with_fewer_presses_than_cells(repo_dir, tmp_path):
+    """scenarios/explore_info_gain.toml end to end: lattice, then presses by expected accuracy, stopped by the
+    min-gain rule before the budget, the post-processed map mostly right (the lump is 2 x 2 cells and hides
+    between lattice points until a hole is checked)."""
+    from palpate.core.run import run_scenario
+    from palpate.core.scenario import load_scenario
+
+    sc = load_scenario(repo_dir / "scenarios" / "explore_info_gain.toml")
+    summary = run_scenario(sc, tmp_path)
+    (obj,) = summary["objects"]
+    ny, nx = obj["grid"]["shape"]  # the map's array shape: rows, columns
+    assert obj["stop_reason"] == "min_gain" and obj["presses"] < min(sc.exploration.budget, nx * ny // 2)
+    assert obj["accuracy"]["all_cells_after_postprocessing"] >= 0.9
+    # the lattice comes first: every third cell, centred (1-based cells in the summary)
+    lattice = {(x + 1, y + 1) for x in range((nx - 1) % 3 // 2, nx, 3) for y in range((ny - 1) % 3 // 2, ny, 3)}
+    assert {tuple(r["cell"]) for r in obj["per_press"][:len(lattice)]} == lattice
+    # a hard cell was found: the lump is not averaged away
+    named = {sc.references[int(np.argmax(r["posterior"]))] for r in obj["per_press"] if r["posterior"]}
+    assert "Material_3" in named
