@@ -37,7 +37,7 @@ def _offsets(reach: int, ny: int, nx: int):
     return [(dy, dx) for dy in range(-ry, ry + 1) for dx in range(-rx, rx + 1) if (dy, dx) != (0, 0)]
 
 
-def _slices(dy: int, dx: int, ny: int, nx: int):
+def shift_slices(dy: int, dx: int, ny: int, nx: int) -> tuple[tuple[slice, slice], tuple[slice, slice]]:
     """Slices of cells c and of c + (dy, dx), both inside the grid (empty when the offset exceeds the grid)."""
     cand = (slice(max(0, -dy), max(0, ny - max(0, dy))), slice(max(0, -dx), max(0, nx - max(0, dx))))
     nb = (slice(max(0, dy), max(0, ny - max(0, -dy))), slice(max(0, dx), max(0, nx - max(0, -dx))))
@@ -206,7 +206,7 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
     c_old = np.where(explored[..., None], p / np.maximum(h, _H_MIN)[..., None], 0.0)
     num_all = np.zeros_like(c_old)
     for dy, dx in _offsets(1, ny, nx):
-        (cy, cx), (ky, kx) = _slices(dy, dx, ny, nx)
+        (cy, cx), (ky, kx) = shift_slices(dy, dx, ny, nx)
         num_all[cy, cx] += c_old[ky, kx]
 
     pp_label, pp_decided = _label_decided(pp)
@@ -237,7 +237,7 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
         c_new_t = _planes(new / np.maximum(h_new, _H_MIN)[..., None])
         vote_change = (mats == new_label).astype(float) - old_vote  # (M, ny, nx): the candidate's vote, after - now
         for dy, dx in _offsets(1, ny, nx):
-            (cy, cx), (ky, kx) = _slices(dy, dx, ny, nx)
+            (cy, cx), (ky, kx) = shift_slices(dy, dx, ny, nx)
             free = free_f[ky, kx]
             if not free.any():
                 continue

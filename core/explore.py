@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.expected_accuracy import expected_accuracy_gain, shift_slices
 
 #: A cell counts as "certain" when its entropy is at most this fraction of the largest possible (log_b M).
 CERTAIN_FRACTION = 0.05
@@ -333,13 +334,6 @@ def _box3_last2(a: np.ndarray) -> np.ndarray:
 _OFFSETS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dy, dx) != (0, 0)]
 
 
-def _shift_slices(dy: int, dx: int, ny: int, nx: int) -> tuple[tuple[slice, slice], tuple[slice, slice]]:
-    """Slices of the candidates c and of their neighbours c + (dy, dx) that are both inside the grid."""
-    cand = (slice(max(0, -dy), ny - max(0, dy)), slice(max(0, -dx), nx - max(0, dx)))
-    nb = (slice(max(0, dy), ny - max(0, -dy)), slice(max(0, dx), nx - max(0, -dx)))
-    return cand, nb
-
-
 def _plane_gain(p_raw: np.ndarray, p_post: np.ndarray, explored: np.ndarray, outcomes: np.ndarray,
                 likelihood: np.ndarray, base: float, p_min: float, spread: bool) -> np.ndarray:
     """Expected entropy reduction of the post-processed plane from one press per cell, shape p_raw.shape[:2].
@@ -371,7 +365,7 @@ def _plane_gain(p_raw: np.ndarray, p_post: np.ndarray, explored: np.ndarray, out
     w_new = 1.0 / np.maximum(h_new, _H_MIN)
     c_new = w_new * new  # (M, U, ny, nx): the pressed cell's term after each outcome
     for dy, dx in _OFFSETS:
-        (cy, cx), (ky, kx) = _shift_slices(dy, dx, ny, nx)
+        (cy, cx), (ky, kx) = shift_slices(dy, dx, ny, nx)
         free = ~explored[ky, kx]
         if not free.any():
             continue
@@ -440,7 +434,7 @@ def disagreement(grid, reach: int = 2) -> np.ndarray:
         for dx in range(-reach, reach + 1):
             if dy == 0 and dx == 0:
                 continue
-            (cy, cx), (ky, kx) = _shift_slices(dy, dx, ny, nx)
+            (cy, cx), (ky, kx) = shift_slices(dy, dx, ny, nx)
             acc[cy, cx] += vote[ky, kx] / (dy * dy + dx * dx)
     total = acc.sum(axis=-1)
     share = np.divide(acc.max(axis=-1), total, out=np.ones_like(total), where=total > 0)
@@ -531,8 +525,6 @@ class InfoGain:
             self._table = outcome_table(outcome_posteriors(self.memory, self.samples_per_material, self.seed))
         post = _post(grid, self.passes) if post is None else post
         if self._accuracy_mode(grid):
-            from palpate.core.expected_accuracy import expected_accuracy_gain
-
             return expected_accuracy_gain(grid, post, self._table, reach=self.belief_reach,
                                           correlation_cells=self.correlation_mm * 1e-3 / grid.cell_size,
                                           temperature=self.belief_temperature)
