@@ -150,3 +150,36 @@ def test_bad_scenario_exits_2_naming_the_key(tmp_path, capsys):
     assert main(["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "bad.toml" in err and "scenario.fidelity" in err
+
+
+def test_replay_of_a_recording_without_annotations_finds_every_press_and_reads_it_the_same(small_run, tmp_path):
+    """The other replay path (a Tekscan import, a Liberty + finger session): no press annotations and no map
+    geometry, so the whole stream is segmented. The run's recording stripped of its annotations and metadata
+    must give back one press per recorded press, each where it was planned and read as the run read it."""
+    from palpate.core.memory import HapticMemory
+    from palpate.core.recording import RecordingWriter, read_recording
+    from palpate.core.replay import replay_recording
+
+    _, summary, out = small_run
+    rec = read_recording(out / "run.mcap")
+    plain = tmp_path / "plain.mcap"
+    with RecordingWriter(plain, {"source": "test: annotations removed"}) as w:
+        for f in rec.frames:
+            w.write_taxel(f)
+        for p in rec.poses:
+            w.write_pose(p)
+    assert read_recording(plain).annotations == []
+
+    windows = [a for a in rec.annotations if a.kind == "press"]
+    replayed = replay_recording(plain, HapticMemory.load(out / "memory.json"), tmp_path / "replay", figures=False)
+    (obj,) = replayed["objects"]
+    assert obj["name"] == "recording" and obj["presses"] == len(windows)
+    rows = obj["per_press"]
+    explore = [i for i, a in enumerate(windows) if a.data["phase"] == "exploration"]
+    ran = summary["objects"][0]["per_press"]
+    assert len(explore) == len(ran)
+    for i, row in zip(explore, ran, strict=True):
+        np.testing.assert_allclose(rows[i]["location_m"], row["target_m"], atol=2e-3)
+        assert int(np.argmax(rows[i]["posterior"])) == int(np.argmax(row["posterior"]))
+    grid = Grid2D.load(tmp_path / "replay" / "maps" / "recording.npz")
+    assert grid.explored.sum() >= 2 and np.all(np.isfinite(grid.probabilities))
