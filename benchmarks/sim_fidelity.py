@@ -1,5 +1,5 @@
 """Speed and accuracy of each simulation fidelity: wall time per press-and-release, real-time factor, and the
-force error against the analytic Hertz solution at small indentation.
+force error against the analytic Hertz solution at small (0.1-0.5 mm) and larger (1-1.9 mm) indentation.
 
 Run: .venv/bin/python benchmarks/sim_fidelity.py [--quick]
 One core (BLAS threads pinned to 1). Each row presses a 3 cm block of one material to 2 mm at 10 mm/s
@@ -33,13 +33,14 @@ VALIDITY = {
 }
 
 
-def _small_indentation_error(trace, young_eff: float, radius: float) -> float:
+def _force_error(trace, young_eff: float, radius: float, d_lo: float, d_hi: float) -> float:
+    """Largest |F / F_Hertz - 1| while loading with d_lo < indentation < d_hi (m); NaN if never in that range."""
     d, f = trace.indentation, trace.force
     loading = np.arange(len(d)) < int(np.argmax(d))
-    small = loading & (d > 1e-4) & (d < 5e-4)
-    if not small.any():
+    band = loading & (d > d_lo) & (d < d_hi)
+    if not band.any():
         return float("nan")
-    return float(np.max(np.abs(f[small] / hertz_force(young_eff, radius, d[small]) - 1.0)))
+    return float(np.max(np.abs(f[band] / hertz_force(young_eff, radius, d[band]) - 1.0)))
 
 
 def _physics_call(fid: str, scene: Scene, obj: ObjectSpec, target: PressTarget, prof):
@@ -69,7 +70,7 @@ def main() -> None:
     import mujoco  # noqa: F401  (imported once up front so no row pays for it)
 
     print(f"{'fidelity':9} {'E [kPa]':>8} {'press [s]':>9} {'physics [ms]':>12} {'RTF phys':>9} "
-          f"{'end-to-end [ms]':>15} {'RTF e2e':>8} {'|F err| d<0.5mm':>15}")
+          f"{'end-to-end [ms]':>15} {'RTF e2e':>8} {'|F err| 0.1-0.5mm':>17} {'|F err| 1-1.9mm':>15}")
     for young in materials:
         obj = ObjectSpec("block", "box", (0.1, 0.1, 0.03), (0.0, 0.0), Material("m", young))
         scene = Scene((obj,))
@@ -87,10 +88,14 @@ def main() -> None:
             except Exception as exc:  # report and go on: one broken fidelity must not hide the others
                 print(f"{fid:9} {young / 1e3:8.0f}  failed: {exc}")
                 continue
-            err = _small_indentation_error(trace, e_star, radius)
+            small = _force_error(trace, e_star, radius, 1e-4, 5e-4)
+            large = _force_error(trace, e_star, radius, 1e-3, 1.9e-3)
             print(f"{fid:9} {young / 1e3:8.0f} {prof.duration:9.3f} {t_phys * 1e3:12.2f} "
-                  f"{prof.duration / t_phys:9.0f} {t_e2e * 1e3:15.2f} {prof.duration / t_e2e:8.0f} {err:15.2%}")
+                  f"{prof.duration / t_phys:9.3g} {t_e2e * 1e3:15.2f} {prof.duration / t_e2e:8.3g} {small:17.2%} "
+                  f"{large:15.2%}")
     print()
+    print("Hertz holds for d << R (R = 8 mm), so the 0.1-0.5 mm column is the closed-form check; flex's surface mesh "
+          "(6.5 mm cells) cannot resolve a contact under ~2 mm across (d < ~0.5 mm), so read its 1-1.9 mm column.")
     for fid in fidelities:
         print(f"{fid}: valid for {VALIDITY[fid]}")
 
