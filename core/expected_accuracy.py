@@ -25,23 +25,11 @@ import math
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.neighbourhood import NEIGHBOURS_8, box3_sum, shift_slices
 
 #: Same floor on entropies as the maps' post-processing: certain neighbours dominate without a division by zero.
 _H_MIN = 1e-12
 _UNDECIDED = 1e-9
-
-
-def _offsets(reach: int, ny: int, nx: int):
-    """Offsets within Chebyshev distance ``reach`` that fit in an ny x nx grid."""
-    ry, rx = min(reach, ny - 1), min(reach, nx - 1)
-    return [(dy, dx) for dy in range(-ry, ry + 1) for dx in range(-rx, rx + 1) if (dy, dx) != (0, 0)]
-
-
-def shift_slices(dy: int, dx: int, ny: int, nx: int) -> tuple[tuple[slice, slice], tuple[slice, slice]]:
-    """Slices of cells c and of c + (dy, dx), both inside the grid (empty when the offset exceeds the grid)."""
-    cand = (slice(max(0, -dy), max(0, ny - max(0, dy))), slice(max(0, -dx), max(0, nx - max(0, dx))))
-    nb = (slice(max(0, dy), max(0, ny - max(0, -dy))), slice(max(0, dx), max(0, nx - max(0, -dx))))
-    return cand, nb
 
 
 def _check(reach: int, correlation_cells: float, temperature: float) -> None:
@@ -204,10 +192,6 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
     plogp = np.log(p, out=np.zeros_like(p), where=p > 0) * p
     h = np.maximum(-plogp.sum(axis=-1) / lb, 0.0)
     c_old = np.where(explored[..., None], p / np.maximum(h, _H_MIN)[..., None], 0.0)
-    num_all = np.zeros_like(c_old)
-    for dy, dx in _offsets(1, ny, nx):
-        (cy, cx), (ky, kx) = shift_slices(dy, dx, ny, nx)
-        num_all[cy, cx] += c_old[ky, kx]
 
     pp_label, pp_decided = _label_decided(pp)
     p_named = belief @ conf  # (ny, nx, M): chance the press names material o
@@ -215,8 +199,13 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
     log_b = _planes(logits + np.log(freq))
     # A per-cell shift keeps exp() in range; a press changes a neighbour's logits by at most one vote.
     log_b -= log_b.max(axis=0)
-    num_t = _planes(num_all)
     c_old_t = _planes(c_old)
+    # Each cell's eq. 6.15 numerator (its own term is 0 wherever it is unexplored, the only cells it is used for).
+    num_t = box3_sum(c_old_t)
+    # The vote an 8-neighbour adds, per offset (it depends on the distance only).
+    neighbours = [(shift_slices(dy, dx, ny, nx),
+                   _vote_weight(math.hypot(dy, dx), freq, correlation_cells, temperature)[:, None, None])
+                  for dy, dx in NEIGHBOURS_8]
     mats = np.arange(m)[:, None, None]
     old_vote = (mats == labels) & explored  # (M, ny, nx): what an explored candidate votes for now
     pp_top = ((mats == pp_label) & pp_decided).astype(float)  # (M, ny, nx): each cell's decided label now
@@ -236,8 +225,7 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
         h_new = np.maximum(-(new * np.log(new)).sum(axis=-1) / lb, 0.0)
         c_new_t = _planes(new / np.maximum(h_new, _H_MIN)[..., None])
         vote_change = (mats == new_label).astype(float) - old_vote  # (M, ny, nx): the candidate's vote, after - now
-        for dy, dx in _offsets(1, ny, nx):
-            (cy, cx), (ky, kx) = shift_slices(dy, dx, ny, nx)
+        for ((cy, cx), (ky, kx)), w in neighbours:
             free = free_f[ky, kx]
             if not free.any():
                 continue
@@ -245,7 +233,6 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
             num = num_t[:, ky, kx] - c_old_t[:, cy, cx] + c_new_t[:, cy, cx]
             np.maximum(num, 0.0, out=num)
             # the neighbour's belief with the candidate now voting for what it was read as
-            w = _vote_weight(math.hypot(dy, dx), freq, correlation_cells, temperature)[:, None, None]
             e = np.exp(log_b[:, ky, kx] + w * vote_change[:, cy, cx])
             right = ((_decided_top(num) - pp_top[:, ky, kx]) * e).sum(axis=0)  # after - before, unnormalised
             g[cy, cx] += right * free / e.sum(axis=0)

@@ -20,7 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.expected_accuracy import expected_accuracy_gain, shift_slices
+from palpate.core.expected_accuracy import expected_accuracy_gain
+from palpate.core.neighbourhood import NEIGHBOURS_8, box3_sum, shift_slices
 
 #: A cell counts as "certain" when its entropy is at most this fraction of the largest possible (log_b M).
 CERTAIN_FRACTION = 0.05
@@ -320,20 +321,6 @@ def _entropy0(p: np.ndarray, log_base: float) -> np.ndarray:
     return np.maximum(h, 0.0, out=h)
 
 
-def _box3_last2(a: np.ndarray) -> np.ndarray:
-    """Sum over each cell's in-grid 3x3 neighbourhood on the last two axes (the maps' eq. 6.15 kernel)."""
-    rows = a.copy()
-    rows[..., 1:] += a[..., :-1]
-    rows[..., :-1] += a[..., 1:]
-    out = rows.copy()
-    out[..., 1:, :] += rows[..., :-1, :]
-    out[..., :-1, :] += rows[..., 1:, :]
-    return out
-
-
-_OFFSETS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dy, dx) != (0, 0)]
-
-
 def _plane_gain(p_raw: np.ndarray, p_post: np.ndarray, explored: np.ndarray, outcomes: np.ndarray,
                 likelihood: np.ndarray, base: float, p_min: float, spread: bool) -> np.ndarray:
     """Expected entropy reduction of the post-processed plane from one press per cell, shape p_raw.shape[:2].
@@ -361,10 +348,10 @@ def _plane_gain(p_raw: np.ndarray, p_post: np.ndarray, explored: np.ndarray, out
     ny, nx = h_post.shape
     w_raw = np.where(explored, 1.0 / np.maximum(_entropy0(pr, lb), _H_MIN), 0.0)
     c_old = w_raw * pr  # each explored cell's term of eq. 6.15 (zero if unexplored)
-    num_all = _box3_last2(c_old)
+    num_all = box3_sum(c_old)
     w_new = 1.0 / np.maximum(h_new, _H_MIN)
     c_new = w_new * new  # (M, U, ny, nx): the pressed cell's term after each outcome
-    for dy, dx in _OFFSETS:
+    for dy, dx in NEIGHBOURS_8:
         (cy, cx), (ky, kx) = shift_slices(dy, dx, ny, nx)
         free = ~explored[ky, kx]
         if not free.any():
