@@ -26,29 +26,8 @@ from exploration import ACCURACY, ROWS, make_source_for, scene_dict  # noqa: E40
 
 from palpate.core.explore import make_policy, outcome_posteriors  # noqa: E402
 from palpate.core.progress import Progress  # noqa: E402
-from palpate.core.run import build_map, ground_truth_cells, map_geometry, train_memory  # noqa: E402
+from palpate.core.run import build_map, ground_truth_map, map_accuracy, map_geometry, train_memory  # noqa: E402
 from palpate.core.scenario import parse_scenario  # noqa: E402
-
-
-def truth_grid(scenario) -> tuple[np.ndarray, dict]:
-    """(ny, nx) true reference-material index of each cell of the scene's only object, and its map geometry:
-    the material half-way down the planned press, as palpate run scores 2-D maps."""
-    entry = scenario.objects[0]
-    geom = map_geometry(scenario)[entry.spec.name]
-    nx, ny = geom["shape"][:2]
-    (x0, y0), cell = geom["origin_m"], geom["cell_size_m"]
-    gx, gy = np.meshgrid(x0 + (np.arange(nx) + 0.5) * cell, y0 + (np.arange(ny) + 0.5) * cell)
-    z = np.full(nx * ny, entry.spec.height - scenario.exploration.depth / 2)
-    truth = ground_truth_cells(entry, scenario, np.column_stack([gx.ravel(), gy.ravel()]), z).reshape(ny, nx)
-    return truth, geom
-
-
-def accuracy(post, truth: np.ndarray) -> float:
-    """Share of cells whose most probable material is the true one; a tie counts as wrong (as palpate run)."""
-    p = np.asarray(post.probabilities)
-    top2 = np.sort(p, axis=-1)[..., -2:]
-    right = (np.argmax(p, axis=-1) == truth) & ((top2[..., 1] - top2[..., 0]) > 1e-9)
-    return float(np.mean(right[truth >= 0]))
 
 
 def presses_to_accuracy(policy, geom: dict, truth: np.ndarray, answers: np.ndarray, seed: int) -> int | None:
@@ -59,7 +38,7 @@ def presses_to_accuracy(policy, geom: dict, truth: np.ndarray, answers: np.ndarr
     last = None
     for k in range(truth.size + 1):
         post = grid.postprocessed()
-        if accuracy(post, truth) >= ACCURACY:
+        if map_accuracy(post, truth, explored_only=False) >= ACCURACY:
             return k
         if k == truth.size:
             return None
@@ -92,16 +71,17 @@ def main() -> None:
     cells: list[int] = []
     seeds = range(args.seed0, args.seed0 + args.scenes)
     for s in seeds:
-        cells.append(int(truth_grid(parse_scenario(scene_dict(s, "analytic", "raster", 1), "x"))[0].size))
         for row in rows:
             kind, objective = ROWS[row]
             sc = parse_scenario(scene_dict(s, "analytic", kind, 1, 1, objective), f"scene{s}")
             ex = sc.exploration
-            truth, geom = truth_grid(sc)
+            geom = map_geometry(sc)[sc.objects[0].spec.name]
+            truth = ground_truth_map(sc.objects[0], sc, geom)
             regions = [(c - 1, r - 1) for c, r in sc.objects[0].regions]
             policy = make_policy(kind, cells=regions, seed=s, memory=memory, objective=ex.objective,
                                  feature_size=ex.feature_size)
             needed[row].append(presses_to_accuracy(policy, geom, truth, answers, s))
+        cells.append(int(truth.size))
     print(f"{args.scenes} scenes (seeds {seeds.start}-{seeds.stop - 1}), presses answered from the memory's predicted "
           f"outcomes; presses to {ACCURACY:.0%} accuracy of the post-processed map")
     print(f"{'policy':<18} {'median':>7} {'reached':>8} {'ratio to raster: median [q1, q3]':>34} {'mean':>6}")

@@ -265,6 +265,24 @@ def ground_truth_cells(entry: ObjectEntry, scenario: Scenario, centres_xy: np.nd
     return lut[idx]
 
 
+def ground_truth_map(entry: ObjectEntry, scenario: Scenario, geom: dict) -> np.ndarray:
+    """Reference-material index (or -1) of every cell of an object's map (``geom`` from :func:`map_geometry`):
+    (ny, nx) for a 2-D map, the material half-way down the planned press (what a press there mostly feels);
+    (nx, ny, nz) like the voxel grid, at each voxel's centre."""
+    origin, cell = tuple(geom["origin_m"]), geom["cell_size_m"]
+    nx, ny = geom["shape"][:2]
+    top = entry.spec.height
+    flat = _cell_centres(origin, cell, nx, ny).reshape(-1, 2)
+    if geom["map"] != "voxel":
+        return ground_truth_cells(entry, scenario, flat,
+                                  np.full(nx * ny, top - scenario.exploration.depth / 2)).reshape(ny, nx)
+    nz = geom["shape"][2]
+    zc = top - (np.arange(nz) + 0.5) * cell
+    pts = np.concatenate([np.column_stack([flat, np.full(nx * ny, z)]) for z in zc])
+    truth = ground_truth_cells(entry, scenario, pts[:, :2], pts[:, 2]).reshape(nz, ny, nx)
+    return np.transpose(truth, (2, 1, 0))
+
+
 def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, seed: int, progress: Progress,
                    log: PressLog | None = None):
     """Explore one object with the scenario's policy; returns (object summary dict, map snapshots, results).
@@ -282,20 +300,9 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
     grid = build_map(geom)
     origin, cell = tuple(geom["origin_m"]), geom["cell_size_m"]
     nx, ny = geom["shape"][:2]
-    top = entry.spec.height
     voxel = ex.map == "voxel"
-    nz = geom["shape"][2] if voxel else 1
     cells_xy = _cell_centres(origin, cell, nx, ny)  # (ny, nx, 2)
-    if voxel:
-        zc = top - (np.arange(nz) + 0.5) * cell
-        flat = cells_xy.reshape(-1, 2)
-        pts = np.concatenate([np.column_stack([flat, np.full(nx * ny, z)]) for z in zc])
-        truth = ground_truth_cells(entry, scenario, pts[:, :2], pts[:, 2]).reshape(nz, ny, nx)
-        truth = np.transpose(truth, (2, 1, 0))  # (nx, ny, nz) like the voxel grid
-    else:
-        # A 2-D cell's truth is the material half-way down the planned press: what a press there mostly feels.
-        truth = ground_truth_cells(entry, scenario, cells_xy.reshape(-1, 2),
-                                   np.full(nx * ny, top - ex.depth / 2)).reshape(ny, nx)
+    truth = ground_truth_map(entry, scenario, geom)
 
     regions0 = [(c - 1, r - 1) for c, r in entry.regions]
     if ex.policy == "predefined":
@@ -353,8 +360,8 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
         row["posterior"] = None if res.posterior is None else [float(v) for v in res.posterior]
         row["mean_entropy"] = float(grid.mean_entropy())
         row["mean_entropy_postprocessed"] = float(post.mean_entropy())
-        row["accuracy_explored"] = _accuracy(grid, truth, explored_only=True)
-        row["accuracy_all_cells_postprocessed"] = _accuracy(post, truth, explored_only=False)
+        row["accuracy_explored"] = map_accuracy(grid, truth, explored_only=True)
+        row["accuracy_all_cells_postprocessed"] = map_accuracy(post, truth, explored_only=False)
         per_press.append(row)
         results.append(res)
         if ex.policy == "predefined" and (k + 1) % len(regions0) == 0:
@@ -367,8 +374,8 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
             stop = reason
             break
     snapshots.append(snapshot(f"k = {len(per_press)}"))
-    acc_before = _accuracy(grid, truth, explored_only=False)
-    acc_after = _accuracy(post, truth, explored_only=False)
+    acc_before = map_accuracy(grid, truth, explored_only=False)
+    acc_after = map_accuracy(post, truth, explored_only=False)
     snapshots.append({"label": "post-processed", "probabilities": np.array(post.probabilities),
                       "explored": np.array(post.explored)})
     summary = {
@@ -381,7 +388,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
         "per_press": per_press,
         "regions": [[c + 1, r + 1] for c, r in regions0],
         "posterior_per_cycle": cycle_posteriors,
-        "accuracy": {"explored_before_postprocessing": _accuracy(grid, truth, explored_only=True),
+        "accuracy": {"explored_before_postprocessing": map_accuracy(grid, truth, explored_only=True),
                      "all_cells_before_postprocessing": acc_before,
                      "all_cells_after_postprocessing": acc_after},
         "mean_entropy_after_each_press": [r["mean_entropy"] for r in per_press],
@@ -425,7 +432,7 @@ def _cell_centres(origin, cell, nx, ny) -> np.ndarray:
     return np.stack([gx, gy], axis=-1)
 
 
-def _accuracy(grid, truth: np.ndarray, explored_only: bool) -> float | None:
+def map_accuracy(grid, truth: np.ndarray, explored_only: bool) -> float | None:
     """Fraction of cells (with a true material) whose MAP is the truth; an undecided cell (a tie, e.g. the
     uniform prior of an unexplored cell) counts as wrong rather than as whichever material comes first."""
     p = np.asarray(grid.probabilities)
@@ -497,11 +504,12 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
     seeds = np.random.SeedSequence(scenario.seed).generate_state(4 + len(scenario.references) + len(scenario.objects))
     source = source or scenario.training.source
     kind = scenario.actuator.kind
-    with open_actuators(scenario, out, map_geometry(scenario), lambda: _source_factory(scenario, source)) as makers:
+    geometry = map_geometry(scenario)
+    with open_actuators(scenario, out, geometry, lambda: _source_factory(scenario, source)) as makers:
         log = PressLog(Path(record) if record else None,
                        {"scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
                                      "seed": scenario.seed, "fidelity": scenario.fidelity},
-                        "sources": [source] if kind == "sim" else [source, kind], "maps": map_geometry(scenario)})
+                        "sources": [source] if kind == "sim" else [source, kind], "maps": geometry})
         try:
             return _run(scenario, out, progress, *makers, seeds, timing, log)
         finally:
