@@ -40,7 +40,6 @@ from palpate.core.sources import PressTarget
 from palpate.core.streams import PressRecording
 
 ACTUATOR_GROUP = "palpate.actuators"
-MAX_PROMPTS = 5
 
 
 @dataclass(frozen=True)
@@ -215,7 +214,7 @@ def folder_streams(folder: Path, input: TextIO, output: TextIO) -> Callable[[Pre
     presses, the Tekscan/Liberty recording is imported); if press k's file is not there yet the person is asked
     to add it and confirm again. RecordingError if it never comes.
     """
-    from palpate.core.operator import ABORT, recordings_from_files
+    from palpate.core.operator import ABORT, MAX_PROMPTS, recordings_from_files
 
     def take(target: PressTarget, k: int) -> PressRecording:
         for _ in range(MAX_PROMPTS):
