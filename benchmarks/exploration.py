@@ -147,6 +147,16 @@ def scene_dict(seed: int, fidelity: str, policy: str, budget: int, passes: int |
             "exploration": ex, "objects": [obj], "outputs": {"figures": False, "haptic_material": False}}
 
 
+def chosen_rows(text: str, parser: argparse.ArgumentParser) -> list[str]:
+    """The benchmark rows named in a comma-separated ``--policies`` value, in table order, raster always
+    included (the ratios are to it); an unknown name is a usage error naming the known ones."""
+    chosen = [p.strip() for p in text.split(",") if p.strip()]
+    unknown = sorted(set(chosen) - set(ROWS))
+    if unknown:
+        parser.error(f"unknown policies {unknown}; known: {', '.join(ROWS)}")
+    return [p for p in ROWS if p in chosen or p == "raster"]
+
+
 def make_source_for(scenario):
     factory = load_source("sim")
 
@@ -215,11 +225,7 @@ def main() -> None:
                         help=f"comma-separated rows to run (default all: {','.join(POLICIES)}); raster is always run")
     args = parser.parse_args()
     n_scenes = args.scenes or (6 if args.quick else 24)
-    chosen = [p.strip() for p in args.policies.split(",") if p.strip()]
-    unknown = sorted(set(chosen) - set(POLICIES))
-    if unknown:
-        parser.error(f"unknown policies {unknown}; known: {', '.join(POLICIES)}")
-    policies = [p for p in POLICIES if p in chosen or p == "raster"]
+    policies = chosen_rows(args.policies, parser)
     passes = None if args.passes == "all" else int(args.passes)
 
     t0 = time.perf_counter()

@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from exploration import ACCURACY, ROWS, make_source_for, scene_dict  # noqa: E402
+from exploration import ACCURACY, ROWS, chosen_rows, make_source_for, scene_dict  # noqa: E402
 
 from palpate.core.explore import make_policy, outcome_posteriors  # noqa: E402
 from palpate.core.progress import Progress  # noqa: E402
@@ -58,10 +58,7 @@ def main() -> None:
                         help=f"comma-separated rows (known: {','.join(ROWS)}); raster is always run")
     parser.add_argument("--samples", type=int, default=40, help="predicted outcomes per material to draw from")
     args = parser.parse_args()
-    chosen = [p.strip() for p in args.policies.split(",") if p.strip()]
-    if set(chosen) - set(ROWS):
-        parser.error(f"unknown policies {sorted(set(chosen) - set(ROWS))}; known: {', '.join(ROWS)}")
-    rows = [p for p in ROWS if p in chosen or p == "raster"]
+    rows = chosen_rows(args.policies, parser)
 
     t0 = time.perf_counter()
     base = parse_scenario(scene_dict(0, "analytic", "raster", 1), "bench")
