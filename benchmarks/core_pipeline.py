@@ -16,13 +16,13 @@ import time
 import numpy as np
 from bench_timing import median_of
 
-from palpate.core.fit import fit_press
-from palpate.core.maps import Grid2D, VoxelGrid, extrapolate_unexplored
-from palpate.core.memory import HapticMemory
-from palpate.core.pipeline import presses_from_recording
-from palpate.core.scene import Material, ObjectSpec, Scene
-from palpate.core.sources import PressTarget
-from palpate.core.voxel_evidence import layer_fits
+from palpate.core.mapping.grids import Grid2D, VoxelGrid, extrapolate_unexplored
+from palpate.core.perception.fit import fit_press
+from palpate.core.perception.layered_memory import layer_fits
+from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.pipeline import presses_from_recording
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import Material, ObjectSpec, Scene
 from palpate.sim.source import SimSource
 
 MATERIALS = {"soft": 20e3, "medium": 115e3, "hard": 450e3}

@@ -101,8 +101,8 @@ def physics_presses(n_presses: int) -> list[tuple]:
     import dataclasses
     from pathlib import Path
 
-    from palpate.core.scene import Material, ObjectSpec, Scene
-    from palpate.core.sources import PressTarget
+    from palpate.core.session.sources import PressTarget
+    from palpate.core.world.scene import Material, ObjectSpec, Scene
     from palpate.hardware.dynamixel.driver import DynamixelFinger
     from palpate.hardware.dynamixel.finger import inverse_kinematics, load_finger
     from palpate.hardware.dynamixel.press import FingerActuator
@@ -142,7 +142,7 @@ def load_eval_time(n: int = 2000) -> float:
     """Mean time of one FingerPhysics.load (force + Jacobian, MuJoCo kinematics) in contact, s."""
     from pathlib import Path
 
-    from palpate.core.scene import Material, ObjectSpec, Scene
+    from palpate.core.world.scene import Material, ObjectSpec, Scene
     from palpate.hardware.dynamixel.finger import inverse_kinematics, load_finger
     from palpate.sim.finger_physics import FingerPhysics
 

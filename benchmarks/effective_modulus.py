@@ -21,8 +21,8 @@ import argparse  # noqa: E402
 import numpy as np  # noqa: E402
 from bench_timing import median_of  # noqa: E402
 
-from palpate.core.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, Scene  # noqa: E402
-from palpate.core.sources import PressTarget  # noqa: E402
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, Scene
 from palpate.sim.analytic import run_analytic_press  # noqa: E402
 from palpate.sim.controller import press_profile  # noqa: E402
 from palpate.sim.effective_modulus import effective_modulus_table  # noqa: E402
@@ -36,7 +36,7 @@ HARD = Material("hard", 2e5)
 def _objects() -> dict[str, tuple[ObjectSpec, float, float]]:
     from pathlib import Path
 
-    from palpate.core.scenario import load_scenario
+    from palpate.core.world.scenario import load_scenario
 
     size = (0.1, 0.1, H)
     het = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "heterogeneous.toml").objects[0].spec

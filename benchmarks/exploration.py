@@ -30,13 +30,13 @@ import time
 
 import numpy as np
 
-from palpate.core.explore import InfoGain, outcome_posteriors, outcome_table
-from palpate.core.maps import Grid2D
-from palpate.core.progress import Progress
-from palpate.core.run import explore_object, train_memory
-from palpate.core.scenario import parse_scenario
-from palpate.core.scene import Scene
-from palpate.core.sources import load_source
+from palpate.core.mapping.grids import Grid2D
+from palpate.core.planning.policies import InfoGain, outcome_posteriors, outcome_table
+from palpate.core.session.progress import Progress
+from palpate.core.session.run import explore_object, train_memory
+from palpate.core.session.sources import load_source
+from palpate.core.world.scenario import parse_scenario
+from palpate.core.world.scene import Scene
 
 #: Benchmark rows: name -> (scenario policy, info_gain objective). "info_gain" is the default (accuracy) objective.
 ROWS = {"raster": ("raster", None), "random": ("random", None), "predefined": ("predefined", None),

@@ -2,7 +2,7 @@
 
 The same seeded scenes as benchmarks/exploration.py (its scene generator), the same trained memory and the same
 policies, map and post-processing; only the press is replaced: pressing a cell returns a posterior drawn from
-the memory's predicted outcomes for the cell's true material (palpate.core.explore.outcome_posteriors, the
+the memory's predicted outcomes for the cell's true material (palpate.core.planning.policies.outcome_posteriors, the
 Gaussians of seed 000 eq. 6.13-6.14). That is what the physics benchmark's presses look like on these scenes
 (walls are kept away from cell centres there), and on seeds 0-23 this script reproduces its info_gain/raster
 median. Use it to compare policies or settings on enough scenes for the median to mean something, and on seeds
@@ -24,10 +24,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from exploration import ACCURACY, ROWS, chosen_rows, make_source_for, scene_dict  # noqa: E402
 
-from palpate.core.explore import make_policy, outcome_posteriors  # noqa: E402
-from palpate.core.progress import Progress  # noqa: E402
-from palpate.core.run import build_map, ground_truth_map, map_accuracy, map_geometry, train_memory  # noqa: E402
-from palpate.core.scenario import parse_scenario  # noqa: E402
+from palpate.core.planning.policies import make_policy, outcome_posteriors
+from palpate.core.session.progress import Progress
+from palpate.core.session.run import build_map, ground_truth_map, map_accuracy, map_geometry, train_memory
+from palpate.core.world.scenario import parse_scenario
 
 
 def presses_to_accuracy(policy, geom: dict, truth: np.ndarray, answers: np.ndarray, seed: int) -> int | None:

@@ -1,4 +1,4 @@
-"""Speed and memory of palpate.core.maps: post-processing large maps and single-cell updates.
+"""Speed and memory of palpate.core.mapping.grids: post-processing large maps and single-cell updates.
 
 Prints a table. Run: .venv/bin/python benchmarks/maps_postprocess.py [--quick] [--repeats N]
 """
@@ -11,7 +11,7 @@ import tracemalloc
 import numpy as np
 from bench_timing import median_of
 
-from palpate.core import maps
+from palpate.core.mapping import grids as maps
 
 
 def _median_time(fn, repeats: int) -> float:

@@ -20,10 +20,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 from bench_timing import best_of  # noqa: E402
 from synthetic_streams import PressSpec, make_recording  # noqa: E402
 
-from palpate.core.features import contact_features  # noqa: E402
-from palpate.core.pipeline import PipelineConfig, fit_presses, presses_from_recording  # noqa: E402
-from palpate.core.segment import segment_presses  # noqa: E402
-from palpate.core.sync import synchronise  # noqa: E402
+from palpate.core.perception.features import contact_features
+from palpate.core.perception.pipeline import PipelineConfig, fit_presses, presses_from_recording
+from palpate.core.perception.segment import segment_presses
+from palpate.core.perception.sync import synchronise
 
 N1 = 60.0
 

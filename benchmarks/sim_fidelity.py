@@ -19,8 +19,8 @@ import argparse  # noqa: E402
 import numpy as np  # noqa: E402
 from bench_timing import median_of  # noqa: E402
 
-from palpate.core.scene import Material, ObjectSpec, Scene  # noqa: E402
-from palpate.core.sources import PressTarget  # noqa: E402
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import Material, ObjectSpec, Scene
 from palpate.sim.analytic import hertz_force, run_analytic_press  # noqa: E402
 from palpate.sim.controller import press_profile  # noqa: E402
 from palpate.sim.rigid import run_rigid_press  # noqa: E402

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import Material, ObjectSpec, Scene, material_at
+from palpate.core.world.scene import Material, ObjectSpec, Scene, material_at
 from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import gauss_points, sensel_bounds
 from palpate.sim.trace import PhysicsTrace

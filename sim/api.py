@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import FingertipSpec, Material, ObjectSpec, PoseSensorSpec, Scene, TaxelSensorSpec
-from palpate.core.sources import PressTarget
-from palpate.core.streams import PressRecording
+from palpate.core.perception.streams import PressRecording
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, PoseSensorSpec, Scene, TaxelSensorSpec
 
 _OPTIONS = ("size", "thickness", "damping", "hold", "force", "variability", "timestep", "fingertip", "taxels",
             "pose", "material_name")

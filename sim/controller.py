@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.sources import PressTarget
+from palpate.core.session.sources import PressTarget
 
 
 @dataclass

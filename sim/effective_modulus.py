@@ -43,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import ObjectSpec, material_index_at
+from palpate.core.world.scene import ObjectSpec, material_index_at
 
 #: Lateral spread of a column with depth: its radius is sqrt(a^2 + (SPREAD z)^2) (see the module docstring).
 SPREAD = 0.5

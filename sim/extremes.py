@@ -18,8 +18,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from palpate.core.errors import SimulationDiverged, ValidationError
-from palpate.core.scene import Material, ObjectSpec, Scene
-from palpate.core.sources import PressTarget
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import Material, ObjectSpec, Scene
 
 #: Block of the matrix: 40 x 40 mm, 10 mm thick, so 80% of its thickness is an 8 mm press.
 BLOCK = (0.04, 0.04, 0.01)

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import ObjectSpec, Scene
-from palpate.core.streams import GroundTruth, TaxelFrame
+from palpate.core.perception.streams import GroundTruth, TaxelFrame
+from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.hardware.dynamixel.finger import FingerDescription, joints_to_ticks
 from palpate.sim.analytic import local_material
 from palpate.sim.fingertip import cap_height, sensel_quadrature, sensel_sites

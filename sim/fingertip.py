@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import FingertipSpec
+from palpate.core.world.scene import FingertipSpec
 
 
 def sensel_bounds(tip: FingertipSpec) -> np.ndarray:

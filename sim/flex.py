@@ -31,7 +31,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from palpate.core.errors import SimulationDiverged, ValidationError
-from palpate.core.scene import FingertipSpec, Material, ObjectSpec, Scene, material_index_at
+from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, Scene, material_index_at
 from palpate.sim.flex_calibration import modulus_factor
 from palpate.sim.trace import PhysicsTrace
 
@@ -466,7 +466,7 @@ def reference_press(*, young: float, poisson: float = 0.3, height: float = 0.02,
 
     Args: moduli Pa, lengths m, speed m/s, timestep s; layers/inclusions as in :class:`ObjectSpec`.
     """
-    from palpate.core.sources import PressTarget
+    from palpate.core.session.sources import PressTarget
     from palpate.sim.controller import press_profile
 
     mat = Material("bulk", young=young, poisson=poisson, damping=damping)

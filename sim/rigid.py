@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import ObjectSpec, Scene
+from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import effective_modulus_along, local_material
 from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import cap_height, sensel_quadrature

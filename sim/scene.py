@@ -1,4 +1,4 @@
-"""MuJoCo scenes built with ``mujoco.MjSpec`` from the plain description in :mod:`palpate.core.scene`.
+"""MuJoCo scenes built with ``mujoco.MjSpec`` from the plain description in :mod:`palpate.core.world.scene`.
 
 A scene is a table (plane at z = 0), the objects (box, cylinder, or a trimesh-loaded mesh resting on the table)
 and a fingertip: a sphere on a slide joint along the press axis, driven by a position actuator with joint
@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import ObjectSpec, Scene
+from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.fingertip import sensel_sites
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"

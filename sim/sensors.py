@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from palpate.core.errors import SimulationDiverged
-from palpate.core.scene import FingertipSpec, PoseSensorSpec, TaxelSensorSpec
-from palpate.core.streams import GroundTruth, PoseSample, TaxelFrame
+from palpate.core.perception.streams import GroundTruth, PoseSample, TaxelFrame
+from palpate.core.world.scene import FingertipSpec, PoseSensorSpec, TaxelSensorSpec
 from palpate.sim.trace import PhysicsTrace
 
 #: Orientation noise of the pose model, rad (Polhemus Liberty: ~0.0012 deg static accuracy; 0.15 deg is generous).

@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import ObjectSpec, Scene
-from palpate.core.sources import PressTarget
-from palpate.core.streams import PressRecording
+from palpate.core.perception.streams import PressRecording
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import run_analytic_press
 from palpate.sim.controller import HUMAN, ROBOT, Variability, press_profile
 from palpate.sim.effective_modulus import depth_for_force

@@ -26,9 +26,9 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from palpate.core.errors import FitError, PalpateError, ValidationError
-from palpate.core.scene import Material, ObjectSpec, Scene, TaxelSensorSpec
-from palpate.core.sources import PressTarget
-from palpate.core.streams import PressRecording
+from palpate.core.perception.streams import PressRecording
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import Material, ObjectSpec, Scene, TaxelSensorSpec
 
 FIDELITY_ORDER = ("analytic", "rigid", "flex")
 #: Bench materials (name, Young's modulus Pa): soft, medium, hard, a decade apart as the thesis' references.
@@ -186,7 +186,7 @@ def hertz_force_error(rec: PressRecording, young_eff: float, radius: float, min_
 
 def measure_press(setting: Setting, young: float, name: str, seed: int, depth: float = 0.003) -> PressMeasure:
     """Simulate and perceive one press; peaks are NaN where the pipeline found no press or the fit failed."""
-    from palpate.core.run import perceive_press
+    from palpate.core.session.run import perceive_press
 
     t0 = time.perf_counter()
     rec = simulate(setting, young, name, seed, depth=depth)
@@ -252,7 +252,7 @@ def measure_setting(setting: Setting, *, seeds: tuple[int, ...] = (0, 1, 2, 3),
     The error against a reference is filled in later by :func:`compare_to_reference`. A setting whose physics
     diverges or is invalid is returned with ``failed`` set (the sweep goes on).
     """
-    from palpate.core.memory import leave_one_out
+    from palpate.core.perception.memory import leave_one_out
 
     out = SettingResult(setting)
     try:

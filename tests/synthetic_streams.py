@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from palpate.core.features import ContactSeries
-from palpate.core.streams import PoseSample, PressRecording, TaxelFrame
+from palpate.core.perception.features import ContactSeries
+from palpate.core.perception.streams import PoseSample, PressRecording, TaxelFrame
 
 SENSEL_PITCH = 2.5e-3  # m
 SENSEL_AREA = SENSEL_PITCH**2  # m^2

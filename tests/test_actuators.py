@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from palpate.core.actuators import folder_streams, open_actuators, recordings_folder
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
-from palpate.core.recording import RecordingWriter
-from palpate.core.run import map_geometry, run_scenario
-from palpate.core.scenario import ActuatorSpec, parse_actuator, parse_scenario
-from palpate.core.scene import Scene
-from palpate.core.sources import PressTarget
+from palpate.core.io.recording import RecordingWriter
+from palpate.core.session.actuators import folder_streams, open_actuators, recordings_folder
+from palpate.core.session.run import map_geometry, run_scenario
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scenario import ActuatorSpec, parse_actuator, parse_scenario
+from palpate.core.world.scene import Scene
 
 # Two reference materials; a 30 x 10 mm foam slab whose last 10 mm (cell 3) is a hard column.
 OPERATOR = """
@@ -315,7 +315,7 @@ def test_the_emulated_finger_explores_through_the_wire_and_closes_the_bus(repo_d
     assert obj["accuracy"]["explored_before_postprocessing"] == 1.0
     # the recorded run (simulated training, finger exploration: one pose stream) replays to the same map
     from palpate.core.cli import main
-    from palpate.core.maps import Grid2D
+    from palpate.core.mapping.grids import Grid2D
 
     assert main(["replay", str(tmp_path / "run.mcap"), "--memory", str(tmp_path / "memory.json"), "--out",
                  str(tmp_path / "replay"), "--quiet"]) == 0
@@ -337,7 +337,7 @@ def test_the_command_line_switches_the_finger_to_a_real_port_and_is_refused(repo
 
 
 def test_travel_between_cells_stays_above_the_object(repo_dir):
-    from palpate.core.actuators import actuator_requests
+    from palpate.core.session.actuators import actuator_requests
     from palpate.hardware.dynamixel.actuator_source import dynamixel_actuator
     from palpate.hardware.dynamixel.finger import forward_kinematics, inverse_kinematics
 
@@ -388,7 +388,7 @@ def test_open_actuators_closes_each_objects_actuator_when_the_next_is_made(tmp_p
         (tmp_path / name).mkdir()
     raw["actuator"] = {"kind": "operator", "recordings_dir": str(tmp_path)}
     sc = parse_scenario(raw, "x.toml")
-    monkeypatch.setattr("palpate.core.actuators.load_actuator", lambda kind: factory)
+    monkeypatch.setattr("palpate.core.session.actuators.load_actuator", lambda kind: factory)
     with open_actuators(sc, tmp_path, map_geometry(sc), lambda: None) as (_, make):
         assert calls == [("slab", True, 0), ("slab2", True, 0)]  # every object checked first
         a = make((sc.objects[0].spec,), 11, "human")

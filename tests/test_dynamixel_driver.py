@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import DeviceError, ValidationError
-from palpate.core.sources import PressTarget
+from palpate.core.session.sources import PressTarget
 from palpate.hardware.dynamixel import control_table as ct
 from palpate.hardware.dynamixel.driver import DynamixelFinger, LostServo, scan
 from palpate.hardware.dynamixel.emulator import ServoBusEmulator

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import DeviceError, ValidationError
-from palpate.core.fit import fit_power_law, fit_press
-from palpate.core.memory import HapticMemory
-from palpate.core.pipeline import PipelineConfig, presses_from_recording
-from palpate.core.scene import Material, ObjectSpec, Scene
-from palpate.core.sources import PressTarget
+from palpate.core.perception.fit import fit_power_law, fit_press
+from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.pipeline import PipelineConfig, presses_from_recording
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import Material, ObjectSpec, Scene
 from palpate.hardware.dynamixel import control_table as ct
 from palpate.hardware.dynamixel.driver import DynamixelFinger, LostServo
 from palpate.hardware.dynamixel.emulator import ServoBusEmulator

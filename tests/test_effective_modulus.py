@@ -5,8 +5,8 @@ import pytest
 from scipy.integrate import quad
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, Scene
-from palpate.core.sources import PressTarget
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, Scene
 from palpate.sim.analytic import hertz_force, hertz_sensel_pressure, run_analytic_press
 from palpate.sim.controller import press_profile
 from palpate.sim.effective_modulus import (

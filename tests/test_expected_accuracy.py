@@ -9,15 +9,15 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.core.expected_accuracy import (
+from palpate.core.mapping.grids import Grid2D
+from palpate.core.perception.memory import HapticMemory
+from palpate.core.planning.expected_accuracy import (
     confusion_outcomes,
     expected_accuracy_gain,
     label_belief,
     material_frequencies,
 )
-from palpate.core.explore import outcome_posteriors, outcome_table
-from palpate.core.maps import Grid2D
-from palpate.core.memory import HapticMemory
+from palpate.core.planning.policies import outcome_posteriors, outcome_table
 
 MATS = ["m0", "m1", "m2"]
 
@@ -131,7 +131,7 @@ def test_bad_belief_parameters_are_refused(kw, msg):
 
 
 def test_a_voxel_map_is_refused_with_a_clear_error(table):
-    from palpate.core.maps import VoxelGrid
+    from palpate.core.mapping.grids import VoxelGrid
 
     v = VoxelGrid(MATS, (3, 3, 2))
     with pytest.raises(ValidationError, match="2-D map"):

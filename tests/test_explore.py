@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.core.explore import (
+from palpate.core.mapping.grids import Grid2D, VoxelGrid
+from palpate.core.perception.memory import HapticMemory
+from palpate.core.planning.policies import (
     InfoGain,
     MaxEntropy,
     Predefined,
@@ -21,9 +23,7 @@ from palpate.core.explore import (
     stop_reason,
     uncovered,
 )
-from palpate.core.maps import Grid2D, VoxelGrid
-from palpate.core.memory import HapticMemory
-from palpate.core.scenario import parse_scenario
+from palpate.core.world.scenario import parse_scenario
 
 CERTAIN = {0: np.array([0.999, 0.0005, 0.0005]), 1: np.array([0.0005, 0.999, 0.0005]),
            2: np.array([0.0005, 0.0005, 0.999])}
@@ -286,8 +286,8 @@ def test_info_gain_settings_reach_the_policy(trained):
 
 @pytest.fixture(scope="module")
 def trained():
-    from palpate.core.progress import Progress
-    from palpate.core.run import _source_factory, train_memory
+    from palpate.core.session.progress import Progress
+    from palpate.core.session.run import _source_factory, train_memory
 
     sc = _scenario()
     make = _source_factory(sc)
@@ -296,8 +296,8 @@ def trained():
 
 
 def _explore(memory, make_source=None, **exploration):
-    from palpate.core.progress import Progress
-    from palpate.core.run import _source_factory, explore_object
+    from palpate.core.session.progress import Progress
+    from palpate.core.session.run import _source_factory, explore_object
 
     sc = _scenario(**exploration)
     summary, *_ = explore_object(sc, sc.objects[0], memory, make_source or _source_factory(sc), 21,
@@ -339,7 +339,7 @@ def test_loop_stops_when_the_policy_has_nothing_left(trained):
 
 
 def test_loop_drives_any_object_with_press_and_rejects_one_without(trained):
-    from palpate.core.run import _source_factory
+    from palpate.core.session.run import _source_factory
 
     pressed = []
 
@@ -369,8 +369,8 @@ def test_scenario_extrapolation_passes_default_all_and_voxel_refusal():
 
 
 def test_loop_reports_and_returns_the_iterated_post_processing(trained):
-    from palpate.core.progress import Progress
-    from palpate.core.run import _source_factory, explore_object
+    from palpate.core.session.progress import Progress
+    from palpate.core.session.run import _source_factory, explore_object
 
     sc = _scenario(policy="raster", budget=2, extrapolation_passes="all")
     summary, _, _, grid, post, _ = explore_object(sc, sc.objects[0], trained, _source_factory(sc), 21,
@@ -424,8 +424,8 @@ def test_the_shipped_info_gain_scenario_maps_the_block_with_fewer_presses_than_c
     """scenarios/explore_info_gain.toml end to end: lattice, then presses by expected accuracy, stopped by the
     min-gain rule before the budget, the post-processed map mostly right (the lump is 2 x 2 cells and hides
     between lattice points until a hole is checked)."""
-    from palpate.core.run import run_scenario
-    from palpate.core.scenario import load_scenario
+    from palpate.core.session.run import run_scenario
+    from palpate.core.world.scenario import load_scenario
 
     sc = load_scenario(repo_dir / "scenarios" / "explore_info_gain.toml")
     summary = run_scenario(sc, tmp_path)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.core.features import contact_features
-from palpate.core.sync import SyncedStream
+from palpate.core.perception.features import contact_features
+from palpate.core.perception.sync import SyncedStream
 
 AREA = 4e-6  # m^2 (2 mm pitch)
 

@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from palpate.core.errors import FitError
-from palpate.core.fit import FIT_UNITS, fit_power_law, fit_press
-from palpate.core.segment import Press
+from palpate.core.perception.fit import FIT_UNITS, fit_power_law, fit_press
+from palpate.core.perception.segment import Press
 
 
 def _draw(rng, n=30, k1=75.0, k2=12.0, sigma=5.0, x_max=4.0):

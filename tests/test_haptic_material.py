@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.core.haptic_material import (
+from palpate.core.world.haptic_material import (
     ABSENT_FEATURES,
     CONTACT_AREA_SPREAD_RATE,
     LOCAL_INDENTATION,

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from palpate.core import maps
 from palpate.core.errors import ValidationError
-from palpate.core.maps import Grid2D, VoxelGrid
+from palpate.core.mapping import grids as maps
+from palpate.core.mapping.grids import Grid2D, VoxelGrid
 
 # Seed 001 Table 2 (Object_1, one volumetric column, l1 = surface ... l6 = deepest), entropies in log10.
 T2_50 = np.array([[0.4137, 0.4077, 0.1786], [0.5133, 0.4862, 0.0005], [0.6471, 0.3529, 0.0000],

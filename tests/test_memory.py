@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from scipy.stats import multivariate_normal
 
 from palpate.core.errors import ValidationError
-from palpate.core.memory import (
+from palpate.core.perception.memory import (
     MIN_SAMPLES,
     HapticMemory,
     leave_one_out,

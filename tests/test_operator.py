@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
-from palpate.core.operator import HumanOperator, recordings_from_files, text_grid
-from palpate.core.sources import PressTarget
-from palpate.core.streams import PressRecording
+from palpate.core.perception.streams import PressRecording
+from palpate.core.session.operator import HumanOperator, recordings_from_files, text_grid
+from palpate.core.session.sources import PressTarget
 
 
 def _stream(calls):
@@ -74,9 +74,9 @@ def test_operator_in_the_closed_loop_explores_an_object(tmp_path):
     """A script plays the operator: it confirms every prompt and 'presses' through the simulated finger."""
     import tomllib
 
-    from palpate.core.progress import Progress
-    from palpate.core.run import _source_factory, explore_object, map_geometry, train_memory
-    from palpate.core.scenario import parse_scenario
+    from palpate.core.session.progress import Progress
+    from palpate.core.session.run import _source_factory, explore_object, map_geometry, train_memory
+    from palpate.core.world.scenario import parse_scenario
 
     raw = tomllib.loads("""
 [scenario]

@@ -10,14 +10,14 @@ import pytest
 from synthetic_streams import PressSpec, make_recording
 
 from palpate.core.errors import ValidationError
-from palpate.core.pipeline import (
+from palpate.core.perception.pipeline import (
     PipelineConfig,
     fit_presses,
     fit_presses_with_failures,
     presses_from_recording,
 )
-from palpate.core.segment import Press
-from palpate.core.sync import estimate_clock_offset
+from palpate.core.perception.segment import Press
+from palpate.core.perception.sync import estimate_clock_offset
 
 N1 = 60.0  # counts / mm^1.5
 SPECS = [PressSpec(0.3 + 1.4 * i, 0.004, x=0.01 * i, y=0.005) for i in range(4)]
@@ -99,7 +99,7 @@ def test_presses_whose_fit_fails_are_skipped_and_reported(rng, caplog):
     fits, failures = fit_presses_with_failures([flat, presses[1]])
     assert [f.press_index for f in fits] == [1]
     assert len(failures) == 1 and failures[0].press_index == 7 and "cutaneous" in failures[0].reason
-    with caplog.at_level(logging.WARNING, logger="palpate.core.pipeline"):
+    with caplog.at_level(logging.WARNING, logger="palpate.core.perception.pipeline"):
         assert [f.press_index for f in fit_presses([flat, presses[1]])] == [1]
     assert "press 7" in caplog.text
 

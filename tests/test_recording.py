@@ -16,13 +16,8 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import Writer
 
 from palpate.core.errors import RecordingError, ValidationError
-from palpate.core.recording import (
-    Annotation,
-    RecordingWriter,
-    read_recording,
-    recording_to_press_recording,
-)
-from palpate.core.streams import PoseSample, TaxelFrame
+from palpate.core.io.recording import Annotation, RecordingWriter, read_recording, recording_to_press_recording
+from palpate.core.perception.streams import PoseSample, TaxelFrame
 
 META = {"scenario": {"name": "three_pads", "seed": 7, "depth_m": 0.004}, "sources": ["sim"], "note": None}
 
@@ -211,8 +206,8 @@ def test_message_missing_field_names_topic_and_index(tmp_path):
 
 WRITER = """
 import sys, numpy as np
-from palpate.core.recording import RecordingWriter
-from palpate.core.streams import TaxelFrame
+from palpate.core.io.recording import RecordingWriter
+from palpate.core.perception.streams import TaxelFrame
 w = RecordingWriter(sys.argv[1], {"scenario": "crash"}, chunk_size=300, flush_interval=1e9)
 i = 0
 while True:

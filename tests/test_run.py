@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from palpate.core.cli import main
-from palpate.core.maps import Grid2D
-from palpate.core.scenario import parse_scenario
+from palpate.core.mapping.grids import Grid2D
+from palpate.core.world.scenario import parse_scenario
 
 SMALL = """
 [scenario]
@@ -69,7 +69,7 @@ render_3d = false
 
 @pytest.fixture(scope="module")
 def small_run(tmp_path_factory):
-    from palpate.core.run import run_scenario
+    from palpate.core.session.run import run_scenario
 
     out = tmp_path_factory.mktemp("run")
     scenario = parse_scenario(tomllib.loads(SMALL), "small.toml")
@@ -136,7 +136,7 @@ def test_replay_reproduces_the_maps_exactly(small_run, tmp_path):
 
 
 def test_same_seed_same_summary(small_run, tmp_path):
-    from palpate.core.run import run_scenario
+    from palpate.core.session.run import run_scenario
 
     scenario, summary, _ = small_run
     again = run_scenario(scenario, tmp_path)
@@ -156,9 +156,9 @@ def test_replay_of_a_recording_without_annotations_finds_every_press_and_reads_i
     """The other replay path (a Tekscan import, a Liberty + finger session): no press annotations and no map
     geometry, so the whole stream is segmented. The run's recording stripped of its annotations and metadata
     must give back one press per recorded press, each where it was planned and read as the run read it."""
-    from palpate.core.memory import HapticMemory
-    from palpate.core.recording import RecordingWriter, read_recording
-    from palpate.core.replay import replay_recording
+    from palpate.core.io.recording import RecordingWriter, read_recording
+    from palpate.core.perception.memory import HapticMemory
+    from palpate.core.session.replay import replay_recording
 
     _, summary, out = small_run
     rec = read_recording(out / "run.mcap")

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, material_index_at
+from palpate.core.world.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, material_index_at
 
 SOFT = Material("soft", 20e3)
 HARD = Material("hard", 2e6)
@@ -47,7 +47,7 @@ def test_sensel_centres_are_symmetric_about_the_axis():
 
 
 def test_a_material_map_sets_the_surface_material_and_its_materials_must_be_defined():
-    from palpate.core.haptic_material import HapticMaterialMap
+    from palpate.core.world.haptic_material import HapticMaterialMap
 
     p = np.zeros((1, 2, 2))
     p[0, 0] = [1, 0]

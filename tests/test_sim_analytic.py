@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import FingertipSpec, Inclusion, Material, ObjectSpec, Scene, TaxelSensorSpec
-from palpate.core.sources import PressTarget
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import FingertipSpec, Inclusion, Material, ObjectSpec, Scene, TaxelSensorSpec
 from palpate.sim import simulate_press
 from palpate.sim.analytic import (
     hertz_contact_radius,

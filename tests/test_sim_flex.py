@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip("mujoco")
 
 from palpate.core.errors import SimulationDiverged, ValidationError  # noqa: E402
-from palpate.core.scene import FingertipSpec, Layer, Material, ObjectSpec  # noqa: E402
+from palpate.core.world.scene import FingertipSpec, Layer, Material, ObjectSpec
 from palpate.sim import flex  # noqa: E402
 from palpate.sim.flex_calibration import (  # noqa: E402
     CAL_RANGE,
@@ -123,7 +123,7 @@ def test_hertz_ratio_recovers_a_scaled_hertz_curve():
 def test_layer_cells_get_their_own_lame_stiffness():
     soft, hard = Material("soft", 2e4, 0.3), Material("hard", 2e6, 0.45)
     obj = ObjectSpec("b", "box", (0.02, 0.02, 0.02), (0, 0), hard, layers=(Layer(soft, 0.01),))
-    from palpate.core.scene import Scene
+    from palpate.core.world.scene import Scene
 
     scene = Scene((obj,))
     g = flex.flex_grid(obj, 0, 0, resolution=0.01, window=0.02)
@@ -176,7 +176,7 @@ def test_calibrated_force_matches_hertz_at_small_indentation():
 
 @pytest.mark.physics
 def test_three_materials_are_ordered_and_separable():
-    from palpate.core.fit import fit_power_law
+    from palpate.core.perception.fit import fit_power_law
 
     fits = []
     peak = []

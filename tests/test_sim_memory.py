@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from palpate.core.fit import fit_press
-from palpate.core.memory import HapticMemory, leave_one_out
-from palpate.core.pipeline import presses_from_recording
-from palpate.core.scene import Material, ObjectSpec, Scene
-from palpate.core.sources import PressTarget
+from palpate.core.perception.fit import fit_press
+from palpate.core.perception.memory import HapticMemory, leave_one_out
+from palpate.core.perception.pipeline import presses_from_recording
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import Material, ObjectSpec, Scene
 from palpate.sim.source import SimSource
 
 MATERIALS = {"soft": 2e4, "medium": 2e5, "hard": 2e6}  # Pa

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import FitError
-from palpate.core.fit import fit_power_law
-from palpate.core.scene import Material, ObjectSpec, Scene, TaxelSensorSpec
-from palpate.core.sources import PressTarget
+from palpate.core.perception.fit import fit_power_law
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import Material, ObjectSpec, Scene, TaxelSensorSpec
 from palpate.sim import simulate_press
 from palpate.sim.analytic import hertz_force, hertz_sensel_pressure
 from palpate.sim.controller import press_profile

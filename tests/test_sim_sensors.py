@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import SimulationDiverged
-from palpate.core.scene import FingertipSpec, PoseSensorSpec, TaxelSensorSpec
+from palpate.core.world.scene import FingertipSpec, PoseSensorSpec, TaxelSensorSpec
 from palpate.sim import simulate_press
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels, taxel_counts
 from palpate.sim.trace import PhysicsTrace

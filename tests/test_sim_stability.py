@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import SimulationDiverged
-from palpate.core.scene import Material, ObjectSpec, Scene
+from palpate.core.world.scene import Material, ObjectSpec, Scene
 from palpate.sim import simulate_press
 from palpate.sim.scene import build_press_model
 from palpate.sim.stability import check_run, check_warnings

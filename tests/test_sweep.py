@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.core.sweep import is_finished, load_sweep, run_sweep, set_key
+from palpate.core.session.sweep import is_finished, load_sweep, run_sweep, set_key
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ROOT / "scenarios" / "sweeps" / "tiny.toml"

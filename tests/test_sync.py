@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.core.streams import PoseSample, TaxelFrame
-from palpate.core.sync import estimate_clock_offset, slerp, synchronise
+from palpate.core.perception.streams import PoseSample, TaxelFrame
+from palpate.core.perception.sync import estimate_clock_offset, slerp, synchronise
 
 AREA = 6.25e-6
 

@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from palpate.core.run import run_scenario
-from palpate.core.scenario import load_scenario
+from palpate.core.session.run import run_scenario
+from palpate.core.world.scenario import load_scenario
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "thesis_ch6.toml"
 
@@ -36,7 +36,7 @@ def test_each_explored_region_is_classified_as_its_material(thesis):
         for (c, r), p in zip(obj["regions"], final, strict=True):
             xy = origin + (np.array([c, r]) - 0.5) * cell
             names = [m.name for m in entry.spec.materials()]
-            from palpate.core.scene import material_index_at
+            from palpate.core.world.scene import material_index_at
 
             idx = material_index_at(entry.spec, np.array([[*xy, entry.spec.height - 0.002]]), names)[0]
             truth = scenario.materials[names[idx]].like

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from palpate.core.cli import main
-from palpate.core.maps import VoxelGrid
-from palpate.core.run import run_scenario
-from palpate.core.scenario import parse_scenario
-from palpate.core.voxel_evidence import layer_fits
+from palpate.core.mapping.grids import VoxelGrid
+from palpate.core.perception.layered_memory import layer_fits
+from palpate.core.session.run import run_scenario
+from palpate.core.world.scenario import parse_scenario
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "volumetric.toml"
 

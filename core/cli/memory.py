@@ -1,4 +1,5 @@
-"""``palpate memory``: train, cross-validate and show haptic memories (logic in :mod:`palpate.core.memory`)."""
+"""``palpate memory``: train, cross-validate and show haptic memories (logic in
+:mod:`palpate.core.perception.memory`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.memory import DEFAULT_MIN_EIG, HapticMemory, leave_one_out, read_params_csv
+from palpate.core.perception.memory import DEFAULT_MIN_EIG, HapticMemory, leave_one_out, read_params_csv
 
 CSV_HELP = "per-press parameters CSV: header with material,n1,n2,a1,a2 (any order, extra columns ignored)"
 

@@ -32,16 +32,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _replay(args: argparse.Namespace) -> int:
     from palpate.core.errors import ValidationError
-    from palpate.core.memory import HapticMemory
-    from palpate.core.progress import Progress
-    from palpate.core.replay import replay_recording
+    from palpate.core.perception.memory import HapticMemory
+    from palpate.core.session.progress import Progress
+    from palpate.core.session.replay import replay_recording
 
     if not args.cell_mm > 0:
         raise ValidationError(f"--cell-mm must be > 0, got {args.cell_mm}")
     memory = HapticMemory.load(args.memory)
     layers = args.memory_layers or args.memory.with_name("memory_layers.json")
     if args.memory_layers is not None or layers.is_file():
-        from palpate.core.run import load_layer_memories
+        from palpate.core.session.run import load_layer_memories
 
         memory = load_layer_memories(memory, layers)
     summary = replay_recording(args.recording, memory, args.out, cell_size=args.cell_mm * 1e-3,

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from palpate.core.scenario import ACTUATORS
+from palpate.core.world.scenario import ACTUATORS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -41,9 +41,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from palpate.core.progress import Progress
-    from palpate.core.run import run_scenario
-    from palpate.core.scenario import load_scenario
+    from palpate.core.session.progress import Progress
+    from palpate.core.session.run import run_scenario
+    from palpate.core.world.scenario import load_scenario
 
     scenario = with_actuator_options(load_scenario(args.scenario), args)
     out = args.out or Path("runs") / scenario.name
@@ -68,7 +68,7 @@ def with_actuator_options(scenario, args: argparse.Namespace):
     """
     import dataclasses
 
-    from palpate.core.scenario import parse_actuator
+    from palpate.core.world.scenario import parse_actuator
 
     options = {"recordings_dir": args.recordings, "port": args.port, "finger": args.finger,
                "emulate": True if args.emulate else None}

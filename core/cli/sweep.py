@@ -24,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from palpate.core.sweep import load_sweep, run_sweep
+    from palpate.core.session.sweep import load_sweep, run_sweep
 
     sweep = load_sweep(args.sweep)
     rows = run_sweep(sweep, args.out, workers=args.workers, ray=args.ray)

@@ -93,8 +93,8 @@ def _cmd_record(args) -> int:
     import time
 
     from palpate.core.errors import ValidationError
-    from palpate.core.recording import RecordingWriter
-    from palpate.core.sources import PressTarget
+    from palpate.core.io.recording import RecordingWriter
+    from palpate.core.session.sources import PressTarget
     from palpate.hardware.dynamixel.driver import DynamixelFinger
     from palpate.hardware.dynamixel.emulator import ServoBusEmulator
     from palpate.hardware.dynamixel.finger import inverse_kinematics, joints_to_ticks, load_finger, surface_load_model

@@ -1,5 +1,5 @@
 """The Dynamixel finger as the exploration actuator of ``palpate run`` (entry point ``dynamixel`` in
-``palpate.actuators``; the request and the factory signature are in :mod:`palpate.core.actuators`).
+``palpate.actuators``; the request and the factory signature are in :mod:`palpate.core.session.actuators`).
 
 Before anything is opened, every cell the policy may press is planned as a press (:func:`plan_press`: on the
 finger's plane, inside its reach and joint limits along the whole vertical path, not deeper than its
@@ -20,8 +20,8 @@ import dataclasses
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.sources import PressTarget
-from palpate.core.streams import PressRecording
+from palpate.core.perception.streams import PressRecording
+from palpate.core.session.sources import PressTarget
 from palpate.hardware.dynamixel.finger import (
     FingerDescription,
     forward_kinematics,
@@ -64,7 +64,7 @@ class FingerSession:
         times at most); ``meta["attempts"]`` says how many presses it took, ``meta["pose_gap_s"]`` the longest
         gap left when none was clean.
         """
-        from palpate.core.pipeline import PipelineConfig
+        from palpate.core.perception.pipeline import PipelineConfig
 
         max_gap = PipelineConfig().max_gap
         attempts = 0
@@ -148,7 +148,7 @@ def check_reach(finger: FingerDescription, request) -> None:
 
 
 def dynamixel_actuator(request, *, check_only: bool = False):
-    """Factory of kind ``dynamixel`` (see :mod:`palpate.core.actuators` for the signature).
+    """Factory of kind ``dynamixel`` (see :mod:`palpate.core.session.actuators` for the signature).
 
     Checks the finger file and the reach of every cell; with ``check_only`` stops there. Otherwise starts the
     physics-backed emulator over ``request.scene`` (``emulate``), opens the bus and returns a

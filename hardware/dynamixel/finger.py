@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.streams import PoseSample
+from palpate.core.perception.streams import PoseSample
 from palpate.hardware.dynamixel import control_table as ct
 
 

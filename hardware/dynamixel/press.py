@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.errors import DeviceError, ValidationError
-from palpate.core.sources import PressTarget
-from palpate.core.streams import PoseSample, PressRecording
+from palpate.core.perception.streams import PoseSample, PressRecording
+from palpate.core.session.sources import PressTarget
 from palpate.hardware.dynamixel.finger import (
     fingertip_pose,
     forward_kinematics,

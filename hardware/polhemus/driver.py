@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.errors import DeviceError, ValidationError
-from palpate.core.streams import PoseSample
+from palpate.core.perception.streams import PoseSample
 from palpate.hardware.polhemus.protocol import (
     CM_PER_INCH,
     DEFAULT_ITEMS,

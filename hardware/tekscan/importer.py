@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.recording import RecordingWriter
-from palpate.core.streams import TaxelFrame
+from palpate.core.io.recording import RecordingWriter
+from palpate.core.perception.streams import TaxelFrame
 from palpate.hardware.tekscan.reader import read_tekscan, select_region
 
 

@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.streams import TaxelFrame
+from palpate.core.perception.streams import TaxelFrame
 
 
 class TekscanWarning(UserWarning):

@@ -13,7 +13,7 @@ from importlib.metadata import entry_points
 from typing import Protocol, runtime_checkable
 
 from palpate.core.errors import ValidationError
-from palpate.core.streams import PressRecording
+from palpate.core.perception.streams import PressRecording
 
 ENTRY_POINT_GROUP = "palpate.sources"
 

@@ -18,7 +18,7 @@ A sweep file (TOML) names a base scenario and the axes to vary::
     values = [100.0, 115.0]
 
 Each variant is the base scenario's TOML dictionary with the overrides applied; every variant is validated with
-:func:`palpate.core.scenario.parse_scenario` before anything runs. Runs go to ``OUT/runs/<variant id>/`` and a run
+:func:`palpate.core.world.scenario.parse_scenario` before anything runs. Runs go to ``OUT/runs/<variant id>/`` and a run
 is finished when its ``summary.json`` exists and names the same overrides, so a sweep killed midway resumes without
 redoing finished runs. The key metrics of every run are gathered in ``OUT/sweep.csv`` and ``OUT/sweep.json``.
 """
@@ -138,7 +138,7 @@ def load_sweep(path: str | Path) -> Sweep:
         ValidationError: naming the sweep file, the key and what was expected (or the variant whose scenario
             is invalid, with the scenario's own message).
     """
-    from palpate.core.scenario import parse_scenario
+    from palpate.core.world.scenario import parse_scenario
 
     file = Path(path)
     doc = _read_toml(file, "sweep")
@@ -223,8 +223,8 @@ def run_variant(raw: dict, base_dir: str, run_dir: str, vid: str, overrides: dic
     The variant record is written first and summary.json last (by the run job), so a killed run is never taken
     for a finished one.
     """
-    from palpate.core.run import run_scenario
-    from palpate.core.scenario import parse_scenario
+    from palpate.core.session.run import run_scenario
+    from palpate.core.world.scenario import parse_scenario
 
     out = Path(run_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -1,6 +1,6 @@
 """The run loop: train a haptic memory, explore each object, keep its map, and write every output.
 
-The loop only talks to a *source* (``palpate.core.sources``): it asks for a press at a target and gets raw taxel
+The loop only talks to a *source* (``palpate.core.session.sources``): it asks for a press at a target and gets raw taxel
 and pose streams back. The simulation, a replayed recording or a robot finger are interchangeable, so what this
 module computes on a simulation is what it computes on hardware.
 
@@ -27,11 +27,11 @@ import numpy as np
 
 from palpate.core import __version__
 from palpate.core.errors import FitError, PalpateError, ValidationError
-from palpate.core.explore import make_policy
-from palpate.core.progress import Progress
-from palpate.core.scenario import ObjectEntry, Scenario
-from palpate.core.scene import ObjectSpec, Scene, material_index_at
-from palpate.core.sources import PressTarget, load_source
+from palpate.core.planning.policies import make_policy
+from palpate.core.session.progress import Progress
+from palpate.core.session.sources import PressTarget, load_source
+from palpate.core.world.scenario import ObjectEntry, Scenario
+from palpate.core.world.scene import ObjectSpec, Scene, material_index_at
 
 SUMMARY_FORMAT = "palpate-run-summary"
 SUMMARY_VERSION = 1
@@ -67,8 +67,8 @@ def perceive_press(recording, pipeline_config=None) -> PressResult:
 
     Returns a PressResult whose ``params`` is None (with reasons in ``rejected``) when no usable press was found.
     """
-    from palpate.core.fit import fit_press
-    from palpate.core.pipeline import PipelineConfig, presses_from_recording
+    from palpate.core.perception.fit import fit_press
+    from palpate.core.perception.pipeline import PipelineConfig, presses_from_recording
 
     cfg = pipeline_config or PipelineConfig()
     seg = presses_from_recording(recording, cfg)
@@ -112,7 +112,7 @@ class PressLog:
         self.clock = 0.0
         self.writer = None
         if path is not None:
-            from palpate.core.recording import RecordingWriter
+            from palpate.core.io.recording import RecordingWriter
 
             self.writer = RecordingWriter(path, metadata or {})
 
@@ -148,7 +148,7 @@ def shift_recording(rec, dt: float):
     """A copy of a PressRecording with every timestamp moved by ``dt`` seconds."""
     from dataclasses import replace
 
-    from palpate.core.streams import GroundTruth, PressRecording
+    from palpate.core.perception.streams import GroundTruth, PressRecording
 
     if dt == 0.0:
         return rec
@@ -173,7 +173,7 @@ def apply_press(grid, res: PressResult, memory, *, voxel: bool, fallback_xy: tup
         if hasattr(memory, "layer_posteriors"):
             posts = memory.layer_posteriors(res.t, res.c_P, res.c_A, res.c_D)
         else:  # a whole-press memory only: judge every cut of the press by it
-            from palpate.core.voxel_evidence import layer_fits
+            from palpate.core.perception.layered_memory import layer_fits
 
             posts = [None if f is None else memory.predict_proba(f[None, :])[0]
                      for f in layer_fits(res.t, res.c_P, res.c_A, res.c_D, grid.cell_size, grid.shape[2])]
@@ -207,7 +207,7 @@ def _source_factory(scenario: Scenario, name: str = "sim"):
 
 def train_memory(scenario: Scenario, make_source, seeds, progress: Progress, log: PressLog | None = None):
     """Press every reference material and fit the haptic memory; returns (memory, crossval, presses by material)."""
-    from palpate.core.memory import HapticMemory, leave_one_out
+    from palpate.core.perception.memory import HapticMemory, leave_one_out
 
     tr = scenario.training
     params, labels, by_material = [], [], {}
@@ -293,7 +293,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory, make_source, 
     post-processing -> stop rules (press budget, no expected gain above ``stop_min_gain``, mean or max entropy of
     the post-processed map under ``stop_mean_entropy`` / ``stop_max_entropy``).
     """
-    from palpate.core.explore import stop_reason
+    from palpate.core.planning.policies import stop_reason
 
     ex = scenario.exploration
     geom = map_geometry(scenario)[entry.spec.name]
@@ -407,8 +407,8 @@ def save_layer_memories(layered, path: Path) -> None:
 
 def load_layer_memories(full, path: Path):
     """Read :func:`save_layer_memories`' file back into a LayeredMemory around ``full``."""
-    from palpate.core.memory import HapticMemory
-    from palpate.core.voxel_evidence import LayeredMemory
+    from palpate.core.perception.layered_memory import LayeredMemory
+    from palpate.core.perception.memory import HapticMemory
 
     try:
         doc = json.loads(Path(path).read_text())
@@ -461,7 +461,7 @@ def _region_table(grid, regions0, voxel: bool) -> list[list[float]]:
 
 def build_map(geom: dict):
     """An empty Grid2D or VoxelGrid from a geometry entry of :func:`map_geometry`."""
-    from palpate.core.maps import Grid2D, VoxelGrid
+    from palpate.core.mapping.grids import Grid2D, VoxelGrid
 
     origin = tuple(float(v) for v in geom["origin_m"])
     if geom["map"] == "voxel":
@@ -492,10 +492,10 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
 
     ``source`` names the registered simulated source that trains the memory and, with ``[actuator] kind = "sim"``,
     explores (default: ``training.source``); another actuator kind explores through
-    :func:`palpate.core.actuators.open_actuators`. With ``record``, every press's raw streams (and ground truth)
+    :func:`palpate.core.session.actuators.open_actuators`. With ``record``, every press's raw streams (and ground truth)
     go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps.
     """
-    from palpate.core.actuators import open_actuators
+    from palpate.core.session.actuators import open_actuators
 
     progress = progress or Progress(enabled=False)
     out = Path(out_dir)
@@ -519,7 +519,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
 def _run(scenario, out, progress, make_source, make_actuator, seeds, timing, log) -> dict:
     t0 = time.perf_counter()
     if scenario.training.memory is not None:
-        from palpate.core.memory import HapticMemory
+        from palpate.core.perception.memory import HapticMemory
 
         memory = HapticMemory.load(scenario.training.memory)
         if list(memory.materials) != list(scenario.references):
@@ -530,7 +530,7 @@ def _run(scenario, out, progress, make_source, make_actuator, seeds, timing, log
         memory, crossval, training = train_memory(scenario, make_source, seeds[4:], progress, log)
     memory.save(out / "memory.json")
     if scenario.exploration.map == "voxel" and training:
-        from palpate.core.voxel_evidence import train_layered_memory
+        from palpate.core.perception.layered_memory import train_layered_memory
 
         nz = max(1, int(round(scenario.exploration.voxel_depth / scenario.exploration.cell_size)))
         memory = train_layered_memory(memory, training, scenario.exploration.cell_size, nz)
@@ -564,7 +564,7 @@ def _run(scenario, out, progress, make_source, make_actuator, seeds, timing, log
     t0 = time.perf_counter()
     figures = []
     if scenario.outputs.figures:
-        from palpate.core import figures as fig
+        from palpate.core.io import figures as fig
 
         figures = fig.write_run_figures(out / "figures", scenario, training, artefacts,
                                         render_3d=scenario.outputs.render_3d)
@@ -609,7 +609,7 @@ def _say_fidelity(entry: ObjectEntry, scenario: Scenario, make_source, progress:
 
 def export_haptic_material(post, grid, results: list[PressResult], scenario: Scenario, folder: Path, name: str):
     """Write the seed 002 export of one explored object: probabilities plus per-cell palpation features."""
-    from palpate.core.haptic_material import HapticMaterialMap
+    from palpate.core.world.haptic_material import HapticMaterialMap
 
     probs = np.asarray(post.probabilities)
     ny, nx = probs.shape[:2]

@@ -1,7 +1,7 @@
 """Stream types shared by every source (simulation, replay, hardware) and the perception stack.
 
 All quantities are SI: seconds, metres, square metres. Raw taxel counts stay ``uint8`` exactly as a
-Tekscan-like sensor reports them; calibration to force happens later, in :mod:`palpate.core.features`.
+Tekscan-like sensor reports them; calibration to force happens later, in :mod:`palpate.core.perception.features`.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core.maps import entropy
+from palpate.core.mapping.grids import entropy
 
 
 def _plt():

@@ -1,6 +1,6 @@
 """The signal path from raw streams to interaction parameters: sync -> features -> segmentation -> fits.
 
-:func:`presses_from_recording` turns one :class:`~palpate.core.streams.PressRecording` into presses (and the
+:func:`presses_from_recording` turns one :class:`~palpate.core.perception.streams.PressRecording` into presses (and the
 contacts it rejected, with reasons); :func:`fit_presses` fits the interaction laws to each press, skipping and
 reporting those that cannot be fitted. Every knob lives in one frozen :class:`PipelineConfig`.
 """
@@ -13,11 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.features import Calibration, ContactSeries, contact_features, press_axis_unit
-from palpate.core.fit import FitFailure, PressFit, fit_presses_reporting
-from palpate.core.segment import Press, Segmentation, segment_presses
-from palpate.core.streams import PressRecording
-from palpate.core.sync import synchronise
+from palpate.core.perception.features import Calibration, ContactSeries, contact_features, press_axis_unit
+from palpate.core.perception.fit import FitFailure, PressFit, fit_presses_reporting
+from palpate.core.perception.segment import Press, Segmentation, segment_presses
+from palpate.core.perception.streams import PressRecording
+from palpate.core.perception.sync import synchronise
 
 log = logging.getLogger(__name__)
 

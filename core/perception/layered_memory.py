@@ -37,8 +37,8 @@ def layer_fits(t: np.ndarray, c_P: np.ndarray, c_A: np.ndarray, c_D: np.ndarray,
         one entry per layer the press reached: the parameters, or None where the cut press could not be fitted
         (fewer than MIN_SAMPLES samples, constant contact area).
     """
-    from palpate.core.fit import fit_press
-    from palpate.core.segment import Press
+    from palpate.core.perception.fit import fit_press
+    from palpate.core.perception.segment import Press
 
     c_D = np.asarray(c_D, dtype=float)
     if len(c_D) == 0:
@@ -105,7 +105,7 @@ def train_layered_memory(full, training: dict, cell: float, n_layers: int) -> La
     A layer gets a memory over the materials with at least 3 presses fittable at that depth (the name of the
     material when only one reaches it, None when none does).
     """
-    from palpate.core.memory import HapticMemory
+    from palpate.core.perception.memory import HapticMemory
 
     if not cell > 0 or n_layers < 1:
         raise ValidationError(f"layered memory needs cell > 0 m and >= 1 layer, got {cell}, {n_layers}")

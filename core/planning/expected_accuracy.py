@@ -12,10 +12,10 @@ neighbouring votes are correlated, and full naive Bayes is confidently wrong nex
 :func:`expected_accuracy_gain` then scores a press by the expected number of cells of the post-processed map whose
 most probable material becomes the true one: the pressed cell and, through eq. 6.15, its unexplored
 8-neighbours. The press's outcome is predicted from the haptic memory's confusion (its Gaussians, see
-:func:`palpate.core.explore.outcome_posteriors`). The expectation is taken under the belief updated by the outcome,
-so a press that only makes the planner more confident of labels that do not change scores zero.
+:func:`palpate.core.planning.policies.outcome_posteriors`). The expectation is taken under the belief updated by
+the outcome, so a press that only makes the planner more confident of labels that do not change scores zero.
 
-Arrays are laid out like :class:`~palpate.core.maps.Grid2D`: (ny, nx, M).
+Arrays are laid out like :class:`~palpate.core.mapping.grids.Grid2D`: (ny, nx, M).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.neighbourhood import NEIGHBOURS_8, box3_sum, shift_slices
+from palpate.core.mapping.neighbourhood import NEIGHBOURS_8, box3_sum, shift_slices
 
 #: Same floor on entropies as the maps' post-processing: certain neighbours dominate without a division by zero.
 _H_MIN = 1e-12
@@ -91,7 +91,7 @@ def label_belief(grid, *, reach: int = 4, correlation_cells: float = 4.0, temper
     cell is within ``reach``).
 
     Args:
-        grid: a :class:`~palpate.core.maps.Grid2D` (measured, not post-processed).
+        grid: a :class:`~palpate.core.mapping.grids.Grid2D` (measured, not post-processed).
         reach: explored cells within this Chebyshev distance (cells) vote.
         correlation_cells: L of rho(d) = exp(-d / L), cells: about the size of the features expected.
         temperature: exponent of each vote's likelihood, (0, 1].
@@ -165,7 +165,7 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
         grid: the measured 2-D map.
         post: its post-processed version (one eq. 6.15 pass: a press changes only its 8-neighbours).
         table: (outcomes (U, M), likelihood (M, U)) of a press, from
-            :func:`palpate.core.explore.outcome_table`.
+            :func:`palpate.core.planning.policies.outcome_table`.
         reach, correlation_cells, temperature: of :func:`label_belief`.
 
     Can be negative where a press is expected to tip a correct extrapolation over to a wrong one.

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.features import ContactSeries
+from palpate.core.perception.features import ContactSeries
 
 # Consistent scale factor of the median absolute deviation for a Gaussian.
 _MAD_TO_SIGMA = 1.4826
@@ -188,7 +188,7 @@ def segment_presses(
     """Find the presses in a contact series.
 
     Args:
-        series: contact features (see :func:`palpate.core.features.contact_features`).
+        series: contact features (see :func:`palpate.core.perception.features.contact_features`).
         on_threshold: c_P level that starts a contact; derived from the data's noise when None.
         off_threshold: c_P level at or below which a contact ends; derived from the noise when None.
         min_duration: shortest contact (onset to release) accepted, s.

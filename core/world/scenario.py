@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from palpate.core.errors import ValidationError
-from palpate.core.scene import (
+from palpate.core.world.scene import (
     FingertipSpec,
     Inclusion,
     Layer,
@@ -29,7 +29,7 @@ from palpate.core.scene import (
 FIDELITIES = ("analytic", "rigid", "flex", "auto")
 MAP_KINDS = ("grid2d", "voxel")
 POLICIES = ("predefined", "raster", "random", "max_entropy", "info_gain")
-#: What info_gain plans on, 2-D maps (palpate.core.explore.InfoGain): expected cells set right, or entropy.
+#: What info_gain plans on, 2-D maps (palpate.core.planning.policies.InfoGain): expected cells set right, or entropy.
 OBJECTIVES = ("accuracy", "entropy")
 VARIABILITY = ("human", "robot")
 ACTUATORS = ("sim", "operator", "dynamixel")
@@ -101,7 +101,7 @@ class ObjectEntry:
 
 @dataclass(frozen=True)
 class ActuatorSpec:
-    """What presses during exploration (``[actuator]``; built by :mod:`palpate.core.actuators`).
+    """What presses during exploration (``[actuator]``; built by :mod:`palpate.core.session.actuators`).
 
     Attributes:
         kind: "sim" (the registered simulated source), "operator" (a person shown each target) or "dynamixel".
@@ -519,7 +519,7 @@ def _object(r: _Reader, materials: dict[str, MaterialEntry], base: Path) -> Obje
     material_map = None
     map_path = r.get("material_map", str, "")
     if map_path:
-        from palpate.core.haptic_material import HapticMaterialMap
+        from palpate.core.world.haptic_material import HapticMaterialMap
 
         folder = _resolve(base, map_path)
         hm = HapticMaterialMap.read(folder)

@@ -5,9 +5,10 @@ over the cutaneous parameters A = (a1, a2) (eq. 6.14), learned from the per-pres
 a prior P(M). The posterior of eq. 6.11 is computed in log space (log-sum-exp), so a press far from every material
 still gives a finite posterior; the category is its argmax (MAP, eq. 6.12 / 6.18).
 
-Parameter vectors are always ``[n1, n2, a1, a2]`` (the order of :attr:`palpate.core.fit.PressFit.params`). The
-interaction parameters stay in the units of the fit (:data:`palpate.core.fit.FIT_UNITS`: c_P in counts, c_D in
-mm, c_A in mm^2, as in the seed's tables); nothing here converts units.
+Parameter vectors are always ``[n1, n2, a1, a2]`` (the order of
+:attr:`palpate.core.perception.fit.PressFit.params`). The interaction parameters stay in the units of the fit
+(:data:`palpate.core.perception.fit.FIT_UNITS`: c_P in counts, c_D in mm, c_A in mm^2, as in the seed's tables);
+nothing here converts units.
 
 Memories are stored as versioned JSON holding the learned parameters *and* the training data, so a stored memory
 can be re-fitted and audited; nothing is ever pickled.

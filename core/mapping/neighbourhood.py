@@ -1,6 +1,6 @@
 """Shifting a grid against itself: the neighbour offsets, slices and 3x3 sums the planning code shares.
 
-Grids are indexed [..., iy, ix] (rows, columns last), as :class:`~palpate.core.maps.Grid2D` after its materials
+Grids are indexed [..., iy, ix] (rows, columns last), as :class:`~palpate.core.mapping.grids.Grid2D` after its materials
 axis is moved first or dropped.
 """
 

@@ -19,8 +19,9 @@ import numpy as np
 
 from palpate.core import __version__
 from palpate.core.errors import ValidationError
-from palpate.core.progress import Progress
-from palpate.core.run import (
+from palpate.core.perception.streams import GroundTruth, PressRecording
+from palpate.core.session.progress import Progress
+from palpate.core.session.run import (
     PressResult,
     _assert_finite,
     _versions,
@@ -29,7 +30,6 @@ from palpate.core.run import (
     fit_summary,
     perceive_press,
 )
-from palpate.core.streams import GroundTruth, PressRecording
 
 REPLAY_FORMAT = "palpate-replay-summary"
 
@@ -61,7 +61,7 @@ def replay_recording(path: str | Path, memory, out_dir: str | Path, *, cell_size
         progress: progress bars (silent by default).
         figures: write PNG figures.
     """
-    from palpate.core.recording import read_recording, recording_to_press_recording
+    from palpate.core.io.recording import read_recording, recording_to_press_recording
 
     progress = progress or Progress(enabled=False)
     out = Path(out_dir)
@@ -90,9 +90,9 @@ def replay_recording(path: str | Path, memory, out_dir: str | Path, *, cell_size
                                       state["grid"]))
             progress.update(i + 1)
     else:
-        from palpate.core.fit import fit_press
-        from palpate.core.maps import Grid2D
-        from palpate.core.pipeline import presses_from_recording
+        from palpate.core.mapping.grids import Grid2D
+        from palpate.core.perception.fit import fit_press
+        from palpate.core.perception.pipeline import presses_from_recording
 
         seg = presses_from_recording(stream)
         if not seg.presses:
@@ -130,7 +130,7 @@ def replay_recording(path: str | Path, memory, out_dir: str | Path, *, cell_size
             "mean_entropy_after_postprocessing": float(post.mean_entropy()),
         })
         if figures and geoms[name]["map"] == "grid2d":
-            from palpate.core import figures as fig
+            from palpate.core.io import figures as fig
 
             (out / "figures").mkdir(exist_ok=True)
             snaps = [{"label": "replayed", "probabilities": np.array(grid.probabilities),

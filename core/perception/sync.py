@@ -16,7 +16,7 @@ import numpy as np
 from scipy.stats import rankdata
 
 from palpate.core.errors import ValidationError
-from palpate.core.streams import PoseSample, TaxelFrame, frames_to_arrays, poses_to_arrays
+from palpate.core.perception.streams import PoseSample, TaxelFrame, frames_to_arrays, poses_to_arrays
 
 # Below this angle between two quaternions slerp's sin(theta) denominator loses precision; the chord (normalised
 # linear interpolation) is then exact to ~1e-12 rad.

@@ -4,8 +4,8 @@
   calibration is given (a scalar N per count, or a callable mapping a counts array to N per sensel).
 - c_A, contact area (eq. 6.3): the number of active sensels times the sensel area, m^2.
 - c_D, indentation (eq. 6.4): height at first contact minus current height, m, positive into the object. The height
-  at first contact belongs to one press, so c_D is computed per press by :mod:`palpate.core.segment`; here the
-  series carries the height along the press axis.
+  at first contact belongs to one press, so c_D is computed per press by
+  :mod:`palpate.core.perception.segment`; here the series carries the height along the press axis.
 
 A sensel is active when its count exceeds ``noise_threshold``. Sensels at or below the threshold are treated as
 silent for both c_P and c_A, so the two features describe the same contact patch; with the default threshold 0
@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.streams import ContactSample
-from palpate.core.sync import SyncedStream
+from palpate.core.perception.streams import ContactSample
+from palpate.core.perception.sync import SyncedStream
 
 Calibration = Callable[[np.ndarray], np.ndarray] | float | None
 
@@ -36,7 +36,7 @@ class ContactSeries:
         c_A: contact area, m^2, shape (n,).
         height: fingertip position along -press_axis, m, shape (n,) (the z coordinate for a vertical press).
         xy: fingertip (x, y) position, m, shape (n, 2).
-        valid: True where the pose is usable (see :class:`palpate.core.sync.SyncedStream`), shape (n,).
+        valid: True where the pose is usable (see :class:`palpate.core.perception.sync.SyncedStream`), shape (n,).
         calibrated: True when c_P is a force in N rather than a sum of counts.
         z: fingertip z coordinate, m, shape (n,).
     """
@@ -116,7 +116,7 @@ def contact_features(
     """Compute c_P, c_A, height and xy at every frame of a synchronised stream.
 
     Args:
-        stream: output of :func:`palpate.core.sync.synchronise`.
+        stream: output of :func:`palpate.core.perception.sync.synchronise`.
         noise_threshold: a sensel is active when its count is strictly above this (0..254).
         calibration: None (c_P in counts), a positive scalar in N per count, or a callable taking the float
             counts array (n, rows, cols) and returning the force on each sensel in N (same shape, finite, >= 0).

@@ -1,6 +1,6 @@
 """Which actuator presses during exploration: the simulated finger, a person, or a Dynamixel finger.
 
-The exploration loop (:func:`palpate.core.run.explore_object`) presses through whatever ``make(objects, seed,
+The exploration loop (:func:`palpate.core.session.run.explore_object`) presses through whatever ``make(objects, seed,
 variability)`` returns. :func:`open_actuators` gives the run that function for the scenario's ``[actuator]``:
 
 - ``sim``: the registered simulated source (``training.source``, default ``sim``), the one that trains the memory;
@@ -34,10 +34,10 @@ from typing import TextIO
 import numpy as np
 
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
-from palpate.core.scenario import ActuatorSpec, Scenario
-from palpate.core.scene import ObjectSpec, Scene
-from palpate.core.sources import PressTarget
-from palpate.core.streams import PressRecording
+from palpate.core.perception.streams import PressRecording
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scenario import ActuatorSpec, Scenario
+from palpate.core.world.scene import ObjectSpec, Scene
 
 ACTUATOR_GROUP = "palpate.actuators"
 
@@ -207,14 +207,14 @@ def recordings_folder(folder: Path | None, obj: str, n_objects: int) -> Path:
 
 
 def folder_streams(folder: Path, input: TextIO, output: TextIO) -> Callable[[PressTarget, int], PressRecording]:
-    """Streams for :class:`~palpate.core.operator.HumanOperator`: press k is the k-th ``*.mcap`` of ``folder`` in
-    name order (name them so they sort in press order: press_001.mcap, ...).
+    """Streams for :class:`~palpate.core.session.operator.HumanOperator`: press k is the k-th ``*.mcap`` of
+    ``folder`` in name order (name them so they sort in press order: press_001.mcap, ...).
 
     The folder is listed again at every press, so recordings may arrive while the session runs (the person
     presses, the Tekscan/Liberty recording is imported); if press k's file is not there yet the person is asked
     to add it and confirm again. RecordingError if it never comes.
     """
-    from palpate.core.operator import ABORT, MAX_PROMPTS, recordings_from_files
+    from palpate.core.session.operator import ABORT, MAX_PROMPTS, recordings_from_files
 
     def take(target: PressTarget, k: int) -> PressRecording:
         for _ in range(MAX_PROMPTS):
@@ -236,10 +236,10 @@ def folder_streams(folder: Path, input: TextIO, output: TextIO) -> Callable[[Pre
 
 
 def operator_actuator(request: ActuatorRequest, *, check_only: bool = False):
-    """Factory of kind ``operator``: a :class:`~palpate.core.operator.HumanOperator` shown each target cell (text
-    grid, and a PNG under ``<out>/figures/operator/<object>/`` when ``figures``), whose presses are read from
+    """Factory of kind ``operator``: a :class:`~palpate.core.session.operator.HumanOperator` shown each target cell
+    (text grid, and a PNG under ``<out>/figures/operator/<object>/`` when ``figures``), whose presses are read from
     ``recordings_dir``. With ``check_only``, only checks the folder."""
-    from palpate.core.operator import HumanOperator
+    from palpate.core.session.operator import HumanOperator
 
     spec = request.spec
     folder = recordings_folder(spec.recordings_dir, request.obj.name, request.n_objects)

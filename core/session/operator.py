@@ -18,8 +18,8 @@ from typing import TextIO
 import numpy as np
 
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
-from palpate.core.sources import PressTarget
-from palpate.core.streams import PressRecording
+from palpate.core.perception.streams import PressRecording
+from palpate.core.session.sources import PressTarget
 
 CONFIRM = ("", "y", "yes", "done", "ok")
 ABORT = ("q", "quit", "abort")
@@ -34,7 +34,7 @@ def recordings_from_files(paths: Sequence[str | Path]) -> Callable[[PressTarget,
     files = [Path(p) for p in paths]
 
     def take(target: PressTarget, k: int) -> PressRecording:
-        from palpate.core.recording import read_recording, recording_to_press_recording
+        from palpate.core.io.recording import read_recording, recording_to_press_recording
 
         if k >= len(files):
             raise RecordingError(f"press {k + 1} asked for, but only {len(files)} recording file(s) were given")

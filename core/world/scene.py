@@ -115,7 +115,7 @@ class ObjectSpec:
         layers: top layers, first is at the surface.
         inclusions: regions of other materials; later ones win where they overlap.
         mesh_path: for shape "mesh", path of the mesh file (relative paths resolve against models/).
-        material_map: optional haptic-material map (see palpate.core.haptic_material) giving a spatially
+        material_map: optional haptic-material map (see palpate.core.world.haptic_material) giving a spatially
             varying surface material; None for none.
         map_materials: the Materials the map's category names stand for (the map stores names only).
     """

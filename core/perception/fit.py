@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from palpate.core.errors import FitError
-from palpate.core.segment import Press
+from palpate.core.perception.segment import Press
 
 FIT_UNITS = {"c_D": "mm", "c_A": "mm^2"}
 """Units in which c_D and c_A enter the fits (c_P stays in counts, or N when calibrated)."""

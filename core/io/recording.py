@@ -45,7 +45,7 @@ import numpy as np
 
 from palpate.core import __version__
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
-from palpate.core.streams import GroundTruth, PoseSample, PressRecording, TaxelFrame
+from palpate.core.perception.streams import GroundTruth, PoseSample, PressRecording, TaxelFrame
 
 PROFILE = ""  # no ROS profile: plain JSON channels
 METADATA_NAME = "palpate"

@@ -1,9 +1,9 @@
 """Where to press next: exploration policies over a map (map in, next target out), and the stop rules.
 
 Every policy has one method, ``next_target(grid, post=None, last=None) -> Target | None``: ``grid`` is the map
-as measured (:class:`~palpate.core.maps.Grid2D` or :class:`~palpate.core.maps.VoxelGrid`), ``post`` its
-post-processed version (computed when not given), ``last`` the (ix, iy) of the previous press. A target is a
-column of the map, (ix, iy) 0-based, plus for voxel maps the depth to reach (m); None means the policy has
+as measured (:class:`~palpate.core.mapping.grids.Grid2D` or :class:`~palpate.core.mapping.grids.VoxelGrid`),
+``post`` its post-processed version (computed when not given), ``last`` the (ix, iy) of the previous press. A target
+is a column of the map, (ix, iy) 0-based, plus for voxel maps the depth to reach (m); None means the policy has
 nothing left to propose. Policies hold only their own small state (a queue, a generator, a table of predicted
 press outcomes); the map is passed in on each call.
 
@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.expected_accuracy import expected_accuracy_gain
-from palpate.core.neighbourhood import NEIGHBOURS_8, box3_sum, shift_slices
+from palpate.core.mapping.neighbourhood import NEIGHBOURS_8, box3_sum, shift_slices
+from palpate.core.planning.expected_accuracy import expected_accuracy_gain
 
 #: A cell counts as "certain" when its entropy is at most this fraction of the largest possible (log_b M).
 CERTAIN_FRACTION = 0.05
@@ -459,7 +459,7 @@ class InfoGain:
         spread_stride: press every ``spread_stride``-th cell first (an even lattice; < 2 = no lattice).
         objective: what a press is expected to gain on 2-D maps: "accuracy" (default) = the expected number of
             cells of the post-processed map whose most probable material becomes the true one
-            (:func:`palpate.core.expected_accuracy.expected_accuracy_gain`, under a neighbour-vote belief of
+            (:func:`palpate.core.planning.expected_accuracy.expected_accuracy_gain`, under a neighbour-vote belief of
             the truth); "entropy" = the expected reduction of the post-processed map's entropy
             (:func:`expected_gain`) plus the boundary term. Voxel maps always use the entropy gain.
         boundary_weight: "entropy" objective: score added per unit of :func:`disagreement` (0 = pure entropy gain).

@@ -1,0 +1,18 @@
+"""Package discovery only (metadata lives in pyproject.toml).
+
+palpate's top-level folders core/, sim/ and hardware/ are the subpackages palpate.core, palpate.sim and
+palpate.hardware. setuptools' declarative find cannot add the ``palpate.`` prefix, so the subpackages are found
+here: a new folder with an ``__init__.py`` is packaged without anyone having to list it.
+"""
+
+from setuptools import find_packages, setup
+
+TOP = ("core", "sim", "hardware")
+
+packages = [f"palpate.{top}" for top in TOP]
+packages += [f"palpate.{top}.{sub}" for top in TOP for sub in find_packages(top)]
+
+setup(
+    packages=packages,
+    package_dir={f"palpate.{top}": top for top in TOP},
+)
