@@ -16,7 +16,8 @@ import time
 import numpy as np
 from bench_timing import median_of
 
-from palpate.core.mapping.grids import Grid2D, VoxelGrid, extrapolate_unexplored
+from palpate.core.mapping.extrapolation import extrapolate_unexplored
+from palpate.core.mapping.grids import Grid2D, VoxelGrid
 from palpate.core.perception.fit import fit_press
 from palpate.core.perception.layered_memory import layer_fits
 from palpate.core.perception.memory import HapticMemory

@@ -31,10 +31,13 @@ import time
 import numpy as np
 
 from palpate.core.mapping.grids import Grid2D
-from palpate.core.planning.policies import InfoGain, outcome_posteriors, outcome_table
+from palpate.core.planning.info_gain import InfoGain
+from palpate.core.planning.outcomes import outcome_posteriors, outcome_table
+from palpate.core.session.explore import explore_object
 from palpate.core.session.progress import Progress
-from palpate.core.session.run import explore_object, train_memory
+from palpate.core.session.report import object_summary
 from palpate.core.session.sources import load_source
+from palpate.core.session.training import train_memory
 from palpate.core.world.scenario import parse_scenario
 from palpate.core.world.scene import Scene
 
@@ -230,7 +233,8 @@ def main() -> None:
 
     t0 = time.perf_counter()
     base = parse_scenario(scene_dict(0, args.fidelity, "raster", 1), "bench")
-    memory, crossval, _ = train_memory(base, make_source_for(base), np.arange(3) + 1000, Progress(enabled=False))
+    training = train_memory(base, make_source_for(base), np.arange(3) + 1000, Progress(enabled=False))
+    memory, crossval = training.memory, training.crossval
     t_gain, groups = gain_timing(memory)
     print(f"memory: {len(memory.materials)} materials, leave-one-out accuracy "
           f"{np.mean(np.diag(np.asarray(crossval.confusion))):.2f}; info_gain choice among 10,000 cells: "
@@ -251,8 +255,8 @@ def main() -> None:
             kind, objective = ROWS[policy]
             sc = parse_scenario(scene_dict(s, args.fidelity, kind, budget, passes, objective), f"scene{s}")
             t1 = time.perf_counter()
-            summary, *_ = explore_object(sc, sc.objects[0], memory, make_source_for(sc), 7000 + s,
-                                         Progress(enabled=False))
+            summary = object_summary(explore_object(sc, sc.objects[0], memory, make_source_for(sc), 7000 + s,
+                                                    Progress(enabled=False)))
             wall[policy] += time.perf_counter() - t1
             acc = [r["accuracy_all_cells_postprocessed"] for r in summary["per_press"]]
             ent = [r["mean_entropy_postprocessed"] for r in summary["per_press"]]

@@ -2,7 +2,7 @@
 
 The same seeded scenes as benchmarks/exploration.py (its scene generator), the same trained memory and the same
 policies, map and post-processing; only the press is replaced: pressing a cell returns a posterior drawn from
-the memory's predicted outcomes for the cell's true material (palpate.core.planning.policies.outcome_posteriors, the
+the memory's predicted outcomes for the cell's true material (palpate.core.planning.outcomes.outcome_posteriors, the
 Gaussians of seed 000 eq. 6.13-6.14). That is what the physics benchmark's presses look like on these scenes
 (walls are kept away from cell centres there), and on seeds 0-23 this script reproduces its info_gain/raster
 median. Use it to compare policies or settings on enough scenes for the median to mean something, and on seeds
@@ -24,21 +24,26 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from exploration import ACCURACY, ROWS, chosen_rows, make_source_for, scene_dict  # noqa: E402
 
-from palpate.core.planning.policies import make_policy, outcome_posteriors
+from palpate.core.mapping.accuracy import map_accuracy
+from palpate.core.mapping.geometry import MapGeometry
+from palpate.core.mapping.grids import new_map
+from palpate.core.planning.outcomes import outcome_posteriors
+from palpate.core.planning.registry import make_policy
 from palpate.core.session.progress import Progress
-from palpate.core.session.run import build_map, ground_truth_map, map_accuracy, map_geometry, train_memory
+from palpate.core.session.training import train_memory
 from palpate.core.world.scenario import parse_scenario
+from palpate.core.world.workspace import ground_truth_map, map_geometries
 
 
-def presses_to_accuracy(policy, geom: dict, truth: np.ndarray, answers: np.ndarray, seed: int) -> int | None:
+def presses_to_accuracy(policy, geom: MapGeometry, truth: np.ndarray, answers: np.ndarray, seed: int) -> int | None:
     """Presses until the post-processed map reaches ACCURACY (None if the policy stops or the budget, one press
     per cell, runs out first)."""
-    grid = build_map(geom)
+    grid = new_map(geom)
     rng = np.random.default_rng(seed)
     last = None
     for k in range(truth.size + 1):
         post = grid.postprocessed()
-        if map_accuracy(post, truth, explored_only=False) >= ACCURACY:
+        if (map_accuracy(post.probabilities, truth) or 0.0) >= ACCURACY:
             return k
         if k == truth.size:
             return None
@@ -62,7 +67,7 @@ def main() -> None:
 
     t0 = time.perf_counter()
     base = parse_scenario(scene_dict(0, "analytic", "raster", 1), "bench")
-    memory, _, _ = train_memory(base, make_source_for(base), np.arange(3) + 1000, Progress(enabled=False))
+    memory = train_memory(base, make_source_for(base), np.arange(3) + 1000, Progress(enabled=False)).memory
     answers = outcome_posteriors(memory, args.samples, seed=99)
     needed: dict[str, list[int | None]] = {p: [] for p in rows}
     cells: list[int] = []
@@ -72,7 +77,7 @@ def main() -> None:
             kind, objective = ROWS[row]
             sc = parse_scenario(scene_dict(s, "analytic", kind, 1, 1, objective), f"scene{s}")
             ex = sc.exploration
-            geom = map_geometry(sc)[sc.objects[0].spec.name]
+            geom = map_geometries(sc)[sc.objects[0].spec.name]
             truth = ground_truth_map(sc.objects[0], sc, geom)
             regions = [(c - 1, r - 1) for c, r in sc.objects[0].regions]
             policy = make_policy(kind, cells=regions, seed=s, memory=memory, objective=ex.objective,

@@ -11,7 +11,9 @@ from bench_timing import best_of
 from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
-from palpate.core.perception.memory import HapticMemory, leave_one_out, read_params_csv
+from palpate.core.perception.crossval import leave_one_out
+from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.params_table import read_params_csv
 
 THESIS_CSV = Path(__file__).resolve().parent.parent / "tests" / "data" / "thesis_ch6_params.csv"
 

@@ -40,3 +40,7 @@ class RecordingError(PalpateError, ValueError):
     def __init__(self, message: str, salvaged: int = 0):
         super().__init__(message)
         self.salvaged = salvaged
+
+
+class NotFittedError(ValidationError):
+    """A model was asked to predict before it was fitted (or loaded)."""

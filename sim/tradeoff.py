@@ -186,7 +186,7 @@ def hertz_force_error(rec: PressRecording, young_eff: float, radius: float, min_
 
 def measure_press(setting: Setting, young: float, name: str, seed: int, depth: float = 0.003) -> PressMeasure:
     """Simulate and perceive one press; peaks are NaN where the pipeline found no press or the fit failed."""
-    from palpate.core.session.run import perceive_press
+    from palpate.core.perception.press import perceive_press
 
     t0 = time.perf_counter()
     rec = simulate(setting, young, name, seed, depth=depth)
@@ -196,7 +196,7 @@ def measure_press(setting: Setting, young: float, name: str, seed: int, depth: f
     if len(res.c_P):
         peaks.update(c_P=float(np.max(res.c_P)), c_A=float(np.max(res.c_A)), c_D=float(np.max(res.c_D)))
     if res.fit is not None:
-        peaks.update(n1=res.fit["n1"], a1=res.fit["a1"])
+        peaks.update(n1=res.fit.n1, a1=res.fit.a1)
     herr = hertz_force_error(rec, young / (1 - 0.3**2), Scene(()).fingertip.radius)
     return PressMeasure(name, seed, wall, rec.meta["duration"], peaks, herr, res.params)
 
@@ -252,7 +252,7 @@ def measure_setting(setting: Setting, *, seeds: tuple[int, ...] = (0, 1, 2, 3),
     The error against a reference is filled in later by :func:`compare_to_reference`. A setting whose physics
     diverges or is invalid is returned with ``failed`` set (the sweep goes on).
     """
-    from palpate.core.perception.memory import leave_one_out
+    from palpate.core.perception.crossval import leave_one_out
 
     out = SettingResult(setting)
     try:

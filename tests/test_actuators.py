@@ -16,11 +16,13 @@ import pytest
 
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
 from palpate.core.io.recording import RecordingWriter
-from palpate.core.session.actuators import folder_streams, open_actuators, recordings_folder
-from palpate.core.session.run import map_geometry, run_scenario
+from palpate.core.session.actuators import open_actuators
+from palpate.core.session.operator import folder_streams, recordings_folder
+from palpate.core.session.run import run_scenario
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scenario import ActuatorSpec, parse_actuator, parse_scenario
 from palpate.core.world.scene import Scene
+from palpate.core.world.workspace import map_geometries
 
 # Two reference materials; a 30 x 10 mm foam slab whose last 10 mm (cell 3) is a hard column.
 OPERATOR = """
@@ -146,14 +148,14 @@ def _record_presses(scenario, folder: Path, seed: int = 7) -> list[tuple[float, 
     from palpate.sim.source import SimSource
 
     entry = scenario.objects[0]
-    geom = map_geometry(scenario)[entry.spec.name]
+    geom = map_geometries(scenario)[entry.spec.name]
     source = SimSource(Scene((entry.spec,), scenario.fingertip, scenario.taxels, scenario.pose),
                        fidelity="analytic", seed=seed, variability="human")
     folder.mkdir(parents=True, exist_ok=True)
     targets = []
     for k, (c, r) in enumerate(entry.regions):
-        x = geom["origin_m"][0] + (c - 0.5) * geom["cell_size_m"]
-        y = geom["origin_m"][1] + (r - 0.5) * geom["cell_size_m"]
+        x = geom.origin[0] + (c - 0.5) * geom.cell_size
+        y = geom.origin[1] + (r - 0.5) * geom.cell_size
         rec = source.press(PressTarget(x, y, depth=0.005, force=10.0))
         with RecordingWriter(folder / f"press_{k + 1:03d}.mcap", {"sources": ["tekscan", "liberty"]}) as w:
             for f in rec.frames:
@@ -342,7 +344,7 @@ def test_travel_between_cells_stays_above_the_object(repo_dir):
     from palpate.hardware.dynamixel.finger import forward_kinematics, inverse_kinematics
 
     sc = _dynamixel_scenario(repo_dir, actuator={"approach_mm": 3.0})
-    request = actuator_requests(sc, map_geometry(sc))["Strip"]
+    request = actuator_requests(sc, map_geometries(sc))["Strip"]
     top = request.obj.height
     session = dynamixel_actuator(request)  # powered on 3 mm above cell 1 (x = 50 mm)
     try:
@@ -389,7 +391,7 @@ def test_open_actuators_closes_each_objects_actuator_when_the_next_is_made(tmp_p
     raw["actuator"] = {"kind": "operator", "recordings_dir": str(tmp_path)}
     sc = parse_scenario(raw, "x.toml")
     monkeypatch.setattr("palpate.core.session.actuators.load_actuator", lambda kind: factory)
-    with open_actuators(sc, tmp_path, map_geometry(sc), lambda: None) as (_, make):
+    with open_actuators(sc, tmp_path, map_geometries(sc), lambda: None) as (_, make):
         assert calls == [("slab", True, 0), ("slab2", True, 0)]  # every object checked first
         a = make((sc.objects[0].spec,), 11, "human")
         assert closed == [] and a.name == "slab"

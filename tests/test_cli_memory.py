@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from palpate.core.cli import main
-from palpate.core.perception.memory import HapticMemory, leave_one_out, read_params_csv
+from palpate.core.perception.crossval import leave_one_out
+from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.params_table import read_params_csv
 
 THESIS_CSV = Path(__file__).parent / "data" / "thesis_ch6_params.csv"
 

@@ -17,7 +17,7 @@ from palpate.core.planning.expected_accuracy import (
     label_belief,
     material_frequencies,
 )
-from palpate.core.planning.policies import outcome_posteriors, outcome_table
+from palpate.core.planning.outcomes import outcome_posteriors, outcome_table
 
 MATS = ["m0", "m1", "m2"]
 

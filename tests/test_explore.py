@@ -9,20 +9,10 @@ import pytest
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.grids import Grid2D, VoxelGrid
 from palpate.core.perception.memory import HapticMemory
-from palpate.core.planning.policies import (
-    InfoGain,
-    MaxEntropy,
-    Predefined,
-    RandomCells,
-    Raster,
-    disagreement,
-    expected_gain,
-    make_policy,
-    outcome_posteriors,
-    outcome_table,
-    stop_reason,
-    uncovered,
-)
+from palpate.core.planning.info_gain import InfoGain, disagreement, expected_gain, uncovered
+from palpate.core.planning.outcomes import outcome_posteriors, outcome_table
+from palpate.core.planning.policies import MaxEntropy, Predefined, RandomCells, Raster
+from palpate.core.planning.registry import make_policy, stop_reason
 from palpate.core.world.scenario import parse_scenario
 
 CERTAIN = {0: np.array([0.999, 0.0005, 0.0005]), 1: np.array([0.0005, 0.999, 0.0005]),
@@ -287,22 +277,24 @@ def test_info_gain_settings_reach_the_policy(trained):
 @pytest.fixture(scope="module")
 def trained():
     from palpate.core.session.progress import Progress
-    from palpate.core.session.run import _source_factory, train_memory
+    from palpate.core.session.sources import scenario_source_maker
+    from palpate.core.session.training import train_memory
 
     sc = _scenario()
-    make = _source_factory(sc)
-    memory, _, _ = train_memory(sc, make, [11, 12], Progress(enabled=False))
-    return memory
+    make = scenario_source_maker(sc)
+    return train_memory(sc, make, [11, 12], Progress(enabled=False)).memory
 
 
 def _explore(memory, make_source=None, **exploration):
+    from palpate.core.session.explore import explore_object
     from palpate.core.session.progress import Progress
-    from palpate.core.session.run import _source_factory, explore_object
+    from palpate.core.session.report import object_summary
+    from palpate.core.session.sources import scenario_source_maker
 
     sc = _scenario(**exploration)
-    summary, *_ = explore_object(sc, sc.objects[0], memory, make_source or _source_factory(sc), 21,
-                                 Progress(enabled=False))
-    return summary
+    result = explore_object(sc, sc.objects[0], memory, make_source or scenario_source_maker(sc), 21,
+                            Progress(enabled=False))
+    return object_summary(result)
 
 
 def test_loop_stops_at_the_press_budget(trained):
@@ -339,7 +331,7 @@ def test_loop_stops_when_the_policy_has_nothing_left(trained):
 
 
 def test_loop_drives_any_object_with_press_and_rejects_one_without(trained):
-    from palpate.core.session.run import _source_factory
+    from palpate.core.session.sources import scenario_source_maker
 
     pressed = []
 
@@ -352,7 +344,7 @@ def test_loop_drives_any_object_with_press_and_rejects_one_without(trained):
             return self.inner.press(target)
 
     sc = _scenario()
-    inner = _source_factory(sc)
+    inner = scenario_source_maker(sc)
     s = _explore(trained, make_source=lambda *a: Finger(inner(*a)), policy="info_gain", budget=4)
     assert s["presses"] == 4 and len(pressed) == 4
     assert [list(r["target_m"]) for r in s["per_press"]] == [[x, y] for x, y, _ in pressed]
@@ -369,12 +361,14 @@ def test_scenario_extrapolation_passes_default_all_and_voxel_refusal():
 
 
 def test_loop_reports_and_returns_the_iterated_post_processing(trained):
+    from palpate.core.session.explore import explore_object
     from palpate.core.session.progress import Progress
-    from palpate.core.session.run import _source_factory, explore_object
+    from palpate.core.session.report import object_summary
+    from palpate.core.session.sources import scenario_source_maker
 
     sc = _scenario(policy="raster", budget=2, extrapolation_passes="all")
-    summary, _, _, grid, post, _ = explore_object(sc, sc.objects[0], trained, _source_factory(sc), 21,
-                                                  Progress(enabled=False))
+    result = explore_object(sc, sc.objects[0], trained, scenario_source_maker(sc), 21, Progress(enabled=False))
+    summary, grid, post = object_summary(result), result.grid, result.post
     assert np.array_equal(post.probabilities, grid.postprocessed(passes=None).probabilities)
     # Two presses in one corner fill the whole 4x3 map: no cell is left at the uniform prior.
     assert not np.isclose(post.probabilities, 0.5).all(axis=-1).any()

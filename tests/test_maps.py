@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
+from palpate.core import mapping as maps
 from palpate.core.errors import ValidationError
-from palpate.core.mapping import grids as maps
 from palpate.core.mapping.grids import Grid2D, VoxelGrid
 
 # Seed 001 Table 2 (Object_1, one volumetric column, l1 = surface ... l6 = deepest), entropies in log10.

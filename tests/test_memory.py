@@ -13,14 +13,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import multivariate_normal
 
-from palpate.core.errors import ValidationError
-from palpate.core.perception.memory import (
-    MIN_SAMPLES,
-    HapticMemory,
-    leave_one_out,
-    read_params_csv,
-    regularise_covariance,
-)
+from palpate.core.errors import NotFittedError, ValidationError
+from palpate.core.perception.crossval import leave_one_out
+from palpate.core.perception.gaussian import regularise_covariance
+from palpate.core.perception.memory import MIN_SAMPLES, HapticMemory
+from palpate.core.perception.params_table import read_params_csv
 
 MATERIALS = ["Material_1", "Material_2", "Material_3"]
 
@@ -334,13 +331,14 @@ def test_bad_labels_and_settings(thesis):
         HapticMemory().fit(params, [""] + labels[1:])
     with pytest.raises(ValidationError, match="not a single string"):
         HapticMemory().fit(params[:1], "Material_1")
+    # scikit-learn's convention: the constructor stores settings, fit() validates them.
     with pytest.raises(ValidationError, match="ddof must be 0"):
-        HapticMemory(ddof=2)
+        HapticMemory(ddof=2).fit(params, labels)
     with pytest.raises(ValidationError, match="min_eig"):
-        HapticMemory(min_eig=0.0)
+        HapticMemory(min_eig=0.0).fit(params, labels)
     with pytest.raises(ValidationError, match="duplicate"):
-        HapticMemory(materials=["a", "a"])
-    with pytest.raises(ValidationError, match="not trained"):
+        HapticMemory(materials=["a", "a"]).fit(params, labels)
+    with pytest.raises(NotFittedError, match="not trained"):
         HapticMemory().predict(params)
 
 

@@ -74,9 +74,13 @@ def test_operator_in_the_closed_loop_explores_an_object(tmp_path):
     """A script plays the operator: it confirms every prompt and 'presses' through the simulated finger."""
     import tomllib
 
+    from palpate.core.session.explore import explore_object
     from palpate.core.session.progress import Progress
-    from palpate.core.session.run import _source_factory, explore_object, map_geometry, train_memory
+    from palpate.core.session.report import object_summary
+    from palpate.core.session.sources import scenario_source_maker
+    from palpate.core.session.training import train_memory
     from palpate.core.world.scenario import parse_scenario
+    from palpate.core.world.workspace import map_geometries
 
     raw = tomllib.loads("""
 [scenario]
@@ -110,18 +114,18 @@ figures = false
 haptic_material = false
 """)
     sc = parse_scenario(raw, "op.toml")
-    sim = _source_factory(sc)
-    memory, _, _ = train_memory(sc, sim, [5, 6], Progress(enabled=False))
-    geom = map_geometry(sc)["slab"]
+    sim = scenario_source_maker(sc)
+    memory = train_memory(sc, sim, [5, 6], Progress(enabled=False)).memory
+    geom = map_geometries(sc)["slab"]
     out = io.StringIO()
 
     def make(objects, seed, variability):
         finger = sim(objects, seed, variability)
-        return HumanOperator(tuple(geom["origin_m"]), geom["cell_size_m"], tuple(geom["shape"]),
+        return HumanOperator(geom.origin, geom.cell_size, geom.plane_shape,
                              lambda target, k: finger.press(target), input=io.StringIO("\n" * 3), output=out,
                              figure_dir=tmp_path, materials=memory.materials)
 
-    summary, *_ = explore_object(sc, sc.objects[0], memory, make, 9, Progress(enabled=False))
+    summary = object_summary(explore_object(sc, sc.objects[0], memory, make, 9, Progress(enabled=False)))
     assert summary["presses"] == 3
     assert out.getvalue().count("press the cell, then Enter") == 3
     assert "S = soft, H = hard" in out.getvalue()  # the loop showed the operator the map

@@ -11,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from palpate.core.perception.crossval import leave_one_out
 from palpate.core.perception.fit import fit_press
-from palpate.core.perception.memory import HapticMemory, leave_one_out
+from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.pipeline import presses_from_recording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, Scene

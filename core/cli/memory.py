@@ -10,7 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.perception.memory import DEFAULT_MIN_EIG, HapticMemory, leave_one_out, read_params_csv
+from palpate.core.perception.crossval import leave_one_out
+from palpate.core.perception.memory import DEFAULT_MIN_EIG, HapticMemory
+from palpate.core.perception.params_table import read_params_csv
 
 CSV_HELP = "per-press parameters CSV: header with material,n1,n2,a1,a2 (any order, extra columns ignored)"
 

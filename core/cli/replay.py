@@ -32,6 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _replay(args: argparse.Namespace) -> int:
     from palpate.core.errors import ValidationError
+    from palpate.core.perception.layered_memory import LayeredMemory
     from palpate.core.perception.memory import HapticMemory
     from palpate.core.session.progress import Progress
     from palpate.core.session.replay import replay_recording
@@ -39,12 +40,11 @@ def _replay(args: argparse.Namespace) -> int:
     if not args.cell_mm > 0:
         raise ValidationError(f"--cell-mm must be > 0, got {args.cell_mm}")
     memory = HapticMemory.load(args.memory)
-    layers = args.memory_layers or args.memory.with_name("memory_layers.json")
-    if args.memory_layers is not None or layers.is_file():
-        from palpate.core.session.run import load_layer_memories
-
-        memory = load_layer_memories(memory, layers)
-    summary = replay_recording(args.recording, memory, args.out, cell_size=args.cell_mm * 1e-3,
+    layers_file = args.memory_layers or args.memory.with_name("memory_layers.json")
+    layers = None
+    if args.memory_layers is not None or layers_file.is_file():
+        layers = LayeredMemory.load(memory, layers_file)
+    summary = replay_recording(args.recording, memory, args.out, layers=layers, cell_size=args.cell_mm * 1e-3,
                                progress=Progress(enabled=not (args.quiet or args.json)),
                                figures=not args.no_figures)
     if args.json:

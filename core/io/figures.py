@@ -12,11 +12,27 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from palpate.core.mapping.grids import entropy
+from palpate.core.mapping.geometry import MapGeometry
+from palpate.core.mapping.probability import entropy
+from palpate.core.mapping.snapshot import MapSnapshot
+from palpate.core.perception.press import PressResult
+
+
+@dataclass(frozen=True)
+class ProgressSeries:
+    """One object's exploration progress: press numbers, mean map entropy and explored-cell accuracy after each
+    press (NaN where there is no truth)."""
+
+    name: str
+    k: np.ndarray
+    mean_entropy: np.ndarray
+    accuracy_explored: np.ndarray
 
 
 def _plt():
@@ -41,7 +57,7 @@ def rgb_image(probabilities: np.ndarray) -> np.ndarray:
     return np.clip(p @ palette[:m], 0.0, 1.0)
 
 
-def plot_training_series(path: Path, training: dict) -> Path:
+def plot_training_series(path: Path, training: Mapping[str, Sequence[PressResult]]) -> Path:
     """c_P, c_A (mm^2), c_D (mm) against time for every training press, presses laid end to end."""
     plt = _plt()
     names = list(training)
@@ -67,7 +83,7 @@ def plot_training_series(path: Path, training: dict) -> Path:
     return path
 
 
-def plot_interaction_profiles(path: Path, training: dict) -> Path:
+def plot_interaction_profiles(path: Path, training: Mapping[str, Sequence[PressResult]]) -> Path:
     """3-D scatter of (c_A, c_D, c_P) per material: the contact-interaction signature."""
     plt = _plt()
     fig = plt.figure(figsize=(7, 5.5))
@@ -88,36 +104,38 @@ def plot_interaction_profiles(path: Path, training: dict) -> Path:
     return path
 
 
-def _extent(grid_summary: dict, shape: tuple[int, int]) -> list[float]:
-    (x0, y0), c = grid_summary["origin_m"], grid_summary["cell_size_m"]
+def _extent(geometry: MapGeometry, shape: tuple[int, int]) -> list[float]:
+    """imshow extent in cm of a (ny, nx) image of the map."""
+    (x0, y0), c = geometry.origin, geometry.cell_size
     ny, nx = shape
     return [x0 * 100, (x0 + nx * c) * 100, y0 * 100, (y0 + ny * c) * 100]
 
 
-def plot_map_snapshots(path: Path, name: str, snapshots: list[dict], grid_summary: dict, materials: list[str],
+def plot_map_snapshots(path: Path, name: str, snapshots: Sequence[MapSnapshot], geometry: MapGeometry,
                        truth: np.ndarray | None = None) -> Path:
     """RGB probability maps at k = 0, mid-way, final and post-processed (2-D grid), plus the ground truth."""
     plt = _plt()
-    panels = list(snapshots) + ([{"label": "ground truth", "truth": truth}] if truth is not None else [])
-    ny, nx = np.asarray(panels[0].get("probabilities", truth)).shape[:2]
+    materials = list(geometry.materials)
+    panels: list[MapSnapshot | None] = list(snapshots) + ([None] if truth is not None else [])
+    ny, nx = (truth.shape if not snapshots else snapshots[0].probabilities.shape)[:2]
     aspect = max(1.0, nx / ny)
     fig, axes = plt.subplots(1, len(panels), figsize=(min(20.0, 3.0 * aspect * len(panels)), 3.6), squeeze=False,
                              layout="constrained")
     for ax, snap in zip(axes[0], panels, strict=True):
-        if "truth" in snap:
+        if snap is None:  # the ground-truth panel
             p = np.zeros(truth.shape + (len(materials),))
             valid = truth >= 0
             p[valid] = np.eye(len(materials))[truth[valid]]
-            img, explored = rgb_image(p), None
+            img, explored, label = rgb_image(p), None, "ground truth"
         else:
-            img, explored = rgb_image(snap["probabilities"]), snap["explored"]
-        ext = _extent(grid_summary, img.shape[:2])
+            img, explored, label = rgb_image(snap.probabilities), snap.explored, snap.label
+        ext = _extent(geometry, img.shape[:2])
         ax.imshow(img, origin="lower", extent=ext, interpolation="nearest")
-        if explored is not None and snap["label"] != "post-processed":
-            c = grid_summary["cell_size_m"] * 100
+        if explored is not None and label != "post-processed":
+            c = geometry.cell_size * 100
             for iy, ix in np.argwhere(explored):
                 ax.add_patch(plt.Rectangle((ext[0] + ix * c, ext[2] + iy * c), c, c, fill=False, ec="white", lw=1.2))
-        ax.set_title(snap["label"])
+        ax.set_title(label)
         ax.set_xlabel("x (cm)")
     axes[0, 0].set_ylabel("y (cm)")
     legend = " · ".join(f"{c}={m}" for c, m in zip(("red", "green", "blue"), materials, strict=False))
@@ -127,17 +145,17 @@ def plot_map_snapshots(path: Path, name: str, snapshots: list[dict], grid_summar
     return path
 
 
-def plot_entropy(path: Path, name: str, before: np.ndarray, after: np.ndarray, grid_summary: dict,
-                 base: float = 10.0) -> Path:
-    """Entropy per cell (log base ``base``) before and after post-processing, on one colour scale."""
+def plot_entropy(path: Path, name: str, before: np.ndarray, after: np.ndarray, geometry: MapGeometry) -> Path:
+    """Entropy per cell (in the map's entropy base) before and after post-processing, on one colour scale."""
     plt = _plt()
+    base = geometry.entropy_base
     hb, ha = entropy(before, base=base), entropy(after, base=base)
     vmax = float(np.log(before.shape[-1]) / np.log(base))
     ny, nx = hb.shape
     width = min(14.0, 2 * 3.2 * max(1.0, nx / ny) + 1.5)
     fig, axes = plt.subplots(1, 2, figsize=(width, 3.6), squeeze=False, layout="constrained")
     for ax, h, title in zip(axes[0], (hb, ha), ("final map", "after post-processing"), strict=True):
-        im = ax.imshow(h, origin="lower", extent=_extent(grid_summary, h.shape), vmin=0, vmax=vmax, cmap="magma")
+        im = ax.imshow(h, origin="lower", extent=_extent(geometry, h.shape), vmin=0, vmax=vmax, cmap="magma")
         ax.set_title(f"{title}\nmean H = {h.mean():.3f}")
         ax.set_xlabel("x (cm)")
     axes[0, 0].set_ylabel("y (cm)")
@@ -148,15 +166,13 @@ def plot_entropy(path: Path, name: str, before: np.ndarray, after: np.ndarray, g
     return path
 
 
-def plot_progress(path: Path, objects: list[dict]) -> Path:
+def plot_progress(path: Path, series: Sequence[ProgressSeries]) -> Path:
     """Mean entropy and accuracy of the explored cells after each press, one line per object."""
     plt = _plt()
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.4))
-    for obj in objects:
-        k = [r["k"] for r in obj["per_press"]]
-        a1.plot(k, [r["mean_entropy"] for r in obj["per_press"]], marker="o", ms=3, label=obj["name"])
-        a2.plot(k, [np.nan if r["accuracy_explored"] is None else r["accuracy_explored"] for r in obj["per_press"]],
-                marker="o", ms=3, label=obj["name"])
+    for s in series:
+        a1.plot(s.k, s.mean_entropy, marker="o", ms=3, label=s.name)
+        a2.plot(s.k, s.accuracy_explored, marker="o", ms=3, label=s.name)
     a1.set_xlabel("press k")
     a1.set_ylabel("mean entropy of the map")
     a2.set_xlabel("press k")
@@ -212,32 +228,3 @@ def render_voxels_3d(path: Path, grid, cell_size: float) -> Path | None:
     plotter.screenshot(str(path))
     plotter.close()
     return path
-
-
-def write_run_figures(folder: Path, scenario, training: dict, artefacts: dict, render_3d: bool = True) -> list[Path]:
-    """Every figure of a run; returns the written paths."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    paths = []
-    if training:
-        paths.append(plot_training_series(folder / "training_series.png", training))
-        paths.append(plot_interaction_profiles(folder / "interaction_profiles.png", training))
-    materials = scenario.references
-    for name, (snaps, _results, grid, post, truth) in artefacts.items():
-        gsum = {"origin_m": list(grid.origin), "cell_size_m": grid.cell_size}
-        if scenario.exploration.map == "grid2d":
-            paths.append(plot_map_snapshots(folder / f"{name}_map.png", name, snaps, gsum, materials, truth))
-            paths.append(plot_entropy(folder / f"{name}_entropy.png", name, snaps[-2]["probabilities"],
-                                      snaps[-1]["probabilities"], gsum, scenario.exploration.entropy_base))
-        else:
-            paths.append(plot_voxel_columns(folder / f"{name}_columns.png", name, grid, post, materials))
-            if render_3d:
-                p = render_voxels_3d(folder / f"{name}_voxels_3d.png", post, grid.cell_size)
-                if p is not None:
-                    paths.append(p)
-    return paths
-
-
-def write_progress_figure(folder: Path, objects: list[dict]) -> Path:
-    """The entropy/accuracy-against-presses figure, drawn from the run summary's objects."""
-    return plot_progress(Path(folder) / "exploration_progress.png", objects)

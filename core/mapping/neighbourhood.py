@@ -1,7 +1,7 @@
-"""Shifting a grid against itself: the neighbour offsets, slices and 3x3 sums the planning code shares.
+"""Shifting a grid against itself: the neighbour offsets, slices and 3x3 sums that post-processing and planning share.
 
-Grids are indexed [..., iy, ix] (rows, columns last), as :class:`~palpate.core.mapping.grids.Grid2D` after its materials
-axis is moved first or dropped.
+Planning planes are indexed [..., iy, ix] (rows, columns last); a map's probabilities are (ny, nx, M), whose plane
+axes are (0, 1).
 """
 
 from __future__ import annotations
@@ -19,12 +19,19 @@ def shift_slices(dy: int, dx: int, ny: int, nx: int) -> tuple[tuple[slice, slice
     return cand, nb
 
 
-def box3_sum(a: np.ndarray) -> np.ndarray:
-    """Sum over each cell's in-grid 3x3 neighbourhood (itself included) on the last two axes."""
-    rows = a.copy()
-    rows[..., 1:] += a[..., :-1]
-    rows[..., :-1] += a[..., 1:]
-    out = rows.copy()
-    out[..., 1:, :] += rows[..., :-1, :]
-    out[..., :-1, :] += rows[..., 1:, :]
+def box3_sum(a: np.ndarray, axes: tuple[int, int] = (-2, -1)) -> np.ndarray:
+    """Sum over each cell's in-grid 3x3 neighbourhood (itself included) on two axes of ``a``, separably.
+
+    Off-grid neighbours contribute nothing, which is the edge and corner rule of seed 000 eq. 6.15. ``axes`` are
+    the (row, column) axes: the last two for planning planes, (0, 1) for a map's (ny, nx, M) probabilities.
+    """
+    out = a.copy()
+    # Columns first, then rows: the order of the additions fixes the rounding, and maps must not change with it.
+    for ax in reversed(axes):
+        src = out.copy()
+        lo = [slice(None)] * a.ndim
+        hi = [slice(None)] * a.ndim
+        lo[ax], hi[ax] = slice(1, None), slice(None, -1)
+        out[tuple(lo)] += src[tuple(hi)]
+        out[tuple(hi)] += src[tuple(lo)]
     return out

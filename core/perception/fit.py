@@ -168,27 +168,40 @@ class PressFit:
         return np.array([self.a1, self.a2])
 
 
-def fit_press(press: Press) -> PressFit:
-    """Fit both interaction laws to the press phase of a press.
+def fit_samples(c_P, c_A, c_D, *, where: str = "press", press_index: int = -1,
+                location: tuple[float, float] = (0.0, 0.0), calibrated: bool = False) -> PressFit:
+    """Fit both interaction laws to press-phase samples given as plain arrays.
+
+    Args:
+        c_P: contact intensity (counts, or N when ``calibrated``).
+        c_A: contact area, m^2.
+        c_D: indentation, m.
+        where: how error messages name the samples.
+        press_index, location, calibrated: copied into the result.
 
     Raises:
-        FitError: naming the law (kinesthetic N or cutaneous A) and the press when either fit is degenerate,
-            e.g. a contact area that stays constant over the press phase.
+        FitError: naming the law (kinesthetic N or cutaneous A) when either fit is degenerate, e.g. a contact area
+            that stays constant over the press phase.
     """
-    where = f"press {press.index} at t={press.t_onset:.3f} s"
     try:
-        fn = fit_power_law(np.asarray(press.c_D) * _M_TO_MM, press.c_P)
+        fn = fit_power_law(np.asarray(c_D) * _M_TO_MM, c_P)
     except FitError as exc:
         raise FitError(f"{where}: kinesthetic fit (c_P vs c_D) failed: {exc}") from exc
     try:
-        fa = fit_power_law(np.asarray(press.c_A) * _M2_TO_MM2, press.c_P)
+        fa = fit_power_law(np.asarray(c_A) * _M2_TO_MM2, c_P)
     except FitError as exc:
         raise FitError(f"{where}: cutaneous fit (c_P vs c_A) failed: {exc}") from exc
     return PressFit(
         n1=fn.k1, n2=fn.k2, phi_n=fn.phi, a1=fa.k1, a2=fa.k2, phi_a=fa.phi,
         se_n1=fn.se_k1, se_n2=fn.se_k2, se_a1=fa.se_k1, se_a2=fa.se_k2,
-        n=fn.n, press_index=press.index, location=press.location, calibrated=press.calibrated,
+        n=fn.n, press_index=press_index, location=location, calibrated=calibrated,
     )
+
+
+def fit_press(press: Press) -> PressFit:
+    """Fit both interaction laws to the press phase of a segmented press (see :func:`fit_samples`)."""
+    return fit_samples(press.c_P, press.c_A, press.c_D, where=f"press {press.index} at t={press.t_onset:.3f} s",
+                       press_index=press.index, location=press.location, calibrated=press.calibrated)
 
 
 @dataclass(frozen=True)

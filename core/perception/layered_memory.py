@@ -15,13 +15,25 @@ A layer no training press reached gives no evidence.
 
 from __future__ import annotations
 
+import json
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from palpate.core.errors import FitError, ValidationError
+from palpate.core.perception.fit import fit_samples
+from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.press import PressResult
 
 MIN_SAMPLES = 5
+FORMAT_NAME = "palpate.layered_memory"
+FORMAT_VERSION = 1
+
+#: What judges one layer: a memory over the materials that reach it, the one material that alone reaches it, or
+#: None where no training press reached it.
+LayerJudge = HapticMemory | str | None
 
 
 def layer_fits(t: np.ndarray, c_P: np.ndarray, c_A: np.ndarray, c_D: np.ndarray, cell: float,
@@ -37,54 +49,54 @@ def layer_fits(t: np.ndarray, c_P: np.ndarray, c_A: np.ndarray, c_D: np.ndarray,
         one entry per layer the press reached: the parameters, or None where the cut press could not be fitted
         (fewer than MIN_SAMPLES samples, constant contact area).
     """
-    from palpate.core.perception.fit import fit_press
-    from palpate.core.perception.segment import Press
-
     c_D = np.asarray(c_D, dtype=float)
     if len(c_D) == 0:
         return []
+    c_P, c_A = np.asarray(c_P, dtype=float), np.asarray(c_A, dtype=float)
     depth = float(c_D.max())
     reached = min(n_layers, int(np.ceil(depth / cell - 1e-9)))
     out: list[np.ndarray | None] = []
     for iz in range(reached):
         keep = c_D <= (iz + 1) * cell + 1e-12
-        n = int(keep.sum())
-        if n < MIN_SAMPLES:
+        if int(keep.sum()) < MIN_SAMPLES:
             out.append(None)
             continue
-        part = Press(index=0, t_onset=float(t[0]), t_peak=float(t[keep][-1]), t_release=float(t[-1]), h0=0.0,
-                     location=(0.0, 0.0), depth=float(c_D[keep].max()), t=np.asarray(t)[keep],
-                     c_P=np.asarray(c_P)[keep], c_A=np.asarray(c_A)[keep], c_D=c_D[keep], xy=np.zeros((n, 2)))
         try:
-            out.append(np.asarray(fit_press(part).params, dtype=float))
+            out.append(fit_samples(c_P[keep], c_A[keep], c_D[keep], where=f"layer {iz}").params)
         except FitError:
             out.append(None)
     return out
 
 
-@dataclass
+@dataclass(frozen=True)
 class LayeredMemory:
-    """A haptic memory for whole presses plus one per voxel layer (presses cut at that layer's depth).
+    """The whole-press haptic memory plus one judge per voxel layer (presses cut at that layer's depth).
 
-    Everything a HapticMemory offers (materials, predict_proba, save, ...) is the whole-press memory's; only
-    :meth:`layer_posteriors` uses the per-layer memories.
+    Attributes:
+        full: the whole-press memory (its materials are the map's).
+        layers: per layer, a :data:`LayerJudge`.
+        cell: voxel side, m.
     """
 
-    full: object
-    layers: list  # per layer: a HapticMemory, a material name (only it reaches the layer) or None
+    full: HapticMemory
+    layers: tuple[LayerJudge, ...]
     cell: float
 
-    def __getattr__(self, name):
-        # Only called for attributes not found on the dataclass: delegate to the whole-press memory.
-        if name in ("full", "layers", "cell"):
-            raise AttributeError(name)
-        return getattr(self.full, name)
+    @classmethod
+    def whole_press(cls, full: HapticMemory, cell: float, n_layers: int) -> LayeredMemory:
+        """Every layer judged by the whole-press memory (when no per-layer training is available)."""
+        return cls(full, (full,) * n_layers, cell)
+
+    @property
+    def materials(self) -> list[str]:
+        """The reference materials, in the whole-press memory's order."""
+        return list(self.full.materials)
 
     def layer_posteriors(self, t, c_P, c_A, c_D) -> list[np.ndarray | None]:
         """Posterior over the reference materials for each layer the press reached (None where unfittable)."""
         fits = layer_fits(t, c_P, c_A, c_D, self.cell, len(self.layers))
-        materials = list(self.full.materials)
-        out = []
+        materials = self.materials
+        out: list[np.ndarray | None] = []
         for iz, params in enumerate(fits):
             layer = self.layers[iz]
             if params is None or layer is None:
@@ -98,27 +110,50 @@ class LayeredMemory:
             out.append(post)
         return out
 
+    def save(self, path: str | Path) -> None:
+        """Write the per-layer judges (JSON; the whole-press memory is saved on its own as memory.json)."""
+        doc = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "cell_size_m": self.cell,
+               "layers": [m if m is None or isinstance(m, str) else m.to_dict() for m in self.layers]}
+        Path(path).write_text(json.dumps(doc))
 
-def train_layered_memory(full, training: dict, cell: float, n_layers: int) -> LayeredMemory:
-    """Train one memory per voxel layer from the training presses (dict material -> list of PressResult).
+    @classmethod
+    def load(cls, full: HapticMemory, path: str | Path) -> LayeredMemory:
+        """Read :meth:`save`'s file back around the whole-press memory ``full``."""
+        try:
+            doc = json.loads(Path(path).read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ValidationError(f"{path}: cannot read layered memory: {exc}") from None
+        if not isinstance(doc, Mapping) or doc.get("format") != FORMAT_NAME or doc.get("version") != FORMAT_VERSION:
+            raise ValidationError(f"{path}: key 'format' must be {FORMAT_NAME!r} version {FORMAT_VERSION}")
+        try:
+            layers = tuple(d if d is None or isinstance(d, str)
+                           else HapticMemory.from_dict(d, source=f"{path}: layers[{i}]")
+                           for i, d in enumerate(doc["layers"]))
+            cell = float(doc["cell_size_m"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValidationError(f"{path}: missing or malformed key {exc}") from None
+        return cls(full, layers, cell)
+
+
+def train_layered_memory(full: HapticMemory, training: Mapping[str, Sequence[PressResult]], cell: float,
+                         n_layers: int) -> LayeredMemory:
+    """Train one judge per voxel layer from the training presses (material name -> its perceived presses).
 
     A layer gets a memory over the materials with at least 3 presses fittable at that depth (the name of the
     material when only one reaches it, None when none does).
     """
-    from palpate.core.perception.memory import HapticMemory
-
     if not cell > 0 or n_layers < 1:
         raise ValidationError(f"layered memory needs cell > 0 m and >= 1 layer, got {cell}, {n_layers}")
     per_layer: list[tuple[list, list]] = [([], []) for _ in range(n_layers)]
     for name, results in training.items():
         for res in results:
-            if res.params is None:
+            if res.fit is None:
                 continue
             for iz, params in enumerate(layer_fits(res.t, res.c_P, res.c_A, res.c_D, cell, n_layers)):
                 if params is not None:
                     per_layer[iz][0].append(params)
                     per_layer[iz][1].append(name)
-    layers = []
+    layers: list[LayerJudge] = []
     materials = list(full.materials)
     for params, labels in per_layer:
         reached = [m for m in materials if labels.count(m) >= 3]
@@ -130,4 +165,4 @@ def train_layered_memory(full, training: dict, cell: float, n_layers: int) -> La
             keep = [i for i, name in enumerate(labels) if name in reached]
             layers.append(HapticMemory(materials=reached).fit(np.vstack([params[i] for i in keep]),
                                                               [labels[i] for i in keep]))
-    return LayeredMemory(full, layers, cell)
+    return LayeredMemory(full, tuple(layers), cell)

@@ -12,7 +12,7 @@ neighbouring votes are correlated, and full naive Bayes is confidently wrong nex
 :func:`expected_accuracy_gain` then scores a press by the expected number of cells of the post-processed map whose
 most probable material becomes the true one: the pressed cell and, through eq. 6.15, its unexplored
 8-neighbours. The press's outcome is predicted from the haptic memory's confusion (its Gaussians, see
-:func:`palpate.core.planning.policies.outcome_posteriors`). The expectation is taken under the belief updated by
+:func:`palpate.core.planning.outcomes.outcome_posteriors`). The expectation is taken under the belief updated by
 the outcome, so a press that only makes the planner more confident of labels that do not change scores zero.
 
 Arrays are laid out like :class:`~palpate.core.mapping.grids.Grid2D`: (ny, nx, M).
@@ -26,9 +26,9 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.neighbourhood import NEIGHBOURS_8, box3_sum, shift_slices
+from palpate.core.mapping.probability import entropy_unchecked
+from palpate.core.planning.map_views import H_MIN
 
-#: Same floor on entropies as the maps' post-processing: certain neighbours dominate without a division by zero.
-_H_MIN = 1e-12
 _UNDECIDED = 1e-9
 
 
@@ -165,7 +165,7 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
         grid: the measured 2-D map.
         post: its post-processed version (one eq. 6.15 pass: a press changes only its 8-neighbours).
         table: (outcomes (U, M), likelihood (M, U)) of a press, from
-            :func:`palpate.core.planning.policies.outcome_table`.
+            :func:`palpate.core.planning.outcomes.outcome_table`.
         reach, correlation_cells, temperature: of :func:`label_belief`.
 
     Can be negative where a press is expected to tip a correct extrapolation over to a wrong one.
@@ -188,10 +188,8 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
     belief = np.where(explored[..., None], p, _normalise_logits(logits, freq))
 
     # Eq. 6.15 as the maps compute it: each explored cell's term w * p with w = 1 / max(H, H_MIN).
-    lb = math.log(grid.base)
-    plogp = np.log(p, out=np.zeros_like(p), where=p > 0) * p
-    h = np.maximum(-plogp.sum(axis=-1) / lb, 0.0)
-    c_old = np.where(explored[..., None], p / np.maximum(h, _H_MIN)[..., None], 0.0)
+    h = entropy_unchecked(p, grid.base)
+    c_old = np.where(explored[..., None], p / np.maximum(h, H_MIN)[..., None], 0.0)
 
     pp_label, pp_decided = _label_decided(pp)
     p_named = belief @ conf  # (ny, nx, M): chance the press names material o
@@ -222,8 +220,8 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
         new_label = np.argmax(new, axis=-1)
         # the pressed cell: right after minus right before, both under the truth given the outcome
         g = _gather(post_t, new_label) - _gather(post_t, pp_label) * pp_decided
-        h_new = np.maximum(-(new * np.log(new)).sum(axis=-1) / lb, 0.0)
-        c_new_t = _planes(new / np.maximum(h_new, _H_MIN)[..., None])
+        h_new = entropy_unchecked(new, grid.base)
+        c_new_t = _planes(new / np.maximum(h_new, H_MIN)[..., None])
         vote_change = (mats == new_label).astype(float) - old_vote  # (M, ny, nx): the candidate's vote, after - now
         for ((cy, cx), (ky, kx)), w in neighbours:
             free = free_f[ky, kx]

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -33,9 +33,8 @@ from typing import TextIO
 
 import numpy as np
 
-from palpate.core.errors import PalpateError, RecordingError, ValidationError
-from palpate.core.perception.streams import PressRecording
-from palpate.core.session.sources import PressTarget
+from palpate.core.errors import ValidationError
+from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.world.scenario import ActuatorSpec, Scenario
 from palpate.core.world.scene import ObjectSpec, Scene
 
@@ -102,20 +101,21 @@ def load_actuator(kind: str):
                               "Install it with: pip install 'palpate[all]'") from None
 
 
-def actuator_requests(scenario: Scenario, geometry: dict, out_dir: Path | None = None,
+def actuator_requests(scenario: Scenario, geometries: Mapping[str, MapGeometry], out_dir: Path | None = None,
                       input: TextIO | None = None, output: TextIO | None = None) -> dict[str, ActuatorRequest]:
-    """One request per object of the scenario, keyed by object name; ``geometry`` is ``run.map_geometry``'s."""
+    """One request per object of the scenario, keyed by object name (``geometries`` by object name, as
+    :func:`~palpate.core.world.workspace.map_geometries` gives them)."""
     ex = scenario.exploration
     out = {}
     for entry in scenario.objects:
-        geom = geometry[entry.spec.name]
-        nx, ny = (int(v) for v in geom["shape"][:2])
+        geom = geometries[entry.spec.name]
+        nx, ny = geom.plane_shape
         if ex.policy == "predefined":
             cells = tuple(dict.fromkeys((c - 1, r - 1) for c, r in entry.regions))
         else:
             cells = tuple((ix, iy) for iy in range(ny) for ix in range(nx))
-        origin = (float(geom["origin_m"][0]), float(geom["origin_m"][1]))
-        cell = float(geom["cell_size_m"])
+        origin = geom.origin
+        cell = geom.cell_size
         targets = np.array([[origin[0] + (ix + 0.5) * cell, origin[1] + (iy + 0.5) * cell] for ix, iy in cells],
                            dtype=float).reshape(-1, 2)
         out[entry.spec.name] = ActuatorRequest(
@@ -128,7 +128,8 @@ def actuator_requests(scenario: Scenario, geometry: dict, out_dir: Path | None =
 
 
 @contextlib.contextmanager
-def open_actuators(scenario: Scenario, out_dir: Path | None, geometry: dict, sim_source: Callable[[], Callable]):
+def open_actuators(scenario: Scenario, out_dir: Path | None, geometries: Mapping[str, MapGeometry],
+                   sim_source: Callable[[], Callable]):
     """The run's source makers: yields ``(make_training, make_exploring)``, each ``(objects, seed, variability)
     -> source``; ``make_training`` is None when the memory comes from ``training.memory`` and the actuator is not
     simulated.
@@ -155,7 +156,7 @@ def open_actuators(scenario: Scenario, out_dir: Path | None, geometry: dict, sim
         yield make_sim, make_sim
         return
     factory = load_actuator(kind)
-    requests = actuator_requests(scenario, geometry, out_dir, sys.stdin, sys.stderr)
+    requests = actuator_requests(scenario, geometries, out_dir, sys.stdin, sys.stderr)
     where = str(scenario.path) if scenario.path else "scenario"
     for request in requests.values():
         try:
@@ -186,72 +187,3 @@ def open_actuators(scenario: Scenario, out_dir: Path | None, geometry: dict, sim
         yield make_sim, make
     finally:
         close_current()
-
-
-def recordings_folder(folder: Path | None, obj: str, n_objects: int) -> Path:
-    """The folder holding one object's press recordings: ``folder`` itself for a one-object scenario, else its
-    subfolder named as the object. ValidationError naming ``actuator.recordings_dir`` if it is not there."""
-    if folder is None:
-        raise ValidationError("actuator.recordings_dir: missing (required for kind 'operator': a folder of MCAP "
-                              "recordings, one per press)")
-    if not Path(folder).is_dir():
-        raise ValidationError(f"actuator.recordings_dir: {folder} is not a folder (expected MCAP recordings, one "
-                              "per press, taken in name order)")
-    if n_objects == 1:
-        return Path(folder)
-    sub = Path(folder) / obj
-    if not sub.is_dir():
-        raise ValidationError(f"actuator.recordings_dir: the scenario explores {n_objects} objects, so each has a "
-                              f"subfolder named as the object; {sub} is missing")
-    return sub
-
-
-def folder_streams(folder: Path, input: TextIO, output: TextIO) -> Callable[[PressTarget, int], PressRecording]:
-    """Streams for :class:`~palpate.core.session.operator.HumanOperator`: press k is the k-th ``*.mcap`` of
-    ``folder`` in name order (name them so they sort in press order: press_001.mcap, ...).
-
-    The folder is listed again at every press, so recordings may arrive while the session runs (the person
-    presses, the Tekscan/Liberty recording is imported); if press k's file is not there yet the person is asked
-    to add it and confirm again. RecordingError if it never comes.
-    """
-    from palpate.core.session.operator import ABORT, MAX_PROMPTS, recordings_from_files
-
-    def take(target: PressTarget, k: int) -> PressRecording:
-        for _ in range(MAX_PROMPTS):
-            files = sorted(Path(folder).glob("*.mcap"))
-            if k < len(files):
-                return recordings_from_files(files)(target, k)
-            output.write(f"   no recording for press {k + 1} in {folder} yet ({len(files)} file(s)); record or "
-                         "import it there, then Enter (q to stop): ")
-            output.flush()
-            line = input.readline()
-            if line == "":
-                break
-            if line.strip().lower() in ABORT:
-                raise PalpateError("the operator stopped the exploration")
-        raise RecordingError(f"{folder}: press {k + 1} needs its recording (the {k + 1}-th *.mcap in name order), "
-                             f"but the folder holds {len(files)}")
-
-    return take
-
-
-def operator_actuator(request: ActuatorRequest, *, check_only: bool = False):
-    """Factory of kind ``operator``: a :class:`~palpate.core.session.operator.HumanOperator` shown each target cell
-    (text grid, and a PNG under ``<out>/figures/operator/<object>/`` when ``figures``), whose presses are read from
-    ``recordings_dir``. With ``check_only``, only checks the folder."""
-    from palpate.core.session.operator import HumanOperator
-
-    spec = request.spec
-    folder = recordings_folder(spec.recordings_dir, request.obj.name, request.n_objects)
-    if check_only:
-        return None
-    input = request.input if request.input is not None else sys.stdin
-    output = request.output if request.output is not None else sys.stderr
-    figure_dir = None
-    if spec.figures and request.out_dir is not None:
-        figure_dir = Path(request.out_dir) / "figures" / "operator" / request.obj.name
-    output.write(f"\nOperator: explore {request.obj.name} ({request.shape[0]} x {request.shape[1]} cells of "
-                 f"{request.cell_size * 1e3:.0f} mm, corner at x = {request.origin[0] * 1e3:.1f} mm, "
-                 f"y = {request.origin[1] * 1e3:.1f} mm); press recordings from {folder}\n")
-    return HumanOperator(request.origin, request.cell_size, request.shape, folder_streams(folder, input, output),
-                         input=input, output=output, figure_dir=figure_dir, materials=request.materials)

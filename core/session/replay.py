@@ -13,23 +13,26 @@ from __future__ import annotations
 
 import bisect
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from palpate.core import __version__
 from palpate.core.errors import ValidationError
+from palpate.core.io import figures as fig
+from palpate.core.io.recording import read_recording, recording_to_press_recording
+from palpate.core.mapping.geometry import MapGeometry
+from palpate.core.mapping.grids import new_map
+from palpate.core.mapping.snapshot import MapSnapshot
+from palpate.core.perception.layered_memory import LayeredMemory
+from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.pipeline import presses_from_recording
+from palpate.core.perception.press import PressResult, perceive_press, press_result
 from palpate.core.perception.streams import GroundTruth, PressRecording
+from palpate.core.session.explore import apply_press
 from palpate.core.session.progress import Progress
-from palpate.core.session.run import (
-    PressResult,
-    _assert_finite,
-    _versions,
-    apply_press,
-    build_map,
-    fit_summary,
-    perceive_press,
-)
+from palpate.core.session.report import assert_finite, fit_summary, versions
 
 REPLAY_FORMAT = "palpate-replay-summary"
 
@@ -49,28 +52,44 @@ def _window(rec: PressRecording, t0: float, t1: float) -> PressRecording:
     return PressRecording(frames, poses, truth, {})
 
 
-def replay_recording(path: str | Path, memory, out_dir: str | Path, *, cell_size: float = 0.01,
-                     progress: Progress | None = None, figures: bool = True) -> dict:
+@dataclass
+class _Replayed:
+    """One object's map as it is rebuilt."""
+
+    geometry: MapGeometry
+    grid: object
+    rows: list = field(default_factory=list)
+
+
+def _layers_for(geometry: MapGeometry, memory: HapticMemory, layers: LayeredMemory | None) -> LayeredMemory | None:
+    if not geometry.voxel:
+        return None
+    return layers if layers is not None else LayeredMemory.whole_press(memory, geometry.cell_size, geometry.shape[2])
+
+
+def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path, *,
+                     layers: LayeredMemory | None = None, cell_size: float = 0.01, progress: Progress | None = None,
+                     figures: bool = True) -> dict:
     """Run the perception stack on a recording and write maps, figures and summary.json into ``out_dir``.
 
     Args:
         path: MCAP recording (palpate format).
         memory: a fitted HapticMemory.
         out_dir: output folder (created).
+        layers: voxel maps: the per-layer judges the run used (default: every layer judged by ``memory``).
         cell_size: grid cell, m, for recordings without map geometry.
         progress: progress bars (silent by default).
         figures: write PNG figures.
     """
-    from palpate.core.io.recording import read_recording, recording_to_press_recording
-
     progress = progress or Progress(enabled=False)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rec = read_recording(path)
     stream = recording_to_press_recording(rec)
-    geoms = rec.metadata.get("maps") or {}
+    geoms = {name: MapGeometry.from_dict(g, f"{path}: metadata maps.{name}")
+             for name, g in (rec.metadata.get("maps") or {}).items()}
     windows = [a for a in rec.annotations if a.kind == "press"]
-    objects: dict[str, dict] = {}
+    objects: dict[str, _Replayed] = {}
     if windows:
         explore = [a for a in windows if a.data.get("phase") == "exploration"]
         progress.start("replaying presses", len(explore))
@@ -79,21 +98,16 @@ def replay_recording(path: str | Path, memory, out_dir: str | Path, *, cell_size
             if name not in geoms:
                 raise ValidationError(f"{path}: press annotation names object {name!r}, which has no map geometry "
                                       "in the recording's metadata")
-            state = objects.setdefault(name, {"grid": build_map(geoms[name]), "rows": [], "results": []})
+            state = objects.setdefault(name, _Replayed(geoms[name], new_map(geoms[name])))
             sub = _window(stream, float(a.data["t_start"]), float(a.data["t_end"]))
             target = tuple(float(v) for v in a.data.get("target_m", (np.nan, np.nan)))
-            res = perceive_press(sub)
-            res.target = target
-            apply_press(state["grid"], res, memory, voxel=geoms[name]["map"] == "voxel", fallback_xy=target)
-            state["results"].append(res)
-            state["rows"].append(_row(a.data.get("k", len(state["rows"]) + 1), a.data.get("cell"), res,
-                                      state["grid"]))
+            res = perceive_press(sub).at_target(target)
+            posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
+                                    fallback_xy=target)
+            state.rows.append(_row(a.data.get("k", len(state.rows) + 1), a.data.get("cell"), res, posterior,
+                                   state.grid))
             progress.update(i + 1)
     else:
-        from palpate.core.mapping.grids import Grid2D
-        from palpate.core.perception.fit import fit_press
-        from palpate.core.perception.pipeline import presses_from_recording
-
         seg = presses_from_recording(stream)
         if not seg.presses:
             reasons = "; ".join(sorted({r.reason for r in seg.rejected})) or "no contact in the taxel stream"
@@ -101,53 +115,45 @@ def replay_recording(path: str | Path, memory, out_dir: str | Path, *, cell_size
         locs = np.array([p.location for p in seg.presses])
         lo = np.floor(locs.min(axis=0) / cell_size) * cell_size
         shape = tuple(int(v) for v in np.floor((locs.max(axis=0) - lo) / cell_size) + 1)
-        grid = Grid2D(list(memory.materials), shape, origin=tuple(lo), cell_size=cell_size)
-        state = objects.setdefault("recording", {"grid": grid, "rows": [], "results": []})
-        geoms = {"recording": {"map": "grid2d", "origin_m": list(lo), "cell_size_m": cell_size, "shape": list(shape)}}
+        geometry = MapGeometry("grid2d", tuple(memory.materials), (float(lo[0]), float(lo[1])), cell_size, shape)
+        state = objects.setdefault("recording", _Replayed(geometry, new_map(geometry)))
         progress.start("replaying presses", len(seg.presses))
         for k, press in enumerate(seg.presses):
-            fit = fit_press(press)
-            res = PressResult(press.location, press.location, press.depth, press.t, press.c_P, press.c_A, press.c_D,
-                              np.asarray(fit.params, float),
-                              fit_summary(fit))
-            apply_press(grid, res, memory, voxel=False, fallback_xy=press.location)
-            state["results"].append(res)
-            state["rows"].append(_row(k + 1, None, res, grid))
+            res = press_result(press)
+            if res.fit is None:
+                raise ValidationError(f"{path}: {res.rejected[-1]}")
+            posterior = apply_press(state.grid, res, memory, None, fallback_xy=press.location)
+            state.rows.append(_row(k + 1, None, res, posterior, state.grid))
             progress.update(k + 1)
 
     summary_objects = []
     (out / "maps").mkdir(exist_ok=True)
     for name, state in objects.items():
-        grid = state["grid"]
+        grid = state.grid
         post = grid.postprocessed()
         grid.save(out / "maps" / f"{name}.npz")
         post.save(out / "maps" / f"{name}_postprocessed.npz")
+        g = state.geometry
         summary_objects.append({
-            "name": name, "map": geoms[name]["map"], "grid": {k: geoms[name][k] for k in ("origin_m", "cell_size_m",
-                                                                                          "shape")},
-            "presses": len(state["rows"]), "per_press": state["rows"],
-            "mean_entropy_after_each_press": [r["mean_entropy"] for r in state["rows"]],
+            "name": name, "map": g.kind,
+            "grid": {"origin_m": list(g.origin), "cell_size_m": g.cell_size, "shape": list(g.shape)},
+            "presses": len(state.rows), "per_press": state.rows,
+            "mean_entropy_after_each_press": [r["mean_entropy"] for r in state.rows],
             "mean_entropy_after_postprocessing": float(post.mean_entropy()),
         })
-        if figures and geoms[name]["map"] == "grid2d":
-            from palpate.core.io import figures as fig
-
+        if figures and not g.voxel:
             (out / "figures").mkdir(exist_ok=True)
-            snaps = [{"label": "replayed", "probabilities": np.array(grid.probabilities),
-                      "explored": np.array(grid.explored)},
-                     {"label": "post-processed", "probabilities": np.array(post.probabilities),
-                      "explored": np.array(post.explored)}]
-            fig.plot_map_snapshots(out / "figures" / f"{name}_map.png", name, snaps, geoms[name],
-                                   list(memory.materials))
+            fig.plot_map_snapshots(out / "figures" / f"{name}_map.png", name,
+                                   [MapSnapshot.of(grid, "replayed"), MapSnapshot.of(post, "post-processed")], g)
     summary = {"format": REPLAY_FORMAT, "version": 1, "recording": str(path), "materials": list(memory.materials),
-               "source_metadata": rec.metadata, "objects": summary_objects, "versions": _versions(),
+               "source_metadata": rec.metadata, "objects": summary_objects, "versions": versions(),
                "palpate": __version__}
-    _assert_finite(summary)
+    assert_finite(summary)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
 
 
-def _row(k, cell, res: PressResult, grid) -> dict:
-    return {"k": k, "cell": cell, "location_m": list(res.location), "depth_m": res.depth, "fit": res.fit,
-            "posterior": None if res.posterior is None else [float(v) for v in res.posterior],
-            "mean_entropy": float(grid.mean_entropy()), "rejected": res.rejected}
+def _row(k, cell, res: PressResult, posterior: np.ndarray | None, grid) -> dict:
+    return {"k": k, "cell": cell, "location_m": list(res.location), "depth_m": res.depth,
+            "fit": fit_summary(res.fit), "posterior": None if posterior is None else [float(v) for v in posterior],
+            "mean_entropy": float(grid.mean_entropy()), "rejected": list(res.rejected)}

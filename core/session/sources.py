@@ -14,6 +14,8 @@ from typing import Protocol, runtime_checkable
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import PressRecording
+from palpate.core.world.scenario import Scenario
+from palpate.core.world.scene import ObjectSpec, Scene
 
 ENTRY_POINT_GROUP = "palpate.sources"
 
@@ -75,3 +77,15 @@ def load_source(name: str):
             return ep.load()
     known = ", ".join(sorted(available_sources())) or "none (is palpate installed?)"
     raise ValidationError(f"unknown source {name!r}; registered sources: {known}")
+
+
+def scenario_source_maker(scenario: Scenario, name: str = "sim"):
+    """``make(objects, seed, variability)`` building the registered source ``name`` on the scenario's fingertip and
+    sensors: the shape every exploration and training loop asks for a source in."""
+    factory = load_source(name)
+
+    def make(objects: tuple[ObjectSpec, ...], seed: int, variability: str):
+        scene = Scene(objects, scenario.fingertip, scenario.taxels, scenario.pose)
+        return factory(scene, fidelity=scenario.fidelity, seed=seed, variability=variability)
+
+    return make

@@ -29,7 +29,7 @@ from palpate.core.world.scene import (
 FIDELITIES = ("analytic", "rigid", "flex", "auto")
 MAP_KINDS = ("grid2d", "voxel")
 POLICIES = ("predefined", "raster", "random", "max_entropy", "info_gain")
-#: What info_gain plans on, 2-D maps (palpate.core.planning.policies.InfoGain): expected cells set right, or entropy.
+#: What info_gain plans on, 2-D maps (palpate.core.planning.info_gain.InfoGain): expected cells set right, or entropy.
 OBJECTIVES = ("accuracy", "entropy")
 VARIABILITY = ("human", "robot")
 ACTUATORS = ("sim", "operator", "dynamixel")

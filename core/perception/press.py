@@ -1,0 +1,92 @@
+"""One press's perception: the raw streams of one press in, its press-phase features and 3/2-power fit out.
+
+No memory is involved here: :func:`perceive_press` is what a run, a replay and a benchmark all do with a press
+before a haptic memory judges it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from palpate.core.errors import FitError
+from palpate.core.perception.fit import PressFit, fit_press
+from palpate.core.perception.pipeline import PipelineConfig, presses_from_recording
+from palpate.core.perception.segment import Press
+from palpate.core.perception.streams import PressRecording
+
+_EMPTY = np.zeros(0)
+
+
+@dataclass(frozen=True)
+class PressResult:
+    """What one press was perceived as.
+
+    Attributes:
+        target: planned (x, y), m (NaN when the source did not say).
+        location: measured (x, y) of the press phase, m (the target when no press was found).
+        depth: largest indentation c_D, m.
+        t, c_P, c_A, c_D: press-phase samples (s, counts or N, m^2, m); empty when no press was found.
+        fit: the 3/2-power fits, or None when no press could be fitted (reasons in ``rejected``).
+        rejected: why contacts were rejected or the fit failed.
+        truth_force, truth_indentation: the simulation's ground truth over the recording (N, m), if any.
+    """
+
+    target: tuple[float, float]
+    location: tuple[float, float]
+    depth: float
+    t: np.ndarray
+    c_P: np.ndarray
+    c_A: np.ndarray
+    c_D: np.ndarray
+    fit: PressFit | None
+    rejected: tuple[str, ...] = ()
+    truth_force: np.ndarray | None = None
+    truth_indentation: np.ndarray | None = None
+
+    @property
+    def params(self) -> np.ndarray | None:
+        """[n1, n2, a1, a2] of the fit, or None when there is none."""
+        return None if self.fit is None else self.fit.params
+
+    def at_target(self, target: tuple[float, float]) -> PressResult:
+        """The same result with the planned target the caller knows."""
+        return replace(self, target=(float(target[0]), float(target[1])))
+
+
+def press_result(press: Press, *, target: tuple[float, float] | None = None, rejected: tuple[str, ...] = (),
+                 truth_force: np.ndarray | None = None, truth_indentation: np.ndarray | None = None) -> PressResult:
+    """Fit one segmented press; a fit that fails gives ``fit=None`` with the reason appended to ``rejected``."""
+    try:
+        fit = fit_press(press)
+    except FitError as exc:
+        fit, rejected = None, (*rejected, f"fit failed: {exc}")
+    location = (float(press.location[0]), float(press.location[1]))
+    return PressResult(location if target is None else target, location, float(press.depth), np.asarray(press.t),
+                       np.asarray(press.c_P), np.asarray(press.c_A), np.asarray(press.c_D), fit, tuple(rejected),
+                       truth_force, truth_indentation)
+
+
+def perceive_press(recording: PressRecording, pipeline_config: PipelineConfig | None = None) -> PressResult:
+    """Turn one press's raw streams into features and a 3/2-power fit.
+
+    Returns a PressResult whose ``fit`` is None (with reasons in ``rejected``) when no usable press was found.
+    When noise splits the one press that was made, the deepest part is kept and that is said in ``rejected``.
+    """
+    seg = presses_from_recording(recording, pipeline_config or PipelineConfig())
+    planned = (recording.meta or {}).get("target")
+    planned = planned if isinstance(planned, dict) else {}
+    # The planned target, when the source says it (SimSource does); callers that know it replace it anyway.
+    target = (float(planned.get("x", np.nan)), float(planned.get("y", np.nan)))
+    reasons = tuple(r.reason for r in seg.rejected)
+    truth = recording.truth
+    tf = None if truth is None else np.asarray(truth.force)
+    ti = None if truth is None else np.asarray(truth.indentation)
+    if not seg.presses:
+        return PressResult(target, target, 0.0, _EMPTY, _EMPTY, _EMPTY, _EMPTY, None,
+                           reasons or ("no press found in the streams",), tf, ti)
+    press = max(seg.presses, key=lambda p: p.depth)
+    if len(seg.presses) > 1:
+        reasons = (*reasons, f"{len(seg.presses)} presses found where one was made; kept the deepest")
+    return press_result(press, target=target, rejected=reasons, truth_force=tf, truth_indentation=ti)

@@ -1,0 +1,223 @@
+"""Exploring one object: the closed loop policy -> actuator -> perception -> map update -> post-processing -> stop.
+
+The loop presses through whatever ``make_source((object,), seed, variability)`` returns: anything with
+``press(PressTarget) -> PressRecording`` (the simulated finger, a Dynamixel finger, a human operator, a replay); one
+with ``show_map(grid, post)`` is shown the map before each press.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.mapping.accuracy import map_accuracy
+from palpate.core.mapping.geometry import MapGeometry
+from palpate.core.mapping.grids import Grid2D, VoxelGrid, new_map
+from palpate.core.mapping.snapshot import MapSnapshot
+from palpate.core.perception.layered_memory import LayeredMemory
+from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.press import PressResult, perceive_press
+from palpate.core.planning.registry import make_policy, stop_reason
+from palpate.core.session.press_log import PressLog
+from palpate.core.session.progress import Progress
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scenario import ObjectEntry, Scenario
+from palpate.core.world.workspace import ground_truth_map, object_geometry
+
+
+@dataclass(frozen=True)
+class PressStep:
+    """One press of an exploration and the map right after it.
+
+    Attributes:
+        k: 1-based press number.
+        cell: (ix, iy), 0-based, of the planned column.
+        target: planned (x, y), m; planned_depth: m.
+        score: the policy's score for the target (None for list-driven policies).
+        result: what the press was perceived as.
+        posterior: the posterior the press fused into the map (the deepest layer's on a voxel map), or None.
+        mean_entropy, mean_entropy_postprocessed: of the map after the press (map's entropy base).
+        accuracy_explored: of the explored cells before post-processing (None without truth).
+        accuracy_postprocessed: of all cells after post-processing (None without truth).
+    """
+
+    k: int
+    cell: tuple[int, int]
+    target: tuple[float, float]
+    planned_depth: float
+    score: float | None
+    result: PressResult
+    posterior: np.ndarray | None
+    mean_entropy: float
+    mean_entropy_postprocessed: float
+    accuracy_explored: float | None
+    accuracy_postprocessed: float | None
+
+
+@dataclass(frozen=True)
+class ObjectResult:
+    """Everything an exploration of one object produced.
+
+    Attributes:
+        name: the object's name; geometry: its map's geometry.
+        policy, stop_reason: which policy explored and why it stopped.
+        steps: every press, in order.
+        regions: the scenario's predefined cells, 0-based (ix, iy).
+        cycle_posteriors: predefined policy: each region's distribution after each cycle (seed 000 Tables 6.9-6.11).
+        snapshots: the map at k = 0, mid-way, at the end, and post-processed.
+        grid, post: the measured and the post-processed map.
+        truth: the true reference-material index per cell (-1 = none).
+        true_materials: the reference materials the object is made of.
+    """
+
+    name: str
+    geometry: MapGeometry
+    policy: str
+    stop_reason: str
+    steps: tuple[PressStep, ...]
+    regions: tuple[tuple[int, int], ...]
+    cycle_posteriors: tuple[tuple[tuple[float, ...], ...], ...]
+    snapshots: tuple[MapSnapshot, ...]
+    grid: Grid2D | VoxelGrid
+    post: Grid2D | VoxelGrid
+    truth: np.ndarray
+    true_materials: tuple[str, ...]
+
+    @property
+    def results(self) -> list[PressResult]:
+        """The perceived presses, in order."""
+        return [s.result for s in self.steps]
+
+
+def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory,
+                layers: LayeredMemory | None, fallback_xy: tuple[float, float]) -> np.ndarray | None:
+    """Update a map with one perceived press (seed 001 eq. 2), in place; returns the posterior it fused.
+
+    2-D: the press's posterior updates the cell under the measured press location (the planned cell if the
+    finger slipped off the grid). Voxels: every layer the press reached gets the posterior of ``layers`` for a fit
+    to the press samples down to that layer (deeper layers see more of the press, as seed 001 observes); the
+    deepest layer's posterior is returned. A press with no fit changes nothing and returns None.
+    """
+    if res.fit is None:
+        return None
+    if isinstance(grid, VoxelGrid):
+        if layers is None:
+            raise ValidationError("a voxel map needs a layered memory (LayeredMemory.whole_press(memory, ...) judges "
+                                  "every layer with the whole-press memory)")
+        posts = layers.layer_posteriors(res.t, res.c_P, res.c_A, res.c_D)
+        try:
+            ix, iy = grid.column_of(*res.location)
+        except ValidationError:
+            ix, iy = grid.column_of(*fallback_xy)
+        for iz, p in enumerate(posts):
+            if p is not None:
+                grid.update_voxel(ix, iy, iz, p)
+        done = [p for p in posts if p is not None]
+        return done[-1] if done else None
+    p = memory.predict_proba(res.fit.params[None, :])[0]
+    try:
+        grid.update(*res.location, p)
+    except ValidationError:
+        grid.update(*fallback_xy, p)
+    return p
+
+
+def _region_row(grid, cell: tuple[int, int]) -> tuple[float, ...]:
+    ix, iy = cell
+    if isinstance(grid, VoxelGrid):
+        col = grid.probabilities[ix, iy]
+        expl = grid.explored[ix, iy]
+        p = col[expl][-1] if expl.any() else col[0]
+    else:
+        p = grid.probabilities[iy, ix]
+    return tuple(round(float(v), 4) for v in p)
+
+
+def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory, make_source, seed: int,
+                   progress: Progress, log: PressLog | None = None,
+                   layers: LayeredMemory | None = None) -> ObjectResult:
+    """Explore one object with the scenario's policy.
+
+    Per press: policy (next target from the map) -> actuator -> perception -> map update -> post-processing ->
+    stop rules (press budget, no expected gain above ``stop_min_gain``, mean or max entropy of the post-processed
+    map under ``stop_mean_entropy`` / ``stop_max_entropy``).
+
+    Args:
+        scenario, entry: the scenario and the object to explore.
+        memory: the whole-press haptic memory (judges 2-D presses; info_gain predicts outcomes from it).
+        make_source: ``make(objects, seed, variability)`` returning the actuator.
+        seed: seed of the policy and the source.
+        progress: progress display.
+        log: when given, every press is laid on the run's timeline (and recorded).
+        layers: voxel maps: the per-layer judges (default: every layer judged by ``memory``).
+    """
+    ex = scenario.exploration
+    geometry = object_geometry(scenario, entry)
+    grid = new_map(geometry)
+    voxel = geometry.voxel
+    if voxel and layers is None:
+        layers = LayeredMemory.whole_press(memory, geometry.cell_size, geometry.shape[2])
+    cells_xy = geometry.cell_centres()  # (ny, nx, 2)
+    truth = ground_truth_map(entry, scenario, geometry)
+
+    regions0 = tuple((c - 1, r - 1) for c, r in entry.regions)
+    budget = len(regions0) * ex.presses_per_region if ex.policy == "predefined" else ex.budget
+    policy = make_policy(ex.policy, cells=list(regions0), repeats=ex.presses_per_region, seed=seed, memory=memory,
+                         travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None,
+                         passes=ex.extrapolation_passes, objective=ex.objective, feature_size=ex.feature_size)
+    # The one post-processing the policies plan on, the run reports and the map files hold.
+    postprocess = grid.postprocessed if voxel else (lambda: grid.postprocessed(passes=ex.extrapolation_passes))
+    source = make_source((entry.spec,), seed, ex.variability)
+    if not callable(getattr(source, "press", None)):
+        raise ValidationError(f"exploring {entry.spec.name}: the source/actuator {type(source).__name__} has no "
+                              "press(target) method")
+    show_map = getattr(source, "show_map", None)
+
+    snapshots = [MapSnapshot.of(grid, "k = 0")]
+    steps: list[PressStep] = []
+    cycles = []
+    post = postprocess()
+    last, stop = None, "budget"
+    progress.start(f"exploring {entry.spec.name}", budget)
+    for k in range(budget):
+        target = policy.next_target(grid, post, last)
+        if target is None:
+            stop = "policy_exhausted"
+            break
+        if ex.stop_min_gain is not None and target.score is not None and target.score < ex.stop_min_gain:
+            stop = "min_gain"
+            break
+        cell = (target.ix, target.iy)
+        depth = ex.depth if target.depth is None else target.depth
+        x, y = (float(v) for v in cells_xy[cell[1], cell[0]])
+        if callable(show_map):
+            show_map(grid, post)
+        rec = source.press(PressTarget(x, y, depth=depth, force=ex.max_force, speed=ex.speed,
+                                       label=f"{entry.spec.name} cell {cell[0] + 1},{cell[1] + 1}"))
+        if log is not None:
+            rec = log.add(rec, {"phase": "exploration", "object": entry.spec.name, "k": k + 1,
+                                "cell": [cell[0] + 1, cell[1] + 1], "target_m": [x, y]})
+        res = perceive_press(rec).at_target((x, y))
+        posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y))
+        post = postprocess()
+        last = cell
+        steps.append(PressStep(k + 1, cell, (x, y), depth, target.score, res, posterior, float(grid.mean_entropy()),
+                               float(post.mean_entropy()), map_accuracy(grid.probabilities, truth, grid.explored),
+                               map_accuracy(post.probabilities, truth)))
+        if ex.policy == "predefined" and (k + 1) % len(regions0) == 0:
+            cycles.append(tuple(_region_row(grid, c) for c in regions0))
+        if (k + 1) == budget // 2:
+            snapshots.append(MapSnapshot.of(grid, f"k = {k + 1}"))
+        progress.update(k + 1)
+        reason = stop_reason(post, mean_entropy=ex.stop_mean_entropy, max_entropy=ex.stop_max_entropy)
+        if reason is not None:
+            stop = reason
+            break
+    snapshots.append(MapSnapshot.of(grid, f"k = {len(steps)}"))
+    snapshots.append(MapSnapshot.of(post, "post-processed"))
+    return ObjectResult(
+        name=entry.spec.name, geometry=geometry, policy=ex.policy, stop_reason=stop, steps=tuple(steps),
+        regions=regions0, cycle_posteriors=tuple(cycles), snapshots=tuple(snapshots), grid=grid, post=post,
+        truth=truth, true_materials=tuple(sorted({scenario.materials[m.name].like for m in entry.spec.materials()})))

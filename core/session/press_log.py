@@ -1,0 +1,70 @@
+"""One timeline for a whole run: every press's streams shifted after the previous one, optionally recorded.
+
+The run perceives the *shifted* streams, exactly what the recording holds, so ``palpate replay`` of the recording
+reproduces the run's maps bit for bit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from palpate.core.io.recording import RecordingWriter
+from palpate.core.perception.streams import GroundTruth, PressRecording
+
+
+class PressLog:
+    """Lays every press on one timeline (so a run is one continuous stream) and optionally records it to MCAP.
+
+    The run perceives the *shifted* streams, exactly what the recording holds, so ``palpate replay`` of the
+    recording reproduces the run's maps bit for bit.
+    """
+
+    GAP = 1.0  # s of silence between presses
+
+    def __init__(self, path: Path | None = None, metadata: dict | None = None):
+        self.clock = 0.0
+        self.writer = None
+        if path is not None:
+            self.writer = RecordingWriter(path, metadata or {})
+
+    def add(self, rec, info: dict):
+        """Shift ``rec`` to start at the current clock, record it with a ``press`` annotation, return it."""
+        shifted = shift_recording(rec, self.clock - _start_time(rec))
+        t_end = max(shifted.frames[-1].t if shifted.frames else self.clock,
+                    shifted.poses[-1].t if shifted.poses else self.clock)
+        if self.writer is not None:
+            self.writer.write_annotation(self.clock, "press", {**info, "t_start": self.clock, "t_end": t_end})
+            for f in shifted.frames:
+                self.writer.write_taxel(f)
+            for p in shifted.poses:
+                self.writer.write_pose(p)
+            if shifted.truth is not None:
+                for t, f, d in zip(shifted.truth.t, shifted.truth.force, shifted.truth.indentation, strict=True):
+                    self.writer.write_truth(float(t), float(f), float(d), shifted.truth.material)
+        self.clock = float(np.ceil(t_end + self.GAP))
+        return shifted
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+
+
+def _start_time(rec) -> float:
+    times = [rec.frames[0].t] if rec.frames else []
+    times += [rec.poses[0].t] if rec.poses else []
+    return min(times) if times else 0.0
+
+
+def shift_recording(rec, dt: float):
+    """A copy of a PressRecording with every timestamp moved by ``dt`` seconds."""
+    if dt == 0.0:
+        return rec
+    frames = [replace(f, t=f.t + dt) for f in rec.frames]
+    poses = [replace(p, t=p.t + dt) for p in rec.poses]
+    truth = None
+    if rec.truth is not None:
+        truth = GroundTruth(np.asarray(rec.truth.t) + dt, rec.truth.force, rec.truth.indentation, rec.truth.material)
+    return PressRecording(frames, poses, truth, dict(rec.meta))

@@ -1,0 +1,90 @@
+"""The JSON reports of a run and of a replay, built from typed results at the last moment.
+
+Nothing NaN or infinite may reach a report: :func:`assert_finite` refuses it, naming the key.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata as md
+import platform
+
+import numpy as np
+
+from palpate.core import __version__
+from palpate.core.errors import PalpateError
+from palpate.core.mapping.accuracy import map_accuracy
+from palpate.core.perception.fit import PressFit
+from palpate.core.session.explore import ObjectResult, PressStep
+
+SUMMARY_FORMAT = "palpate-run-summary"
+SUMMARY_VERSION = 1
+
+
+def fit_summary(fit: PressFit | None) -> dict | None:
+    """The per-press fit as reported: n1, n2, phi_n, a1, a2, phi_a (c_D in mm, c_A in mm^2); None without fit."""
+    if fit is None:
+        return None
+    return {k: float(getattr(fit, k)) for k in ("n1", "n2", "phi_n", "a1", "a2", "phi_a")}
+
+
+def _posterior(p: np.ndarray | None) -> list[float] | None:
+    return None if p is None else [float(v) for v in p]
+
+
+def step_row(step: PressStep) -> dict:
+    """One exploration press as summary.json reports it (cells 1-based, as seed 000's tables)."""
+    res = step.result
+    return {"k": step.k, "cell": [step.cell[0] + 1, step.cell[1] + 1], "target_m": list(step.target),
+            "planned_depth_m": step.planned_depth, "score": step.score, "location_m": list(res.location),
+            "depth_m": res.depth, "fit": fit_summary(res.fit), "rejected": list(res.rejected),
+            "posterior": _posterior(step.posterior), "mean_entropy": step.mean_entropy,
+            "mean_entropy_postprocessed": step.mean_entropy_postprocessed,
+            "accuracy_explored": step.accuracy_explored,
+            "accuracy_all_cells_postprocessed": step.accuracy_postprocessed}
+
+
+def object_summary(obj: ObjectResult) -> dict:
+    """One explored object as summary.json reports it."""
+    rows = [step_row(s) for s in obj.steps]
+    return {
+        "name": obj.name,
+        "map": obj.geometry.kind,
+        "grid": {"origin_m": list(obj.geometry.origin), "cell_size_m": obj.geometry.cell_size,
+                 "shape": list(obj.grid.probabilities.shape[:-1])},
+        "presses": len(rows),
+        "policy": obj.policy,
+        "stop_reason": obj.stop_reason,
+        "per_press": rows,
+        "regions": [[c + 1, r + 1] for c, r in obj.regions],
+        "posterior_per_cycle": [[list(row) for row in cycle] for cycle in obj.cycle_posteriors],
+        "accuracy": {"explored_before_postprocessing": map_accuracy(obj.grid.probabilities, obj.truth,
+                                                                    obj.grid.explored),
+                     "all_cells_before_postprocessing": map_accuracy(obj.grid.probabilities, obj.truth),
+                     "all_cells_after_postprocessing": map_accuracy(obj.post.probabilities, obj.truth)},
+        "mean_entropy_after_each_press": [r["mean_entropy"] for r in rows],
+        "mean_entropy_after_postprocessing": float(obj.post.mean_entropy()),
+        "true_materials": list(obj.true_materials),
+    }
+
+
+def versions() -> dict[str, str]:
+    """Versions of palpate, Python and the libraries whose numbers a result depends on."""
+    out = {"palpate": __version__, "python": platform.python_version()}
+    for pkg in ("numpy", "scipy", "mujoco", "matplotlib"):
+        try:
+            out[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            pass
+    return out
+
+
+def assert_finite(obj, path: str = "summary") -> None:
+    """No NaN or infinity may reach a report: PalpateError naming the first bad key."""
+    if isinstance(obj, float) and not np.isfinite(obj):
+        raise PalpateError(f"{path} is not finite ({obj}); refusing to write a report with NaN")
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            assert_finite(v, f"{path}.{k}")
+    elif isinstance(obj, (list, tuple)):
+        for i, v in enumerate(obj):
+            assert_finite(v, f"{path}[{i}]")

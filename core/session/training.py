@@ -1,0 +1,74 @@
+"""Training: press every reference material, perceive each press, fit the haptic memory and cross-validate it
+(seed 000 section 6.8: 3 reference materials x 10 presses, leave-one-out)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from palpate.core.errors import PalpateError
+from palpate.core.perception.crossval import CrossValidation, leave_one_out
+from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.press import PressResult, perceive_press
+from palpate.core.session.press_log import PressLog
+from palpate.core.session.progress import Progress
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scenario import Scenario
+from palpate.core.world.scene import ObjectSpec
+
+TRAINING_BLOCK = (0.08, 0.08, 0.04)  # m: a thick sample of each reference material, as in seed 000 Fig. 6.7
+#: Fewest fitted presses of a material that training accepts (a 2-D Gaussian needs 3).
+MIN_FITTED = 3
+
+
+@dataclass(frozen=True)
+class TrainingResult:
+    """A trained memory, its leave-one-out cross-validation, and every training press as perceived (by material,
+    in the scenario's reference order)."""
+
+    memory: HapticMemory
+    crossval: CrossValidation
+    presses: dict[str, tuple[PressResult, ...]]
+
+
+def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
+                 log: PressLog | None = None) -> TrainingResult:
+    """Press every reference material ``training.presses_per_material`` times on a thick block and fit the memory.
+
+    Args:
+        scenario: what to train on (references, training protocol).
+        make_source: ``make(objects, seed, variability)``, e.g. from
+            :func:`~palpate.core.session.sources.scenario_source_maker`.
+        seeds: one seed per reference material.
+        progress: progress display.
+        log: when given, every press is laid on the run's timeline (and recorded).
+    """
+    tr = scenario.training
+    params, labels, by_material = [], [], {}
+    for m, name in enumerate(scenario.references):
+        mat = scenario.materials[name].material
+        block = ObjectSpec(f"sample_{name}", "box", TRAINING_BLOCK, (0.0, 0.0), mat)
+        source = make_source((block,), int(seeds[m]), tr.variability)
+        results = []
+        progress.start(f"training {name}", tr.presses_per_material)
+        for k in range(tr.presses_per_material):
+            rec = source.press(PressTarget(0.0, 0.0, depth=tr.depth, force=tr.max_force, speed=tr.speed,
+                                           label=f"{name}#{k + 1}"))
+            if log is not None:
+                rec = log.add(rec, {"phase": "training", "material": name, "k": k + 1})
+            res = perceive_press(rec)
+            results.append(res)
+            if res.fit is not None:
+                params.append(res.fit.params)
+                labels.append(name)
+            progress.update(k + 1)
+        by_material[name] = tuple(results)
+        usable = sum(r.fit is not None for r in results)
+        if usable < MIN_FITTED:
+            raise PalpateError(f"training: only {usable} of {tr.presses_per_material} presses on {name} could be "
+                               "fitted; press deeper (training.depth_mm) or lower the taxel threshold")
+    P = np.vstack(params)
+    memory = HapticMemory(materials=list(scenario.references)).fit(P, labels)
+    crossval = leave_one_out(P, labels, materials=list(scenario.references))
+    return TrainingResult(memory, crossval, by_material)
