@@ -36,7 +36,7 @@ HARD = Material("hard", 2e5)
 def _objects() -> dict[str, tuple[ObjectSpec, float, float]]:
     from pathlib import Path
 
-    from palpate.core.world.scenario import load_scenario
+    from palpate.core.world.scenario_file import load_scenario
 
     size = (0.1, 0.1, H)
     het = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "heterogeneous.toml").objects[0].spec

@@ -38,7 +38,7 @@ from palpate.core.session.progress import Progress
 from palpate.core.session.report import object_summary
 from palpate.core.session.sources import load_source
 from palpate.core.session.training import train_memory
-from palpate.core.world.scenario import parse_scenario
+from palpate.core.world.scenario_file import parse_scenario
 from palpate.core.world.scene import Scene
 
 #: Benchmark rows: name -> (scenario policy, info_gain objective). "info_gain" is the default (accuracy) objective.

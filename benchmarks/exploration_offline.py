@@ -31,7 +31,7 @@ from palpate.core.planning.outcomes import outcome_posteriors
 from palpate.core.planning.registry import make_policy
 from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory
-from palpate.core.world.scenario import parse_scenario
+from palpate.core.world.scenario_file import parse_scenario
 from palpate.core.world.workspace import ground_truth_map, map_geometries
 
 

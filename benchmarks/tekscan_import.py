@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core.io.recording import read_recording
+from palpate.core.io.mcap_reader import read_recording
 from palpate.hardware.tekscan.importer import import_tekscan
 from palpate.hardware.tekscan.reader import read_tekscan
 

@@ -15,12 +15,13 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
-from palpate.core.io.recording import RecordingWriter
+from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.session.actuators import open_actuators
-from palpate.core.session.operator import folder_streams, recordings_folder
+from palpate.core.session.operator_actuator import OperatorOptions, folder_streams, recordings_folder
 from palpate.core.session.run import run_scenario
 from palpate.core.session.sources import PressTarget
-from palpate.core.world.scenario import ActuatorSpec, parse_actuator, parse_scenario
+from palpate.core.world.scenario import ActuatorSpec
+from palpate.core.world.scenario_file import parse_actuator, parse_scenario
 from palpate.core.world.scene import Scene
 from palpate.core.world.workspace import map_geometries
 
@@ -83,19 +84,19 @@ def test_actuator_defaults_to_the_simulated_finger_and_reads_each_kind(tmp_path)
     assert _scenario(OPERATOR).actuator == ActuatorSpec()
     assert _scenario(OPERATOR).training.source == "sim"
     op = _scenario(OPERATOR, {"kind": "operator", "recordings_dir": "presses", "figures": False}, base=tmp_path)
-    assert op.actuator.kind == "operator" and not op.actuator.figures
-    assert op.actuator.recordings_dir == tmp_path.parent / "presses"  # resolved like every other path
+    assert op.actuator.kind == "operator" and not op.actuator.options.figures
+    assert op.actuator.options.recordings_dir == tmp_path.parent / "presses"  # resolved like every other path
     dyn = _scenario(OPERATOR, {"kind": "dynamixel", "finger": "f.toml", "emulate": True, "baud": 57600,
                                "pose_noise_mm": 0.05, "approach_mm": 3})
-    a = dyn.actuator
-    assert (a.kind, a.emulate, a.port, a.baud) == ("dynamixel", True, None, 57600)
+    a = dyn.actuator.options
+    assert (dyn.actuator.kind, a.emulate, a.port, a.baud) == ("dynamixel", True, None, 57600)
     assert a.pose_noise == pytest.approx(5e-5) and a.approach_height == pytest.approx(0.003)
-    real = parse_actuator({"kind": "dynamixel", "port": "/dev/ttyUSB0", "finger": "f.toml"})
+    real = parse_actuator({"kind": "dynamixel", "port": "/dev/ttyUSB0", "finger": "f.toml"}).options
     assert real.port == "/dev/ttyUSB0" and not real.emulate and real.baud == 1_000_000
 
 
 @pytest.mark.parametrize("table, message", [
-    ({"kind": "robot"}, "actuator.kind: must be one of sim, operator, dynamixel; got 'robot'"),
+    ({"kind": "robot"}, "actuator.kind: must be one of sim, dynamixel, operator; got 'robot'"),
     ({"kind": "operator", "recordings_dir": "d", "speed": 1}, "actuator.speed: unknown key"),
     ({"kind": "operator", "recordings_dir": "d", "port": "/dev/x"},
      "actuator.port: is a key of kind 'dynamixel', but kind is 'operator'"),
@@ -129,11 +130,11 @@ def test_command_line_options_override_the_actuator(tmp_path):
     sc = _scenario(OPERATOR, {"kind": "dynamixel", "finger": "f.toml", "emulate": True, "approach_mm": 4})
     assert with_actuator_options(sc, args()) is sc
     # same kind: the scenario's keys stay, --port replaces emulate
-    real = with_actuator_options(sc, args(port="/dev/ttyUSB1")).actuator
+    real = with_actuator_options(sc, args(port="/dev/ttyUSB1")).actuator.options
     assert (real.port, real.emulate, real.approach_height) == ("/dev/ttyUSB1", False, pytest.approx(0.004))
     # another kind: only what the command line gives
     op = with_actuator_options(sc, args(actuator="operator", recordings=tmp_path)).actuator
-    assert op == ActuatorSpec("operator", recordings_dir=tmp_path.resolve())
+    assert op == ActuatorSpec("operator", OperatorOptions(recordings_dir=tmp_path.resolve()))
     assert with_actuator_options(sc, args(actuator="sim")).actuator == ActuatorSpec()
     with pytest.raises(ValidationError, match="command line's actuator options: actuator.recordings_dir: missing"):
         with_actuator_options(sc, args(actuator="operator"))
@@ -288,7 +289,8 @@ def test_a_real_bus_is_refused_until_a_live_taxel_reader_exists(repo_dir, tmp_pa
     sc = _dynamixel_scenario(repo_dir)
     from dataclasses import replace
 
-    sc = replace(sc, actuator=replace(sc.actuator, emulate=False, port="/dev/ttyUSB0"))
+    sc = replace(sc, actuator=replace(sc.actuator, options=replace(sc.actuator.options, emulate=False,
+                                                                   port="/dev/ttyUSB0")))
     with pytest.raises(ValidationError, match=r"actuator.port = '/dev/ttyUSB0': a real Dynamixel finger has no "
                        r"tactile pad.*Use emulate = true"):
         run_scenario(sc, tmp_path)

@@ -36,7 +36,7 @@ def test_scan_needs_a_port(capsys):
 
 
 def test_record_with_a_press_writes_joints_poses_and_annotations(tmp_path, repo_dir, capsys):
-    recording = pytest.importorskip("palpate.core.io.recording")
+    recording = pytest.importorskip("palpate.core.io.mcap_reader")
     out = tmp_path / "rec.mcap"
     finger = str(repo_dir / "models" / "fingers" / "planar2.toml")
     code = main(["record", "dynamixel", "--emulate", "--finger", finger, "--seconds", "0.3", "--out", str(out),

@@ -13,7 +13,7 @@ from palpate.core.planning.info_gain import InfoGain, disagreement, expected_gai
 from palpate.core.planning.outcomes import outcome_posteriors, outcome_table
 from palpate.core.planning.policies import MaxEntropy, Predefined, RandomCells, Raster
 from palpate.core.planning.registry import make_policy, stop_reason
-from palpate.core.world.scenario import parse_scenario
+from palpate.core.world.scenario_file import parse_scenario
 
 CERTAIN = {0: np.array([0.999, 0.0005, 0.0005]), 1: np.array([0.0005, 0.999, 0.0005]),
            2: np.array([0.0005, 0.0005, 0.999])}
@@ -419,7 +419,7 @@ def test_the_shipped_info_gain_scenario_maps_the_block_with_fewer_presses_than_c
     min-gain rule before the budget, the post-processed map mostly right (the lump is 2 x 2 cells and hides
     between lattice points until a hole is checked)."""
     from palpate.core.session.run import run_scenario
-    from palpate.core.world.scenario import load_scenario
+    from palpate.core.world.scenario_file import load_scenario
 
     sc = load_scenario(repo_dir / "scenarios" / "explore_info_gain.toml")
     summary = run_scenario(sc, tmp_path)

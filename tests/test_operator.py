@@ -79,7 +79,7 @@ def test_operator_in_the_closed_loop_explores_an_object(tmp_path):
     from palpate.core.session.report import object_summary
     from palpate.core.session.sources import scenario_source_maker
     from palpate.core.session.training import train_memory
-    from palpate.core.world.scenario import parse_scenario
+    from palpate.core.world.scenario_file import parse_scenario
     from palpate.core.world.workspace import map_geometries
 
     raw = tomllib.loads("""

@@ -413,7 +413,7 @@ def test_a_record_straddling_the_end_of_a_timed_stream_is_kept_by_stop():
 
 def test_cli_records_emulated_stations_into_mcap(tmp_path, capsys):
     from palpate.core.cli import main
-    from palpate.core.io.recording import read_recording
+    from palpate.core.io.mcap_reader import read_recording
 
     out = tmp_path / "lib.mcap"
     rc = main(["record", "liberty", "--emulate", "--emulate-rate", "400", "--stations", "1,2",
@@ -450,7 +450,7 @@ def test_cli_bad_arguments_exit_2_with_a_message(tmp_path, capsys):
 
 
 def test_cli_ctrl_c_keeps_what_was_recorded(tmp_path):
-    from palpate.core.io.recording import read_recording
+    from palpate.core.io.mcap_reader import read_recording
 
     out = tmp_path / "int.mcap"
     proc = subprocess.Popen(

@@ -16,7 +16,9 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import Writer
 
 from palpate.core.errors import RecordingError, ValidationError
-from palpate.core.io.recording import Annotation, RecordingWriter, read_recording, recording_to_press_recording
+from palpate.core.io.mcap_reader import read_recording
+from palpate.core.io.mcap_writer import RecordingWriter
+from palpate.core.io.recording import Annotation, recording_to_press_recording
 from palpate.core.perception.streams import PoseSample, TaxelFrame
 
 META = {"scenario": {"name": "three_pads", "seed": 7, "depth_m": 0.004}, "sources": ["sim"], "note": None}
@@ -206,7 +208,7 @@ def test_message_missing_field_names_topic_and_index(tmp_path):
 
 WRITER = """
 import sys, numpy as np
-from palpate.core.io.recording import RecordingWriter
+from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.perception.streams import TaxelFrame
 w = RecordingWriter(sys.argv[1], {"scenario": "crash"}, chunk_size=300, flush_interval=1e9)
 i = 0

@@ -8,7 +8,7 @@ import pytest
 
 from palpate.core.cli import main
 from palpate.core.mapping.grids import Grid2D
-from palpate.core.world.scenario import parse_scenario
+from palpate.core.world.scenario_file import parse_scenario
 
 SMALL = """
 [scenario]
@@ -156,7 +156,8 @@ def test_replay_of_a_recording_without_annotations_finds_every_press_and_reads_i
     """The other replay path (a Tekscan import, a Liberty + finger session): no press annotations and no map
     geometry, so the whole stream is segmented. The run's recording stripped of its annotations and metadata
     must give back one press per recorded press, each where it was planned and read as the run read it."""
-    from palpate.core.io.recording import RecordingWriter, read_recording
+    from palpate.core.io.mcap_reader import read_recording
+    from palpate.core.io.mcap_writer import RecordingWriter
     from palpate.core.perception.memory import HapticMemory
     from palpate.core.session.replay import replay_recording
 

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.core.world.scenario import load_scenario, parse_scenario
+from palpate.core.world.scenario_file import load_scenario, parse_scenario
 
 SCENARIOS = sorted((Path(__file__).resolve().parent.parent / "scenarios").glob("*.toml"))
 

@@ -18,7 +18,7 @@ import pytest
 
 from palpate.core.cli import main
 from palpate.core.errors import ValidationError
-from palpate.core.io.recording import read_recording
+from palpate.core.io.mcap_reader import read_recording
 from palpate.hardware.tekscan.importer import import_tekscan, parse_start_time
 from palpate.hardware.tekscan.reader import (
     TekscanWarning,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from palpate.core.session.run import run_scenario
-from palpate.core.world.scenario import load_scenario
+from palpate.core.world.scenario_file import load_scenario
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "thesis_ch6.toml"
 

@@ -10,7 +10,7 @@ from palpate.core.cli import main
 from palpate.core.mapping.grids import VoxelGrid
 from palpate.core.perception.layered_memory import layer_fits
 from palpate.core.session.run import run_scenario
-from palpate.core.world.scenario import parse_scenario
+from palpate.core.world.scenario_file import parse_scenario
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "volumetric.toml"
 

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from palpate.core.world.scenario import ACTUATORS
+from palpate.core.world.actuator_kinds import actuator_names
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="registered simulated source that trains the memory and, with actuator sim, explores "
                    "(default: the scenario's training.source, 'sim')")
     a = p.add_argument_group("actuator (who presses during exploration; overrides the scenario's [actuator])")
-    a.add_argument("--actuator", choices=ACTUATORS, default=None,
+    a.add_argument("--actuator", choices=actuator_names(), default=None,
                    help="sim: the simulated finger; operator: a person shown each cell (terminal + PNG), presses "
                    "read from --recordings; dynamixel: the finger of --finger on --port, or --emulate")
     a.add_argument("--recordings", type=Path, default=None, metavar="DIR",
@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _run(args: argparse.Namespace) -> int:
     from palpate.core.session.progress import Progress
     from palpate.core.session.run import run_scenario
-    from palpate.core.world.scenario import load_scenario
+    from palpate.core.world.scenario_file import load_scenario
 
     scenario = with_actuator_options(load_scenario(args.scenario), args)
     out = args.out or Path("runs") / scenario.name
@@ -68,7 +68,7 @@ def with_actuator_options(scenario, args: argparse.Namespace):
     """
     import dataclasses
 
-    from palpate.core.world.scenario import parse_actuator
+    from palpate.core.world.scenario_file import parse_actuator
 
     options = {"recordings_dir": args.recordings, "port": args.port, "finger": args.finger,
                "emulate": True if args.emulate else None}

@@ -1,20 +1,21 @@
 """Which actuator presses during exploration: the simulated finger, a person, or a Dynamixel finger.
 
-The exploration loop (:func:`palpate.core.session.run.explore_object`) presses through whatever ``make(objects, seed,
-variability)`` returns. :func:`open_actuators` gives the run that function for the scenario's ``[actuator]``:
+The exploration loop (:func:`palpate.core.session.explore.explore_object`) presses through whatever ``make(objects,
+seed, variability)`` returns. :func:`open_actuators` gives the run that function for the scenario's ``[actuator]``:
 
 - ``sim``: the registered simulated source (``training.source``, default ``sim``), the one that trains the memory;
-- any other kind: a factory registered under the entry-point group ``palpate.actuators`` (so core never imports
-  hardware or sim), called once per explored object with one signature::
+- any other kind: an :class:`~palpate.core.world.actuator_kinds.ActuatorKind` registered under the entry-point
+  group ``palpate.actuators`` (so core never imports hardware or sim), whose factory is called once per explored
+  object with one signature::
 
-      factory(request: ActuatorRequest, *, check_only: bool = False) -> PressSource | None
+      make(request: ActuatorRequest, *, check_only: bool = False) -> PressSource | None
 
   With ``check_only`` the factory validates all it can without touching a device (files, ports named, the reach
   of every cell the policy may press) and returns None: the run does this for every object before training, so a
   scenario the actuator cannot do fails at once, before any servo moves. The source it returns has
   ``press(PressTarget) -> PressRecording`` and may have ``close()``, which the run calls when the object is
-  explored (or the run fails). ``operator`` is :func:`operator_actuator` below; ``dynamixel`` is
-  :func:`palpate.hardware.dynamixel.actuator_source.dynamixel_actuator`.
+  explored (or the run fails). ``operator`` is :mod:`palpate.core.session.operator_actuator`; ``dynamixel`` is
+  :mod:`palpate.hardware.dynamixel.actuator_source`.
 
 Training with a non-sim actuator: the haptic memory comes from ``training.memory`` (a memory.json) when given,
 else it is trained in simulation by ``training.source``; if that source cannot be loaded the run stops at once
@@ -27,7 +28,6 @@ import contextlib
 import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TextIO
 
@@ -35,10 +35,9 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.geometry import MapGeometry
+from palpate.core.world.actuator_kinds import load_actuator_kind
 from palpate.core.world.scenario import ActuatorSpec, Scenario
 from palpate.core.world.scene import ObjectSpec, Scene
-
-ACTUATOR_GROUP = "palpate.actuators"
 
 
 @dataclass(frozen=True)
@@ -89,16 +88,8 @@ class ActuatorRequest:
 
 
 def load_actuator(kind: str):
-    """The factory registered as ``kind`` in ``palpate.actuators``; ValidationError naming the known kinds."""
-    found = {ep.name: ep for ep in entry_points(group=ACTUATOR_GROUP)}
-    if kind not in found:
-        known = ", ".join(sorted(found)) or "none (is palpate installed?)"
-        raise ValidationError(f"actuator kind {kind!r} is not registered in {ACTUATOR_GROUP}; registered: {known}")
-    try:
-        return found[kind].load()
-    except ImportError as exc:
-        raise ValidationError(f"actuator kind {kind!r} needs an optional dependency that is missing: {exc}. "
-                              "Install it with: pip install 'palpate[all]'") from None
+    """The factory ``make(request, *, check_only=False)`` of the actuator kind registered as ``kind``."""
+    return load_actuator_kind(kind).make
 
 
 def actuator_requests(scenario: Scenario, geometries: Mapping[str, MapGeometry], out_dir: Path | None = None,

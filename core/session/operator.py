@@ -18,9 +18,9 @@ from typing import TextIO
 import numpy as np
 
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
-from palpate.core.io.recording import read_recording, recording_to_press_recording
+from palpate.core.io.mcap_reader import read_recording
+from palpate.core.io.recording import recording_to_press_recording
 from palpate.core.perception.streams import PressRecording
-from palpate.core.session.actuators import ActuatorRequest
 from palpate.core.session.sources import PressTarget
 
 CONFIRM = ("", "y", "yes", "done", "ok")
@@ -222,68 +222,3 @@ class HumanOperator:
         fig.savefig(path, dpi=90)
         plt.close(fig)
         return path
-
-
-def recordings_folder(folder: Path | None, obj: str, n_objects: int) -> Path:
-    """The folder holding one object's press recordings: ``folder`` itself for a one-object scenario, else its
-    subfolder named as the object. ValidationError naming ``actuator.recordings_dir`` if it is not there."""
-    if folder is None:
-        raise ValidationError("actuator.recordings_dir: missing (required for kind 'operator': a folder of MCAP "
-                              "recordings, one per press)")
-    if not Path(folder).is_dir():
-        raise ValidationError(f"actuator.recordings_dir: {folder} is not a folder (expected MCAP recordings, one "
-                              "per press, taken in name order)")
-    if n_objects == 1:
-        return Path(folder)
-    sub = Path(folder) / obj
-    if not sub.is_dir():
-        raise ValidationError(f"actuator.recordings_dir: the scenario explores {n_objects} objects, so each has a "
-                              f"subfolder named as the object; {sub} is missing")
-    return sub
-
-
-def folder_streams(folder: Path, input: TextIO, output: TextIO) -> Callable[[PressTarget, int], PressRecording]:
-    """Streams for :class:`~palpate.core.session.operator.HumanOperator`: press k is the k-th ``*.mcap`` of
-    ``folder`` in name order (name them so they sort in press order: press_001.mcap, ...).
-
-    The folder is listed again at every press, so recordings may arrive while the session runs (the person
-    presses, the Tekscan/Liberty recording is imported); if press k's file is not there yet the person is asked
-    to add it and confirm again. RecordingError if it never comes.
-    """
-    def take(target: PressTarget, k: int) -> PressRecording:
-        for _ in range(MAX_PROMPTS):
-            files = sorted(Path(folder).glob("*.mcap"))
-            if k < len(files):
-                return recordings_from_files(files)(target, k)
-            output.write(f"   no recording for press {k + 1} in {folder} yet ({len(files)} file(s)); record or "
-                         "import it there, then Enter (q to stop): ")
-            output.flush()
-            line = input.readline()
-            if line == "":
-                break
-            if line.strip().lower() in ABORT:
-                raise PalpateError("the operator stopped the exploration")
-        raise RecordingError(f"{folder}: press {k + 1} needs its recording (the {k + 1}-th *.mcap in name order), "
-                             f"but the folder holds {len(files)}")
-
-    return take
-
-
-def operator_actuator(request: ActuatorRequest, *, check_only: bool = False):
-    """Factory of kind ``operator``: a :class:`~palpate.core.session.operator.HumanOperator` shown each target cell
-    (text grid, and a PNG under ``<out>/figures/operator/<object>/`` when ``figures``), whose presses are read from
-    ``recordings_dir``. With ``check_only``, only checks the folder."""
-    spec = request.spec
-    folder = recordings_folder(spec.recordings_dir, request.obj.name, request.n_objects)
-    if check_only:
-        return None
-    input = request.input if request.input is not None else sys.stdin
-    output = request.output if request.output is not None else sys.stderr
-    figure_dir = None
-    if spec.figures and request.out_dir is not None:
-        figure_dir = Path(request.out_dir) / "figures" / "operator" / request.obj.name
-    output.write(f"\nOperator: explore {request.obj.name} ({request.shape[0]} x {request.shape[1]} cells of "
-                 f"{request.cell_size * 1e3:.0f} mm, corner at x = {request.origin[0] * 1e3:.1f} mm, "
-                 f"y = {request.origin[1] * 1e3:.1f} mm); press recordings from {folder}\n")
-    return HumanOperator(request.origin, request.cell_size, request.shape, folder_streams(folder, input, output),
-                         input=input, output=output, figure_dir=figure_dir, materials=request.materials)

@@ -21,7 +21,8 @@ import numpy as np
 from palpate.core import __version__
 from palpate.core.errors import ValidationError
 from palpate.core.io import figures as fig
-from palpate.core.io.recording import read_recording, recording_to_press_recording
+from palpate.core.io.mcap_reader import read_recording
+from palpate.core.io.recording import recording_to_press_recording
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
 from palpate.core.mapping.snapshot import MapSnapshot

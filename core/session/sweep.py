@@ -138,7 +138,7 @@ def load_sweep(path: str | Path) -> Sweep:
         ValidationError: naming the sweep file, the key and what was expected (or the variant whose scenario
             is invalid, with the scenario's own message).
     """
-    from palpate.core.world.scenario import parse_scenario
+    from palpate.core.world.scenario_file import parse_scenario
 
     file = Path(path)
     doc = _read_toml(file, "sweep")
@@ -224,7 +224,7 @@ def run_variant(raw: dict, base_dir: str, run_dir: str, vid: str, overrides: dic
     for a finished one.
     """
     from palpate.core.session.run import run_scenario
-    from palpate.core.world.scenario import parse_scenario
+    from palpate.core.world.scenario_file import parse_scenario
 
     out = Path(run_dir)
     out.mkdir(parents=True, exist_ok=True)

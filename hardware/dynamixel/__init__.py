@@ -93,7 +93,7 @@ def _cmd_record(args) -> int:
     import time
 
     from palpate.core.errors import ValidationError
-    from palpate.core.io.recording import RecordingWriter
+    from palpate.core.io.mcap_writer import RecordingWriter
     from palpate.core.session.sources import PressTarget
     from palpate.hardware.dynamixel.driver import DynamixelFinger
     from palpate.hardware.dynamixel.emulator import ServoBusEmulator

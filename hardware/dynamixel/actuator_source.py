@@ -16,12 +16,17 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.perception.pipeline import PipelineConfig
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
+from palpate.core.world.actuator_kinds import ActuatorKind
+from palpate.core.world.table_reader import TableReader, resolve_path
 from palpate.hardware.dynamixel.finger import (
     FingerDescription,
     forward_kinematics,
@@ -46,6 +51,46 @@ REPEATS = 2
 POSE_SENSOR = "pose"
 
 
+@dataclass(frozen=True)
+class DynamixelOptions:
+    """``[actuator]`` options of kind ``dynamixel`` (lengths m).
+
+    Attributes:
+        port: serial port of the servo bus (None with ``emulate``).
+        baud: bus bit rate.
+        finger: finger description file (models/fingers/*.toml).
+        emulate: press through the servo emulator on a pty, backed by MuJoCo physics of the scene.
+        pose_noise: standard deviation of noise added to each fingertip position, m per axis.
+        approach_height: height above the surface where each press starts, m (None: the finger file's).
+    """
+
+    port: str | None = None
+    baud: int = 1_000_000
+    finger: Path | None = None
+    emulate: bool = False
+    pose_noise: float = 0.0
+    approach_height: float | None = None
+
+
+def parse_options(r: TableReader, base: Path) -> DynamixelOptions:
+    """Validate the ``[actuator]`` keys of kind ``dynamixel``; relative paths resolve against ``base``."""
+    emulate = r.get("emulate", bool, False)
+    port = r.get("port", str, "") or None
+    if emulate and port:
+        raise r.err("port", "not used with emulate = true (the emulator opens its own pseudo-terminal); "
+                    "leave one of them out")
+    if not emulate and not port:
+        raise r.err("port", "missing: the servo bus's serial port (e.g. /dev/ttyUSB0), or emulate = true")
+    finger = r.get("finger", str)
+    if not finger:
+        raise r.err("finger", "must name a finger description file (models/fingers/*.toml)")
+    approach = r.number("approach_mm", None, lo=0.0, lo_open=True)
+    return DynamixelOptions(port=port, baud=r.integer("baud", DynamixelOptions.baud, lo=1),
+                            finger=resolve_path(base, finger), emulate=emulate,
+                            pose_noise=r.number("pose_noise_mm", 0.0, lo=0.0) * 1e-3,
+                            approach_height=None if approach is None else approach * 1e-3)
+
+
 class FingerSession:
     """A :class:`FingerActuator` together with the bus (and emulator) it owns; ``close()`` releases them.
 
@@ -64,8 +109,6 @@ class FingerSession:
         times at most); ``meta["attempts"]`` says how many presses it took, ``meta["pose_gap_s"]`` the longest
         gap left when none was clean.
         """
-        from palpate.core.perception.pipeline import PipelineConfig
-
         max_gap = PipelineConfig().max_gap
         attempts = 0
         while True:
@@ -107,7 +150,7 @@ class FingerSession:
 
 def finger_for(request) -> FingerDescription:
     """The request's finger description, with its approach height overridden when the scenario sets one."""
-    spec = request.spec
+    spec: DynamixelOptions = request.spec.options
     if spec.finger is None:
         raise ValidationError("actuator.finger: missing (a finger description, models/fingers/*.toml)")
     finger = load_finger(spec.finger)
@@ -155,7 +198,7 @@ def dynamixel_actuator(request, *, check_only: bool = False):
     :class:`FingerSession` whose presses carry the pad's taxel frames, the fingertip poses (plus
     ``pose_noise``) and the physics' ground truth.
     """
-    spec = request.spec
+    spec: DynamixelOptions = request.spec.options
     finger = finger_for(request)
     check_reach(finger, request)
     if not spec.emulate:
@@ -186,3 +229,8 @@ def dynamixel_actuator(request, *, check_only: bool = False):
         stack.close()
         raise
     return FingerSession(actuator, stack)
+
+
+#: The entry point ``dynamixel`` of ``palpate.actuators``.
+DYNAMIXEL = ActuatorKind(keys=("port", "baud", "finger", "emulate", "pose_noise_mm", "approach_mm"),
+                         parse=parse_options, make=dynamixel_actuator, extra="hardware")

@@ -54,7 +54,7 @@ def parse_stations(text: str) -> tuple[int, ...]:
 
 def run_record(args: argparse.Namespace) -> int:
     """Handler of ``palpate record liberty``; returns the exit code (130 after Ctrl-C, recording kept)."""
-    from palpate.core.io.recording import RecordingWriter
+    from palpate.core.io.mcap_writer import RecordingWriter
     from palpate.hardware.polhemus.driver import LibertyDriver
     from palpate.hardware.polhemus.emulator import LibertyEmulator, press_motion
     from palpate.hardware.polhemus.transport import SerialTransport

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.io.recording import RecordingWriter
+from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.perception.streams import TaxelFrame
 from palpate.hardware.tekscan.reader import read_tekscan, select_region
 

@@ -1,0 +1,102 @@
+"""Parsers of a scenario's tables beyond the top level: objects (layers, inclusions, haptic-material maps, regions),
+material references, and the small keys with rules of their own."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from palpate.core.errors import ValidationError
+from palpate.core.world.haptic_material import HapticMaterialMap
+from palpate.core.world.scenario import MaterialEntry, ObjectEntry
+from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec
+from palpate.core.world.table_reader import REQUIRED, TableReader, resolve_path
+
+
+def training_source(r: TableReader) -> str:
+    """``training.source``: the registered source that presses the reference materials (a simulation)."""
+    value = r.get("source", str, "sim")
+    if value in ("operator", "dynamixel"):
+        raise r.err("source", f"{value!r} is an exploration actuator ([actuator] kind); the reference materials "
+                    "are pressed by a registered simulated source (e.g. 'sim'), or give training.memory")
+    if not value:
+        raise r.err("source", "must name a registered source, e.g. 'sim'")
+    return value
+
+
+def optional_force(r: TableReader) -> float | None:
+    value = r.number("max_force_n", 5.0, lo=0.0)
+    return None if value == 0 else value
+
+
+def extrapolation_passes(r: TableReader) -> int | None:
+    """``extrapolation_passes``: an integer >= 1 (1 = seed 000 eq. 6.15 once) or "all" (None: repeat until every
+    cell is filled)."""
+    value = r.get("extrapolation_passes", (int, str), 1)
+    if isinstance(value, str):
+        if value != "all":
+            raise r.err("extrapolation_passes", f'expected an integer >= 1 or "all", got {value!r}')
+        return None
+    if value < 1:
+        raise r.err("extrapolation_passes", f'must be >= 1 (or "all"), got {value}')
+    return value
+
+
+def material_named(r: TableReader, key: str, materials: dict[str, MaterialEntry], default: Any = REQUIRED) -> Material:
+    name = r.get(key, str, default)
+    if name not in materials:
+        raise r.err(key, f"unknown material {name!r}; defined materials: {', '.join(materials)}")
+    return materials[name].material
+
+
+def object_entry(r: TableReader, materials: dict[str, MaterialEntry], base: Path) -> ObjectEntry:
+    name = r.get("name", str)
+    shape = r.choice("shape", ("box", "cylinder", "mesh"), "box")
+    count = {"box": 3, "cylinder": 2, "mesh": 3}[shape]
+    size = tuple(v * 1e-3 for v in r.numbers("size_mm", count, positive=True))
+    position = tuple(v * 1e-3 for v in r.numbers("position_mm", 2, (0.0, 0.0)))
+    bulk = material_named(r, "material", materials)
+    mesh = r.get("mesh", str, "")
+    layers = []
+    for lr in r.subs("layers"):
+        thickness = lr.number("thickness_mm", lo=0.0, lo_open=True) * 1e-3
+        layers.append(Layer(material_named(lr, "material", materials), thickness))
+        lr.finish()
+    inclusions = []
+    for ir in r.subs("inclusions"):
+        ishape = ir.choice("shape", ("sphere", "box", "column"))
+        icount = {"sphere": 1, "box": 3, "column": 2}[ishape]
+        centre = ir.numbers("center_mm", (2, 3))
+        centre3 = (centre[0] * 1e-3, centre[1] * 1e-3, (centre[2] if len(centre) == 3 else 0.0) * 1e-3)
+        inclusions.append(Inclusion(material_named(ir, "material", materials), ishape, centre3,
+                                    tuple(v * 1e-3 for v in ir.numbers("size_mm", icount, positive=True))))
+        ir.finish()
+    material_map = None
+    map_path = r.get("material_map", str, "")
+    if map_path:
+        folder = resolve_path(base, map_path)
+        hm = HapticMaterialMap.read(folder)
+        unknown = [m for m in hm.materials if m not in materials]
+        if unknown:
+            raise r.err("material_map", f"{folder} names materials {unknown} that the scenario does not define")
+        material_map = hm
+    regions = []
+    for i, cell in enumerate(r.get("regions", list, [])):
+        if not (isinstance(cell, list) and len(cell) == 2 and all(isinstance(c, int) and c >= 1 for c in cell)):
+            raise r.err(f"regions[{i}]", f"expected a 1-based [column, row] pair of integers, got {cell!r}")
+        regions.append((cell[0], cell[1]))
+    grid_origin = r.numbers("grid_origin_mm", 2, None)
+    grid_shape = r.get("grid_cells", list, None)
+    if grid_shape is not None and not (len(grid_shape) == 2 and all(isinstance(v, int) and v > 0 for v in grid_shape)):
+        raise r.err("grid_cells", f"expected [columns, rows] positive integers, got {grid_shape!r}")
+    r.finish()
+    try:
+        map_materials = tuple(materials[n].material for n in material_map.materials) if material_map else ()
+        spec = ObjectSpec(name, shape, size, position, bulk, tuple(layers), tuple(inclusions),
+                          mesh_path=str(resolve_path(base, mesh)) if mesh else None, material_map=material_map,
+                          map_materials=map_materials)
+    except ValidationError as exc:
+        raise ValidationError(f"{r.file}: {r.path}: {exc}") from None
+    return ObjectEntry(spec, tuple(regions),
+                       tuple(v * 1e-3 for v in grid_origin) if grid_origin else None,
+                       tuple(grid_shape) if grid_shape else None)
