@@ -105,8 +105,8 @@ def physics_presses(n_presses: int) -> list[tuple]:
     from palpate.core.world.scene import Material, ObjectSpec, Scene
     from palpate.hardware.dynamixel.driver import DynamixelFinger
     from palpate.hardware.dynamixel.finger import inverse_kinematics, load_finger
+    from palpate.hardware.dynamixel.physics_bus import physics_bus
     from palpate.hardware.dynamixel.press import FingerActuator
-    from palpate.sim.finger_physics import physics_bus
 
     finger = load_finger(Path(__file__).resolve().parent.parent / "models" / "fingers" / "planar2.toml")
     finger = dataclasses.replace(finger, approach_height=0.003)

@@ -23,14 +23,8 @@ import numpy as np
 
 from palpate.core.errors import SimulationDiverged
 from palpate.sim.flex import DEFAULT_RESOLUTION, reference_press
-from palpate.sim.flex_calibration import (
-    CAL_POISSON,
-    CAL_RANGE,
-    CAL_YOUNG,
-    CALIBRATION_PATH,
-    hertz_ratio,
-    measure_calibration,
-)
+from palpate.sim.flex_calibrate import hertz_ratio, measure_calibration
+from palpate.sim.flex_calibration import CAL_POISSON, CAL_RANGE, CAL_YOUNG, CALIBRATION_PATH
 
 RADIUS = 0.008
 CALIBRATION_CELLS = [10.0 / 8.0, 6.67 / 8.0, 5.0 / 8.0]  # cell / tip radius: 4, 6, 8 cells over 40 mm

@@ -20,7 +20,8 @@ import numpy as np
 
 from palpate.hardware.polhemus.driver import LibertyDriver
 from palpate.hardware.polhemus.emulator import LibertyEmulator
-from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, RecordParser, encode_ascii, encode_binary
+from palpate.hardware.polhemus.parser import RecordParser
+from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, encode_ascii, encode_binary
 from palpate.hardware.polhemus.transport import SerialTransport
 
 

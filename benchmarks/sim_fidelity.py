@@ -21,8 +21,9 @@ from bench_timing import median_of  # noqa: E402
 
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, Scene
-from palpate.sim.analytic import hertz_force, run_analytic_press  # noqa: E402
+from palpate.sim.analytic import run_analytic_press
 from palpate.sim.controller import press_profile  # noqa: E402
+from palpate.sim.hertz import hertz_force
 from palpate.sim.rigid import run_rigid_press  # noqa: E402
 from palpate.sim.source import SimSource  # noqa: E402
 

@@ -22,26 +22,11 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Material, ObjectSpec, Scene, material_at
 from palpate.sim.controller import PressProfile
+from palpate.sim.effective_modulus import modulus_along_depth
 from palpate.sim.fingertip import gauss_points, sensel_bounds
+from palpate.sim.hertz import hertz_force
+from palpate.sim.stability import check_resolves_press
 from palpate.sim.trace import PhysicsTrace
-
-
-def hertz_force(young_eff: float, radius: float, depth: np.ndarray) -> np.ndarray:
-    """Hertz normal force, N, of a rigid sphere (radius m) pressed ``depth`` m into a half-space of E* Pa."""
-    d = np.maximum(np.asarray(depth, dtype=float), 0.0)
-    return 4.0 / 3.0 * young_eff * np.sqrt(radius) * d**1.5
-
-
-def hertz_contact_radius(radius: float, depth: np.ndarray) -> np.ndarray:
-    """Hertz contact radius a = sqrt(R d), m."""
-    return np.sqrt(radius * np.maximum(np.asarray(depth, dtype=float), 0.0))
-
-
-def hertz_depth_for_force(young_eff: float, radius: float, force: float) -> float:
-    """Indentation, m, at which the Hertz force reaches ``force`` N (inverse of :func:`hertz_force`)."""
-    if not (force > 0 and young_eff > 0 and radius > 0):
-        raise ValidationError(f"hertz_depth_for_force needs force, E*, R > 0; got {force}, {young_eff}, {radius}")
-    return float((3.0 * force / (4.0 * young_eff * np.sqrt(radius))) ** (2.0 / 3.0))
 
 
 def _chord_integral(x: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -164,8 +149,6 @@ def effective_modulus_along(obj: ObjectSpec, x: float, y: float, surface_z: floa
     One value (the material's E*, exactly as before) where the object is one material under the whole press,
     else one per depth from a per-press table in the contact radius sqrt(R d).
     """
-    from palpate.sim.effective_modulus import modulus_along_depth
-
     d = np.asarray(depth, dtype=float)
     deepest = float(np.max(d)) if d.size else 0.0
     one_material = not (obj.layers or obj.inclusions or obj.material_map is not None)
@@ -193,7 +176,6 @@ def run_analytic_press(
     rate = scene.taxels.rate if rate is None else rate
     if not (np.isfinite(rate) and rate > 0):
         raise ValidationError(f"run_analytic_press: rate must be > 0 Hz, got {rate!r}")
-    from palpate.sim.stability import check_resolves_press
 
     # a press shorter than two samples would be missed: zero force, silently (the sensor could not see it either)
     check_resolves_press(profile, 1.0 / rate, f" (analytic, sampled at the {rate:g} Hz taxel rate)", min_steps=2)

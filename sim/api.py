@@ -6,6 +6,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, PoseSensorSpec, Scene, TaxelSensorSpec
+from palpate.sim.source import SimSource
 
 _OPTIONS = ("size", "thickness", "damping", "hold", "force", "variability", "timestep", "fingertip", "taxels",
             "pose", "material_name")
@@ -31,7 +32,6 @@ def simulate_press(
         a PressRecording with ``.frames`` (TaxelFrame list), ``.poses`` (PoseSample list), ``.truth``
         (GroundTruth: t s, force N, indentation m) and ``.meta``.
     """
-    from palpate.sim.source import SimSource
 
     unknown = sorted(set(scene_options) - set(_OPTIONS))
     if unknown:

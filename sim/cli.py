@@ -34,7 +34,7 @@ def run_bench(args: argparse.Namespace) -> int:
     # one core, as the table's real-time factors claim
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
-    from palpate.sim import tradeoff
+    from palpate.sim import tradeoff, tradeoff_report
 
     try:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -49,13 +49,13 @@ def run_bench(args: argparse.Namespace) -> int:
 
     report = tradeoff.run_tradeoff(settings, seeds=seeds, progress=progress)
     validity = tradeoff.analytic_validity(seeds=(0, 1))
-    doc = tradeoff.report_to_dict(report)
+    doc = tradeoff_report.report_to_dict(report)
     doc["analytic_validity"] = validity
-    table = tradeoff.format_table(report) + "\n\n" + tradeoff.format_validity(validity)
+    table = tradeoff_report.format_table(report) + "\n\n" + tradeoff_report.format_validity(validity)
     try:
         (args.out / "tradeoff.txt").write_text(table + "\n")
         (args.out / "tradeoff.json").write_text(json.dumps(doc, indent=1, allow_nan=False))
-        tradeoff.pareto_plot(report, args.out / "pareto.png")
+        tradeoff_report.pareto_plot(report, args.out / "pareto.png")
     except OSError as exc:
         raise RecordingError(f"bench: cannot write into {args.out}: {exc}") from exc
     print(json.dumps(doc, indent=1) if args.json else table)

@@ -44,6 +44,7 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, material_index_at
+from palpate.sim.hertz import hertz_depth_for_force, hertz_force
 
 #: Lateral spread of a column with depth: its radius is sqrt(a^2 + (SPREAD z)^2) (see the module docstring).
 SPREAD = 0.5
@@ -180,8 +181,6 @@ def depth_for_force(obj: ObjectSpec, x: float, y: float, surface_z: float, tip_r
     ``force`` is found by bisection on the interpolated table (a fixed-point iteration can oscillate between a
     soft skin's depth and a hard base's).
     """
-    from palpate.sim.analytic import hertz_depth_for_force, hertz_force
-
     softest = min(m.effective_modulus for m in obj.materials())
     d_max = hertz_depth_for_force(softest, tip_radius, force)
     depths, moduli, at = modulus_along_depth(obj, x, y, surface_z, tip_radius, d_max, samples=32)

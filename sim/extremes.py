@@ -20,6 +20,11 @@ import numpy as np
 from palpate.core.errors import SimulationDiverged, ValidationError
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, Scene
+from palpate.sim.analytic import local_material, run_analytic_press
+from palpate.sim.controller import press_profile
+from palpate.sim.flex import run_flex_press
+from palpate.sim.hertz import hertz_depth_for_force
+from palpate.sim.rigid import run_rigid_press
 
 #: Block of the matrix: 40 x 40 mm, 10 mm thick, so 80% of its thickness is an 8 mm press.
 BLOCK = (0.04, 0.04, 0.01)
@@ -85,8 +90,6 @@ def physically_ordered(t: np.ndarray, force: np.ndarray, indentation: np.ndarray
 
 def run_cell(cell: Cell, *, max_steps: int = MAX_STEPS) -> Outcome:
     """Press the matrix block once at ``cell`` and classify the result (never raises for a sim failure)."""
-    from palpate.sim.analytic import hertz_depth_for_force, local_material, run_analytic_press
-    from palpate.sim.controller import press_profile
 
     try:
         mat = Material("m", cell.young, cell.poisson)
@@ -106,12 +109,8 @@ def run_cell(cell: Cell, *, max_steps: int = MAX_STEPS) -> Outcome:
         if cell.fidelity == "analytic":
             trace = run_analytic_press(scene, obj, profile)
         elif cell.fidelity == "rigid":
-            from palpate.sim.rigid import run_rigid_press
-
             trace = run_rigid_press(scene, obj, profile, timestep=cell.timestep)
         else:
-            from palpate.sim.flex import run_flex_press
-
             trace = run_flex_press(scene, obj, target, profile, timestep=cell.timestep)
     except SimulationDiverged as exc:
         return Outcome(cell, "diverged", str(exc))

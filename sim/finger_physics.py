@@ -13,8 +13,10 @@ centre is the finger's kinematic tip point, carrying the 4x4 sensel pad. Given t
   indentation, mean pressure over each sensel of the tilted pad) as a :class:`PhysicsTrace`, which
   :mod:`palpate.sim.sensors` samples into 50 Hz taxel frames on the emulator's clock.
 
-:func:`physics_bus` wires it to a :class:`ServoBusEmulator`, so dynamixel-sdk -> pty -> emulator -> physics ->
-taxels runs end to end, and :meth:`FingerPhysics.actuator_streams` gives ``FingerActuator`` its taxel frames.
+:func:`palpate.hardware.dynamixel.physics_bus.physics_bus` wires it to the servo emulator, so dynamixel-sdk -> pty ->
+emulator -> physics -> taxels runs end to end, and :meth:`FingerPhysics.actuator_streams` gives the finger actuator
+its taxel frames. The finger is anything shaped like :class:`FingerChain` (a Dynamixel finger description is one):
+sim does not import the hardware package.
 
 Validity: quasi-static (the servos hold their position, the contact force is elastic: Kelvin-Voigt damping and
 the finger's inertia are ignored), one object under the tip with a horizontal top (the force is taken along +z;
@@ -27,20 +29,47 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import GroundTruth, TaxelFrame
 from palpate.core.world.scene import ObjectSpec, Scene
-from palpate.hardware.dynamixel.finger import FingerDescription, joints_to_ticks
 from palpate.sim.analytic import local_material
 from palpate.sim.fingertip import cap_height, sensel_quadrature, sensel_sites
 from palpate.sim.rigid import footprint_rings
-from palpate.sim.scene import surface_heights
+from palpate.sim.scene import add_object, surface_heights
 from palpate.sim.sensors import ground_truth, sample_taxels
 from palpate.sim.trace import PhysicsTrace
+
+
+class ChainJoint(Protocol):
+    """A hinge of a planar finger: its name, limits (rad) and the length of the link it drives (m)."""
+
+    name: str
+    lower: float
+    upper: float
+    link_length: float
+
+
+class FingerChain(Protocol):
+    """What the physics needs of a planar finger (e.g. ``palpate.hardware.dynamixel.finger.FingerChain``).
+
+    Attributes:
+        name: the finger's name; joints: its hinges from the base out; lengths: link lengths, m;
+        base: (x, y, z) of the first joint, m; directions, offsets: servo angle -> joint angle
+        (``q = direction * servo + offset``), per joint.
+    """
+
+    name: str
+    joints: Sequence[ChainJoint]
+    lengths: np.ndarray
+    base: np.ndarray
+    directions: np.ndarray
+    offsets: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -85,7 +114,7 @@ class FingerPhysics:
     shown; sensel pressures are computed when a trace is asked for, vectorised over its states.
     """
 
-    def __init__(self, finger: FingerDescription, scene: Scene, *, rings: int = 96, sectors: int = 24,
+    def __init__(self, finger: FingerChain, scene: Scene, *, rings: int = 96, sectors: int = 24,
                  order: int = 6, retable: float = 1e-4, max_states: int = 200_000):
         import mujoco
 
@@ -317,7 +346,7 @@ class FingerPhysics:
         return streams
 
 
-def build_finger_model(finger: FingerDescription, scene: Scene):
+def build_finger_model(finger: FingerChain, scene: Scene):
     """Compile the finger over the scene's objects with ``mujoco.MjSpec``; returns (model, data).
 
     Bodies ``link0``.. carry hinge joints named as in the description (axis +y: positive angles curl the finger
@@ -328,7 +357,6 @@ def build_finger_model(finger: FingerDescription, scene: Scene):
     """
     import mujoco
 
-    from palpate.sim.scene import _add_object
 
     radius = scene.fingertip.radius
     spec = mujoco.MjSpec()
@@ -339,7 +367,7 @@ def build_finger_model(finger: FingerDescription, scene: Scene):
         if obj.shape == "mesh":
             raise ValidationError(f"object {obj.name!r}: the finger physics presses boxes and cylinders (flat tops); "
                                   "a mesh needs the force along its normal")
-        _add_object(spec, obj)
+        add_object(spec, obj)
     parent = spec.worldbody
     pos = [float(c) for c in finger.base]
     for j in finger.joints:
@@ -361,36 +389,3 @@ def build_finger_model(finger: FingerDescription, scene: Scene):
         tip.add_site(name=f"sensel_{i}_{k}", pos=[float(c) for c in sites[i, k]])
     model = spec.compile()
     return model, mujoco.MjData(model)
-
-
-def physics_bus(finger: FingerDescription, scene: Scene, start: np.ndarray, *, baud: int = 1_000_000,
-                **physics_options):
-    """A servo emulator for ``finger`` whose load and taxels come from the MuJoCo finger over ``scene``.
-
-    Args:
-        finger: the finger description; the emulated ids and model are its own.
-        scene: objects, fingertip, taxel model.
-        start: joint angles at power-on, rad, inside the joint limits and with the tip clear of every object
-            (e.g. ``inverse_kinematics(finger, x, top + finger.approach_height)``).
-        baud: the bus bit rate.
-        **physics_options: passed to :class:`FingerPhysics`.
-
-    Returns:
-        (emulator, physics): the emulator is not started (use it as a context manager); ``emulator.port`` is
-        the pty to give DynamixelFinger once it is.
-
-    Raises:
-        ValidationError: ``start`` outside the joint limits or with the fingertip inside an object.
-    """
-    from palpate.hardware.dynamixel.emulator import ServoBusEmulator
-    from palpate.hardware.dynamixel.finger import check_joint_limits
-
-    physics = FingerPhysics(finger, scene, **physics_options)
-    q0 = check_joint_limits(finger, start)
-    c = physics.contact(q0)
-    if c.indentation > 0:
-        raise ValidationError(f"physics_bus: at the start angles {q0.tolist()} rad the fingertip is "
-                              f"{c.indentation * 1e3:.2f} mm inside an object; start above the surface")
-    emulator = ServoBusEmulator(finger.ids, finger.model.number, baud, physics.load, joints_to_ticks(finger, q0),
-                                observer=physics.observe)
-    return emulator, physics

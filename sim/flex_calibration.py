@@ -5,10 +5,11 @@ a block of Young's modulus E answers a sphere press with about twice the Hertz f
 the cell size relative to the tip radius, so it is stored as a table of ``factor`` against ``cell/radius``
 (models/flex_calibration.json) and the flex level builds the block with ``E / factor``.
 
-How the table is measured (:func:`measure_calibration`, rerun by ``benchmarks/flex_resolution.py --calibrate``):
-a homogeneous block of the reference material (200 kPa, nu 0.3), as wide as the default press window and
-``CAL_HEIGHT`` thick, is pressed at 10 mm/s with the uncalibrated modulus; ``factor`` is the least-squares ratio
-of the simulated force to the Hertz force F = 4/3 E/(1-nu^2) sqrt(R) d^1.5 over indentations ``CAL_RANGE``.
+How the table is measured (:func:`palpate.sim.flex_calibrate.measure_calibration`, rerun by
+``benchmarks/flex_resolution.py --calibrate``): a homogeneous block of the reference material (200 kPa, nu 0.3), as
+wide as the default press window and ``CAL_HEIGHT`` thick, is pressed at 10 mm/s with the uncalibrated modulus;
+``factor`` is the least-squares ratio of the simulated force to the Hertz force F = 4/3 E/(1-nu^2) sqrt(R) d^1.5
+over indentations ``CAL_RANGE``.
 """
 
 from __future__ import annotations
@@ -84,55 +85,3 @@ def modulus_factor(cell: float, radius: float, table: dict | None = None) -> tup
     xs, fs = tab["cell_over_radius"], tab["factor"]
     extrapolated = bool(x < xs[0] * 0.999 or x > xs[-1] * 1.001)
     return float(np.interp(x, xs, fs)), extrapolated
-
-
-def hertz_force(indentation: np.ndarray, young: float, poisson: float, radius: float) -> np.ndarray:
-    """Hertz force of a rigid sphere (radius m) on an elastic half-space, N: 4/3 E/(1-nu^2) sqrt(R) d^1.5."""
-    d = np.clip(np.asarray(indentation, dtype=float), 0.0, None)
-    return 4.0 / 3.0 * young / (1.0 - poisson**2) * np.sqrt(radius) * d**1.5
-
-
-def hertz_ratio(indentation: np.ndarray, force: np.ndarray, young: float, poisson: float, radius: float,
-                depth_range: tuple[float, float] = CAL_RANGE) -> float:
-    """Least-squares ratio c of force = c * Hertz(d) over the indentations inside ``depth_range`` (m)."""
-    d = np.asarray(indentation, dtype=float)
-    sel = (d >= depth_range[0]) & (d <= depth_range[1])
-    if sel.sum() < 3:
-        raise ValidationError(f"hertz_ratio: fewer than 3 samples with indentation in {depth_range} m")
-    h = hertz_force(d[sel], young, poisson, radius)
-    return float(np.dot(h, np.asarray(force)[sel]) / np.dot(h, h))
-
-
-def measure_calibration(cells_over_radius: list[float], *, radius: float = 0.008, timestep: float = 0.005,
-                        path: Path | str | None = None) -> dict:
-    """Measure the factor at each cell/radius (see module docstring) and optionally write the table to ``path``.
-
-    Returns:
-        the JSON-ready table (also written when ``path`` is given).
-    """
-    # imported here: sim.flex imports this module for the lookup
-    from palpate.sim.flex import reference_press
-
-    points = []
-    for c in cells_over_radius:
-        trace = reference_press(young=CAL_YOUNG, poisson=CAL_POISSON, height=CAL_HEIGHT, radius=radius,
-                                resolution=c * radius, timestep=timestep, depth=CAL_RANGE[1] * 1.5,
-                                calibrate=False)
-        press = trace.t <= trace.meta["press_end"]
-        factor = hertz_ratio(trace.indentation[press], trace.force[press], CAL_YOUNG, CAL_POISSON, radius)
-        # the grid rounds to an even cell count, so key the table by the cell actually used
-        cell = float(np.mean(trace.meta["cell"][:2]))
-        points.append({"cell_over_radius": round(cell / radius, 4), "factor": round(factor, 4),
-                       "cell": cell, "requested_resolution": float(c * radius)})
-    table = {
-        "version": FORMAT_VERSION,
-        "measured_with": {
-            "young": CAL_YOUNG, "poisson": CAL_POISSON, "height": CAL_HEIGHT, "radius": radius,
-            "timestep": timestep, "depth_range": list(CAL_RANGE), "speed": 0.01,
-            "how": "benchmarks/flex_resolution.py --calibrate (palpate.sim.flex_calibration.measure_calibration)",
-        },
-        "points": points,
-    }
-    if path is not None:
-        Path(path).write_text(json.dumps(table, indent=1) + "\n")
-    return table

@@ -129,7 +129,7 @@ def surface_at(obj: ObjectSpec, x: float, y: float, mesh=None) -> tuple[float, n
     return float(height[0]), normal / np.linalg.norm(normal)
 
 
-def _add_object(spec, obj: ObjectSpec, mesh=None) -> None:
+def add_object(spec, obj: ObjectSpec, mesh=None) -> None:
     import mujoco
 
     body = spec.worldbody.add_body(name=f"obj_{obj.name}")
@@ -181,7 +181,7 @@ def build_press_model(
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.worldbody.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.5, 0.5, 0.01])
     for obj in scene.objects:
-        _add_object(spec, obj, (meshes or {}).get(obj.name))
+        add_object(spec, obj, (meshes or {}).get(obj.name))
     tip = scene.fingertip
     finger = spec.worldbody.add_body(name="fingertip", pos=[float(c) for c in start])
     finger.add_joint(name="press", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[float(c) for c in axis],

@@ -27,6 +27,9 @@ from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import run_analytic_press
 from palpate.sim.controller import HUMAN, ROBOT, Variability, press_profile
 from palpate.sim.effective_modulus import depth_for_force
+from palpate.sim.flex import run_flex_press
+from palpate.sim.rigid import run_rigid_press
+from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 
 FIDELITIES = ("auto", "analytic", "rigid", "flex")
@@ -108,8 +111,6 @@ class SimSource:
         if obj.shape != "mesh":
             return None
         if obj.name not in self._meshes:
-            from palpate.sim.scene import load_mesh
-
             self._meshes[obj.name] = load_mesh(obj)
         return self._meshes[obj.name]
 
@@ -124,8 +125,6 @@ class SimSource:
 
     def press(self, target: PressTarget) -> PressRecording:
         """One press-and-release at ``target``: taxel frames, pose samples and ground truth."""
-        from palpate.sim.scene import surface_at
-
         obj = self.scene.object_under(target.x, target.y)
         if obj is None:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
@@ -145,14 +144,8 @@ class SimSource:
         if fidelity == "analytic":
             trace = run_analytic_press(self.scene, obj, profile)
         elif fidelity == "rigid":
-            from palpate.sim.rigid import run_rigid_press
-
             trace = run_rigid_press(self.scene, obj, profile, timestep=timestep, mesh=mesh)
         else:
-            try:
-                from palpate.sim.flex import run_flex_press
-            except ImportError as exc:
-                raise ValidationError(f"fidelity 'flex' is not available: {exc}") from exc
             # flex has its own default step (5 ms: >= 1x real time at the default resolution, see
             # benchmarks/flex_resolution.py); the rigid default of 2 ms would make it 2.5x slower.
             trace = run_flex_press(self.scene, obj, target, profile, timestep=self.timestep,

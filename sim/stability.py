@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from palpate.core.errors import SimulationDiverged
+from palpate.core.errors import SimulationDiverged, ValidationError
 
 # warnings that mean the integration itself failed (inertia/contact-buffer warnings are model issues)
 _FATAL_WARNINGS = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC", "mjWARN_BADCTRL")
@@ -77,7 +77,6 @@ def check_resolves_press(profile, timestep: float, context: str = "", min_steps:
     A step longer than the press itself lets the servo skip the contact: the run "succeeds" with zero force
     (found by the stability matrix: flex at 10 ms, a 1 mm press at 0.2 m/s never touched the block).
     """
-    from palpate.core.errors import ValidationError
 
     t0, t1 = profile.meta.get("phases", {}).get("press", (0.0, profile.duration))
     steps = (t1 - t0) / timestep

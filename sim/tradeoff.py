@@ -26,9 +26,17 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from palpate.core.errors import FitError, PalpateError, ValidationError
+from palpate.core.perception.crossval import leave_one_out
+from palpate.core.perception.press import perceive_press
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, Scene, TaxelSensorSpec
+from palpate.sim.analytic import run_analytic_press
+from palpate.sim.controller import HUMAN, press_profile
+from palpate.sim.flex import run_flex_press
+from palpate.sim.hertz import hertz_depth_for_force, hertz_force
+from palpate.sim.rigid import run_rigid_press
+from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 
 FIDELITY_ORDER = ("analytic", "rigid", "flex")
 #: Bench materials (name, Young's modulus Pa): soft, medium, hard, a decade apart as the thesis' references.
@@ -80,6 +88,11 @@ class Setting:
         return f"flex {dt} cell={self.resolution * 1e3:g}mm {rate}"
 
 
+def finite_or_none(v) -> float | None:
+    """A number for a JSON report: None where it is missing or not finite."""
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
 def reference_setting() -> Setting:
     """The finest stable setting of the bench: rigid at 0.25 ms with the full contact quadrature.
 
@@ -128,9 +141,6 @@ def simulate(setting: Setting, young: float, name: str, seed: int, *, depth: flo
     Mirrors :meth:`palpate.sim.source.SimSource.press` but passes the setting's knobs (quadrature, cell size)
     that a SimSource keeps at their defaults.
     """
-    from palpate.sim.analytic import hertz_depth_for_force, run_analytic_press
-    from palpate.sim.controller import HUMAN, press_profile
-    from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 
     scene, obj = bench_scene(young, name, setting.taxel_rate)
     tip = scene.fingertip
@@ -143,12 +153,8 @@ def simulate(setting: Setting, young: float, name: str, seed: int, *, depth: flo
     if setting.fidelity == "analytic":
         trace = run_analytic_press(scene, obj, profile)
     elif setting.fidelity == "rigid":
-        from palpate.sim.rigid import run_rigid_press
-
         trace = run_rigid_press(scene, obj, profile, timestep=setting.timestep, rings=setting.rings)
     else:
-        from palpate.sim.flex import run_flex_press
-
         trace = run_flex_press(scene, obj, target, profile, timestep=setting.timestep,
                                resolution=setting.resolution)
     frames = sample_taxels(trace, scene.taxels, tip, np.random.default_rng(s_taxel))
@@ -173,7 +179,6 @@ class PressMeasure:
 
 def hertz_force_error(rec: PressRecording, young_eff: float, radius: float, min_depth: float = 2e-4) -> float:
     """Relative RMS of F / F_Hertz - 1 over the loading phase beyond ``min_depth`` (m); NaN if never that deep."""
-    from palpate.sim.analytic import hertz_force
 
     d = np.asarray(rec.truth.indentation)
     f = np.asarray(rec.truth.force)
@@ -186,7 +191,6 @@ def hertz_force_error(rec: PressRecording, young_eff: float, radius: float, min_
 
 def measure_press(setting: Setting, young: float, name: str, seed: int, depth: float = 0.003) -> PressMeasure:
     """Simulate and perceive one press; peaks are NaN where the pipeline found no press or the fit failed."""
-    from palpate.core.perception.press import perceive_press
 
     t0 = time.perf_counter()
     rec = simulate(setting, young, name, seed, depth=depth)
@@ -234,7 +238,7 @@ class SettingResult:
 
     def to_dict(self) -> dict:
         """JSON-ready row (NaN as None)."""
-        num = _num
+        num = finite_or_none
         return {
             "label": self.setting.label, "setting": asdict(self.setting),
             "wall_per_press_s": num(self.wall_per_press), "realtime_factor": num(self.realtime_factor),
@@ -252,7 +256,6 @@ def measure_setting(setting: Setting, *, seeds: tuple[int, ...] = (0, 1, 2, 3),
     The error against a reference is filled in later by :func:`compare_to_reference`. A setting whose physics
     diverges or is invalid is returned with ``failed`` set (the sweep goes on).
     """
-    from palpate.core.perception.crossval import leave_one_out
 
     out = SettingResult(setting)
     try:
@@ -357,101 +360,6 @@ def analytic_validity(depths=(0.001, 0.002, 0.003, 0.004), *, seeds: tuple[int, 
         ana = measure_setting(Setting("analytic"), seeds=seeds, materials=materials, memory=False, depth=d)
         compare_to_reference(ana, ref)
         rows.append({"depth": float(d), "depth_over_radius": float(d / Scene(()).fingertip.radius),
-                     "hertz_error": _num(ref.hertz_error), "error": _num(ana.error),
-                     "errors": {k: _num(v) for k, v in ana.errors.items()}})
+                     "hertz_error": finite_or_none(ref.hertz_error), "error": finite_or_none(ana.error),
+                     "errors": {k: finite_or_none(v) for k, v in ana.errors.items()}})
     return rows
-
-
-def _num(v):
-    return None if v is None or not np.isfinite(v) else float(v)
-
-
-def format_validity(rows: list[dict]) -> str:
-    """The analytic level's validity against depth, as text."""
-    lines = ["analytic (Hertz) against depth: sphere force vs Hertz, and analytic's features vs the reference",
-             f"{'depth mm':>8} {'d/R':>5} {'F vs Hertz %':>12} {'features %':>10}"]
-    for r in rows:
-        h = "-" if r["hertz_error"] is None else f"{100 * r['hertz_error']:.1f}"
-        e = "-" if r["error"] is None else f"{100 * r['error']:.1f}"
-        lines.append(f"{1e3 * r['depth']:8.1f} {r['depth_over_radius']:5.2f} {h:>12} {e:>10}")
-    return "\n".join(lines)
-
-
-def format_table(report: dict) -> str:
-    """The measured table as text (one row per setting; times per press in ms, memory in MiB, errors in %)."""
-    head = (f"{'setting':34} {'ms/press':>9} {'x RT':>7} {'MiB':>6} {'c_P%':>6} {'c_A%':>6} {'c_D%':>6} "
-            f"{'n1%':>6} {'a1%':>6} {'err%':>6} {'Hertz%':>7} {'LOO':>5}")
-    lines = [head]
-    pareto = {id(r) for r in report["pareto"]}
-
-    def pct(v):
-        return f"{100 * v:6.1f}" if v is not None and np.isfinite(v) else f"{'-':>6}"
-
-    for r in [report["reference"]] + report["results"]:
-        name = ("* " if id(r) in pareto else "  ") + r.setting.label
-        if r is report["reference"]:
-            name = "R " + r.setting.label
-        if r.failed and not np.isfinite(r.wall_per_press):
-            lines.append(f"{name:34} failed: {r.failed[:80]}")
-            continue
-        e = r.errors
-        lines.append(
-            f"{name:34} {1e3 * r.wall_per_press:9.2f} {r.realtime_factor:7.1f} {r.peak_memory / 2**20:6.2f} "
-            f"{pct(e.get('c_P'))} {pct(e.get('c_A'))} {pct(e.get('c_D'))} {pct(e.get('n1'))} {pct(e.get('a1'))} "
-            f"{pct(r.error)} {pct(r.hertz_error):>7} {r.loo_accuracy:5.2f}"
-        )
-    lines.append("R = reference (finest stable), * = Pareto front (time per press vs err%); err% = worst feature")
-    for key, tol in (("within_5", "5%"), ("within_1", "1%")):
-        r = report[key]
-        lines.append(f"cheapest within {tol} of the reference: " + (
-            f"{r.setting.label} ({1e3 * r.wall_per_press:.2f} ms/press, err {100 * r.error:.2f}%)" if r else "none"))
-    return "\n".join(lines)
-
-
-def report_to_dict(report: dict) -> dict:
-    """JSON-ready form of :func:`run_tradeoff`'s report."""
-    def lab(r):
-        return None if r is None else r.setting.label
-
-    return {
-        "format": "palpate-tradeoff", "version": 1,
-        "reference": report["reference"].to_dict(),
-        "results": [r.to_dict() for r in report["results"]],
-        "pareto": [lab(r) for r in report["pareto"]],
-        "cheapest_within_5pct": lab(report["within_5"]), "cheapest_within_1pct": lab(report["within_1"]),
-    }
-
-
-def pareto_plot(report: dict, path) -> None:
-    """Write the Pareto plot (time per press vs error against the reference, log-log) as a PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    colours = {"analytic": "tab:green", "rigid": "tab:blue", "flex": "tab:red"}
-    floor = 1e-4  # the reference's own error is 0: show it at the floor of the log axis
-    for r in report["results"]:
-        if r.failed or not np.isfinite(r.error):
-            continue
-        ax.scatter(1e3 * r.wall_per_press, max(r.error, floor), color=colours[r.setting.fidelity], s=25)
-        ax.annotate(r.setting.label, (1e3 * r.wall_per_press, max(r.error, floor)), fontsize=6,
-                    xytext=(3, 3), textcoords="offset points")
-    front = report["pareto"]
-    if front:
-        ax.plot([1e3 * r.wall_per_press for r in front], [max(r.error, floor) for r in front], "k--", lw=0.8,
-                label="Pareto front")
-    for tol in (0.05, 0.01):
-        ax.axhline(tol, color="grey", lw=0.5, ls=":")
-    for fid, c in colours.items():
-        ax.scatter([], [], color=c, label=fid)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("wall time per press-and-release [ms] (one core)")
-    ax.set_ylabel("error vs reference (worst of c_P, c_A, c_D, n1, a1)")
-    ax.set_title(f"speed vs accuracy (reference: {report['reference'].setting.label})", fontsize=9)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)

@@ -260,7 +260,7 @@ def _forbid_motion(monkeypatch):
     def boom(*a, **k):
         raise AssertionError("the finger was started")
 
-    monkeypatch.setattr("palpate.sim.finger_physics.physics_bus", boom)
+    monkeypatch.setattr("palpate.hardware.dynamixel.physics_bus.physics_bus", boom)
     monkeypatch.setattr("palpate.hardware.dynamixel.driver.DynamixelFinger", boom)
 
 

@@ -30,10 +30,12 @@ from palpate.hardware.dynamixel.finger import (
     load_finger,
     tip_force_from_torques,
 )
+from palpate.hardware.dynamixel.physics_bus import physics_bus
 from palpate.hardware.dynamixel.press import FingerActuator
-from palpate.sim.analytic import hertz_force, hertz_sensel_pressure
-from palpate.sim.finger_physics import FingerPhysics, physics_bus
+from palpate.sim.analytic import hertz_sensel_pressure
+from palpate.sim.finger_physics import FingerPhysics
 from palpate.sim.fingertip import sensel_bounds
+from palpate.sim.hertz import hertz_force
 from palpate.sim.source import SimSource
 
 BAUD = 1_000_000

@@ -7,7 +7,7 @@ from scipy.integrate import quad
 from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, Scene
-from palpate.sim.analytic import hertz_force, hertz_sensel_pressure, run_analytic_press
+from palpate.sim.analytic import hertz_sensel_pressure, run_analytic_press
 from palpate.sim.controller import press_profile
 from palpate.sim.effective_modulus import (
     depth_for_force,
@@ -16,6 +16,7 @@ from palpate.sim.effective_modulus import (
     effective_modulus_table,
 )
 from palpate.sim.fingertip import sensel_bounds
+from palpate.sim.hertz import hertz_force
 
 R = 0.008
 SOFT = Material("soft", 2e4, 0.3)
@@ -75,7 +76,7 @@ def test_analytic_press_on_one_material_is_bitwise_hertz_with_its_e_star():
 
 
 def test_depth_for_force_on_one_material_is_exactly_the_hertz_depth():
-    from palpate.sim.analytic import hertz_depth_for_force
+    from palpate.sim.hertz import hertz_depth_for_force
 
     assert depth_for_force(_block(SOFT), 0.0, 0.0, H, R, 3.0) == hertz_depth_for_force(SOFT.effective_modulus, R, 3.0)
 
@@ -164,7 +165,7 @@ def test_press_inside_the_edge_of_a_hard_column_stays_hard():
 
 
 def test_depth_for_force_reaches_the_force_on_a_layered_block():
-    from palpate.sim.analytic import hertz_depth_for_force
+    from palpate.sim.hertz import hertz_depth_for_force
 
     obj = _block(HARD, layers=[Layer(SOFT, 0.0015)])
     force = 2.0

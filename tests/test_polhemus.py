@@ -15,11 +15,11 @@ import pytest
 from palpate.core.errors import DeviceError, ValidationError
 from palpate.hardware.polhemus.driver import LibertyDriver, station_sensor_id
 from palpate.hardware.polhemus.emulator import Faults, LibertyEmulator, press_motion
+from palpate.hardware.polhemus.parser import RecordParser
 from palpate.hardware.polhemus.protocol import (
     DEFAULT_ITEMS,
     ErrorEvent,
     Record,
-    RecordParser,
     decode_ascii_line,
     encode_ascii,
     encode_binary,

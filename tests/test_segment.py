@@ -8,7 +8,8 @@ from synthetic_streams import PressSpec, make_recording, series_from_arrays
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.pipeline import PipelineConfig, contact_series_from_recording
-from palpate.core.perception.segment import PressSegmenter, segment_presses
+from palpate.core.perception.segment import segment_presses
+from palpate.core.perception.streaming import PressSegmenter
 
 SURFACE = 0.03
 

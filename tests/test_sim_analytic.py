@@ -7,15 +7,10 @@ from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, Inclusion, Material, ObjectSpec, Scene, TaxelSensorSpec
 from palpate.sim import simulate_press
-from palpate.sim.analytic import (
-    hertz_contact_radius,
-    hertz_depth_for_force,
-    hertz_force,
-    hertz_sensel_pressure,
-    run_analytic_press,
-)
+from palpate.sim.analytic import hertz_sensel_pressure, run_analytic_press
 from palpate.sim.controller import HUMAN, ROBOT, press_profile
 from palpate.sim.fingertip import sensel_bounds
+from palpate.sim.hertz import hertz_contact_radius, hertz_depth_for_force, hertz_force
 from palpate.sim.source import SimSource, choose_fidelity
 
 R = 0.008

@@ -8,9 +8,10 @@ from palpate.core.perception.fit import fit_power_law
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, Scene, TaxelSensorSpec
 from palpate.sim import simulate_press
-from palpate.sim.analytic import hertz_force, hertz_sensel_pressure
+from palpate.sim.analytic import hertz_sensel_pressure
 from palpate.sim.controller import press_profile
 from palpate.sim.fingertip import sensel_bounds
+from palpate.sim.hertz import hertz_force
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.source import SimSource
 
@@ -86,7 +87,7 @@ def _press_params(rec):
 
 
 def test_three_reference_materials_give_ordered_separable_interaction_parameters():
-    from palpate.sim.analytic import hertz_depth_for_force
+    from palpate.sim.hertz import hertz_depth_for_force
 
     params = {}
     for young in (2e4, 2e5, 2e6):

@@ -83,7 +83,7 @@ def test_no_frame_is_emitted_from_a_trace_with_nan():
 
 
 def test_same_seed_same_stream_and_default_gain_separates_the_reference_materials():
-    from palpate.sim.analytic import hertz_depth_for_force
+    from palpate.sim.hertz import hertz_depth_for_force
 
     a = simulate_press(2e5, fidelity="analytic", variability="human", seed=11)
     b = simulate_press(2e5, fidelity="analytic", variability="human", seed=11)

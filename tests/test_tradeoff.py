@@ -9,6 +9,7 @@ import pytest
 
 from palpate.core.errors import ValidationError
 from palpate.sim import tradeoff as T
+from palpate.sim import tradeoff_report as TR
 
 
 def _result(label_dt: float, wall: float, err: float) -> T.SettingResult:
@@ -57,12 +58,12 @@ def test_report_json_and_table(tmp_path):
     mats = T.BENCH_MATERIALS[:2]
     report = T.run_tradeoff([T.Setting("analytic"), T.Setting("rigid", timestep=0.005)],
                             reference=T.Setting("rigid", timestep=0.001), seeds=(0, 1, 2, 3, 4), materials=mats)
-    doc = json.loads(json.dumps(T.report_to_dict(report), allow_nan=False))
+    doc = json.loads(json.dumps(TR.report_to_dict(report), allow_nan=False))
     assert [r["label"] for r in doc["results"]] == ["analytic 50Hz", "rigid dt=5ms rings=96 50Hz"]
     assert doc["cheapest_within_1pct"] == "rigid dt=5ms rings=96 50Hz"
     assert all(0.0 <= r["loo_accuracy"] <= 1.0 for r in doc["results"])
     assert report["results"][1].realtime_factor > 1.0 and np.isfinite(report["results"][1].peak_memory)
-    table = T.format_table(report)
+    table = TR.format_table(report)
     assert "cheapest within 5% of the reference: rigid dt=5ms" in table
-    T.pareto_plot(report, tmp_path / "p.png")
+    TR.pareto_plot(report, tmp_path / "p.png")
     assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

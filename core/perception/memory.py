@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core import __version__
 from palpate.core.errors import NotFittedError, ValidationError
 from palpate.core.perception.gaussian import GaussianFactors, regularise_covariance
 from palpate.core.perception.memory_file import FORMAT_NAME, FORMAT_VERSION, parse_memory, read_json
@@ -235,7 +236,6 @@ class HapticMemory:
     def to_dict(self) -> dict:
         """The JSON-ready description (format, version, settings, learned parameters, training data)."""
         self._check_fitted()
-        from palpate.core import __version__
 
         return {
             "format": FORMAT_NAME,

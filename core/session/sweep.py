@@ -39,6 +39,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
+from palpate.core.session.run import run_scenario
+from palpate.core.world.scenario_file import parse_scenario
 
 try:
     import tomllib
@@ -138,7 +140,6 @@ def load_sweep(path: str | Path) -> Sweep:
         ValidationError: naming the sweep file, the key and what was expected (or the variant whose scenario
             is invalid, with the scenario's own message).
     """
-    from palpate.core.world.scenario_file import parse_scenario
 
     file = Path(path)
     doc = _read_toml(file, "sweep")
@@ -223,8 +224,6 @@ def run_variant(raw: dict, base_dir: str, run_dir: str, vid: str, overrides: dic
     The variant record is written first and summary.json last (by the run job), so a killed run is never taken
     for a finished one.
     """
-    from palpate.core.session.run import run_scenario
-    from palpate.core.world.scenario_file import parse_scenario
 
     out = Path(run_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -6,8 +6,8 @@ finger's plane, inside its reach and joint limits along the whole vertical path,
 ``press.max_depth``), so a grid the finger cannot press is refused before any servo moves.
 
 With ``emulate = true`` the finger presses through dynamixel-sdk -> pty -> :class:`ServoBusEmulator` -> MuJoCo
-physics of the scenario's object (:func:`palpate.sim.finger_physics.physics_bus`), which also gives the taxel
-frames of the simulated pad. A real bus (``port``) is refused for now: the finger has no tactile pad of its
+physics of the scenario's object (:func:`palpate.hardware.dynamixel.physics_bus.physics_bus`), which also gives
+the taxel frames of the simulated pad. A real bus (``port``) is refused for now: the finger has no tactile pad of its
 own and palpate has no live taxel reader (Tekscan's live API is Windows-only; see
 :mod:`palpate.hardware.tekscan` for the bridge contract), so its presses could not be perceived.
 """
@@ -27,12 +27,14 @@ from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.actuator_kinds import ActuatorKind
 from palpate.core.world.table_reader import TableReader, resolve_path
+from palpate.hardware.dynamixel.driver import DynamixelFinger
 from palpate.hardware.dynamixel.finger import (
     FingerDescription,
     forward_kinematics,
     inverse_kinematics,
     load_finger,
 )
+from palpate.hardware.dynamixel.physics_bus import physics_bus
 from palpate.hardware.dynamixel.press import PLANE_TOLERANCE, FingerActuator, plan_press
 
 # At most this many offending cells are named in an error (a whole row off the plane would be a wall of text).
@@ -212,8 +214,6 @@ def dynamixel_actuator(request, *, check_only: bool = False):
                               f"and cylinders (a flat top), not a {request.obj.shape}")
     if check_only:
         return None
-    from palpate.hardware.dynamixel.driver import DynamixelFinger
-    from palpate.sim.finger_physics import physics_bus
 
     surface_z = request.obj.height
     # power on above the first cell the exploration may press: the first move is then short

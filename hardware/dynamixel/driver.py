@@ -24,6 +24,7 @@ from palpate.hardware.dynamixel.finger import (
     joints_to_ticks,
     ticks_to_joints,
 )
+from palpate.hardware.dynamixel.press import press_and_release
 
 _STATE_START = ct.PRESENT_CURRENT[0]  # one sync read covers current (2), velocity (4), position (4)
 _STATE_LENGTH = 10
@@ -389,7 +390,6 @@ class DynamixelFinger:
 
     def press(self, target, surface_z: float, **kwargs):
         """Press and release at ``target`` (a PressTarget) on a surface at ``surface_z`` m; see press.py."""
-        from palpate.hardware.dynamixel.press import press_and_release
 
         return press_and_release(self, target, surface_z, **kwargs)
 

@@ -19,18 +19,14 @@ from __future__ import annotations
 import argparse
 import collections
 import math
-import os
-import select
 import sys
-import termios
 import threading
 import time
-import tty
 from collections.abc import Callable, Iterable
 
 import numpy as np
 
-from palpate.core.errors import DeviceError, ValidationError
+from palpate.core.errors import ValidationError
 from palpate.hardware.dynamixel import control_table as ct
 from palpate.hardware.dynamixel.protocol import (
     BROADCAST_ID,
@@ -51,6 +47,7 @@ from palpate.hardware.dynamixel.protocol import (
     encode,
     status_packet,
 )
+from palpate.hardware.pty_device import PtyDevice
 
 LoadModel = Callable[[np.ndarray], np.ndarray]
 Observer = Callable[[float, np.ndarray], None]
@@ -71,7 +68,7 @@ def _baud_code(baud: int) -> int:
     raise ValidationError(f"emulator baud {baud} is not an X-series rate; expected one of {rates}")
 
 
-class ServoBusEmulator:
+class ServoBusEmulator(PtyDevice):
     """Emulated Protocol 2.0 servos behind a pty; use as a context manager or call start()/stop().
 
     Args:
@@ -121,14 +118,10 @@ class ServoBusEmulator:
         self._last = self._clock()
         self._lock = threading.RLock()
         self._parser = PacketParser()
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
-        self._master = self._slave = -1
-        self.port = ""
+        PtyDevice.__init__(self, self.baud, f"dxl-emulator ids {self.ids}")
         # Observability for tests: instruction counts and a bounded log of applied writes (id, address, bytes).
         self.instruction_counts: collections.Counter[int] = collections.Counter()
         self.writes: collections.deque[tuple[int, int, bytes]] = collections.deque(maxlen=100_000)
-        self.thread_error: BaseException | None = None
         # Fault injection
         self.silent: set[int] = set()
         self._corrupt_next = 0
@@ -375,78 +368,17 @@ class ServoBusEmulator:
                         out += self._status(k, ERR_INSTRUCTION)
             return bytes(out)
 
-    # ---- pty serving ---------------------------------------------------------------------------------------
-    def _host_baud_matches(self) -> bool:
-        expected = getattr(termios, f"B{self.baud}", None)
-        if expected is None:
-            return True
-        try:
-            attrs = termios.tcgetattr(self._slave)
-        except termios.error:
-            return True
-        return attrs[4] == expected and attrs[5] == expected
-
-    def _serve(self) -> None:
-        try:
-            while not self._stop.is_set():
-                ready, _, _ = select.select([self._master], [], [], 0.05)
-                if not ready:
-                    continue
-                try:
-                    data = os.read(self._master, 4096)
-                except OSError:
-                    time.sleep(0.005)
-                    continue
-                if not data or not self._host_baud_matches():
-                    # a UART at another rate sees framing errors, never a packet
-                    continue
-                for packet in self._parser.feed(data):
-                    reply = self.handle(packet)
-                    if reply:
-                        os.write(self._master, reply)
-        except BaseException as exc:  # surfaced by stop(); the bus goes silent like a crashed device
-            self.thread_error = exc
-
-    def start(self) -> ServoBusEmulator:
-        """Open the pty and start answering; returns self. ``.port`` is then the path to give PortHandler."""
-        if self._thread is not None:
-            return self
-        self._master, self._slave = os.openpty()
-        # raw mode: no echo, no line discipline, no CR/LF translation of binary packets
-        tty.setraw(self._slave)
-        attrs = termios.tcgetattr(self._slave)
-        speed = getattr(termios, f"B{self.baud}", termios.B38400)
-        attrs[4] = attrs[5] = speed
-        termios.tcsetattr(self._slave, termios.TCSANOW, attrs)
-        self.port = os.ttyname(self._slave)
+    # ---- bytes from the pty ----------------------------------------------------------------------------
+    def on_start(self) -> None:
+        """The servo dynamics integrate from the moment the bus is served."""
         self._last = self._clock()
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._serve, name=f"dxl-emulator {self.port}", daemon=True)
-        self._thread.start()
-        return self
 
-    def stop(self) -> None:
-        """Stop serving and close the pty. Raises DeviceError if the serving thread failed."""
-        if self._thread is None:
-            return
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        self._thread = None
-        for fd in (self._master, self._slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-        self._master = self._slave = -1
-        if self.thread_error is not None:
-            err, self.thread_error = self.thread_error, None
-            raise DeviceError(f"servo emulator on {self.port} failed: {err}") from err
-
-    def __enter__(self) -> ServoBusEmulator:
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
+    def respond(self, data: bytes) -> bytes:
+        """Answer the bytes the host wrote: the status packets of every complete instruction packet in them."""
+        out = bytearray()
+        for packet in self._parser.feed(data):
+            out += self.handle(packet)
+        return bytes(out)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -465,7 +397,7 @@ def main(argv: list[str] | None = None) -> int:
     with emu:
         print(emu.port, flush=True)
         try:
-            while emu._thread is not None and emu._thread.is_alive():
+            while emu.serving:
                 time.sleep(0.2)
         except KeyboardInterrupt:
             pass

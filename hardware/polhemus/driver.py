@@ -17,6 +17,7 @@ import numpy as np
 
 from palpate.core.errors import DeviceError, ValidationError
 from palpate.core.perception.streams import PoseSample
+from palpate.hardware.polhemus.parser import RecordParser
 from palpate.hardware.polhemus.protocol import (
     CM_PER_INCH,
     DEFAULT_ITEMS,
@@ -25,7 +26,6 @@ from palpate.hardware.polhemus.protocol import (
     ITEM_TIMESTAMP,
     ErrorEvent,
     Record,
-    RecordParser,
     format_command,
     output_list_command,
     validate_items,

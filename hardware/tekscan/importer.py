@@ -13,6 +13,7 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.perception.streams import TaxelFrame
+from palpate.hardware.tekscan.header import NUMBER_UNIT, PRESSURE, unit_key
 from palpate.hardware.tekscan.reader import read_tekscan, select_region
 
 
@@ -119,10 +120,8 @@ def import_tekscan(path, out, *, region: str | None = None, start_time: float = 
 
 
 def _pressure_pa(text: str) -> float:
-    from palpate.hardware.tekscan.reader import _NUMBER_UNIT, _PRESSURE, _unit_key
-
-    m = _NUMBER_UNIT.match(text.strip())
-    scale = _PRESSURE.get(_unit_key(m.group(2))) if m else None
+    m = NUMBER_UNIT.match(text.strip())
+    scale = PRESSURE.get(unit_key(m.group(2))) if m else None
     if scale is None or not float(m.group(1)) > 0:
         raise argparse.ArgumentTypeError(f"{text!r} is not a positive pressure with a unit, e.g. '862 kPa'")
     return float(m.group(1)) * scale

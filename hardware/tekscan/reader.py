@@ -52,6 +52,18 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import TaxelFrame
+from palpate.hardware.tekscan.header import (
+    FORCE,
+    FRAME_LINE,
+    PRESSURE,
+    area_entry,
+    frame_period,
+    int_entry,
+    length_entry,
+    number_unit,
+    parse_header,
+    unit_key,
+)
 
 
 class TekscanWarning(UserWarning):
@@ -97,33 +109,7 @@ class TekscanMovie:
         return self.counts.shape[1], self.counts.shape[2]
 
 
-_ALIASES = {
-    "ROW": "ROWS", "NROWS": "ROWS", "NUM_ROWS": "ROWS", "NUMBER_OF_ROWS": "ROWS",
-    "COL": "COLS", "COLUMNS": "COLS", "NCOLS": "COLS", "NUM_COLS": "COLS", "NUMBER_OF_COLUMNS": "COLS",
-    "COLUMN_SPACING": "COL_SPACING", "ROWSPACING": "ROW_SPACING", "COLSPACING": "COL_SPACING",
-    "SENSELAREA": "SENSEL_AREA", "SENSEL_SIZE": "SENSEL_AREA",
-    "SEC_PER_FRAME": "SECONDS_PER_FRAME", "SECONDS_PER_FRAMES": "SECONDS_PER_FRAME",
-    "FRAME_PERIOD": "SECONDS_PER_FRAME",
-    "FPS": "FRAMES_PER_SECOND", "FRAME_RATE": "FRAMES_PER_SECOND",
-    "STARTFRAME": "START_FRAME", "ENDFRAME": "END_FRAME", "FRAME_COUNT": "FRAMES", "NUM_FRAMES": "FRAMES",
-    "UNIT": "UNITS", "NOISE_TRESHOLD": "NOISE_THRESHOLD", "NOISETHRESHOLD": "NOISE_THRESHOLD",
-    "SATURATION": "SATURATION_PRESSURE",
-}
-_LENGTH = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "in": 0.0254, "inch": 0.0254, "inches": 0.0254}
-_AREA = {"m2": 1.0, "cm2": 1e-4, "mm2": 1e-6, "in2": 0.0254**2, "inch2": 0.0254**2}
-_PRESSURE = {"pa": 1.0, "kpa": 1e3, "mpa": 1e6, "psi": 6894.757293168, "bar": 1e5, "mmhg": 133.322387415,
-             "kg/cm2": 98066.5, "kgf/cm2": 98066.5, "n/cm2": 1e4, "n/mm2": 1e6}
-_FORCE = {"n": 1.0, "lbf": 4.4482216152605, "lb": 4.4482216152605, "kgf": 9.80665}
-_NUMBER_UNIT = re.compile(r"^([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*)$")
-_FRAME = re.compile(r"^frame\s*[:#]?\s*(\d+)\s*(?:[,;\s].*)?$", re.IGNORECASE)
 _REGION = re.compile(r"^\s*(\d+)\s*:\s*(\d+)\s*,\s*(\d+)\s*:\s*(\d+)\s*$")
-
-
-def _unit_key(unit: str) -> str:
-    u = unit.strip().strip("()[]").lower().replace("²", "2").replace("^2", "2").replace(".", "").replace(" ", "")
-    if u.startswith("sq"):
-        u = u[2:] + "2"
-    return u
 
 
 def read_tekscan(path, *, full_scale_pa: float | None = None) -> TekscanMovie:
@@ -150,34 +136,34 @@ def read_tekscan(path, *, full_scale_pa: float | None = None) -> TekscanMovie:
 def parse_tekscan(text: str, name: str = "<string>", *, full_scale_pa: float | None = None) -> TekscanMovie:
     """Parse the text of a Tekscan movie export; ``name`` is used in error messages. See :func:`read_tekscan`."""
     lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
-    header, body_start = _parse_header(lines, name)
+    header, body_start = parse_header(lines, name)
 
-    rows = _int_entry(header, "ROWS", name, minimum=1)
-    cols = _int_entry(header, "COLS", name, minimum=1)
-    spf = _frame_period(header, name)
-    row_sp = _length_entry(header, "ROW_SPACING", name)
-    col_sp = _length_entry(header, "COL_SPACING", name)
-    area = _area(header, row_sp, col_sp, name)
+    rows = int_entry(header, "ROWS", name, minimum=1)
+    cols = int_entry(header, "COLS", name, minimum=1)
+    spf = frame_period(header, name)
+    row_sp = length_entry(header, "ROW_SPACING", name)
+    col_sp = length_entry(header, "COL_SPACING", name)
+    area = area_entry(header, row_sp, col_sp, name)
     units_text = header["UNITS"][0] if "UNITS" in header else "RAW"
 
     scale = _count_scale(header, units_text, area, full_scale_pa, name)
-    noise = _number_unit(header, "NOISE_THRESHOLD", name)[0] if "NOISE_THRESHOLD" in header else 0.0
+    noise = number_unit(header, "NOISE_THRESHOLD", name)[0] if "NOISE_THRESHOLD" in header else 0.0
 
     numbers, values, line_of_row, is_b = _parse_body(lines, body_start, rows, cols, name)
     n = len(numbers)
     counts, threshold = _to_counts(values, scale, noise, line_of_row, cols, name)
 
-    start = _int_entry(header, "START_FRAME", name, default=int(numbers[0]), minimum=0)
+    start = int_entry(header, "START_FRAME", name, default=int(numbers[0]), minimum=0)
     if numbers[0] < start:
         raise ValidationError(f"{name}: first frame is Frame {numbers[0]}, before START_FRAME {start} "
                               f"(line {header['START_FRAME'][1]})")
     if "END_FRAME" in header:
-        end = _int_entry(header, "END_FRAME", name, minimum=start)
+        end = int_entry(header, "END_FRAME", name, minimum=start)
         if numbers[-1] > end:
             raise ValidationError(f"{name}: last frame is Frame {numbers[-1]}, after END_FRAME {end} "
                                   f"(line {header['END_FRAME'][1]})")
     if "FRAMES" in header:
-        expected = _int_entry(header, "FRAMES", name, minimum=1)
+        expected = int_entry(header, "FRAMES", name, minimum=1)
         if expected != n:
             raise ValidationError(f"{name}:{header['FRAMES'][1]}: FRAMES says {expected} frames, the file has {n}")
 
@@ -188,112 +174,6 @@ def parse_tekscan(text: str, name: str = "<string>", *, full_scale_pa: float | N
         row_spacing=row_sp, col_spacing=col_sp, region=(0, rows, 0, cols),
         header={k: v for k, (v, _) in header.items()}, source=name,
     )
-
-
-def _parse_header(lines: list[str], name: str) -> tuple[dict[str, tuple[str, int]], int]:
-    header: dict[str, tuple[str, int]] = {}
-    for i, line in enumerate(lines):
-        s = line.strip().rstrip(",").strip()
-        if not s:
-            continue
-        if _FRAME.match(s):
-            return header, i
-        key, value = _split_key(s)
-        if key == "ASCII_DATA":
-            return header, i + 1
-        if not re.match(r"^[A-Z][A-Z0-9_]*$", key):
-            raise ValidationError(f"{name}:{i + 1}: expected a header line 'KEY value', got {s[:60]!r}")
-        if key in header:
-            raise ValidationError(f"{name}:{i + 1}: header key {key} given twice (first on line {header[key][1]})")
-        header[key] = (value, i + 1)
-    raise ValidationError(f"{name}: no 'ASCII_DATA @@' line or 'Frame' line: not a Tekscan ASCII movie export")
-
-
-_KNOWN = set(_ALIASES) | set(_ALIASES.values()) | {
-    "ROW_SPACING", "COL_SPACING", "SENSEL_AREA", "ASCII_DATA", "DATA_TYPE", "SENSOR_TYPE", "END_FRAME", "START_FRAME"}
-
-
-def _split_key(s: str) -> tuple[str, str]:
-    """'Sensel area = 0.26 sq cm' -> ('SENSEL_AREA', '0.26 sq cm'): the longest run of up to 3 leading words that
-    names a known key (else the first word) is the key; separators may be spaces, ',', ':' or '='."""
-    words = list(re.finditer(r"[^\s,:=]+", s))
-    for n in (3, 2, 1):
-        if len(words) < n:
-            continue
-        key = "_".join(w.group(0) for w in words[:n]).upper().replace("-", "_")
-        key = _ALIASES.get(key, key)
-        if n == 1 or key in _KNOWN:
-            return key, s[words[n - 1].end():].lstrip(" \t,:=").rstrip(", \t")
-    return "", s
-
-
-def _number_unit(header, key: str, name: str) -> tuple[float, str]:
-    value, line = header[key]
-    m = _NUMBER_UNIT.match(value)
-    if not m:
-        raise ValidationError(f"{name}:{line}: {key} must be a number (with its unit), got {value!r}")
-    number = float(m.group(1))
-    if not np.isfinite(number):
-        raise ValidationError(f"{name}:{line}: {key} must be finite, got {value!r}")
-    return number, m.group(2).strip()
-
-
-def _int_entry(header, key: str, name: str, *, default: int | None = None, minimum: int = 0) -> int:
-    if key not in header:
-        if default is None:
-            raise ValidationError(f"{name}: header has no {key} line (expected e.g. '{key} 4' before ASCII_DATA @@)")
-        return default
-    value, line = header[key]
-    if not re.fullmatch(r"[-+]?\d+", value):
-        raise ValidationError(f"{name}:{line}: {key} must be a whole number, got {value!r}")
-    number = int(value)
-    if number < minimum:
-        raise ValidationError(f"{name}:{line}: {key} must be >= {minimum}, got {number}")
-    return number
-
-
-def _frame_period(header, name: str) -> float:
-    if "SECONDS_PER_FRAME" in header:
-        spf, unit = _number_unit(header, "SECONDS_PER_FRAME", name)
-        scale = {"": 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3}.get(unit.lower())
-        key = "SECONDS_PER_FRAME"
-    elif "FRAMES_PER_SECOND" in header:
-        hz, unit = _number_unit(header, "FRAMES_PER_SECOND", name)
-        scale = 1.0 if unit.lower() in ("", "hz", "fps") else None
-        spf = 1.0 / hz if hz > 0 else -1.0
-        key = "FRAMES_PER_SECOND"
-    else:
-        raise ValidationError(f"{name}: header has no SECONDS_PER_FRAME (or FRAMES_PER_SECOND) line")
-    line = header[key][1]
-    if scale is None:
-        raise ValidationError(f"{name}:{line}: {key} has unit {unit!r}, expected s or ms (Hz for a rate)")
-    if not spf > 0:
-        raise ValidationError(f"{name}:{line}: {key} must be > 0, got {header[key][0]!r}")
-    return spf * scale
-
-
-def _length_entry(header, key: str, name: str) -> float | None:
-    if key not in header:
-        return None
-    number, unit = _number_unit(header, key, name)
-    scale = _LENGTH.get(_unit_key(unit))
-    if scale is None or not number > 0:
-        raise ValidationError(f"{name}:{header[key][1]}: {key} must be a positive length with a unit "
-                              f"({', '.join(_LENGTH)}), got {header[key][0]!r}")
-    return number * scale
-
-
-def _area(header, row_sp, col_sp, name: str) -> float:
-    if "SENSEL_AREA" not in header:
-        if row_sp is None or col_sp is None:
-            raise ValidationError(f"{name}: header has no SENSEL_AREA (nor ROW_SPACING and COL_SPACING to derive it)")
-        return row_sp * col_sp
-    number, unit = _number_unit(header, "SENSEL_AREA", name)
-    scale = _AREA.get(_unit_key(unit))
-    if scale is None or not number > 0:
-        raise ValidationError(f"{name}:{header['SENSEL_AREA'][1]}: SENSEL_AREA must be a positive area with a unit "
-                              f"(cm2, sq cm, mm2, in2, m2), got {header['SENSEL_AREA'][0]!r}")
-    return number * scale
 
 
 def _parse_body(lines, start: int, rows: int, cols: int, name: str):
@@ -309,7 +189,7 @@ def _parse_body(lines, start: int, rows: int, cols: int, name: str):
         raise ValidationError(f"{name}:{start + data_idx[0] + 1}: values before the first 'Frame N' line")
     numbers = np.empty(len(frame_idx), dtype=np.int64)
     for k, i in enumerate(frame_idx):
-        m = _FRAME.match(body[i])
+        m = FRAME_LINE.match(body[i])
         if not m:
             raise ValidationError(f"{name}:{start + i + 1}: expected 'Frame N', got {body[i][:60]!r}")
         numbers[k] = int(m.group(1))
@@ -354,23 +234,23 @@ def _parse_body(lines, start: int, rows: int, cols: int, name: str):
 
 def _count_scale(header, units_text: str, area: float, full_scale_pa, name: str) -> float | None:
     """Counts per unit of the file's values: None for RAW, else 255 / p_sat scaled to the file's unit."""
-    unit = _unit_key(units_text)
+    unit = unit_key(units_text)
     where = f"{name}:{header['UNITS'][1]}" if "UNITS" in header else name
     if unit in ("raw", "", "counts", "count"):
         return None
-    if unit in _PRESSURE:
-        to_pa = _PRESSURE[unit]
-    elif unit in _FORCE:
-        to_pa = _FORCE[unit] / area  # per-sensel force -> mean pressure over the sensel
+    if unit in PRESSURE:
+        to_pa = PRESSURE[unit]
+    elif unit in FORCE:
+        to_pa = FORCE[unit] / area  # per-sensel force -> mean pressure over the sensel
     else:
         raise ValidationError(f"{where}: UNITS {units_text!r} not understood; expected RAW, a pressure "
-                              f"({', '.join(_PRESSURE)}) or a per-sensel force ({', '.join(_FORCE)})")
+                              f"({', '.join(PRESSURE)}) or a per-sensel force ({', '.join(FORCE)})")
     if "SATURATION_PRESSURE" in header:
-        number, sat_unit = _number_unit(header, "SATURATION_PRESSURE", name)
-        sat_scale = _PRESSURE.get(_unit_key(sat_unit)) if sat_unit else to_pa
+        number, sat_unit = number_unit(header, "SATURATION_PRESSURE", name)
+        sat_scale = PRESSURE.get(unit_key(sat_unit)) if sat_unit else to_pa
         if sat_scale is None:
             raise ValidationError(f"{name}:{header['SATURATION_PRESSURE'][1]}: SATURATION_PRESSURE unit {sat_unit!r}"
-                                  f" not understood; expected one of {', '.join(_PRESSURE)}")
+                                  f" not understood; expected one of {', '.join(PRESSURE)}")
         p_sat = number * sat_scale
     elif full_scale_pa is not None:
         p_sat = float(full_scale_pa)
