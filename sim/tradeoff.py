@@ -197,8 +197,9 @@ def measure_press(setting: Setting, young: float, name: str, seed: int, depth: f
     wall = time.perf_counter() - t0
     res = perceive_press(rec)
     peaks = {k: float("nan") for k in FEATURES}
-    if len(res.c_P):
-        peaks.update(c_P=float(np.max(res.c_P)), c_A=float(np.max(res.c_A)), c_D=float(np.max(res.c_D)))
+    if res.press is not None:
+        pr = res.press
+        peaks.update(c_P=float(np.max(pr.c_P)), c_A=float(np.max(pr.c_A)), c_D=float(np.max(pr.c_D)))
     if res.fit is not None:
         peaks.update(n1=res.fit.n1, a1=res.fit.a1)
     herr = hertz_force_error(rec, young / (1 - 0.3**2), Scene(()).fingertip.radius)

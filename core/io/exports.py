@@ -25,15 +25,15 @@ def export_haptic_material(post: Grid2D, grid: Grid2D, results: Sequence[PressRe
     counts = np.zeros((ny, nx))
     newton_per_count = scenario.fingertip.sensel_area / scenario.taxels.gain
     for r in results:
-        if r.fit is None or len(r.t) < 3:
+        if r.fit is None or r.press.n_samples < 3:
             continue
         try:
             ix, iy = grid.cell_of(*r.location)
         except ValidationError:
             continue
-        force = r.c_P * newton_per_count
-        sums["rate_hardness"][iy, ix] += _initial_slope(r.c_D, force)
-        sums["contact_area_spread_rate"][iy, ix] += _initial_slope(r.c_A, force, whole=True)
+        force = r.press.c_P * newton_per_count
+        sums["rate_hardness"][iy, ix] += _initial_slope(r.press.c_D, force)
+        sums["contact_area_spread_rate"][iy, ix] += _initial_slope(r.press.c_A, force, whole=True)
         sums["local_indentation"][iy, ix] += r.depth
         counts[iy, ix] += 1
     measured = counts > 0

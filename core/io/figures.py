@@ -65,12 +65,13 @@ def plot_training_series(path: Path, training: Mapping[str, Sequence[PressResult
     for j, name in enumerate(names):
         t_off = 0.0
         for res in training[name]:
-            if len(res.t) == 0:
+            pr = res.press
+            if pr is None:
                 continue
-            t = res.t - res.t[0] + t_off
-            axes[0, j].plot(t, res.c_P, color="C3", lw=1)
-            axes[1, j].plot(t, res.c_A * 1e6, color="C2", lw=1)
-            axes[2, j].plot(t, res.c_D * 1e3, color="C0", lw=1)
+            t = pr.t - pr.t[0] + t_off
+            axes[0, j].plot(t, pr.c_P, color="C3", lw=1)
+            axes[1, j].plot(t, pr.c_A * 1e6, color="C2", lw=1)
+            axes[2, j].plot(t, pr.c_D * 1e3, color="C0", lw=1)
             t_off = t[-1] + 0.2
         axes[0, j].set_title(name)
         axes[2, j].set_xlabel("press phases, laid end to end (s)")
@@ -89,9 +90,10 @@ def plot_interaction_profiles(path: Path, training: Mapping[str, Sequence[PressR
     fig = plt.figure(figsize=(7, 5.5))
     ax = fig.add_subplot(projection="3d")
     for j, (name, results) in enumerate(training.items()):
-        xs = np.concatenate([r.c_A * 1e6 for r in results if len(r.t)] or [np.zeros(0)])
-        ys = np.concatenate([r.c_D * 1e3 for r in results if len(r.t)] or [np.zeros(0)])
-        zs = np.concatenate([r.c_P for r in results if len(r.t)] or [np.zeros(0)])
+        presses = [r.press for r in results if r.press is not None]
+        xs = np.concatenate([p.c_A * 1e6 for p in presses] or [np.zeros(0)])
+        ys = np.concatenate([p.c_D * 1e3 for p in presses] or [np.zeros(0)])
+        zs = np.concatenate([p.c_P for p in presses] or [np.zeros(0)])
         ax.scatter(xs, ys, zs, s=6, color=rgb_image(np.eye(len(training))[j]), label=name, depthshade=False)
     ax.set_xlabel("c_A (mm²)")
     ax.set_ylabel("c_D (mm)")

@@ -149,7 +149,8 @@ def train_layered_memory(full: HapticMemory, training: Mapping[str, Sequence[Pre
         for res in results:
             if res.fit is None:
                 continue
-            for iz, params in enumerate(layer_fits(res.t, res.c_P, res.c_A, res.c_D, cell, n_layers)):
+            pr = res.press
+            for iz, params in enumerate(layer_fits(pr.t, pr.c_P, pr.c_A, pr.c_D, cell, n_layers)):
                 if params is not None:
                     per_layer[iz][0].append(params)
                     per_layer[iz][1].append(name)

@@ -16,8 +16,6 @@ from palpate.core.perception.pipeline import PipelineConfig, presses_from_record
 from palpate.core.perception.segment import Press
 from palpate.core.perception.streams import PressRecording
 
-_EMPTY = np.zeros(0)
-
 
 @dataclass(frozen=True)
 class PressResult:
@@ -25,25 +23,28 @@ class PressResult:
 
     Attributes:
         target: planned (x, y), m (NaN when the source did not say).
-        location: measured (x, y) of the press phase, m (the target when no press was found).
-        depth: largest indentation c_D, m.
-        t, c_P, c_A, c_D: press-phase samples (s, counts or N, m^2, m); empty when no press was found.
-        fit: the 3/2-power fits, or None when no press could be fitted (reasons in ``rejected``).
+        press: the press phase that was found (samples, location, depth), or None when no press was found.
+        fit: its 3/2-power fits, or None when no press could be fitted (reasons in ``rejected``).
         rejected: why contacts were rejected or the fit failed.
         truth_force, truth_indentation: the simulation's ground truth over the recording (N, m), if any.
     """
 
     target: tuple[float, float]
-    location: tuple[float, float]
-    depth: float
-    t: np.ndarray
-    c_P: np.ndarray
-    c_A: np.ndarray
-    c_D: np.ndarray
+    press: Press | None
     fit: PressFit | None
     rejected: tuple[str, ...] = ()
     truth_force: np.ndarray | None = None
     truth_indentation: np.ndarray | None = None
+
+    @property
+    def location(self) -> tuple[float, float]:
+        """Measured (x, y) of the press phase, m; the planned target when no press was found."""
+        return self.target if self.press is None else self.press.location
+
+    @property
+    def depth(self) -> float:
+        """Largest indentation c_D of the press, m (0 when no press was found)."""
+        return 0.0 if self.press is None else float(self.press.depth)
 
     @property
     def params(self) -> np.ndarray | None:
@@ -63,9 +64,8 @@ def press_result(press: Press, *, target: tuple[float, float] | None = None, rej
     except FitError as exc:
         fit, rejected = None, (*rejected, f"fit failed: {exc}")
     location = (float(press.location[0]), float(press.location[1]))
-    return PressResult(location if target is None else target, location, float(press.depth), np.asarray(press.t),
-                       np.asarray(press.c_P), np.asarray(press.c_A), np.asarray(press.c_D), fit, tuple(rejected),
-                       truth_force, truth_indentation)
+    return PressResult(location if target is None else target, press, fit, tuple(rejected), truth_force,
+                       truth_indentation)
 
 
 def perceive_press(recording: PressRecording, pipeline_config: PipelineConfig | None = None) -> PressResult:
@@ -84,8 +84,7 @@ def perceive_press(recording: PressRecording, pipeline_config: PipelineConfig | 
     tf = None if truth is None else np.asarray(truth.force)
     ti = None if truth is None else np.asarray(truth.indentation)
     if not seg.presses:
-        return PressResult(target, target, 0.0, _EMPTY, _EMPTY, _EMPTY, _EMPTY, None,
-                           reasons or ("no press found in the streams",), tf, ti)
+        return PressResult(target, None, None, reasons or ("no press found in the streams",), tf, ti)
     press = max(seg.presses, key=lambda p: p.depth)
     if len(seg.presses) > 1:
         reasons = (*reasons, f"{len(seg.presses)} presses found where one was made; kept the deepest")

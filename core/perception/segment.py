@@ -27,7 +27,7 @@ _MAD_TO_SIGMA = 1.4826
 _ONSET_FIT_MIN = 4
 
 
-@dataclass
+@dataclass(frozen=True)
 class Press:
     """The press phase of one press-and-release: samples from first contact to the deepest point.
 

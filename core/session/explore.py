@@ -106,7 +106,8 @@ def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory
         if layers is None:
             raise ValidationError("a voxel map needs a layered memory (LayeredMemory.whole_press(memory, ...) judges "
                                   "every layer with the whole-press memory)")
-        posts = layers.layer_posteriors(res.t, res.c_P, res.c_A, res.c_D)
+        pr = res.press
+        posts = layers.layer_posteriors(pr.t, pr.c_P, pr.c_A, pr.c_D)
         try:
             ix, iy = grid.column_of(*res.location)
         except ValidationError:
