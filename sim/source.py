@@ -25,12 +25,13 @@ from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import run_analytic_press
+from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import HUMAN, ROBOT, Variability, press_profile
-from palpate.sim.effective_modulus import depth_for_force
 from palpate.sim.flex import run_flex_press
-from palpate.sim.rigid import run_rigid_press
+from palpate.sim.rigid import rigid_depth_for_force, run_rigid_press
 from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
+from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, law_depth
 
 FIDELITIES = ("auto", "analytic", "rigid", "flex")
 
@@ -106,6 +107,7 @@ class SimSource:
         self.timestep = timestep
         self._presses = 0
         self._meshes: dict = {}
+        self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
 
     def _mesh(self, obj: ObjectSpec):
         if obj.shape != "mesh":
@@ -135,16 +137,34 @@ class SimSource:
         s_profile, s_taxel, s_pose = np.random.SeedSequence([self.seed, self._presses]).spawn(3)
         self._presses += 1
         timestep = self.timestep or 0.002
+        deepest = MAX_DEPTH_OVER_RADIUS * tip.radius
+        force_law = None
+        if target.force is not None:
+            force_law = object_law(obj, target.x, target.y, surface_z, tip.radius, deepest, cache=self._laws)
+
+        def depth_for_force(force: float) -> float:
+            try:
+                if fidelity == "rigid":
+                    # the force the rigid fidelity will feel on this geometry (edges, curved tops), not the flat law's
+                    centre = np.array([target.x, target.y]) + tip.radius * normal[:2]
+                    return rigid_depth_for_force(obj, centre, tip, force_law, force, mesh)
+                return force_law.depth_for_force(force)
+            except ValidationError:
+                if target.depth is not None:
+                    return float("inf")  # the depth comes first: the force limit is never reached
+                raise
+
         profile = press_profile(
             target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002), variability=self.variability,
-            seed=int(s_profile.generate_state(1)[0]), normal=tuple(normal),
-            # E*_eff at the radius the press reaches (layers, inclusions): exactly Hertz on one material
-            depth_for_force=lambda f: depth_for_force(obj, target.x, target.y, surface_z, tip.radius, f),
+            seed=int(s_profile.generate_state(1)[0]), normal=tuple(normal), depth_for_force=depth_for_force,
         )
+        law = None
+        if fidelity in ("analytic", "rigid"):
+            law = object_law(obj, profile.x, profile.y, surface_z, tip.radius, law_depth(profile), cache=self._laws)
         if fidelity == "analytic":
-            trace = run_analytic_press(self.scene, obj, profile)
+            trace = run_analytic_press(self.scene, obj, profile, law=law)
         elif fidelity == "rigid":
-            trace = run_rigid_press(self.scene, obj, profile, timestep=timestep, mesh=mesh)
+            trace = run_rigid_press(self.scene, obj, profile, timestep=timestep, mesh=mesh, law=law)
         else:
             # flex has its own default step (5 ms: >= 1x real time at the default resolution, see
             # benchmarks/flex_resolution.py); the rigid default of 2 ms would make it 2.5x slower.

@@ -10,7 +10,13 @@ from palpate.sim import simulate_press
 from palpate.sim.analytic import hertz_sensel_pressure, run_analytic_press
 from palpate.sim.controller import HUMAN, ROBOT, press_profile
 from palpate.sim.fingertip import sensel_bounds
-from palpate.sim.hertz import hertz_contact_radius, hertz_depth_for_force, hertz_force
+from palpate.sim.hertz import (
+    hertz_contact_radius,
+    hertz_depth_for_force,
+    hertz_force,
+    sneddon_sphere_force_at_depth,
+)
+from palpate.sim.reference.bonded_layer import dimitriadis_factor
 from palpate.sim.source import SimSource, choose_fidelity
 
 R = 0.008
@@ -66,17 +72,37 @@ def test_sensel_means_match_an_independent_brute_force_integral(centre):
     np.testing.assert_allclose(fast, plain, rtol=0, atol=1e-5 * plain.max())
 
 
-def test_centred_press_gives_symmetric_counts_and_hertz_truth():
+def test_centred_press_on_a_thick_block_gives_symmetric_counts_and_sneddons_sphere():
     quiet = TaxelSensorSpec(noise_std=0.0, threshold=0)
-    rec = simulate_press(2e5, fidelity="analytic", depth=0.003, taxels=quiet)
+    # 0.6 m thick and 2 m wide: no edge within reach; the rigid table stiffens it by ~0.7% (a / h < 0.01)
+    rec = simulate_press(2e5, fidelity="analytic", depth=0.003, taxels=quiet, size=2.0, thickness=0.6)
     counts = np.stack([f.counts for f in rec.frames]).astype(int)
     assert counts.max() > 50  # the press registers
     for view in (counts[:, ::-1, :], counts[:, :, ::-1], counts.transpose(0, 2, 1)):
         np.testing.assert_array_equal(counts, view)
     truth = rec.truth
-    np.testing.assert_allclose(truth.force, hertz_force(E_STAR, R, truth.indentation), rtol=1e-12)
+    touching = truth.indentation > 2e-4
+    d = truth.indentation[touching]
+    exact = sneddon_sphere_force_at_depth(E_STAR, R, d) * dimitriadis_factor(np.sqrt(R * d) / 0.6, 0.3)
+    np.testing.assert_allclose(truth.force[touching], exact, rtol=2e-3)
+    # the sphere is softer than Hertz's paraboloid by ~2.5% at 3 mm deep: the law is not Hertz
+    assert truth.force.max() < 0.985 * hertz_force(E_STAR, R, 0.003)
     assert truth.indentation.max() == pytest.approx(0.003, rel=1e-9)
     assert rec.meta["fidelity"] == "analytic"
+
+
+@pytest.mark.parametrize(("thickness", "base", "poisson"), [(0.01, "bonded", 0.3), (0.012, "bonded", 0.49),
+                                                             (0.02, "bonded", 0.45)])
+def test_a_thin_block_stiffens_as_the_bonded_layer_series_says(thickness, base, poisson):
+    """Against Dimitriadis et al. 2002 (independent, published) where it holds: contact radius < half the layer."""
+    rec = simulate_press(2e5, poisson, fidelity="analytic", depth=0.002, thickness=thickness)
+    d, f = rec.truth.indentation, rec.truth.force
+    sel = (d > 2e-4) & (np.sqrt(R * d) < 0.5 * thickness)
+    e_star = 2e5 / (1 - poisson**2)
+    series = dimitriadis_factor(np.sqrt(R * d[sel]) / thickness, poisson, base)
+    exact_sphere = sneddon_sphere_force_at_depth(e_star, R, d[sel]) / hertz_force(e_star, R, d[sel])
+    np.testing.assert_allclose(f[sel], hertz_force(e_star, R, d[sel]) * series * exact_sphere, rtol=0.025)
+    assert f[sel][-1] > 1.08 * sneddon_sphere_force_at_depth(e_star, R, d[sel][-1])  # the table is felt
 
 
 def test_analytic_trace_follows_the_profile_exactly():

@@ -163,9 +163,9 @@ def solve_contact_law(stack: AxisymmetricSample, tip_radius: float, max_depth: f
     """Tabulate the contact law of a sphere of ``tip_radius`` (m) on ``stack`` up to ``max_depth`` (m).
 
     Raises:
-        ValidationError: a press deeper than ~0.9 tip radii (the sphere's contact would reach its equator).
+        ValidationError: a press deeper than 0.75 tip radii (the sphere's contact would near its equator).
     """
-    if not (tip_radius > 0 and np.isfinite(max_depth) and 0 < max_depth < 0.75 * tip_radius):
+    if not (tip_radius > 0 and np.isfinite(max_depth) and 0 < max_depth <= 0.75 * tip_radius * (1 + 1e-9)):
         raise ValidationError(f"contact law: max_depth must lie in (0, 0.75 R) = (0, {0.75 * tip_radius:.4g}) m, got "
                               f"{max_depth!r}")
     a_top = min(0.97 * tip_radius, 1.6 * math.sqrt(tip_radius * max_depth))
@@ -199,6 +199,7 @@ def solve_contact_law(stack: AxisymmetricSample, tip_radius: float, max_depth: f
         raise ValidationError(f"contact law: the solution on {stack.describe()} did not cover {max_depth * 1e3:.2f} mm "
                               "monotonically; press less deep")
     a_tab = np.concatenate([[0.0], a_grid[: len(depth) - 1]])
+    coeffs[0] = coeffs[1]  # a contact shrinking to a point keeps its shape (Hertz's c is constant in a)
     return ContactLaw(tip_radius=float(tip_radius), contact_radius=a_tab, depth=depth, force=force,
                       coeffs=np.array(coeffs), surface_modulus=float(e_top))
 

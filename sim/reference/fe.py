@@ -54,7 +54,7 @@ class FEPress:
     h0: float
 
 
-def _assemble(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray):
+def _assemble(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray, materials=None):
     from skfem import Basis, BilinearForm, ElementQuad2, ElementVector, MeshQuad1, asm
 
     top = float(z_nodes[-1])
@@ -62,7 +62,7 @@ def _assemble(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarr
     mesh = MeshQuad1.init_tensor(r_nodes, np.sort(top - z_nodes))
     basis = Basis(mesh, ElementVector(ElementQuad2()), intorder=4)
     centroid = mesh.p[:, mesh.t].mean(axis=1)
-    young, poisson = sample.materials_at(centroid[0], top - centroid[1])
+    young, poisson = (materials or sample.materials_at)(centroid[0], top - centroid[1])
     lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
     mu = young / (2 * (1 + poisson))
     nqp = basis.X.shape[1]
@@ -104,7 +104,7 @@ def _hat_loads(r_top: np.ndarray, dof_r: np.ndarray, dof_index: np.ndarray, n_do
 
 
 def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinement: float = 1.0,
-             growth: float = 1.15) -> FEPress:
+             growth: float = 1.15, materials=None, breaks_r=(), breaks_z=()) -> FEPress:
     """Force, contact radius and surface pressure of a rigid sphere pressed ``depths`` (m) into ``sample``.
 
     Args:
@@ -113,6 +113,8 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
         depths: indentations, m, each in (0, 0.9 tip_radius).
         refinement: mesh density: the surface spacing is (smallest contact radius / 12) / refinement.
         growth: spacing growth per cell away from the contact (smaller is finer).
+        materials: optional fn(r m, depth m) -> (Young Pa, Poisson) replacing the sample's own material field
+            (the sample then only gives the thickness, base and width); breaks_r, breaks_z: extra mesh lines, m.
     """
     from scipy.sparse.linalg import splu
 
@@ -126,13 +128,13 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
     h0 = a_min * H0_OVER_A / refinement
     wide = not math.isfinite(sample.radius)
     width = 12.0 * sample.thickness + 60.0 * a_max if wide else sample.radius
-    breaks_r, breaks_z = [], list(sample.interfaces())
+    breaks_r, breaks_z = list(breaks_r), list(breaks_z) + list(sample.interfaces())
     if sample.inclusion is not None:
         inc = sample.inclusion
         breaks_r.append(inc.radius)
-        breaks_z += [inc.depth, inc.bottom] if inc.shape == "cylinder" else [inc.depth, inc.bottom]
+        breaks_z += [inc.depth, inc.bottom]
     r_nodes, z_nodes = sample_grids(sample.thickness, width, a_max, h0, breaks_r, breaks_z, growth=growth)
-    basis, stiffness = _assemble(sample, r_nodes, z_nodes)
+    basis, stiffness = _assemble(sample, r_nodes, z_nodes, materials)
     locs = basis.doflocs
     dofs = basis.get_dofs()
     ur, uz = dofs.all("u^1"), dofs.all("u^2")
