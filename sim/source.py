@@ -18,6 +18,8 @@ are from ``palpate bench`` / benchmarks/tradeoff.py, which measures them):
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from palpate.core.errors import ValidationError
@@ -26,7 +28,7 @@ from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import run_analytic_press
 from palpate.sim.contact.stack import object_law
-from palpate.sim.controller import HUMAN, ROBOT, Variability, press_profile
+from palpate.sim.controller import HUMAN, ROBOT, PressProfile, Variability, press_profile
 from palpate.sim.flex import run_flex_press
 from palpate.sim.rigid import rigid_depth_for_force, run_rigid_press
 from palpate.sim.scene import load_mesh, surface_at
@@ -108,6 +110,7 @@ class SimSource:
         self._presses = 0
         self._meshes: dict = {}
         self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
+        self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.run_flex_press)
 
     def _mesh(self, obj: ObjectSpec):
         if obj.shape != "mesh":
@@ -137,39 +140,63 @@ class SimSource:
         s_profile, s_taxel, s_pose = np.random.SeedSequence([self.seed, self._presses]).spawn(3)
         self._presses += 1
         timestep = self.timestep or 0.002
+        seed = int(s_profile.generate_state(1)[0])
+
         deepest = MAX_DEPTH_OVER_RADIUS * tip.radius
-        force_law = None
-        if target.force is not None:
-            force_law = object_law(obj, target.x, target.y, surface_z, tip.radius, deepest, cache=self._laws)
+        if target.depth is not None and target.depth > deepest:
+            raise ValidationError(f"press target depth {target.depth * 1e3:.2f} mm is over {MAX_DEPTH_OVER_RADIUS} tip "
+                                  f"radii ({tip.radius * 1e3:.1f} mm tip): the contact would reach the sphere's "
+                                  f"equator; press at most {deepest * 1e3:.2f} mm deep")
 
-        def depth_for_force(force: float) -> float:
-            try:
-                if fidelity == "rigid":
-                    # the force the rigid fidelity will feel on this geometry (edges, curved tops), not the flat law's
-                    centre = np.array([target.x, target.y]) + tip.radius * normal[:2]
-                    return rigid_depth_for_force(obj, centre, tip, force_law, force, mesh)
-                return force_law.depth_for_force(force)
-            except ValidationError:
-                if target.depth is not None:
-                    return float("inf")  # the depth comes first: the force limit is never reached
-                raise
+        def profile_for(depth_for_force) -> PressProfile:
+            prof = press_profile(target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002),
+                                 variability=self.variability, seed=seed, normal=tuple(normal),
+                                 depth_for_force=depth_for_force)
+            planned = prof.meta["depth"]
+            if target.depth is not None and planned > deepest and prof.meta.get("force_target") is None:
+                # a person's press varies in depth, but no finger presses past what it can: the same draws,
+                # scaled to stop at the deepest press allowed
+                shorter = replace(target, depth=target.depth * deepest / planned)
+                prof = press_profile(shorter, surface_z, radius=tip.radius, timestep=min(timestep, 0.002),
+                                     variability=self.variability, seed=seed, normal=tuple(normal),
+                                     depth_for_force=depth_for_force)
+                prof.meta["depth_limited_from"] = float(planned)
+            return prof
 
-        profile = press_profile(
-            target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002), variability=self.variability,
-            seed=int(s_profile.generate_state(1)[0]), normal=tuple(normal), depth_for_force=depth_for_force,
-        )
         law = None
-        if fidelity in ("analytic", "rigid"):
-            law = object_law(obj, profile.x, profile.y, surface_z, tip.radius, law_depth(profile), cache=self._laws)
+        if target.force is None:
+            profile = profile_for(None)
+            if fidelity in ("analytic", "rigid"):
+                law = object_law(obj, profile.x, profile.y, surface_z, tip.radius, law_depth(profile),
+                                 cache=self._laws)
+        else:
+            # the same seed draws the same press point whatever the depth: find it, then invert the law felt there
+            point = profile_for(lambda force: 1e-3)
+            law = object_law(obj, point.x, point.y, surface_z, tip.radius, MAX_DEPTH_OVER_RADIUS * tip.radius,
+                             cache=self._laws)
+
+            def depth_for_force(force: float) -> float:
+                try:
+                    if fidelity == "rigid":
+                        # the force rigid will feel on this geometry (edges, curved tops), not the flat law's
+                        centre = np.array([point.x, point.y]) + tip.radius * normal[:2]
+                        return rigid_depth_for_force(obj, centre, tip, law, force, mesh)
+                    return law.depth_for_force(force)
+                except ValidationError:
+                    if target.depth is not None:
+                        return float("inf")  # the depth comes first: the force limit is never reached
+                    raise
+
+            profile = profile_for(depth_for_force)
         if fidelity == "analytic":
             trace = run_analytic_press(self.scene, obj, profile, law=law)
         elif fidelity == "rigid":
             trace = run_rigid_press(self.scene, obj, profile, timestep=timestep, mesh=mesh, law=law)
         else:
-            # flex has its own default step (5 ms: >= 1x real time at the default resolution, see
-            # benchmarks/flex_resolution.py); the rigid default of 2 ms would make it 2.5x slower.
-            trace = run_flex_press(self.scene, obj, target, profile, timestep=self.timestep,
-                                   seed=int(s_profile.generate_state(1)[0]))
+            # flex has its own default step (up to 10 ms, see palpate.sim.flex.default_timestep): the rigid
+            # default of 2 ms would make it 5x slower for nothing (its elasticity is integrated implicitly)
+            trace = run_flex_press(self.scene, obj, target, profile, timestep=self.timestep, seed=seed,
+                                   models=self._flex_models)
         frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel))
         poses = sample_poses(trace, self.scene.pose, np.random.default_rng(s_pose))
         meta = {

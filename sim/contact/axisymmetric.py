@@ -23,8 +23,8 @@ from palpate.sim.reference.sample import AxisymmetricSample
 #: Mesh of the surrogate (see the module docstring).
 REFINEMENT = 0.3
 GROWTH = 1.3
-#: Tabulated depths, as fractions of the deepest (a from a quarter of the deepest contact radius up).
-DEPTH_FRACTIONS = np.geomspace(1.0 / 16.0, 1.0, 10)
+#: Tabulated depths, as fractions of the deepest (a from a fifth of the deepest contact radius up).
+DEPTH_FRACTIONS = np.geomspace(1.0 / 24.0, 1.0, 12)
 #: Azimuths of the average.
 AZIMUTHS = 16
 #: Stiffness left in a ring that is all void (keeps the FE non-singular).

@@ -164,7 +164,8 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
     compliance = -settle[vertex]  # downward settlement of each top vertex per unit hat pressure
     weights = -loads[free].sum(axis=0)  # integral of each hat times r dr
 
-    gap0 = tip_radius - np.sqrt(tip_radius**2 - r_top**2)
+    # beyond the sphere's equator the surface can never be touched
+    gap0 = np.where(r_top < tip_radius, tip_radius - np.sqrt(np.maximum(tip_radius**2 - r_top**2, 0.0)), np.inf)
     forces, radii, pressures = [], [], []
     for depth in d:
         p, k = contact_disc(compliance, depth - gap0, depth)
