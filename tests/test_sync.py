@@ -149,3 +149,14 @@ def test_estimate_clock_offset_needs_contact():
     poses = [PoseSample(t, [0.0, 0.0, t]) for t in np.linspace(0.0, 1.0, 10)]
     with pytest.raises(ValidationError, match="contact"):
         estimate_clock_offset(_frames(np.linspace(0.0, 1.0, 20)), poses)
+
+
+def test_ranks_match_scipy_with_ties():
+    from scipy.stats import rankdata
+
+    from palpate.core.perception.sync import _ranks
+
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 17, 300):
+        x = rng.integers(0, 6, n).astype(float)  # many ties
+        np.testing.assert_array_equal(_ranks(x), rankdata(x))

@@ -13,7 +13,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import rankdata
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import PoseSample, TaxelFrame, frames_to_arrays, poses_to_arrays
@@ -249,5 +248,15 @@ def estimate_clock_offset(
 
 
 def _ranks(x: np.ndarray) -> np.ndarray:
-    """Ranks of x (ties get their mean rank)."""
-    return rankdata(x)
+    """Ranks of x, 1-based, ties given their mean rank (as scipy.stats.rankdata, without importing scipy.stats,
+    which costs a worker process most of a second at start-up)."""
+    x = np.asarray(x)
+    order = np.argsort(x, kind="mergesort")
+    xs = x[order]
+    # first index of each run of equal values, and the mean 1-based rank of that run
+    starts = np.flatnonzero(np.concatenate(([True], xs[1:] != xs[:-1])))
+    ends = np.append(starts[1:], len(xs))
+    mean_rank = (starts + ends + 1) / 2.0
+    ranks = np.empty(len(x), dtype=float)
+    ranks[order] = np.repeat(mean_rank, ends - starts)
+    return ranks
