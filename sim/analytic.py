@@ -168,7 +168,8 @@ def run_analytic_press(
         obj: the pressed object (the trace names the material at the surface).
         profile: the press trajectory; the tip follows it exactly.
         rate: sampling rate of the trace, Hz; by default the taxel rate, so every taxel frame falls on an
-            exactly integrated sample (the pose sensor interpolates position, smooth at this rate).
+            exactly integrated sample (the pose sensor interpolates position, smooth at this rate); the deepest
+            point of the profile is sampled as well.
         order: Gauss-Legendre order of the sensel integration.
         law: the press point's contact law (computed here when not given; a SimSource caches it).
 
@@ -190,8 +191,10 @@ def run_analytic_press(
         )
     check_depth(profile, radius, " (analytic)")
     mat = local_material(obj, profile.x, profile.y, profile.surface_z)
-    n_samples = max(int(np.floor(profile.duration * rate)) + 1, 2)
-    t = profile.t[0] + np.arange(n_samples) / rate
+    grid = profile.t[0] + np.arange(max(int(np.floor(profile.duration * rate)) + 1, 2)) / rate
+    # the deepest point too, so the trace's peak is the press's (a taxel frame between samples interpolates)
+    t = np.union1d(grid, [float(profile.t[int(np.argmin(profile.z))])])
+    n_samples = len(t)
     z = profile.at(t)
     depth = np.maximum(profile.surface_z + radius - z, 0.0)
     if law is None:

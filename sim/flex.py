@@ -32,14 +32,21 @@ from palpate.sim.flex_model import (
     build_flex_model,
     flex_grid,
 )
-from palpate.sim.stability import check_depth, check_reached, check_resolves_press
+from palpate.sim.stability import MAX_STEPS, check_depth, check_reached, check_resolves_press, check_step_budget
 from palpate.sim.trace import PhysicsTrace
 
 #: Contact penetration, m, beyond which (and beyond PENETRATION_FRACTION of the indentation) the run diverged.
 PENETRATION_LIMIT = 5.0e-4
 PENETRATION_FRACTION = 0.65
-#: Most physics steps one press may take (a press over it is refused before it runs).
-MAX_STEPS = 200_000
+#: Smallest contact radius, in cells, whose force the mesh correction is measured for (below it one vertex
+#: touches and the force is the vertex's, not the block's).
+MIN_CONTACT_OVER_CELL = 0.25
+#: Side of the surface patch a contact force stands for, in collision-vertex spacings (1.5, chosen on the 40 mm
+#: block of tests/test_sim_flex.py so that the active-sensel map is the reference's within one sensel from 0.5 to 3 mm;
+#: 1 leaves the diagonal pattern of single contacts, 2 lights a ring too many): MuJoCo places a flex contact
+#: on a surface element (two triangles per vertex square, split along one diagonal), not at a vertex, so a force
+#: belongs to the elements around it.
+PATCH = 1.5
 
 
 def pad_coordinates(offsets: np.ndarray, radius: float) -> np.ndarray:
@@ -161,13 +168,17 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         raise ValidationError("flex: profile.t must be strictly increasing and match profile.z in shape")
     if not (np.all(np.isfinite(z_prof)) and np.isfinite(profile.x) and np.isfinite(profile.y)):
         raise ValidationError("flex: profile z, x, y must be finite (m)")
+    check_step_budget(t_prof[-1] - t_prof[0], dt, max_steps, " (flex)")
     n = int(np.floor((t_prof[-1] - t_prof[0]) / dt + 1e-9)) + 1
-    if n > max_steps:
-        raise ValidationError(f"flex: the press of {t_prof[-1] - t_prof[0]:.2f} s needs {n} steps of {dt:g} s, over "
-                              f"the budget of {max_steps}; pass a longer timestep or a faster press")
     x, y = float(profile.x), float(profile.y)
     surface_z = float(profile.surface_z)
     grid = flex_grid(obj, x, y, res, window)
+    shallowest = (MIN_CONTACT_OVER_CELL * float(np.mean(grid.cell[:2]))) ** 2 / tip.radius
+    if float(profile.meta.get("depth", np.inf)) < shallowest:
+        raise ValidationError(
+            f"flex resolves presses from {shallowest * 1e3:.2f} mm deep with {res * 1e3:g} mm cells (a contact "
+            f"radius of {MIN_CONTACT_OVER_CELL} cells), not {profile.meta['depth'] * 1e3:.3f} mm: press deeper or "
+            "use fidelity 'analytic' or 'rigid'")
     fm, data = _model(scene, obj, grid, dt, verts_per_cell, models)
     model = fm.model
     z0 = float(z_prof[0])
@@ -235,7 +246,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             extrapolated |= ext
         fn = fn / factors[k]
         force[k] = fn.sum()
-        pressure[k] = sensel_pressure(pad_coordinates(pos - [x, y, zc], tip.radius), fn, tip, fm.vertex_spacing)
+        pressure[k] = sensel_pressure(pad_coordinates(pos - [x, y, zc], tip.radius), fn, tip, PATCH * fm.vertex_spacing)
         if zc - tip.radius < 0.02 * obj.height:
             raise _diverged("the tip sank through the flex block", times[k], dt)
         if not np.isfinite(force[k]):
@@ -262,7 +273,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             "cell": [float(c) for c in grid.cell], "cells": list(grid.cells),
             "window_lower": [float(v) for v in grid.lower], "window_size": [float(v) for v in grid.size],
             "pinned_sides": list(grid.pinned), "mesh_factor_range": [float(factors.min()), float(factors.max())],
-            "calibration_extrapolated": bool(extrapolated), "young_used": fm.meta["young_used"],
+            "calibration_extrapolated": bool(extrapolated), "young_range": fm.meta["young_range"],
             "materials": sorted(set(fm.cell_material)), "vertex_patch": fm.vertex_spacing,
             "contact_solref": list(CONTACT_SOLREF), "kp": fm.kp, "max_contact_penetration": -min_dist,
             "dofs": int(model.nv), "seed": int(seed),

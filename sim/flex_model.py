@@ -7,8 +7,9 @@ reused (see :mod:`palpate.sim.flex` for the press that runs it).
 - The stiffness: MuJoCo's trilinear cell integrates lambda (div u)^2 at 2x2x2 points, which locks as nu -> 0.5
   (3.4x Hertz at nu = 0.49). Each cell's 24x24 block is replaced by the same element with selective reduced
   integration (the volumetric term at the cell centre, the deviatoric 2 mu e:e at 2x2x2 points), with the Lame
-  parameters of the material at the cell centre, so layers and inclusions are per cell and nu up to 0.49 does not
-  lock. The block layout (node (i, j, k) with k fastest, dof 3 node + axis, stored as -K) is MuJoCo 4.0's; a
+  parameters of the cell's material (:func:`cell_moduli`: a cell holding a skin and its base gets their mix), so
+  layers and inclusions are per cell and nu up to 0.49 does not lock. The block layout (node (i, j, k) with k
+  fastest, dof 3 node + axis, stored as -K) is MuJoCo 4.0's; a
   compiled cell is checked against it, so a MuJoCo that stores it differently is refused, not misread.
 - Mass scaling: presses are quasi-static, so the density is scaled with the softest modulus (1000 kg/m^3 at
   200 kPa) and the tip's drive with the stiffest: a homogeneous block of any modulus then runs the same dynamics,
@@ -124,7 +125,33 @@ def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_R
     return FlexGrid(lower=np.array([lo[0], lo[1], 0.0]), size=size, cells=(nx, ny, nz), pinned=pinned)
 
 
-def _lame(young: float, poisson: float) -> tuple[float, float]:
+#: Sub-points per cell edge at which the material is sampled (a cell holding two materials gets their mix).
+SUBCELL = 4
+
+
+def cell_moduli(obj: ObjectSpec, grid: FlexGrid) -> tuple[np.ndarray, np.ndarray]:
+    """Young's modulus (Pa) and Poisson ratio of each cell (MuJoCo's cell order), from SUBCELL^3 points inside it:
+    E in series down each vertical sub-column (harmonic mean: exact for the squeeze of a layered cell, which is how
+    a soft skin thinner than a cell is pressed), the sub-columns in parallel (mean: a lump filling part of the cell
+    carries its share); the mean Poisson ratio. A cell of one material gets exactly its own. A stiff skin thinner
+    than a cell carries load by bending, which no mix of moduli in a coarse cell gives: flex underestimates it (see
+    the validity table)."""
+    mats = obj.materials()
+    names = [m.name for m in mats]
+    young = np.array([m.young for m in mats])
+    poisson = np.array([m.poisson for m in mats])
+    frac = (np.arange(SUBCELL) + 0.5) / SUBCELL - 0.5
+    sub = np.stack(np.meshgrid(frac, frac, frac, indexing="ij"), axis=-1).reshape(-1, 3) * grid.cell
+    pts = grid.cell_centres()[:, None, :] + sub[None, :, :]
+    idx = material_index_at(obj, pts.reshape(-1, 3), names).reshape(len(pts), -1)
+    centre = material_index_at(obj, grid.cell_centres(), names)
+    idx = np.where(idx >= 0, idx, np.maximum(centre, 0)[:, None])
+    # sub-points are ordered (x, y, z) with z fastest: series down each sub-column, parallel across them
+    columns = 1.0 / np.mean(1.0 / young[idx].reshape(len(pts), SUBCELL * SUBCELL, SUBCELL), axis=2)
+    return np.mean(columns, axis=1), np.mean(poisson[idx], axis=1)
+
+
+def _lame(young, poisson):
     """Lame parameters (lambda, mu), Pa."""
     return young * poisson / ((1 + poisson) * (1 - 2 * poisson)), young / (2 * (1 + poisson))
 
@@ -222,13 +249,13 @@ def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, *, timestep:
     names = [m.name for m in mats]
     idx = material_index_at(obj, grid.cell_centres(), names)
     idx[idx < 0] = 0  # a cell centre outside the object (never in a box or the square inside a cylinder)
-    used = sorted(set(idx.tolist()))
-    young_max = max(mats[i].young for i in used)
+    young_cell, poisson_cell = cell_moduli(obj, grid)
+    young_max = float(young_cell.max())
     scale = young_max / REFERENCE_YOUNG
-    # the softest material sets the density: a soft skin over a hard base must not be made heavy (it would be too
-    # slow to get out of the tip's way); stiffer cells only have faster, implicitly integrated dynamics
-    mass = float(DENSITY * min(mats[i].young for i in used) / REFERENCE_YOUNG * np.prod(grid.size))
-    damping = max([mats[i].damping for i in used] + [min_damping])
+    # the softest cell sets the density: a soft skin over a hard base must not be made heavy (it would be too slow
+    # to get out of the tip's way); stiffer cells only have faster, implicitly integrated dynamics
+    mass = float(DENSITY * young_cell.min() / REFERENCE_YOUNG * np.prod(grid.size))
+    damping = max([m.damping for m in mats] + [min_damping])
     spec = mujoco.MjSpec.from_string(flexcomp_xml(grid, verts_per_cell=verts_per_cell, mass=mass, damping=damping,
                                                   timestep=timestep))
     tip_r = scene.fingertip.radius
@@ -238,7 +265,7 @@ def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, *, timestep:
     armature = 0.1 * scale
     joint = tip.add_joint(name="tip_z", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1], armature=armature)
     tip.add_geom(name="tip", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[tip_r, 0, 0], mass=0.01 * scale, condim=1)
-    e_star = max(mats[i].effective_modulus for i in used)
+    e_star = float(np.max(young_cell / (1.0 - poisson_cell**2)))
     kp = 100.0 * 2.0 * e_star * np.sqrt(tip_r * 0.004)
     act = spec.add_actuator(name="tip_drive", target="tip_z", trntype=mujoco.mjtTrn.mjTRN_JOINT)
     act.set_to_position(kp=float(kp), kv=float(2.0 * np.sqrt(kp * joint.armature)))
@@ -256,12 +283,11 @@ def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, *, timestep:
     if not np.allclose(blocks[0], lam1 * lam_full + mu1 * dev, rtol=1e-6, atol=1e-9 * np.abs(dev).max()):
         raise ValidationError("flex: this MuJoCo build's trilinear cell stiffness is not the element palpate "
                               "expects; use fidelity 'rigid' or 'analytic'")
-    for i in used:
-        lam, mu = _lame(mats[i].young, mats[i].poisson)
-        blocks[idx == i] = lam * lam_centre + mu * dev
+    lam, mu = _lame(young_cell, poisson_cell)
+    blocks[:] = lam[:, None, None] * lam_centre + mu[:, None, None] * dev
     return FlexModel(
         model=model, grid=grid, tip_joint=model.joint("tip_z").id, tip_body=model.body("tip").id,
         tip_geom=model.geom("tip").id, cell_material=[names[i] for i in idx], young_max=float(young_max),
         kp=float(kp), vertex_spacing=float(np.min(grid.cell[:2]) / verts_per_cell),
-        meta={"young_used": {names[i]: mats[i].young for i in used}, "mass_scale": float(scale)},
+        meta={"young_range": [float(young_cell.min()), young_max], "mass_scale": float(scale)},
     )

@@ -35,10 +35,12 @@ from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import cap_height, sensel_quadrature
 from palpate.sim.scene import FingerDrive, build_press_model, surface_heights
 from palpate.sim.stability import (
+    MAX_STEPS,
     check_depth,
     check_reached,
     check_resolves_press,
     check_run,
+    check_step_budget,
     check_warnings,
     law_depth,
 )
@@ -83,10 +85,11 @@ def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray) -> np.nda
     return p * scale.reshape(shape)
 
 
-def contact_geometry(obj: ObjectSpec, centre_xy: np.ndarray, tip, mesh=None, *, rings: int = 96, sectors: int = 24):
+def contact_geometry(obj: ObjectSpec, centre_xy: np.ndarray, tip, mesh=None, *, rings: int = 96, sectors: int = 24,
+                     cells: tuple[np.ndarray, np.ndarray] | None = None):
     """Footprint of a tip above ``centre_xy`` (m) on ``obj``: (unique equivalent radii (m), their areas (m^2), the
-    first-contact height g_ref (m) of the sphere's lowest point)."""
-    pts, areas = footprint_rings(tip.radius, rings, sectors)
+    first-contact height g_ref (m) of the sphere's lowest point). ``cells``: precomputed :func:`footprint_rings`."""
+    pts, areas = footprint_rings(tip.radius, rings, sectors) if cells is None else cells
     gaps = surface_heights(obj, centre_xy[:2] + pts, mesh) - cap_height(tip, pts)
     # the rings' centres miss the axis, where a flat top is first touched
     g_ref = max(float(np.max(gaps)), float(surface_heights(obj, np.asarray(centre_xy[:2])[None, :], mesh)[0]))
@@ -101,7 +104,7 @@ def contact_geometry(obj: ObjectSpec, centre_xy: np.ndarray, tip, mesh=None, *, 
 def run_rigid_press(
     scene: Scene, obj: ObjectSpec, profile: PressProfile, *, timestep: float = 0.002,
     drive: FingerDrive | None = None, rings: int = 96, sectors: int = 24, order: int = 6,
-    young: float | None = None, mesh=None, law: ContactLaw | None = None,
+    young: float | None = None, mesh=None, law: ContactLaw | None = None, max_steps: int = MAX_STEPS,
 ) -> PhysicsTrace:
     """Press-and-release of the MuJoCo finger on ``obj`` under the contact law (see the module docstring).
 
@@ -116,6 +119,7 @@ def run_rigid_press(
         young: override of the Young's modulus, Pa (stability studies): the object is taken as homogeneous.
         mesh: the object's pre-loaded trimesh mesh, if a mesh object.
         law: the press point's contact law (computed here when not given; a SimSource caches it).
+        max_steps: step budget; a longer press is refused before it runs.
 
     Raises:
         SimulationDiverged: MuJoCo warning, NaN, runaway penetration or speed, naming what to change.
@@ -125,6 +129,7 @@ def run_rigid_press(
     import mujoco
 
     check_resolves_press(profile, timestep, " (rigid)")
+    check_step_budget(profile.duration, timestep, max_steps, " (rigid)")
     drive = FingerDrive() if drive is None else drive
     tip = scene.fingertip
     radius = tip.radius

@@ -69,6 +69,20 @@ def check_run(
 
 #: Fewest physics steps the press phase (first contact to deepest point) may span.
 MIN_PRESS_STEPS = 10
+#: Most physics steps one press may take by default (a press over it is refused before it runs).
+MAX_STEPS = 200_000
+
+
+def check_step_budget(duration: float, timestep: float, max_steps: int, context: str = "") -> int:
+    """Number of steps of ``timestep`` (s) a press of ``duration`` (s) takes; ValidationError over ``max_steps``
+    (nothing runs for minutes without saying so), naming the timestep and the speed to change."""
+    steps = int(np.ceil(duration / timestep)) + 1
+    if steps > max_steps:
+        raise ValidationError(
+            f"the press of {duration:.2f} s needs {steps} steps of {timestep:g} s{context}, over the budget of "
+            f"{max_steps}; use a longer timestep or a faster press (or raise max_steps)"
+        )
+    return steps
 
 
 def check_resolves_press(profile, timestep: float, context: str = "", min_steps: int = MIN_PRESS_STEPS,

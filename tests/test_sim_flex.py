@@ -130,6 +130,7 @@ def test_reduced_volumetric_integration_removes_the_locking_mode():
 
 def test_layer_cells_get_their_own_lame_stiffness_and_pins_hold_the_bottom():
     soft, hard = Material("soft", 2e4, 0.3), Material("hard", 2e6, 0.45)
+    # a 10 mm skin on 10 mm cells: each cell one material
     obj = ObjectSpec("b", "box", (0.04, 0.04, 0.02), (0, 0), hard, layers=(Layer(soft, 0.01),))
     g = flex_model.flex_grid(obj, 0, 0, resolution=0.01, window=0.02)
     fm = flex_model.build_flex_model(Scene((obj,)), obj, g, timestep=0.005)
@@ -144,6 +145,17 @@ def test_layer_cells_get_their_own_lame_stiffness_and_pins_hold_the_bottom():
     # pinned nodes carry no joint: the free nodes' 3 dofs and the tip's one are all there is
     free = (g.cells[0] + 1) * (g.cells[1] + 1) * (g.cells[2] + 1) - len(g.pinned_nodes())
     assert fm.model.nv == 3 * free + 1
+
+
+def test_a_skin_thinner_than_a_cell_mixes_into_it_in_series():
+    soft, hard = Material("soft", 2e4, 0.3), Material("hard", 2e6, 0.3)
+    obj = ObjectSpec("b", "box", (0.04, 0.04, 0.02), (0, 0), hard, layers=(Layer(soft, 0.0025),))
+    g = flex_model.flex_grid(obj, 0, 0, resolution=0.01, window=0.02)  # top cells 10 mm tall, a quarter skin
+    young, poisson = flex_model.cell_moduli(obj, g)
+    top = young[1::2]
+    np.testing.assert_allclose(top, 1.0 / (0.25 / 2e4 + 0.75 / 2e6), rtol=1e-12)
+    np.testing.assert_allclose(young[0::2], 2e6)
+    np.testing.assert_allclose(poisson, 0.3)
 
 
 def test_smoke_press_is_finite_deterministic_and_reuses_its_model():
@@ -242,3 +254,28 @@ def test_a_step_too_long_for_the_press_or_over_the_budget_is_refused_naming_the_
         flex.run_flex_press(Scene((obj,)), obj, target, prof, timestep=1e-4, max_steps=1000)
     with pytest.raises(ValidationError, match="0.75 tip radii"):
         flex.reference_press(young=2e5, depth=0.007)
+
+
+@pytest.mark.physics
+def test_active_sensels_are_the_references_within_one_sensel():
+    """From 0.5 to 3 mm on a 40 mm block, every sensel lit by flex and not by the reference pressure (the contact
+    law, which the FE reference confirms), or the other way round, neighbours one both light."""
+    from scipy.ndimage import binary_dilation
+
+    from palpate.core.world.scene import TaxelSensorSpec
+    from palpate.sim.analytic import law_sensel_pressure
+    from palpate.sim.fingertip import sensel_bounds
+
+    tr = flex.reference_press(young=2e5, height=0.04, depth=0.0031)
+    law = solve_contact_law(AxisymmetricSample(Material("m", 2e5, 0.3), 0.04), R, 0.0035)
+    spec = TaxelSensorSpec()
+    loading = np.arange(len(tr.t)) <= np.argmax(tr.indentation)
+    for depth in (0.5e-3, 1e-3, 1.5e-3, 2e-3, 3e-3):
+        k = int(np.argmin(np.abs(np.where(loading, tr.indentation, np.inf) - depth)))
+        ref = law_sensel_pressure(law, tr.indentation[k:k + 1], sensel_bounds(FingertipSpec()))[0]
+        lit_flex = tr.sensel_pressure[k] * spec.gain > spec.threshold
+        lit_ref = ref * spec.gain > spec.threshold
+        both = lit_flex & lit_ref
+        assert both.any(), depth
+        near = binary_dilation(both, structure=np.ones((3, 3), dtype=bool))
+        assert np.all(near[lit_flex != lit_ref]), (depth, lit_flex.astype(int), lit_ref.astype(int))

@@ -33,7 +33,15 @@ from palpate.core.session.explore import ObjectResult, explore_object
 from palpate.core.session.outputs import write_figures, write_maps
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
-from palpate.core.session.report import SUMMARY_FORMAT, SUMMARY_VERSION, assert_finite, fit_summary, object_summary
+from palpate.core.session.report import (
+    SUMMARY_FORMAT,
+    SUMMARY_VERSION,
+    assert_finite,
+    fit_summary,
+    object_summary,
+    saturation,
+    saturation_warning,
+)
 from palpate.core.session.report import versions as _versions
 from palpate.core.session.sources import PressTarget, scenario_source_maker
 from palpate.core.session.training import TrainingResult, train_memory
@@ -95,6 +103,9 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
         layers = train_layered_memory(memory, training.presses, ex.cell_size, nz)
         layers.save(out / "memory_layers.json")
     timing["training_s"] = time.perf_counter() - t0
+    if training is not None:
+        for name, rs in training.presses.items():
+            _warn(progress, saturation_warning(f"training {name}", saturation(rs)))
 
     t0 = time.perf_counter()
     if scenario.actuator.kind == "sim":
@@ -104,6 +115,7 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
         objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers))
+        _warn(progress, saturation_warning(entry.spec.name, saturation([s.result for s in objects[-1].steps])))
     timing["exploration_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -121,7 +133,8 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
         "format": SUMMARY_FORMAT,
         "version": SUMMARY_VERSION,
         "scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
-                     "fidelity": scenario.fidelity, "description": scenario.description},
+                     "fidelity": scenario.fidelity, "fidelity_tolerance_pct": 100.0 * scenario.fidelity_tolerance,
+                     "description": scenario.description},
         "actuator": scenario.actuator.kind,
         "seed": scenario.seed,
         "materials": list(scenario.references),
@@ -132,6 +145,7 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
             "accuracy": {m: float(np.asarray(crossval.confusion)[i, i]) for i, m in enumerate(scenario.references)},
         },
         "training": {name: [fit_summary(r.fit) for r in rs] for name, rs in presses.items()},
+        "training_saturation": {name: saturation(rs) for name, rs in presses.items()},
         "objects": [object_summary(o) for o in objects],
         "figures": [str(Path(f).relative_to(out)) for f in figures],
         "timing": {k: round(v, 4) for k, v in timing.items()},
@@ -140,6 +154,11 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
     assert_finite(summary)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
+
+
+def _warn(progress: Progress, message: str | None) -> None:
+    if message:
+        progress.message(message)
 
 
 def _say_fidelity(entry: ObjectEntry, scenario: Scenario, make_source, progress: Progress) -> None:

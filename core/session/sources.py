@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from importlib.metadata import entry_points
+from inspect import signature
 from typing import Protocol, runtime_checkable
 
 from palpate.core.errors import ValidationError
@@ -83,9 +84,11 @@ def scenario_source_maker(scenario: Scenario, name: str = "sim"):
     """``make(objects, seed, variability)`` building the registered source ``name`` on the scenario's fingertip and
     sensors: the shape every exploration and training loop asks for a source in."""
     factory = load_source(name)
+    # the scenario's tolerance for ``auto``, given to the sources that take one
+    extra = {"tolerance": scenario.fidelity_tolerance} if "tolerance" in signature(factory).parameters else {}
 
     def make(objects: tuple[ObjectSpec, ...], seed: int, variability: str):
         scene = Scene(objects, scenario.fingertip, scenario.taxels, scenario.pose)
-        return factory(scene, fidelity=scenario.fidelity, seed=seed, variability=variability)
+        return factory(scene, fidelity=scenario.fidelity, seed=seed, variability=variability, **extra)
 
     return make

@@ -111,6 +111,8 @@ class Scenario:
     outputs: OutputSpec = field(default_factory=OutputSpec)
     raw: dict = field(default_factory=dict, repr=False)
     actuator: ActuatorSpec = field(default_factory=ActuatorSpec)
+    #: ``auto``'s tolerance: the largest predicted force error of a fidelity against the reference, fraction.
+    fidelity_tolerance: float = 0.05
 
     @property
     def references(self) -> list[str]:

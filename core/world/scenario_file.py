@@ -58,6 +58,7 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     description = head.get("description", str, "")
     seed = head.integer("seed", 0, lo=0)
     fidelity = head.choice("fidelity", FIDELITIES, "auto")
+    tolerance = head.number("tolerance_pct", 5.0, lo=0.0, lo_open=True, hi=99.0) / 100.0
     head.finish()
 
     materials: dict[str, MaterialEntry] = {}
@@ -185,7 +186,8 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     actuator = _actuator(top.sub("actuator"), base)
     top.finish()
     return Scenario(name, Path(file) if file != "<scenario>" else None, description, seed, fidelity, materials,
-                    fingertip, taxels, pose, training, exploration, tuple(objects), outputs, raw, actuator)
+                    fingertip, taxels, pose, training, exploration, tuple(objects), outputs, raw, actuator,
+                    fidelity_tolerance=tolerance)
 
 
 def parse_actuator(table: dict, file: str = "<scenario>", base: Path | None = None) -> ActuatorSpec:

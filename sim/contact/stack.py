@@ -134,14 +134,17 @@ def varies_laterally(lookup, thickness: float, breaks: list[float], contact_radi
 
 
 def point_law(lookup, thickness: float, breaks: list[float], tip_radius: float, max_depth: float, *,
-              base: str = "bonded", breaks_r=(), cache: dict | None = None, place=None) -> ContactLaw:
+              base: str = "bonded", breaks_r=(), cache: dict | None = None, place=None,
+              lateral: bool = True) -> ContactLaw:
     """The contact law at a press point given its material ``lookup`` (see the module docstring).
 
     ``cache`` (a dict the caller keeps, e.g. one per SimSource) reuses laws: layered ones by their stack (any
     press point with the same column), axisymmetric ones by ``place`` (a hashable naming the press point).
+    ``lateral=False`` takes the column's layers only, whatever varies around (for a caller that cannot wait for
+    the axisymmetric solve, e.g. a servo emulator answering in real time).
     """
     a_deep = 1.2 * math.sqrt(tip_radius * max_depth)
-    lateral = varies_laterally(lookup, thickness, breaks, a_deep)
+    lateral = lateral and varies_laterally(lookup, thickness, breaks, a_deep)
     if not lateral:
         stack = column_stack(lookup, thickness, breaks, base)
         key = ("layered", tip_radius, _signature(stack))
@@ -171,13 +174,13 @@ def _signature(stack: AxisymmetricSample) -> tuple:
 
 
 def object_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip_radius: float,
-               max_depth: float, cache: dict | None = None) -> ContactLaw:
+               max_depth: float, cache: dict | None = None, lateral: bool = True) -> ContactLaw:
     """The contact law of ``obj`` pressed at (x, y) (m) with its top at ``surface_z`` (m), up to ``max_depth`` m;
     the object's bottom is bonded to the table (as the flex fidelity pins it). ``cache``: see :func:`point_law`
     (press points 0.1 mm apart share an axisymmetric law)."""
     place = (obj.name, round(x / 1e-4), round(y / 1e-4), round(surface_z / 1e-6))
     return point_law(object_lookup(obj, x, y, surface_z), surface_z, object_breaks(obj, surface_z), tip_radius,
-                     max_depth, breaks_r=object_radial_breaks(obj, x, y), cache=cache, place=place)
+                     max_depth, breaks_r=object_radial_breaks(obj, x, y), cache=cache, place=place, lateral=lateral)
 
 
 def sample_law(sample: AxisymmetricSample, tip_radius: float, max_depth: float) -> ContactLaw:

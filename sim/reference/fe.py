@@ -70,8 +70,8 @@ def _assemble(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarr
     @BilinearForm
     def axisymmetric(u, v, w):
         rr = w.x[0]
-        eu = (u.grad[0][0], u.grad[1][1], u.value[0] / rr)
-        ev = (v.grad[0][0], v.grad[1][1], v.value[0] / rr)
+        eu = (u.grad[0][0], u.grad[1][1], u[0] / rr)
+        ev = (v.grad[0][0], v.grad[1][1], v[0] / rr)
         gu = u.grad[0][1] + u.grad[1][0]
         gv = v.grad[0][1] + v.grad[1][0]
         tr_u = eu[0] + eu[1] + eu[2]
