@@ -70,7 +70,8 @@ def _precreate_finished(out: Path, variant) -> float:
     """A finished run of ``variant`` that a rerun must keep (its summary carries a marker)."""
     run = out / "runs" / variant.id
     run.mkdir(parents=True)
-    (run / "variant.json").write_text(json.dumps({"id": variant.id, "overrides": variant.overrides}))
+    (run / "variant.json").write_text(json.dumps({"id": variant.id, "overrides": variant.overrides,
+                                                  "digest": variant.digest}))
     (run / "summary.json").write_text(json.dumps({"marker": "kept", "objects": [], "crossval": None}))
     return (run / "summary.json").stat().st_mtime_ns
 
