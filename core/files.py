@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import errno
 import json
+import math
 import os
 import stat
 import tomllib
@@ -56,13 +57,12 @@ def _open_regular(p: Path, what: str):
         fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
         raise _os_error(p, what, exc) from None
-    f = os.fdopen(fd, "rb")
     st = os.fstat(fd)
     if not stat.S_ISREG(st.st_mode):
-        f.close()
+        os.close(fd)
         kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a device, pipe or socket"
         raise ValidationError(f"{p}: {what}: is {kind}, not a regular file")
-    return f, st.st_size
+    return os.fdopen(fd, "rb"), st.st_size
 
 
 def read_bytes(path: str | Path, what: str, limit: str = "text_mb") -> bytes:
@@ -122,11 +122,18 @@ def _no_constant(name: str):
     raise ValueError(f"{name} is not a number JSON allows (expected finite numbers only)")
 
 
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text[:40]} is too large for a number (expected finite numbers only)")
+    return value
+
+
 def parse_json(text: str, source: str, what: str) -> object:
     """Decode a JSON document; ValidationError naming ``source`` (and the line) for anything a file can do wrong:
     invalid JSON, duplicate keys, NaN/Infinity, numbers of more than 4300 digits, nesting over ``json_depth``."""
     try:
-        doc = json.loads(text, object_pairs_hook=_pairs, parse_constant=_no_constant)
+        doc = json.loads(text, object_pairs_hook=_pairs, parse_constant=_no_constant, parse_float=_finite_float)
     except json.JSONDecodeError as exc:
         raise ValidationError(f"{source}:{exc.lineno}: not valid JSON ({what}): {exc.msg}") from None
     except _DuplicateKey as exc:
@@ -135,7 +142,7 @@ def parse_json(text: str, source: str, what: str) -> object:
     except RecursionError:
         raise limits.exceeded("json_depth", f"{source}: {what}: nesting depth", float("inf")) from None
     except ValueError as exc:  # Python's limit on integer digits, or parse_constant
-        raise ValidationError(f"{source}: {what}: {brief(str(exc), 120)}") from None
+        raise ValidationError(f"{source}: {what}: {str(exc)[:120]}") from None
     depth = json_depth(doc)
     limits.check("json_depth", f"{source}: {what}: nesting depth", depth)
     return doc
@@ -169,4 +176,4 @@ def read_toml(path: str | Path, what: str) -> dict:
     except RecursionError:
         raise ValidationError(f"{path}: {what}: nesting too deep to read") from None
     except ValueError as exc:  # Python's limit on integer digits
-        raise ValidationError(f"{path}: {what}: {brief(str(exc), 120)}") from None
+        raise ValidationError(f"{path}: {what}: {str(exc)[:120]}") from None

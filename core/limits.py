@@ -79,8 +79,12 @@ def set_limit(assignment: str) -> None:
 def exceeded(name: str, what: str, value: float) -> ValidationError:
     """The error for ``what`` (naming the file and key) being ``value`` units, over the limit ``name``."""
     lim = LIMITS[name]
-    return ValidationError(f"{what} is {value:.6g} {lim.unit}, over the limit {name} = {limit(name):g} {lim.unit} "
-                           f"(raise it with palpate --limit {name}=N or {ENV}={name}=N; see docs/limits.md)")
+    return ValidationError(f"{what} is {_number(value)} {lim.unit}, over the limit {name} = {_number(limit(name))} "
+                           f"{lim.unit} (raise it with palpate --limit {name}=N or {ENV}={name}=N; see docs/limits.md)")
+
+
+def _number(v: float) -> str:
+    return str(int(v)) if math.isfinite(v) and float(v).is_integer() and abs(v) < 1e15 else f"{v:.4g}"
 
 
 def check(name: str, what: str, value: float) -> None:

@@ -42,7 +42,7 @@ def folder_kind(folder: Path) -> str | None:
         except (OSError, ValueError):
             continue
     # a sweep folder from before the marker, or one killed before its table: runs/<variant>/variant.json
-    if next((folder / "runs").glob("*/variant.json"), None) is not None:
+    if (folder / ".sweep.lock").exists() or next((folder / "runs").glob("*/variant.json"), None) is not None:
         return "sweep"
     return None
 
