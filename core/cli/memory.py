@@ -77,6 +77,15 @@ def _memory_kwargs(args: argparse.Namespace) -> dict:
     return kwargs
 
 
+def _naming(path: Path, learn):
+    """``learn()``, with a model error (too few presses of a material, a singular covariance) naming the table
+    whose rows caused it."""
+    try:
+        return learn()
+    except ValidationError as exc:
+        raise ValidationError(f"{path}: {exc}") from None
+
+
 def _table(header: list[str], rows: list[list[str]]) -> str:
     """Right-aligned columns except the first, separated by two spaces."""
     cells = [header] + rows
@@ -91,7 +100,7 @@ def _table(header: list[str], rows: list[list[str]]) -> str:
 def cmd_train(args: argparse.Namespace) -> int:
     check_output_file(args.output, inputs=[args.params], force=args.force, option="--output")
     params, labels, _ = read_params_csv(args.params)
-    mem = HapticMemory(**_memory_kwargs(args)).fit(params, labels)
+    mem = _naming(args.params, lambda: HapticMemory(**_memory_kwargs(args)).fit(params, labels))
     mem.save(args.output)
     counts = {m: labels.count(m) for m in mem.materials}
     print(f"trained on {len(labels)} presses of {len(mem.materials)} materials "
@@ -105,7 +114,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def cmd_crossval(args: argparse.Namespace) -> int:
     params, labels, _ = read_params_csv(args.params)
-    cv = leave_one_out(params, labels, **_memory_kwargs(args))
+    cv = _naming(args.params, lambda: leave_one_out(params, labels, **_memory_kwargs(args)))
     if args.json:
         print(json.dumps(cv.to_dict(), indent=1))
         return 0

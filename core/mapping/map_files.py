@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import math
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -117,7 +118,7 @@ def read_npz(path: Path, expected: dict[str, tuple[str, ...]]) -> dict[str, np.n
                     out[name] = np.lib.format.read_array(f, allow_pickle=False)
     except ValidationError:
         raise
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError, RuntimeError) as exc:
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, RuntimeError, zlib.error) as exc:
         raise ValidationError(f"{path}: not a readable NPZ file ({brief(str(exc), 120)})") from None
     return out
 

@@ -118,7 +118,7 @@ def parse_memory(doc, source: str = "<memory>") -> MemoryRecord:
     if not isinstance(training, Mapping):
         raise ValidationError(f"{source}: key 'training' must be an object with 'params' and 'labels'")
     t_labels = _get(training, "labels", f"{source}: training")
-    if not isinstance(t_labels, list):
+    if not isinstance(t_labels, list) or not all(isinstance(lab, str) for lab in t_labels):
         raise ValidationError(f"{source}: key 'training.labels' must be a list of material names")
     t_params = _array(_get(training, "params", f"{source}: training"), "training.params", source, (len(t_labels), 4))
     unknown = sorted({lab for lab in t_labels if lab not in materials}, key=str)
