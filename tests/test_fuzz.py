@@ -32,7 +32,7 @@ from fuzz_inputs import KINDS, Try, make_bases, tries
 TRIES = int(os.environ.get("PALPATE_FUZZ_TRIES", "12"))
 SEED = int(os.environ.get("PALPATE_FUZZ_SEED", "17"))
 #: A try still running after this is a hang (the longest valid try, a one-variant sweep, takes ~2 s).
-TRY_SECONDS = 60.0
+TRY_SECONDS = 30.0
 #: Address space a try may add to what the test process maps: a bounded read needs far less.
 MEMORY_HEADROOM = 1.5e9
 BAD = ("unclear", "traceback", "hang", "memory", "outside", "nan")
@@ -156,7 +156,7 @@ def run_tries(all_tries: list[Try]) -> list[tuple[str, str]]:
     i = 0
     while i < len(all_tries):
         here, there = ctx.Pipe()
-        proc = ctx.Process(target=_child, args=(there, all_tries, i, limit), daemon=True)
+        proc = ctx.Process(target=_child, args=(there, all_tries, i, limit))  # not daemonic: a sweep forks
         proc.start()
         there.close()
         current = i
