@@ -33,6 +33,7 @@ LIMITS = {lim.name: lim for lim in (
           "map sidecars, manifests, params tables, finger descriptions)"),
     Limit("json_depth", 64, "levels", "nesting depth of a JSON document"),
     Limit("npz_mb", 512, "MB", "size of a map NPZ file, and the decoded size of each array in it"),
+    Limit("mesh_mb", 256, "MB", "size of a mesh file an object of a scenario names"),
     Limit("png_pixels", 16e6, "pixels", "pixels of one haptic-material PNG, checked before it is decoded"),
     Limit("map_cells", 4e6, "cells", "cells of one map (columns x rows x layers)"),
     Limit("taxels", 4096, "taxels", "taxels of a scenario's fingertip pad (rows x cols)"),

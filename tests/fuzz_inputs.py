@@ -232,13 +232,14 @@ def _sandbox(root: Path, kind: str, i: int) -> tuple[Path, Path]:
     return box, box / "d1" / "d2" / "d3" / "out"
 
 
-def _text_try(rng, box: Path, name: str, base_text: str, parse, dump, json_like: bool) -> tuple[Path, str]:
-    """Write a mutated copy of a text file into ``box``: structure-level (a key), byte-level, or replaced."""
+def _damaged(rng, box: Path, name: str, base_text: str, edit, share: float) -> tuple[Path, str]:
+    """Write a damaged copy of a text file into ``box``: with probability ``share`` edited by ``edit()`` (which
+    returns the new text and a label), else byte-level damage or (1 in 10) the file replaced."""
     path = box / name
     r = rng.random()
-    if r < 0.55:
-        doc, label = mutate_doc(parse(base_text), rng, hostile_values(box), json_like)
-        path.write_text(dump(doc))
+    if r < share:
+        text, label = edit()
+        path.write_text(text)
     elif r < 0.9:
         data, label = mutate_bytes(base_text.encode(), rng, text=True)
         path.write_bytes(data)
@@ -246,6 +247,25 @@ def _text_try(rng, box: Path, name: str, base_text: str, parse, dump, json_like:
         path.write_text(base_text)
         label = replace_file(path, rng, box)
     return path, label
+
+
+def _text_try(rng, box: Path, name: str, base_text: str, parse, dump, json_like: bool) -> tuple[Path, str]:
+    """A damaged structured file (TOML, JSON): one key's value replaced, the key removed or a key added."""
+    def edit():
+        doc, label = mutate_doc(parse(base_text), rng, hostile_values(box), json_like)
+        return dump(doc), label
+
+    return _damaged(rng, box, name, base_text, edit, 0.55)
+
+
+def _line_try(rng, box: Path, name: str, base_text: str, edit_line, first: int = 0) -> tuple[Path, str]:
+    """A damaged line-based file (CSV, Tekscan export): one line changed by ``edit_line(lines, k)``."""
+    def edit():
+        lines = base_text.splitlines()
+        label = edit_line(lines, int(rng.integers(first, len(lines))))
+        return "\n".join(lines) + "\n", label
+
+    return _damaged(rng, box, name, base_text, edit, 0.5)
 
 
 def _json_dump(doc) -> str:
@@ -394,12 +414,7 @@ def _material(rng, box, out, bases) -> Try:
 
 
 def _params(rng, box, out, bases) -> Try:
-    base = (DATA / "thesis_ch6_params.csv").read_text()
-    path = box / "params.csv"
-    r = rng.random()
-    if r < 0.5:
-        lines = base.splitlines()
-        k = int(rng.integers(1, len(lines)))
+    def edit(lines: list[str], k: int) -> str:
         cells = lines[k].split(",")
         j = int(rng.integers(len(cells)))
         cells[j] = str(rng.choice(["nan", "inf", "-1e400", "1e300", "", "x" * 200000, '"unterminated', "1,2",
@@ -407,14 +422,9 @@ def _params(rng, box, out, bases) -> Try:
         lines[k] = ",".join(cells)
         if rng.random() < 0.2:
             lines.insert(k, lines[0])  # a repeated header line in the middle
-        path.write_text("\n".join(lines) + "\n")
-        label = f"line {k + 1} column {j + 1} = {cells[j][:20]!r}"
-    elif r < 0.9:
-        data, label = mutate_bytes(base.encode(), rng, text=True)
-        path.write_bytes(data)
-    else:
-        path.write_text(base)
-        label = replace_file(path, rng, box)
+        return f"line {k + 1} column {j + 1} = {cells[j][:20]!r}"
+
+    path, label = _line_try(rng, box, "params.csv", (DATA / "thesis_ch6_params.csv").read_text(), edit, first=1)
     cmd = str(rng.choice(["train", "crossval"]))
     argv = ("memory", "train", str(path), "-o", str(out / "m.json")) if cmd == "train" else \
         ("memory", "crossval", str(path))
@@ -447,24 +457,14 @@ def _mcap(rng, box, out, bases) -> Try:
 
 
 def _tekscan(rng, box, out, bases) -> Try:
-    base = (DATA / "tekscan_press.csv").read_text()
-    path = box / "export.csv"
-    r = rng.random()
-    if r < 0.5:
-        lines = base.splitlines()
-        k = int(rng.integers(len(lines)))
+    def edit(lines: list[str], k: int) -> str:
         head = lines[k].split(" ")[0] if " " in lines[k] else lines[k][:8]
         value = str(rng.choice(["nan", "inf", "-1", "0", "1e300", "99999999999999999999", "x" * 5000, "",
                                 "9999-12-31T23:59:59Z", "1e-300"]))
         lines[k] = f"{head} {value}" if " " in lines[k] else value
-        path.write_text("\n".join(lines) + "\n")
-        label = f"line {k + 1} = {lines[k][:30]!r}"
-    elif r < 0.9:
-        data, label = mutate_bytes(base.encode(), rng, text=True)
-        path.write_bytes(data)
-    else:
-        path.write_text(base)
-        label = replace_file(path, rng, box)
+        return f"line {k + 1} = {lines[k][:30]!r}"
+
+    path, label = _line_try(rng, box, "export.csv", (DATA / "tekscan_press.csv").read_text(), edit)
     out.mkdir(parents=True, exist_ok=True)
     return Try("Tekscan export", label, box, (path.name,), ("import", "tekscan", str(path), "--out",
                                                              str(out / "rec.mcap")), out=out)

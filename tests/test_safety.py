@@ -413,3 +413,11 @@ def test_scenario_files_are_loaded_through_the_bounded_reader(tmp_path):
     path.symlink_to("/dev/zero")
     with pytest.raises(ValidationError, match="s.toml: scenario file: is a device"):
         load_scenario(path)
+
+
+def test_a_mesh_must_be_a_regular_file(tmp_path):
+    raw = _tiny_raw()
+    (tmp_path / "zero.obj").symlink_to("/dev/zero")
+    raw["objects"][0].update(shape="mesh", mesh=str(tmp_path / "zero.obj"))
+    with pytest.raises(ValidationError, match=r"s.toml: objects\[0\].mesh: is a device, pipe or socket"):
+        parse_scenario(raw, "s.toml", base_dir=tmp_path)

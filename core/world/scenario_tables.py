@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from palpate.core import files, limits
 from palpate.core.errors import ValidationError
 from palpate.core.files import brief
 from palpate.core.names import check_name
@@ -102,11 +103,15 @@ def object_entry(r: TableReader, materials: dict[str, MaterialEntry], base: Path
             isinstance(v, int) and not isinstance(v, bool) and 0 < v <= MAX_CELLS_SIDE for v in grid_shape)):
         raise r.err("grid_cells", f"expected [columns, rows] positive integers (at most {MAX_CELLS_SIDE}), got "
                     f"{brief(grid_shape)}")
+    mesh_path = None
+    if mesh:
+        mesh_path = files.regular_file(resolve_path(base, mesh), f"{r.file}: {r.path}.mesh")
+        limits.check("mesh_mb", f"{r.file}: {r.path}.mesh: {mesh_path}: file size", mesh_path.stat().st_size)
     r.finish()
     try:
         map_materials = tuple(materials[n].material for n in material_map.materials) if material_map else ()
         spec = ObjectSpec(name, shape, size, position, bulk, tuple(layers), tuple(inclusions),
-                          mesh_path=str(resolve_path(base, mesh)) if mesh else None, material_map=material_map,
+                          mesh_path=str(mesh_path) if mesh_path else None, material_map=material_map,
                           map_materials=map_materials)
     except ValidationError as exc:
         raise ValidationError(f"{r.file}: {r.path}: {exc}") from None
