@@ -4,8 +4,9 @@ Each command group lives next to the code it drives and registers itself through
 ``palpate.commands`` (a function ``register(subparsers)``), so that core never imports sim or hardware.
 A command's handler returns an exit code. Every error a user can cause (a palpate error, a file that cannot be
 read or written) is one line on stderr naming the file, key or line, with exit code 2; anything else is a bug,
-reported in one line with exit code 1. ``--debug`` shows the traceback instead. Exit codes: 0 done, 1 failed (a bug,
-or a sweep with failed variants), 2 a user error, 130 interrupted, 141 the reader of stdout went away.
+reported in one line with exit code 1. ``--debug`` shows the traceback instead. Exit codes: 0 done, 1 failed (a
+bug, or a sweep with failed variants), 2 a user error, 130 interrupted, 143 or 129 ended by SIGTERM or SIGHUP (a
+sweep ends its workers first), 141 the reader of stdout went away.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import sys
 from importlib.metadata import entry_points
 
 from palpate.core import __version__
-from palpate.core.errors import PalpateError
+from palpate.core.errors import PalpateError, Terminated
 from palpate.core.limits import LIMITS, set_limit
 
 COMMANDS_GROUP = "palpate.commands"
@@ -68,6 +69,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("palpate: interrupted", file=sys.stderr)
         return 130
+    except Terminated as exc:
+        print(f"palpate: terminated by {exc}", file=sys.stderr)
+        return 128 + exc.signum
     except BrokenPipeError:
         # the reader of our output (``| head``) has gone: say nothing more, and let no later flush fail
         _silence_stdout()

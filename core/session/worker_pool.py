@@ -30,7 +30,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import wait
 
-from palpate.core.errors import PalpateError
+from palpate.core.errors import PalpateError, Terminated
 
 #: Seconds between the watchdog's looks at the parent's pid (where the kernel cannot signal the worker).
 WATCHDOG_PERIOD = 0.5
@@ -57,10 +57,6 @@ class TaskFailure:
     palpate_error: bool = False
 
 
-class Terminated(BaseException):
-    """SIGTERM or SIGHUP reached the parent: unwind, ending the workers on the way."""
-
-
 @contextlib.contextmanager
 def terminating_signals():
     """Within the block, SIGTERM and SIGHUP raise :class:`Terminated` in the main thread (elsewhere: no change)."""
@@ -69,7 +65,7 @@ def terminating_signals():
         return
 
     def handler(signum, _frame):
-        raise Terminated(signal.Signals(signum).name)
+        raise Terminated(signum, signal.Signals(signum).name)
 
     wanted = [s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)) if s is not None]
     old = {s: signal.signal(s, handler) for s in wanted}
