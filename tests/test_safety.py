@@ -421,3 +421,17 @@ def test_a_mesh_must_be_a_regular_file(tmp_path):
     raw["objects"][0].update(shape="mesh", mesh=str(tmp_path / "zero.obj"))
     with pytest.raises(ValidationError, match=r"s.toml: objects\[0\].mesh: is a device, pipe or socket"):
         parse_scenario(raw, "s.toml", base_dir=tmp_path)
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path, data_dir):
+    import subprocess
+    import sys
+
+    mem = tmp_path / "m.json"
+    assert main(["memory", "train", str(data_dir / "thesis_ch6_params.csv"), "-o", str(mem)]) == 0
+    cli = "import sys; from palpate.core.cli import main; sys.exit(main())"
+    proc = subprocess.Popen([sys.executable, "-c", cli, "memory", "show", str(mem)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()  # like `| head -0`: closed before the command writes a byte
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 141 and err == b""

@@ -199,7 +199,7 @@ def variant_digest(raw: dict, scenario: Scenario, base_dir: Path, cache: dict[Pa
     edited base gives a new digest) and the content of every file it names (a trained memory, meshes, actuator
     files, haptic-material folders). A finished run whose recorded digest differs is run again."""
     cache = {} if cache is None else cache
-    paths = list(scenario_inputs(scenario)[1:])  # the scenario itself is the dictionary hashed below
+    paths = [p for p in scenario_inputs(scenario) if p != scenario.path]  # the scenario: the dictionary below
     for obj in raw.get("objects", []) if isinstance(raw.get("objects"), list) else []:
         if isinstance(obj, dict) and isinstance(obj.get("material_map"), str) and obj["material_map"]:
             paths.append(resolve_path(base_dir, obj["material_map"]))
