@@ -253,3 +253,15 @@ def test_workers_end_with_a_killed_sweep_and_release_its_stdout(tmp_path, sig):
     rows = run_sweep(load_sweep(path), out, workers=2, log=lambda s: None)
     assert sum(r["status"] == "done (earlier)" for r in rows) == len(finished)
     assert all(r["status"].startswith("done") for r in rows)
+
+
+def test_the_digest_follows_the_files_a_variant_reads(tmp_path):
+    path = _own_sweep(tmp_path)
+    base = tmp_path / "base.toml"
+    base.write_text(base.read_text().replace("[training]", '[training]\nmemory = "mem.json"'))
+    (tmp_path / "mem.json").write_text('{"a": 1}')
+    first = load_sweep(path).variants
+    assert first[0].digest != first[1].digest  # the seeds differ
+    assert [v.digest for v in load_sweep(path).variants] == [v.digest for v in first]
+    (tmp_path / "mem.json").write_text('{"a": 2}')
+    assert all(a.digest != b.digest for a, b in zip(first, load_sweep(path).variants, strict=True))
