@@ -89,7 +89,10 @@ def prepare_output_folder(out: str | Path, kind: str, *, force: bool = False, in
                 shutil.rmtree(d) if d.is_dir() and not d.is_symlink() else d.unlink()
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        (folder / MARKER).write_text(json.dumps({"kind": kind}) + "\n", encoding="utf-8")
+        marker = folder / MARKER
+        if marker.is_symlink():  # written anew, never through a link to a file elsewhere
+            marker.unlink()
+        marker.write_text(json.dumps({"kind": kind}) + "\n", encoding="utf-8")
     except OSError as exc:
         raise ValidationError(f"{option} {folder}: cannot write there: {exc.strerror or exc}") from None
     return folder

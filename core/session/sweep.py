@@ -105,7 +105,11 @@ def sweep_lock(out: Path):
     """Hold ``OUT/.sweep.lock`` for the block; ValidationError when another sweep holds it. The OS releases the
     lock when the holder ends, however it ends (a killed sweep leaves no stale lock)."""
     path = out / LOCK_FILE
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:  # never through a symlink: truncating the lock file must not truncate a file elsewhere
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+    except OSError as exc:
+        raise ValidationError(f"--out {out}: cannot use {path} as the sweep's lock file "
+                              f"({exc.strerror or exc})") from None
     try:
         try:
             _lock(fd)
