@@ -160,6 +160,10 @@ def test_run_output_folder_rules(tiny_run, tmp_path, capsys):
     assert code == 2 and "--force" in _one_line_error(err, str(out))
     assert main(["run", str(TINY), "--out", str(out), "--quiet", "--force"]) == 0
     assert not (out / "maps" / "old_object.npz").exists() and (out / "notes.txt").read_text() == "mine"
+    # a recording the earlier run made inside its folder goes with it
+    assert main(["run", str(TINY), "--out", str(out), "--quiet", "--force", "--record", str(out / "rec.mcap")]) == 0
+    assert main(["run", str(TINY), "--out", str(out), "--quiet", "--force"]) == 0
+    assert not (out / "rec.mcap").exists() and (out / "notes.txt").read_text() == "mine"
     # a folder that is not a palpate run, a run folder given to replay, a file given as --out
     other = tmp_path / "photos"
     other.mkdir()

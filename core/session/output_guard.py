@@ -56,15 +56,32 @@ def _within(path: Path, folder: Path) -> bool:
     return p == f or f in p.parents
 
 
-def prepare_output_folder(out: str | Path, kind: str, *, force: bool = False, inputs=(), option: str = "--out") -> Path:
+def _extras(folder: Path) -> list[Path]:
+    """Further files an earlier output recorded in its marker as its own (e.g. a run's ``--record`` inside it)."""
+    try:
+        doc = json.loads((folder / MARKER).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return []
+    names = doc.get("extra", []) if isinstance(doc, dict) else []
+    out = []
+    for name in names if isinstance(names, list) else []:
+        if isinstance(name, str) and name and Path(name).name == name and name not in (".", ".."):
+            out.append(folder / name)
+    return out
+
+
+def prepare_output_folder(out: str | Path, kind: str, *, force: bool = False, inputs=(), option: str = "--out",
+                          extra=()) -> Path:
     """Make ``out`` ready for a new output of ``kind`` and mark it; ValidationError (one line) when it may not be.
 
     Args:
         out: the output folder.
         kind: "run", "replay" or "sweep".
-        force: replace an earlier output of the same kind (its files, :data:`OUTPUTS`, are removed first).
+        force: replace an earlier output of the same kind (its files, :data:`OUTPUTS`, and the further files its
+            marker names, are removed first).
         inputs: paths this command reads; none of them may be removed.
         option: how the user named the folder, for messages.
+        extra: further files of this output directly inside ``out`` (names), removed by a later ``force``.
     """
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
@@ -80,7 +97,8 @@ def prepare_output_folder(out: str | Path, kind: str, *, force: bool = False, in
             if not force:
                 raise ValidationError(f"{option} {folder}: already holds a palpate {kind}; add --force to replace "
                                       f"it, or give another folder")
-            doomed = [folder / name for name in OUTPUTS[kind] if (folder / name).exists()]
+            doomed = [p for p in [folder / name for name in OUTPUTS[kind]] + _extras(folder)
+                      if p.exists() or p.is_symlink()]
             for path in inputs:
                 if path is not None and any(_within(Path(path), d) for d in doomed):
                     raise ValidationError(f"{option} {folder}: --force would delete {path}, an input of this "
@@ -92,7 +110,7 @@ def prepare_output_folder(out: str | Path, kind: str, *, force: bool = False, in
         marker = folder / MARKER
         if marker.is_symlink():  # written anew, never through a link to a file elsewhere
             marker.unlink()
-        marker.write_text(json.dumps({"kind": kind}) + "\n", encoding="utf-8")
+        marker.write_text(json.dumps({"kind": kind, "extra": list(extra)}) + "\n", encoding="utf-8")
     except OSError as exc:
         raise ValidationError(f"{option} {folder}: cannot write there: {exc.strerror or exc}") from None
     return folder

@@ -59,7 +59,9 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
     inputs = scenario_inputs(scenario)
     if record is not None:
         check_output_file(record, inputs=inputs, force=force, option="--record", outputs=Path(out_dir), kind="run")
-    out = prepare_output_folder(out_dir, "run", force=force, inputs=inputs)
+    own = [Path(record).name] if record is not None and Path(record).resolve().parent == Path(out_dir).resolve() \
+        else []
+    out = prepare_output_folder(out_dir, "run", force=force, inputs=inputs, extra=own)
     seeds = np.random.SeedSequence(scenario.seed).generate_state(4 + len(scenario.references) + len(scenario.objects))
     source = source or scenario.training.source
     kind = scenario.actuator.kind
