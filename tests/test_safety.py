@@ -232,6 +232,9 @@ def test_size_limits_are_checked_before_reading_and_can_be_raised(tmp_path, monk
     assert code == 2 and "cannot read haptic memory: not found" in _one_line_error(err, "nope.json")
     code, _, err = _cli(["--limit", "bogus=1", "memory", "show", big], capsys)
     assert code == 2 and "unknown limit 'bogus'" in _one_line_error(err)
+    code, out, err = _cli(["--limit", "text_mb=300", "memory", "show", big], capsys)  # read, then found NUL bytes
+    assert code == 2 and "not valid JSON" in _one_line_error(err, "big.json")
+    assert limits.ENV not in os.environ  # the limit held for that command only
 
 
 @pytest.mark.parametrize("text, message", [

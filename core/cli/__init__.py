@@ -18,6 +18,7 @@ from importlib.metadata import entry_points
 
 from palpate.core import __version__
 from palpate.core.errors import PalpateError, Terminated
+from palpate.core.limits import ENV as LIMITS_ENV
 from palpate.core.limits import LIMITS, set_limit
 
 COMMANDS_GROUP = "palpate.commands"
@@ -62,6 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     debug = args.debug or os.environ.get("PALPATE_DEBUG", "") not in ("", "0")
+    saved = os.environ.get(LIMITS_ENV)
     try:
         for assignment in args.limit:
             set_limit(assignment)
@@ -82,6 +84,11 @@ def main(argv: list[str] | None = None) -> int:
         code, line = error_line(exc)
         print(line, file=sys.stderr)
         return code
+    finally:  # --limit holds for this command and the processes it started, not for a caller of main()
+        if saved is None:
+            os.environ.pop(LIMITS_ENV, None)
+        else:
+            os.environ[LIMITS_ENV] = saved
 
 
 def error_line(exc: BaseException) -> tuple[int, str]:
