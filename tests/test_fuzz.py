@@ -94,6 +94,11 @@ def _classify_cli(t: Try) -> tuple[str, str]:
     errors = [line for line in text.splitlines() if line.startswith("palpate: ")]
     if code == 0:
         return "ok", ""
+    variants = [line for line in text.splitlines() if ": failed: " in line]
+    if code == 1 and t.argv[0] == "sweep" and variants:  # a sweep whose variants failed, each line saying why
+        named = all(any(n in line for n in t.names) and "traceback in" not in line for line in variants)
+        return ("clear" if named else "unclear" if all("traceback in" not in v for v in variants)
+                else "traceback"), variants[0][:300]
     if "out of memory" in text:
         return "memory", text.strip()[-200:]
     if code == 2 and len(errors) == 1 and errors[0].startswith("palpate: error: ") and "Traceback" not in text:

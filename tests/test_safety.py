@@ -442,3 +442,21 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path, data_dir):
     proc.stdout.close()  # like `| head -0`: closed before the command writes a byte
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 141 and err == b""
+
+
+def test_a_png_shorter_than_its_header_is_named(tmp_path):
+    folder = _material_folder(tmp_path)
+    png = folder / "measured.png"
+    png.write_bytes(png.read_bytes()[:22])
+    with pytest.raises(ValidationError, match="measured.png: not a PNG file"):
+        HapticMaterialMap.read(folder)
+
+
+def test_a_map_reaching_past_its_object_is_named_with_the_scenario_and_object(tmp_path, capsys):
+    raw = tomllib.loads(TINY.read_text())
+    path = tmp_path / "s.toml"
+    path.write_text(TINY.read_text().replace("size_mm = [30.0, 20.0, 40.0]", "size_mm = [1.5, 1.5, 1.5]"))
+    assert "size_mm = [1.5" in path.read_text() and raw["objects"][0]["name"] == "Block"
+    code, _, err = _cli(["run", path, "--out", tmp_path / "out", "--quiet"], capsys)
+    assert code == 2
+    _one_line_error(err, "s.toml: object 'Block', cell [1, 1]", "check the object's size_mm")

@@ -358,7 +358,7 @@ def read_png(root: Path, fname, shape: tuple[int, int], where: str) -> np.ndarra
     if real_root not in Path(os.path.realpath(path)).parents:
         raise ValidationError(f"{where}: {path} leads outside the material folder {root} (a symlink?)")
     head = files.read_bytes_head(path, f"haptic-material map ({where})", 33)
-    if head[:8] != PNG_SIGNATURE or head[12:16] != b"IHDR":
+    if len(head) < 24 or head[:8] != PNG_SIGNATURE or head[12:16] != b"IHDR":
         raise ValidationError(f"{path}: not a PNG file")
     width, height = struct.unpack(">II", head[16:24])
     limits.check("png_pixels", f"{path}: {width} x {height} image: pixels", width * height)
