@@ -61,10 +61,12 @@ def is_finished(run_dir: Path, variant: Variant) -> bool:
     return isinstance(_read_json(run_dir / "summary.json"), dict)
 
 
-def run_variant(raw: dict, base_dir: str, run_dir: str, vid: str, overrides: dict, digest: str = "") -> dict:
+def run_variant(raw: dict, base_dir: str, run_dir: str, vid: str, overrides: dict, digest: str = "",
+                source: str = "") -> dict:
     """Run one variant into ``run_dir`` (the task of both pools); returns its row of key metrics.
 
-    ``run_dir`` is the sweep's own folder of this variant: whatever an unfinished or stale run left there is
+    ``source`` names the variant in messages (the base scenario and the sweep file). ``run_dir`` is the sweep's
+    own folder of this variant: whatever an unfinished or stale run left there is
     removed first. The variant record (with the digest of what is run) is written before the run and
     summary.json last (by the run), so a killed run is never taken for a finished one.
     """
@@ -75,7 +77,7 @@ def run_variant(raw: dict, base_dir: str, run_dir: str, vid: str, overrides: dic
         shutil.rmtree(out)
     prepare_output_folder(out, "run")
     (out / VARIANT_FILE).write_text(json.dumps({"id": vid, "overrides": overrides, "digest": digest}, indent=1))
-    scenario = parse_scenario(raw, f"variant {vid}", base_dir=Path(base_dir))
+    scenario = parse_scenario(raw, source or f"variant {vid}", base_dir=Path(base_dir))
     t0 = time.perf_counter()
     summary = run_scenario(scenario, out, force=True)
     return metrics_row(vid, summary, time.perf_counter() - t0)
@@ -181,8 +183,8 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *, workers: int = 2, ray: str |
         log(f"sweep {sweep.name}: {len(sweep.variants)} variants, {len(rows)} already finished, {len(todo)} to run"
             + (f" ({stale} finished earlier from another base scenario or input files: rerun)" if stale else "")
             + f" on {'Ray (' + ray + ')' if ray else f'{workers} local process(es)'}")
-        tasks = [(v.id, (v.raw, str(sweep.base.parent), str(out / "runs" / v.id), v.id, v.overrides, v.digest))
-                 for v in todo]
+        tasks = [(v.id, (v.raw, str(sweep.base.parent), str(out / "runs" / v.id), v.id, v.overrides, v.digest,
+                         f"{sweep.base} with {sweep.file} (variant {v.id})")) for v in todo]
         outcomes = _run_ray(tasks, workers, ray) if ray else run_tasks(run_variant, tasks, workers)
         for o in outcomes:
             rows[o.key] = o.value if o.ok else _failed(o.key, o.value, out / "runs" / o.key)
