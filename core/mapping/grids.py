@@ -32,7 +32,15 @@ from palpate.core.mapping.geometry import (
     index_along,
 )
 from palpate.core.mapping.map_files import common_meta, construct, meta_value, read_map_files, write_map_files
-from palpate.core.mapping.probability import check_base, check_h_min, check_mask, entropy, entropy_unchecked, update
+from palpate.core.mapping.probability import (
+    check_base,
+    check_h_min,
+    check_mask,
+    check_probs,
+    entropy,
+    entropy_unchecked,
+    update_unchecked,
+)
 
 
 def _read_only(arr: np.ndarray) -> np.ndarray:
@@ -111,7 +119,12 @@ class _CategoricalMap:
         return self
 
     def _update_at(self, index: tuple, p_meas) -> None:
-        self._p[index] = update(self._p[index], p_meas, p_min=self.p_min)
+        """Fuse a measurement whose shape the caller checked; the map's own cells need no re-validation."""
+        try:
+            meas = np.asarray(p_meas, dtype=float)
+        except (TypeError, ValueError):
+            meas = check_probs(p_meas, "likelihood_or_posterior")  # raises, naming what is wrong
+        self._p[index] = update_unchecked(self._p[index], meas, self.p_min)
         self._explored[index] = True
 
     def _meta(self) -> dict:
@@ -216,7 +229,8 @@ class Grid2D(_CategoricalMap):
     def update(self, x: float, y: float, p_meas) -> tuple[int, int]:
         """Fuse one press at (x, y), m, into the cell containing it; returns that cell's (ix, iy)."""
         ix, iy = self.cell_of(x, y)
-        self.update_cell(ix, iy, p_meas)
+        self._check_meas(p_meas)
+        self._update_at((iy, ix), p_meas)
         return ix, iy
 
     def _check_meas(self, p_meas) -> None:

@@ -160,11 +160,19 @@ def update(prior, likelihood_or_posterior, p_min: float = 1e-6) -> np.ndarray:
         )
     if not (np.isfinite(p_min) and 0 < p_min < 1.0 / m):
         raise ValidationError(f"p_min must be in (0, 1/M) = (0, {1.0 / m:.4g}), got {p_min!r}")
-    with np.errstate(divide="ignore"):
+    return update_unchecked(pr, meas, p_min)
+
+
+def update_unchecked(pr: np.ndarray, meas: np.ndarray, p_min: float) -> np.ndarray:
+    """:func:`update` of a validated prior (finite, non-negative, M >= 2; p_min in (0, 1/M)) and a measurement
+    that broadcasts to it: what a map does with its own cells. A measurement holding NaN, inf or a negative value
+    shows in the log-space maximum, and only then is it checked, so the error is :func:`update`'s."""
+    with np.errstate(divide="ignore", invalid="ignore"):
         logp = np.log(pr) + np.log(meas)
     top = logp.max(axis=-1, keepdims=True)
-    empty = ~np.isfinite(top[..., 0])
-    if empty.any():
+    if not math.isfinite(float(top.sum())):
+        check_probs(meas, "likelihood_or_posterior")
+        empty = ~np.isfinite(top[..., 0])
         idx = first_index(empty) if empty.ndim else ()
         raise ValidationError(
             f"cell {idx}: prior and likelihood_or_posterior have no material with non-zero probability in common "
