@@ -14,15 +14,19 @@ too short, too shallow, too few samples, invalid pose): nothing is dropped silen
 
 from __future__ import annotations
 
+import math
+from bisect import bisect_right
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.features import ContactSeries
+from palpate.core.perception.smallstats import line_fit, median_sorted, percentile_sorted
 
 # Consistent scale factor of the median absolute deviation for a Gaussian.
 _MAD_TO_SIGMA = 1.4826
+_SQRT6 = math.sqrt(6)
 # Fewest samples for the line that locates the first contact (two define it, more average the noise).
 _ONSET_FIT_MIN = 4
 
@@ -135,13 +139,21 @@ def estimate_thresholds(
     c = np.asarray(c_P, dtype=float)
     if len(c) == 0:
         raise ValidationError("cannot estimate thresholds from an empty contact series")
-    baseline = float(np.percentile(c, 5))
+    cs = np.sort(c)  # NaN sorts last
+    if not (math.isfinite(cs[0]) and math.isfinite(cs[-1])):
+        raise ValidationError("cannot estimate thresholds: c_P holds NaN or inf")
+    baseline = percentile_sorted(cs, 5)
     # Second differences cancel the steady ramps of pressing and releasing, which would inflate a spread of
     # first differences in a stream that is mostly contact; for white noise their variance is 6 sigma^2.
-    d2 = np.diff(c, 2)
-    noise = float(_MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6)) if len(d2) else 0.0
+    noise = 0.0
+    if len(c) > 2:
+        d1 = c[1:] - c[:-1]
+        d2 = np.sort(d1[1:] - d1[:-1])
+        mad = np.abs(d2 - median_sorted(d2))
+        mad.sort()
+        noise = _MAD_TO_SIGMA * median_sorted(mad) / _SQRT6
     # A floor for perfectly clean data (noise 0): contact must still rise by a thousandth of the stream's range.
-    floor = 1e-3 * (float(c.max()) - baseline) or 1.0
+    floor = 1e-3 * (float(cs[-1]) - baseline) or 1.0
     on = baseline + max(6 * noise, floor) if on_threshold is None else float(on_threshold)
     if off_threshold is None:
         off = baseline + max(3 * noise, 0.25 * floor)
@@ -159,11 +171,17 @@ def estimate_thresholds(
 
 
 def check_series(series: ContactSeries) -> None:
-    for name in ("t", "c_P", "c_A", "height", "xy"):
-        arr = np.asarray(getattr(series, name), dtype=float)
-        if not np.all(np.isfinite(arr)):
-            raise ValidationError(f"ContactSeries.{name} holds NaN or inf; expected finite values")
-    if len(series.t) > 1 and np.any(np.diff(series.t) <= 0):
+    """ValidationError unless every array of the series is finite and its times increase strictly."""
+    names = ("t", "c_P", "c_A", "height", "xy")
+    arrays = [np.asarray(getattr(series, name), dtype=float) for name in names]
+    # NaN and inf survive a sum, so one sum per array checks it; the culprit is looked for only on failure (or on
+    # an overflow of finite values, which then passes).
+    if not math.isfinite(sum(float(a.sum()) for a in arrays)):
+        for name, arr in zip(names, arrays, strict=True):
+            if not np.all(np.isfinite(arr)):
+                raise ValidationError(f"ContactSeries.{name} holds NaN or inf; expected finite values")
+    t = arrays[0]
+    if len(t) > 1 and not (t[1:] > t[:-1]).all():
         raise ValidationError("ContactSeries.t must increase strictly")
 
 
@@ -184,6 +202,7 @@ def segment_presses(
     min_duration: float = 0.1,
     min_depth: float = 0.0005,
     min_samples: int = 5,
+    series_checked: bool = False,
 ) -> Segmentation:
     """Find the presses in a contact series.
 
@@ -194,6 +213,9 @@ def segment_presses(
         min_duration: shortest contact (onset to release) accepted, s.
         min_depth: shallowest press accepted (largest c_D), m.
         min_samples: fewest press-phase samples accepted (>= 3, what a fit needs).
+        series_checked: True when the series is known to be finite with strictly increasing times, as
+            :func:`~palpate.core.perception.features.contact_features` makes it from a synchronised stream; it is
+            then not checked again.
 
     Returns:
         A :class:`Segmentation`: accepted presses and rejected contacts with reasons ("partial: stream ends before
@@ -203,7 +225,8 @@ def segment_presses(
     Raises:
         ValidationError: non-finite series, bad thresholds or limits.
     """
-    check_series(series)
+    if not series_checked:
+        check_series(series)
     check_limits(min_duration, min_depth, min_samples)
     th = estimate_thresholds(series.c_P, on_threshold, off_threshold)
     presses, rejected, _ = segment_series(
@@ -220,20 +243,21 @@ def contact_intervals(c_P: np.ndarray, on: float, off: float) -> list[tuple[int,
     contact); release is the first sample at or below ``off`` after it (None if the stream ends first).
     """
     c = np.asarray(c_P, dtype=float)
-    n = len(c)
-    idx = np.arange(n)
-    last_on = np.maximum.accumulate(np.where(c > on, idx, -1))
-    last_off = np.maximum.accumulate(np.where(c <= off, idx, -1))
-    state = last_on > last_off
-    prev = np.concatenate(([False], state[:-1]))
-    starts = np.flatnonzero(state & ~prev)
-    ends = np.flatnonzero(~state & prev)
+    # Walk the crossings only: a contact starts at the first sample above on after a release and is released at
+    # the first sample at or below off after that (off < on, so no sample is both).
+    ons = np.flatnonzero(c > on).tolist()
+    offs = np.flatnonzero(c <= off).tolist()
     out: list[tuple[int, int | None]] = []
-    for s in starts:
-        k = np.searchsorted(ends, s)
-        release = int(ends[k]) if k < len(ends) else None
-        onset = int(last_off[s]) + 1 if last_off[s] >= 0 else -1
-        out.append((onset, release))
+    k = 0
+    while k < len(ons):
+        start = ons[k]
+        j = bisect_right(offs, start)
+        onset = offs[j - 1] + 1 if j else -1
+        if j == len(offs):
+            out.append((onset, None))
+            break
+        out.append((onset, offs[j]))
+        k = bisect_right(ons, offs[j])
     return out
 
 
@@ -293,7 +317,7 @@ def _build_press(
     t, c_p, h = series.t, series.c_P, series.height
     t_start, t_end = float(t[i0]), float(t[release])
     valid = series.valid[i0 - 1:release + 1]
-    if not np.all(valid):
+    if not valid.all():
         bad = int(np.count_nonzero(~valid))
         return RejectedPress(t_start, t_end,
                              f"invalid pose: {bad} of {len(valid)} samples in a pose gap or outside the pose span",
@@ -304,9 +328,11 @@ def _build_press(
     # The deepest point by the pose and the intensity maximum coincide on good data; when a clock-offset error
     # or a slow pose rate separates them, the samples in between contradict each other (one stream says
     # pressing, the other releasing), so the press phase stops at the first of the two.
-    peak = i0 + min(int(np.argmin(h[i0:release])), int(np.argmax(c_p[i0:release])))
-    h0, t_onset = _first_contact(t, c_p - th.baseline, h, series.valid, i_top, i0, peak, th.on - th.baseline)
-    depth = float(np.max(h0 - h[i0:peak + 1]))
+    peak = i0 + min(int(h[i0:release].argmin()), int(c_p[i0:release].argmax()))
+    sl = slice(i0, peak + 1)
+    h0, t_onset = _first_contact(t, c_p[sl] - th.baseline, h, series.valid, i_top, i0, th.on - th.baseline)
+    indent = h0 - h[sl]
+    depth = float(indent.max())
     if depth < min_depth:
         return RejectedPress(t_start, t_end, f"too shallow: depth {depth * 1e3:.3f} mm < min_depth "
                              f"{min_depth * 1e3:g} mm", index)
@@ -314,7 +340,6 @@ def _build_press(
     if k < min_samples:
         return RejectedPress(t_start, t_end, f"too few samples: {k} press-phase samples < min_samples "
                              f"{min_samples}", index)
-    sl = slice(i0, peak + 1)
     xy = np.asarray(series.xy[sl], dtype=float)
     return Press(
         index=index,
@@ -322,22 +347,22 @@ def _build_press(
         t_peak=float(t[peak]),
         t_release=t_end,
         h0=h0,
-        location=(float(xy[:, 0].mean()), float(xy[:, 1].mean())),
+        location=(float(xy[:, 0].sum()) / k, float(xy[:, 1].sum()) / k),  # np.mean's arithmetic
         depth=depth,
         t=np.asarray(t[sl], dtype=float),
         c_P=np.asarray(c_p[sl], dtype=float),
         c_A=np.asarray(series.c_A[sl], dtype=float),
-        c_D=np.clip(h0 - h[sl], 0.0, None),
+        c_D=np.maximum(indent, 0.0, out=indent),
         xy=xy,
         calibrated=series.calibrated,
     )
 
 
 def _first_contact(
-    t: np.ndarray, excess: np.ndarray, h: np.ndarray, valid: np.ndarray, i_top: int, i0: int, peak: int,
-    detect: float,
+    t: np.ndarray, ex: np.ndarray, h: np.ndarray, valid: np.ndarray, i_top: int, i0: int, detect: float,
 ) -> tuple[float, float]:
-    """Height (m) and time (s) of first contact of the contact whose first sample above the off level is i0.
+    """Height (m) and time (s) of first contact of the contact whose first sample above the off level is i0;
+    ``ex`` is c_P above the baseline over the press phase (from i0 to the peak).
 
     Under eq. 6.6, (c_P - baseline)^(2/3) is linear in height with its root at h0. The line is fitted to the early
     press phase, from the on level (reliably above noise) to half the peak, where sensels hidden by noise
@@ -350,20 +375,18 @@ def _first_contact(
     h_hi = float(np.max(h[approach][valid[approach]], initial=h_free))
     if h_hi <= h_lo:  # not moving into the object at the onset: the last free height is the best we know
         return h_free, float(t[i0 - 1])
-    ex = excess[i0:peak + 1]
-    y = np.clip(ex, 0.0, None) ** (2.0 / 3.0)
     window = np.flatnonzero((ex >= detect) & (ex <= 0.5 * ex.max()))
     if len(window) < _ONSET_FIT_MIN:
         window = np.arange(min(_ONSET_FIT_MIN, len(ex)))
-    x = h[i0:peak + 1][window]
+    x = h[i0:i0 + len(ex)][window]
     h0 = 0.5 * (h_free + h_lo) if h_free > h_lo else h_lo
-    if len(window) >= 2 and np.ptp(x) > 0:
-        slope, intercept = np.polyfit(x, y[window], 1)
+    if len(window) >= 2 and x.max() > x.min():
+        slope, intercept = line_fit(x, np.maximum(ex[window], 0.0) ** (2.0 / 3.0))
         if slope < 0:
-            h0 = float(np.clip(-intercept / slope, h_lo, h_hi))
+            h0 = min(max(-intercept / slope, h_lo), h_hi)
     # Time of first contact: where the approach last crossed h0 going down.
     above = np.flatnonzero(h[i_top:i0] >= h0)
     j = i_top + int(above[-1]) if len(above) else i0 - 1
     hj, hk = float(h[j]), float(h[j + 1])
-    frac = 0.0 if hj == hk else float(np.clip((hj - h0) / (hj - hk), 0.0, 1.0))
+    frac = 0.0 if hj == hk else min(max((hj - h0) / (hj - hk), 0.0), 1.0)
     return h0, float(t[j] + frac * (t[j + 1] - t[j]))
