@@ -146,31 +146,48 @@ def contact_features(
     Raises:
         ValidationError: bad threshold, calibration or press axis, or a calibration returning bad values.
     """
-    if isinstance(noise_threshold, bool) or not isinstance(noise_threshold, int | np.integer):
-        raise ValidationError(f"noise_threshold must be an integer count (0..254), got {noise_threshold!r}")
-    if not 0 <= noise_threshold <= 254:
-        raise ValidationError(f"noise_threshold must be in 0..254 counts, got {noise_threshold}")
+    check_noise_threshold(noise_threshold)
     axis = press_axis_unit(press_axis)
-    counts = np.asarray(stream.counts)
-    n = len(counts)
-    active = counts > noise_threshold
-    c_a = active.reshape(n, -1).sum(axis=1) * float(stream.sensel_area)
-    c_p = _intensity(counts, active, calibration, noise_threshold)
+    c_p, c_a = intensity_and_area(np.asarray(stream.counts), float(stream.sensel_area), noise_threshold,
+                                  calibration)
     position = np.asarray(stream.position, dtype=float)
     z = position[:, 2].copy()
-    # Pressing straight down, the height is z (-(0 x + 0 y - z) is z to the bit, but for the sign of a zero).
-    vertical = axis[0] == 0.0 and axis[1] == 0.0 and axis[2] == -1.0
-    height = z if vertical else -(position @ axis)
     return ContactSeries(
         t=np.asarray(stream.t, dtype=float),
         c_P=c_p,
         c_A=c_a,
-        height=height,
+        height=_height(position, z, axis),
         xy=position[:, :2].copy(),
         valid=np.asarray(stream.valid, dtype=bool),
         calibrated=calibration is not None,
         z=z,
     )
+
+
+def _height(position: np.ndarray, z: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """Height along -axis of positions (n, 3), m: element by element, so a pose's height does not depend on how
+    many poses are computed with it (a matrix product's rounding does), and a stream fed sample by sample gets the
+    same floats."""
+    if axis[0] == 0.0 and axis[1] == 0.0 and axis[2] == -1.0:
+        return z  # pressing straight down: -(0 x + 0 y - z) is z to the bit, but for the sign of a zero
+    return -(position[:, 0] * axis[0] + position[:, 1] * axis[1] + position[:, 2] * axis[2])
+
+
+def check_noise_threshold(noise_threshold) -> None:
+    """ValidationError unless the threshold is an integer count in 0..254."""
+    if isinstance(noise_threshold, bool) or not isinstance(noise_threshold, int | np.integer):
+        raise ValidationError(f"noise_threshold must be an integer count (0..254), got {noise_threshold!r}")
+    if not 0 <= noise_threshold <= 254:
+        raise ValidationError(f"noise_threshold must be in 0..254 counts, got {noise_threshold}")
+
+
+def intensity_and_area(counts: np.ndarray, sensel_area: float, noise_threshold: int,
+                       calibration: Calibration) -> tuple[np.ndarray, np.ndarray]:
+    """c_P (counts, or N when calibrated) and c_A (m^2) of frames (n, rows, cols): eq. 6.2 and 6.3 over the
+    sensels above ``noise_threshold``. The threshold is trusted to be checked (see :func:`contact_features`)."""
+    active = counts > noise_threshold
+    c_a = active.reshape(len(counts), -1).sum(axis=1) * sensel_area
+    return _intensity(counts, active, calibration, noise_threshold), c_a
 
 
 def _intensity(counts: np.ndarray, active: np.ndarray, calibration: Calibration, noise_threshold: int) -> np.ndarray:
