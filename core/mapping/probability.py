@@ -46,7 +46,7 @@ def check_probs(p, name: str, min_ndim: int = 1, normalised: bool = False) -> np
         idx = first_index(arr < 0)
         raise ValidationError(f"{name} must be non-negative; found {arr[idx]} at index {idx}")
     if normalised and arr.size:
-        off = np.abs(arr.sum(axis=-1) - 1.0) > SUM_TOL_INPUT
+        off = np.abs(sum_last(arr) - 1.0) > SUM_TOL_INPUT
         if off.any():
             idx = first_index(off)
             raise ValidationError(
@@ -231,14 +231,14 @@ def update_cells_inplace(cells: np.ndarray, index: np.ndarray, meas: np.ndarray,
             rounds.append(rest[now])
             rest = rest[~now]
     else:
-        rounds = [np.arange(n)]
+        rounds = [None]  # no row repeats: one round, in the order given
     # Rows of M floats moved as one item each (gathers and scatters of whole rows are ~2x faster so).
     row = np.dtype((np.void, cells.itemsize * cells.shape[1]))
     as_rows = cells.view(row).reshape(-1)
     log_p_min = math.log(p_min)
     m = cells.shape[1]
     for sel in rounds:
-        idx, mm = index[sel], np.take(meas, sel, axis=0)
+        idx, mm = (index, meas) if sel is None else (index[sel], np.take(meas, sel, axis=0))
         for b in range(0, len(idx), _BATCH_BLOCK):
             ib, mb = idx[b:b + _BATCH_BLOCK], mm[b:b + _BATCH_BLOCK]
             prior = np.take(cells, ib, axis=0)
