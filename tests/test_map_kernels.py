@@ -78,6 +78,18 @@ def test_batch_update_is_the_per_cell_update_in_order(rng, m):
     np.testing.assert_array_equal(batch.explored, one.explored)
 
 
+def test_a_small_batch_on_a_large_map_is_the_per_cell_update(rng):
+    one, batch = Grid2D(["a", "b", "c"], (60, 50)), Grid2D(["a", "b", "c"], (60, 50))
+    ix, iy = rng.integers(0, 60, 100), rng.integers(0, 50, 100)
+    ix[50:60], iy[50:60] = ix[0], iy[0]  # one cell eleven times
+    meas = rng.dirichlet(np.ones(3), 100)
+    for k in range(100):
+        one.update_cell(int(ix[k]), int(iy[k]), meas[k])
+    batch.update_cells(ix, iy, meas)
+    np.testing.assert_array_equal(batch.probabilities, one.probabilities)
+    np.testing.assert_array_equal(batch.explored, one.explored)
+
+
 def test_batch_voxel_update_is_the_per_voxel_update(rng):
     one, batch = VoxelGrid(["a", "b", "c"], (6, 5, 4)), VoxelGrid(["a", "b", "c"], (6, 5, 4))
     idx = rng.integers(0, [6, 5, 4], size=(500, 3))
@@ -110,8 +122,9 @@ def test_batch_update_rejects_bad_input_and_changes_nothing(rng):
         assert not grid.explored.any()
 
 
-def test_batch_update_of_a_loaded_map_with_exact_zeros(tmp_path):
-    grid = Grid2D(["a", "b", "c"], (3, 1))
+@pytest.mark.parametrize("nx", [3, 40])  # a batch as large as the map, and one much smaller
+def test_batch_update_of_a_loaded_map_with_exact_zeros(tmp_path, nx):
+    grid = Grid2D(["a", "b", "c"], (nx, 1))
     grid.save(tmp_path / "m.npz")
     p = np.load(tmp_path / "m.npz")
     arrays = {k: p[k] for k in p.files}

@@ -135,7 +135,9 @@ class CategoricalMap:
         cells = self._p.reshape(-1, m)
         # Updates clamp every cell above zero, but a loaded map may hold exact zeros: then a measurement must share
         # a material with its cell's prior (checked before anything changes).
-        if flat.size and not self._p.min() > 0:
+        # (a batch much smaller than the map looks at its own cells only)
+        small = 8 * flat.size < len(cells)
+        if flat.size and not (np.take(cells, flat, axis=0) if small else self._p).min() > 0:
             _, first = np.unique(flat, return_index=True)
             disjoint = ~((np.take(cells, flat[first], axis=0) > 0) & (meas[first] > 0)).any(axis=1)
             if disjoint.any():

@@ -222,7 +222,10 @@ def update_cells_inplace(cells: np.ndarray, index: np.ndarray, meas: np.ndarray,
         p_min: clamping floor, in (0, 1/M).
     """
     n = len(index)
-    if n and np.bincount(index, minlength=len(cells)).max() > 1:
+    # Does any row repeat? Counting every row is linear in the map, sorting the batch in the batch.
+    repeats = n and (len(np.unique(index)) < n if 8 * n < len(cells)
+                     else np.bincount(index, minlength=len(cells)).max() > 1)
+    if repeats:
         rounds, rest = [], np.arange(n)
         while len(rest):
             first = np.full(len(cells), n)
