@@ -6,7 +6,8 @@ each taxel frame waits only until a pose sample later than it has arrived, then 
 exactly as :func:`~palpate.core.perception.sync.synchronise` would, its contact features, and goes through a
 :class:`~palpate.core.perception.streaming.StreamSegmenter`. With the same thresholds (e.g. those of a batch run
 or of a calibration stretch) it finds the same presses to the bit, and a sample costs the same however long the
-stream has run: nothing is kept but the frames waiting for a pose, the last two poses and the current contact.
+stream has run: nothing is kept but the frames waiting for a pose, the poses from the one before the oldest
+waiting frame on (two, when the streams keep pace) and the current contact.
 """
 
 from __future__ import annotations
