@@ -35,7 +35,7 @@ def _random_map(rng, shape, m, explored, zeros=False):
     return p, mask
 
 
-@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (7, 1), (15, 9), (16, 16), (17, 5), (33, 40), (40, 3, 4)])
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (7, 1), (15, 9), (32, 16), (33, 40), (64, 3), (65, 7), (40, 3, 4)])
 def test_blocked_eq615_equals_the_plain_formula_bit_for_bit(rng, shape):
     for m, explored, zeros in ((3, 0.3, False), (2, 0.05, True), (5, 0.8, True), (9, 0.5, False)):
         p, mask = _random_map(rng, shape, m, explored, zeros)

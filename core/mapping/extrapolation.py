@@ -119,38 +119,50 @@ def extrapolate_plane(arr: np.ndarray, mask: np.ndarray, w: np.ndarray | None = 
     """
     n0, n1, m = arr.shape[0], arr.shape[1], arr.shape[-1]
     k = arr[0, 0].size if arr.size else m  # values per cell
-    out = arr.copy()
+    kw = k // m  # weights per cell
+    out = np.empty_like(arr)
     src = arr.reshape(n0, n1 * k)
     dst = out.reshape(n0, n1 * k)
     cells = mask.reshape(n0, -1)
+    # Buffers for a block and a row of neighbours each side, with zeros around: off-grid neighbours never enter
+    # the sums, which is the edge/corner rule. Allocated once, so no block pays for fresh memory.
+    rows_max = min(_BLOCK_ROWS, n0) + 2
+    num_pad, w_pad = np.zeros((rows_max + 2, (n1 + 2) * k)), np.zeros((rows_max + 2, (n1 + 2) * kw))
+    num_cols, w_cols = np.empty((rows_max + 2, n1 * k)), np.empty((rows_max + 2, n1 * kw))
     for r0 in range(0, n0, _BLOCK_ROWS):
         r1 = min(r0 + _BLOCK_ROWS, n0)
-        lo, hi = max(r0 - 1, 0), min(r1 + 1, n0)  # one row of neighbours each side
-        wb = inverse_entropy(arr[lo:hi], base, h_min) if w is None else w[lo:hi]
+        lo, hi = max(r0 - 1, 0), min(r1 + 1, n0)
+        rows = hi - lo
+        num_pad[rows + 1] = 0.0  # below the grid's last row (or not read)
+        w_pad[rows + 1] = 0.0
         # Unexplored cells weigh nothing, so for them the 3x3 box sum is exactly the sum over the 8 neighbours
-        # (no subtraction of a huge certain centre, no cancellation); explored cells are not written. Off-grid
-        # neighbours never enter the sums (zeros), which is the edge/corner rule.
-        wb = np.where(cells[lo:hi], wb.reshape(hi - lo, -1), 0.0)
-        num = _box_rows(np.repeat(wb, m, axis=1) * src[lo:hi], k, r0 - lo, r1 - lo)
-        den = _box_rows(wb, k // m, r0 - lo, r1 - lo)
+        # (no subtraction of a huge certain centre, no cancellation); explored cells are not written.
+        wb = w_pad[1:rows + 1, kw:kw + n1 * kw]
+        w_all = inverse_entropy(arr[lo:hi], base, h_min) if w is None else w[lo:hi]
+        np.multiply(w_all.reshape(rows, -1), cells[lo:hi], out=wb)  # where(explored, w, 0): w is finite, >= 0
+        np.multiply(np.repeat(wb, m, axis=1), src[lo:hi], out=num_pad[1:rows + 1, k:k + n1 * k])
+        num = _box_rows(num_pad, num_cols, k, rows, r0 - lo, r1 - lo)
+        den = _box_rows(w_pad, w_cols, kw, rows, r0 - lo, r1 - lo)
         target = ~cells[r0:r1] & (den > 0)
         num /= np.repeat(np.where(target, den, 1.0), m, axis=1)
-        np.copyto(dst[r0:r1], num, where=np.repeat(target, m, axis=1))
+        block = dst[r0:r1]
+        np.copyto(block, src[r0:r1])
+        np.copyto(block, num, where=np.repeat(target, m, axis=1))
     return out
 
 
-#: Rows per block of :func:`extrapolate_plane`: a block's few temporaries stay in a core's cache on a 1000-cell row.
-_BLOCK_ROWS = 16
+#: Rows per block of :func:`extrapolate_plane`: a block's few buffers stay in a core's cache on a 1000-cell row.
+_BLOCK_ROWS = 32
 
 
-def _box_rows(a: np.ndarray, k: int, a0: int, a1: int) -> np.ndarray:
-    """3x3 box sums of rows a0:a1 of ``a`` (rows, cells x k values), zeros beyond its edges, added in
-    :func:`~palpate.core.mapping.neighbourhood.box3_sum`'s order (columns then rows; centre + one side, + other)."""
-    rows, width = a.shape
-    pad = np.zeros((rows + 2, width + 2 * k))
-    pad[1:-1, k:width + k] = a
-    h = pad[:, k:width + k] + pad[:, :width]
-    h += pad[:, 2 * k:]
+def _box_rows(pad: np.ndarray, cols: np.ndarray, k: int, rows: int, a0: int, a1: int) -> np.ndarray:
+    """3x3 box sums of rows a0:a1 of the block held in ``pad`` (its first ``rows`` + 2 rows, zeros around, cells
+    of k values side by side), added in :func:`~palpate.core.mapping.neighbourhood.box3_sum`'s order: columns
+    then rows, each centre + one side, then + the other. ``cols`` takes the column sums."""
+    width = pad.shape[1] - 2 * k
+    h = cols[:rows + 2]
+    np.add(pad[:rows + 2, k:k + width], pad[:rows + 2, :width], out=h)
+    h += pad[:rows + 2, 2 * k:]
     v = h[a0 + 1:a1 + 1] + h[a0:a1]
     v += h[a0 + 2:a1 + 2]
     return v
