@@ -66,12 +66,14 @@ def test_same_seed_gives_the_same_stream():
     assert all(np.array_equal(x.position, y.position) for x, y in zip(a.poses, b.poses, strict=True))
 
 
-def test_cylinder_rim_press_runs_rigid_and_sees_less_force_than_the_flat_top():
+def test_cylinder_rim_press_runs_rigid_and_sees_less_force_than_the_centre():
     obj = ObjectSpec("c", "cylinder", (0.02, 0.03), (0.0, 0.0), Material("m", 2e5))
     src = SimSource(Scene((obj,)), fidelity="auto")
     centre = src.press(PressTarget(0.0, 0.0, depth=0.002))
     rim = src.press(PressTarget(0.0185, 0.0, depth=0.002))
-    assert centre.meta["fidelity"] == rim.meta["fidelity"] == "rigid"
+    # the centre's contact is flat and far from the rim (analytic, the cheapest within tolerance); at the rim the
+    # contact crosses the edge, which only rigid (and flex) follow
+    assert centre.meta["fidelity"] == "analytic" and rim.meta["fidelity"] == "rigid"
     assert rim.truth.force.max() < 0.8 * centre.truth.force.max()  # part of the tip hangs over the edge
 
 

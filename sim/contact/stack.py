@@ -159,8 +159,14 @@ def point_law(lookup, thickness: float, breaks: list[float], tip_radius: float, 
     else:
         e, nu, _ = lookup(np.zeros((1, 2)), np.array([1e-7]))
         surface = Material("surface", young=float(e[0]), poisson=float(nu[0]))
+        column = point_law(lookup, thickness, breaks, tip_radius, max_depth, base=base, cache=cache, lateral=False)
+
+        def column_lookup(offsets: np.ndarray, depths: np.ndarray):
+            young, poisson, _ = lookup(np.zeros_like(offsets), depths)  # the axis' material, everywhere
+            return young, poisson, np.ones(len(depths), dtype=bool)
+
         law = axisymmetric_law(lookup, thickness, tip_radius, max_depth, base=base, breaks_z=breaks,
-                               breaks_r=breaks_r, surface=surface)
+                               breaks_r=breaks_r, surface=surface, column=column, column_lookup=column_lookup)
     if cache is not None and key is not None:
         if len(cache) > 512:  # a long run pressing everywhere must not grow without bound
             cache.clear()
