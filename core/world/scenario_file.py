@@ -27,7 +27,13 @@ from palpate.core.world.scenario import (
     Scenario,
     TrainingSpec,
 )
-from palpate.core.world.scenario_tables import extrapolation_passes, object_entry, optional_force, training_source
+from palpate.core.world.scenario_tables import (
+    extrapolation_passes,
+    object_entry,
+    optional_force,
+    realism_spec,
+    training_source,
+)
 from palpate.core.world.scene import FingertipSpec, Material, PoseSensorSpec, TaxelSensorSpec
 from palpate.core.world.table_reader import REQUIRED, TableReader, resolve_path
 
@@ -183,9 +189,10 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     )
     out.finish()
     actuator = _actuator(top.sub("actuator"), base)
+    realism = realism_spec(top.sub("realism"), base)
     top.finish()
     return Scenario(name, Path(file) if file != "<scenario>" else None, description, seed, fidelity, materials,
-                    fingertip, taxels, pose, training, exploration, tuple(objects), outputs, raw, actuator)
+                    fingertip, taxels, pose, training, exploration, tuple(objects), outputs, raw, actuator, realism)
 
 
 def parse_actuator(table: dict, file: str = "<scenario>", base: Path | None = None) -> ActuatorSpec:
