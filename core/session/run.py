@@ -26,8 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.io.realism_figures import plot_sim_vs_real
 from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.param_stats import table_from_csv, table_from_fits
 from palpate.core.session.actuators import open_actuators
 from palpate.core.session.explore import ObjectResult, explore_object
 from palpate.core.session.outputs import write_figures, write_maps
@@ -35,8 +37,9 @@ from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import SUMMARY_FORMAT, SUMMARY_VERSION, assert_finite, fit_summary, object_summary
 from palpate.core.session.report import versions as _versions
+from palpate.core.session.sim_to_real import sim_to_real_summary
 from palpate.core.session.sources import PressTarget, scenario_source_maker
-from palpate.core.session.training import TrainingResult, train_memory
+from palpate.core.session.training import TrainingResult, run_seeds, train_memory
 from palpate.core.world.scenario import ObjectEntry, Scenario
 from palpate.core.world.workspace import map_geometries
 
@@ -53,7 +56,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
     progress = progress or Progress(enabled=False)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    seeds = np.random.SeedSequence(scenario.seed).generate_state(4 + len(scenario.references) + len(scenario.objects))
+    seeds = run_seeds(scenario)
     source = source or scenario.training.source
     kind = scenario.actuator.kind
     geometries = map_geometries(scenario)
@@ -114,6 +117,13 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
     presses = {} if training is None else training.presses
     figures = (write_figures(out / "figures", presses, objects, render_3d=scenario.outputs.render_3d)
                if scenario.outputs.figures else [])
+    sim_to_real = None
+    if training is not None and scenario.realism.real_params is not None:
+        real = table_from_csv(scenario.realism.real_params)
+        sim = table_from_fits({name: [r.fit for r in rs] for name, rs in presses.items()})
+        sim_to_real = sim_to_real_summary(sim, real, scenario.realism.real_params)
+        if scenario.outputs.figures:
+            figures.append(plot_sim_vs_real(out / "figures" / "sim_vs_real.png", sim, real, memory.ddof))
     timing["figures_s"] = time.perf_counter() - t0
 
     crossval = None if training is None else training.crossval
@@ -132,6 +142,8 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
             "accuracy": {m: float(np.asarray(crossval.confusion)[i, i]) for i, m in enumerate(scenario.references)},
         },
         "training": {name: [fit_summary(r.fit) for r in rs] for name, rs in presses.items()},
+        "realism": scenario.realism.profile,
+        "sim_to_real": sim_to_real,
         "objects": [object_summary(o) for o in objects],
         "figures": [str(Path(f).relative_to(out)) for f in figures],
         "timing": {k: round(v, 4) for k, v in timing.items()},
