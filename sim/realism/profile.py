@@ -80,6 +80,8 @@ class TaxelRealism:
     """Non-idealities of a resistive taxel pad (order of Tekscan's published specifications).
 
     Attributes:
+        sensitivity: the real pad's gain relative to the scenario's ``gain_counts_per_kpa`` (Tekscan's sensitivity
+            setting and the pad's own response; what a calibration to recorded counts finds). 1: as the scenario.
         gain_spread: coefficient of variation of the sensels' gains left after equilibration, drawn once per
             session (Tekscan equilibrates to a few percent).
         gain_drift: press-to-press random walk of the whole pad's gain, relative (temperature, shear of the pad
@@ -93,6 +95,7 @@ class TaxelRealism:
             ghosting of the matrix scan).
     """
 
+    sensitivity: float = 1.0
     gain_spread: float = 0.0
     gain_drift: float = 0.0
     hysteresis: float = 0.0
@@ -101,7 +104,8 @@ class TaxelRealism:
     crosstalk: float = 0.0
 
     def __post_init__(self) -> None:
-        _check("TaxelRealism", {"gain_spread": (self.gain_spread, 0.0, 0.5), "gain_drift": (self.gain_drift, 0.0, 0.5),
+        _check("TaxelRealism", {"sensitivity": (self.sensitivity, 0.01, 100.0),
+                                "gain_spread": (self.gain_spread, 0.0, 0.5), "gain_drift": (self.gain_drift, 0.0, 0.5),
                                 "hysteresis": (self.hysteresis, 0.0, 0.5), "creep": (self.creep, 0.0, 0.5),
                                 "nonlinearity": (self.nonlinearity, 0.0, 5.0),
                                 "crosstalk": (self.crosstalk, 0.0, 0.2)})
@@ -109,7 +113,8 @@ class TaxelRealism:
     @property
     def active(self) -> bool:
         """True when any non-ideality is on."""
-        return any(getattr(self, f.name) > 0 for f in fields(self))
+        return self.sensitivity != 1.0 or any(getattr(self, f.name) > 0 for f in fields(self)
+                                              if f.name != "sensitivity")
 
 
 @dataclass(frozen=True)

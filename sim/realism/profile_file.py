@@ -17,7 +17,7 @@ is an error naming the file and the key (``x.toml: press.tilt_deg: must be <= 29
     [press]          # speed_cv, depth_cv, lateral_mm, hold_s, smooth, tilt_deg, slip, tremor_mm
     tilt_deg = 5.0
 
-    [taxels]         # gain_spread, gain_drift, hysteresis, creep, nonlinearity, crosstalk
+    [taxels]         # sensitivity, gain_spread, gain_drift, hysteresis, creep, nonlinearity, crosstalk
     [pose]           # latency_ms, clock_offset_ms, clock_wander_ms
     [material]       # relaxation, relaxation_time_s, softening, softening_presses
     [provenance]     # free record (strings, numbers, arrays, tables): references, or the calibration's fit
@@ -126,7 +126,8 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
         )
         pr.finish()
         tx = top.sub("taxels")
-        taxels = TaxelRealism(**{k: tx.number(k, 0.0, lo=0.0) for k in
+        taxels = TaxelRealism(sensitivity=tx.number("sensitivity", 1.0, lo=0.01, hi=100.0),
+                              **{k: tx.number(k, 0.0, lo=0.0) for k in
                                  ("gain_spread", "gain_drift", "hysteresis", "creep", "nonlinearity", "crosstalk")})
         tx.finish()
         po = top.sub("pose")
@@ -171,6 +172,14 @@ def _check_provenance(value, where: TableReader, depth: int = 0) -> None:
 
 def profile_to_toml(profile: RealismProfile) -> str:
     """The profile as a TOML document that :func:`parse_profile` reads back to an equal profile."""
+    lines: list[str] = []
+    for name, table in profile_tables(profile).items():
+        _emit_table(lines, name, table)
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def profile_tables(profile: RealismProfile) -> dict:
+    """The profile as the tables of its file (keys with units), which :func:`parse_profile` reads."""
     f, p, t, o, m = profile.finger, profile.press, profile.taxels, profile.pose, profile.material
     tables = {
         "profile": {"name": profile.name, "description": profile.description},
@@ -180,19 +189,17 @@ def profile_to_toml(profile: RealismProfile) -> str:
         "press": {"speed_cv": p.speed_cv, "depth_cv": p.depth_cv, "lateral_mm": p.lateral_std * 1e3,
                   "hold_s": p.hold_std, "smooth": p.smooth, "tilt_deg": float(np.rad2deg(p.tilt_std)),
                   "slip": p.slip_std, "tremor_mm": p.tremor * 1e3},
-        "taxels": {"gain_spread": t.gain_spread, "gain_drift": t.gain_drift, "hysteresis": t.hysteresis,
-                   "creep": t.creep, "nonlinearity": t.nonlinearity, "crosstalk": t.crosstalk},
+        "taxels": {"sensitivity": t.sensitivity, "gain_spread": t.gain_spread, "gain_drift": t.gain_drift,
+                   "hysteresis": t.hysteresis, "creep": t.creep, "nonlinearity": t.nonlinearity,
+                   "crosstalk": t.crosstalk},
         "pose": {"latency_ms": o.latency * 1e3, "clock_offset_ms": o.clock_offset_std * 1e3,
                  "clock_wander_ms": o.clock_wander * 1e3},
         "material": {"relaxation": m.relaxation, "relaxation_time_s": m.relaxation_time, "softening": m.softening,
                      "softening_presses": m.softening_presses},
     }
-    lines: list[str] = []
-    for name, table in tables.items():
-        _emit_table(lines, name, table)
     if profile.provenance:
-        _emit_table(lines, "provenance", profile.provenance)
-    return "\n".join(lines).rstrip() + "\n"
+        tables["provenance"] = profile.provenance
+    return tables
 
 
 def _value(v) -> str:

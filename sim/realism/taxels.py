@@ -4,7 +4,8 @@
 *reports* (Pa), before :func:`palpate.sim.sensors.taxel_counts` applies the gain, noise, 8-bit rounding, saturation
 and threshold. In order:
 
-1. gain: each sensel's gain after equilibration (a session-long map) times the pad's drift for this press;
+1. gain: the pad's sensitivity times each sensel's gain after equilibration (a session-long map) times the pad's
+   drift for this press;
 2. creep: under load the output rises by ``creep`` per decade of the time the sensel has been loaded
    (1 + creep log10(1 + t_loaded / 1 s); the clock restarts when the sensel unloads);
 3. hysteresis: unloading reads higher than loading: y = p (1 + h) - h p^2 / p_peak, with p_peak the sensel's
@@ -50,7 +51,7 @@ class TaxelResponse:
     def __call__(self, t: np.ndarray, pressure: np.ndarray) -> np.ndarray:
         """Reported pressure, Pa, shape (n, rows, cols), of true mean sensel pressures (n, rows, cols) at times t."""
         r = self.realism
-        p = np.maximum(np.asarray(pressure, dtype=float), 0.0) * self.gains[None]
+        p = np.maximum(np.asarray(pressure, dtype=float), 0.0) * (r.sensitivity * self.gains)[None]
         loaded = p > 0
         if r.creep > 0:
             p = p * (1.0 + r.creep * np.log10(1.0 + _loaded_time(t, loaded) / CREEP_REFERENCE_S))
