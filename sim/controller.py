@@ -86,6 +86,8 @@ class Variability:
             sits) per metre of indentation, m/m, in a random direction; the skin stays stuck to the object.
         tremor: amplitude of physiological tremor along the press axis, m (8-12 Hz; ~0.05-0.2 mm for a finger
             held against a light load, Elble & Koller 1990). 0 for none.
+        force_scale: the force a person actually stops at, relative to the instructed limit (people palpating
+            soft objects press far more lightly than a stated "up to 10 N"; 1 for a robot).
     """
 
     speed_cv: float = 0.15
@@ -96,6 +98,7 @@ class Variability:
     tilt_std: float = 0.0
     slip_std: float = 0.0
     tremor: float = 0.0
+    force_scale: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("speed_cv", "depth_cv", "lateral_std", "hold_std", "tilt_std", "slip_std", "tremor"):
@@ -104,6 +107,8 @@ class Variability:
                 raise ValidationError(f"Variability.{name} must be a finite value >= 0, got {v!r}")
         if self.speed_cv >= 0.5 or self.depth_cv >= 0.5:
             raise ValidationError("Variability.speed_cv and depth_cv must stay below 0.5 (a press cannot reverse)")
+        if not (np.isfinite(self.force_scale) and 0.01 <= self.force_scale <= 10.0):
+            raise ValidationError(f"Variability.force_scale must be in [0.01, 10], got {self.force_scale!r}")
         if self.tilt_std >= np.deg2rad(30.0):
             raise ValidationError("Variability.tilt_std must stay below 30 deg (the pad would leave the contact)")
 
@@ -172,14 +177,14 @@ def press_profile(
         force_target = None
         if target.force is not None and depth_for_force is not None:
             # Depth and force limit: stop at whichever comes first, as a person pressing a hard sample does.
-            force_limit = float(target.force) * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
+            force_limit = float(target.force) * v.force_scale * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
             depth_at_limit = float(depth_for_force(force_limit))
             if np.isfinite(depth_at_limit) and 0 < depth_at_limit < depth:
                 depth, force_target = depth_at_limit, force_limit
     else:
         if depth_for_force is None:
             raise ValidationError("press_profile: a force target needs depth_for_force (force N -> depth m)")
-        force_target = float(target.force) * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
+        force_target = float(target.force) * v.force_scale * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
         depth = float(depth_for_force(force_target))
         if not (np.isfinite(depth) and depth > 0):
             raise ValidationError(f"press_profile: depth_for_force({force_target}) gave {depth!r}, expected > 0 m")

@@ -140,3 +140,18 @@ def test_a_profile_changes_the_streams_and_says_what_it_drew():
     assert c_p[0] != c_p[1]
     assert b.meta["realism"]["profile"] == "lab"
     assert b.meta["realism"]["pulp_stiffness_scale"] > 0
+
+
+def test_ideal_keeps_todays_numbers():
+    """The fits of two human-like analytic presses as the simulation gave them before realism profiles existed
+    (main at afd7437). If the contact mechanics change on purpose, these numbers change with them; the ideal
+    profile itself must never change them."""
+    from palpate.core.perception.press import perceive_press
+    from palpate.sim import simulate_press
+
+    before = {0: [50.62541781762186, -4.255218965978145, 0.5485170113225207, -26.325836383437718],
+              1: [47.89360809242321, -18.21294416133418, 0.5764585600695866, -27.42489636476057]}
+    for seed, params in before.items():
+        fit = perceive_press(simulate_press(60e3, 0.4, fidelity="analytic", depth=0.004, seed=seed,
+                                            variability="human")).fit
+        np.testing.assert_allclose([fit.n1, fit.n2, fit.a1, fit.a2], params, rtol=1e-9)

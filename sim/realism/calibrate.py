@@ -87,6 +87,7 @@ FREE_PARAMETERS = {p.key: p for p in (
     FreeParameter("press.tilt_deg", 0.0, 12.0),
     FreeParameter("press.slip", 0.0, 0.3),
     FreeParameter("press.tremor_mm", 0.0, 0.3),
+    FreeParameter("press.force_scale", 0.05, 1.0, log=True),
     FreeParameter("taxels.sensitivity", 0.5, 30.0, log=True),
     FreeParameter("taxels.gain_spread", 0.0, 0.3),
     FreeParameter("taxels.gain_drift", 0.0, 0.3),
@@ -222,6 +223,34 @@ def objective(sim: np.ndarray, real: np.ndarray) -> float:
     return float(np.sum(((sim - real) / SCALES[None, :]) ** 2))  # an infinite scale weighs 0
 
 
+def match_moduli(table: PressTable, scenario: Scenario, start: RealismProfile, free: Sequence[FreeParameter],
+                 values: Sequence[float], moduli: Sequence[int], seed: int, fidelity: str,
+                 log: Callable[[str], None], steps: int = 5) -> list[float]:
+    """The start's modulus factors moved until each fitted material's mean n1 matches the table's (secant steps in
+    log-log on one seed; n1 grows with the modulus), so the search starts where the locations already agree."""
+    values = list(values)
+    slope = {i: 0.5 for i in moduli}  # d log n1 / d log E: 1 with a rigid finger, less with a compliant one
+    previous: dict[int, tuple[float, float]] = {}
+    for _ in range(steps):
+        try:
+            run = simulate_seed(with_moduli(scenario, free, values), with_values(start, free, values), seed, fidelity)
+        except (PalpateError, ValidationError) as exc:
+            log(f"  matching moduli stopped: {exc}")
+            break
+        for i in moduli:
+            name = free[i].key[6:]
+            sim, real = float(np.mean(run.table.of(name)[:, 0])), float(np.mean(table.of(name)[:, 0]))
+            if sim <= 0:
+                continue
+            x, y = np.log(values[i]), np.log(sim)
+            if i in previous and abs(x - previous[i][0]) > 1e-6:
+                slope[i] = float(np.clip((y - previous[i][1]) / (x - previous[i][0]), 0.1, 2.0))
+            previous[i] = (x, y)
+            values[i] = free[i].value(free[i].position(float(np.exp(x + (np.log(real) - y) / slope[i]))))
+        log("  moduli matched to the mean n1: " + ", ".join(f"{free[i].key}={values[i]:.3g}" for i in moduli))
+    return values
+
+
 @dataclass(frozen=True)
 class Calibration:
     """The result of :func:`calibrate`.
@@ -284,7 +313,11 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
         return j
 
     d = len(free)
-    u0 = np.array([p.position(v) for p, v in zip(free, current_values(start, free), strict=True)])
+    start_values = current_values(start, free)
+    moduli = [i for i, p in enumerate(free) if p.key.startswith("young.")]
+    if moduli:
+        start_values = match_moduli(table, scenario, start, free, start_values, moduli, tune_seeds[0], fidelity, log)
+    u0 = np.array([p.position(v) for p, v in zip(free, start_values, strict=True)])
     n_design = min(max(2 * d + 2, budget // 3), budget - 1)
     design = qmc.LatinHypercube(d=d, seed=search_seed).random(n_design - 1) if n_design > 1 else np.empty((0, d))
     for u in [u0, *design]:

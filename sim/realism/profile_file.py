@@ -14,7 +14,7 @@ is an error naming the file and the key (``x.toml: press.tilt_deg: must be <= 29
     area_factor = 2.0
     stiffness_cv = 0.2
 
-    [press]          # speed_cv, depth_cv, lateral_mm, hold_s, smooth, tilt_deg, slip, tremor_mm
+    [press]          # speed_cv, depth_cv, lateral_mm, hold_s, smooth, tilt_deg, slip, tremor_mm, force_scale
     tilt_deg = 5.0
 
     [taxels]         # sensitivity, gain_spread, gain_drift, hysteresis, creep, nonlinearity, crosstalk
@@ -123,6 +123,7 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
             tilt_std=float(np.deg2rad(pr.number("tilt_deg", 0.0, lo=0.0, hi=29.9))),
             slip_std=pr.number("slip", 0.0, lo=0.0),
             tremor=pr.number("tremor_mm", 0.0, lo=0.0) * 1e-3,
+            force_scale=pr.number("force_scale", 1.0, lo=0.01, hi=10.0),
         )
         pr.finish()
         tx = top.sub("taxels")
@@ -188,7 +189,7 @@ def profile_tables(profile: RealismProfile) -> dict:
                    "stiffness_cv": f.stiffness_cv},
         "press": {"speed_cv": p.speed_cv, "depth_cv": p.depth_cv, "lateral_mm": p.lateral_std * 1e3,
                   "hold_s": p.hold_std, "smooth": p.smooth, "tilt_deg": float(np.rad2deg(p.tilt_std)),
-                  "slip": p.slip_std, "tremor_mm": p.tremor * 1e3},
+                  "slip": p.slip_std, "tremor_mm": p.tremor * 1e3, "force_scale": p.force_scale},
         "taxels": {"sensitivity": t.sensitivity, "gain_spread": t.gain_spread, "gain_drift": t.gain_drift,
                    "hysteresis": t.hysteresis, "creep": t.creep, "nonlinearity": t.nonlinearity,
                    "crosstalk": t.crosstalk},
