@@ -38,8 +38,8 @@ def sim_to_real_summary(sim: PressTable, real: PressTable, real_file: str | Path
         for c in ("n1", "a1"):
             sim_cv, real_cv = cols[c]["sim"]["cv"], cols[c]["real"]["cv"]
             entry[f"cv_ratio_{c}"] = None if not (sim_cv and real_cv) else sim_cv / real_cv
-        entry["negative_n2_per_10_difference"] = 10.0 * (cols["n2"]["sim"]["negative_fraction"]
-                                                         - cols["n2"]["real"]["negative_fraction"])
+        entry["negative_n2_per_10_difference"] = round(10.0 * (cols["n2"]["sim"]["negative_fraction"]
+                                                               - cols["n2"]["real"]["negative_fraction"]), 9)
         out["materials"][name] = entry
     return out
 

@@ -78,7 +78,7 @@ class FreeParameter:
 
 #: Parameters the command may fit, with their search boxes (physically plausible ranges; docs/realism.md).
 FREE_PARAMETERS = {p.key: p for p in (
-    FreeParameter("finger.stiffness_n_per_mm", 0.1, 5.0, log=True),
+    FreeParameter("finger.stiffness_n_per_mm", 0.2, 5.0, log=True),
     FreeParameter("finger.stiffening_per_mm", 0.0, 3.0),
     FreeParameter("finger.area_factor", 1.0, 4.0),
     FreeParameter("finger.stiffness_cv", 0.0, 0.8),
@@ -90,7 +90,7 @@ FREE_PARAMETERS = {p.key: p for p in (
     FreeParameter("press.force_scale", 0.05, 1.0, log=True),
     FreeParameter("taxels.sensitivity", 0.5, 30.0, log=True),
     FreeParameter("taxels.gain_spread", 0.0, 0.3),
-    FreeParameter("taxels.gain_drift", 0.0, 0.3),
+    FreeParameter("taxels.gain_drift", 0.0, 0.08),
     FreeParameter("taxels.hysteresis", 0.0, 0.3),
     FreeParameter("taxels.creep", 0.0, 0.2),
     FreeParameter("taxels.nonlinearity", 0.0, 3.0),
@@ -106,8 +106,10 @@ DEFAULT_FREE = ("finger.stiffness_n_per_mm", "finger.stiffening_per_mm", "finger
                 "material.relaxation")
 
 
-#: Search box of a factor on a reference material's modulus (``young.<material>``).
-MODULUS_FACTOR_BOX = (0.3, 30.0)
+#: Search box of a factor on a reference material's modulus (``young.<material>``): the scenario's moduli are
+#: taken as right to within a factor of 3 (a foam is not a steel; an unbounded factor lets a modulus stand in for
+#: whatever the other parameters cannot reproduce).
+MODULUS_FACTOR_BOX = (1.0 / 3.0, 3.0)
 
 
 def free_parameters(keys: Sequence[str], references: Sequence[str] = ()) -> tuple[FreeParameter, ...]:
@@ -277,9 +279,11 @@ class Calibration:
 
 def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free: Sequence[FreeParameter], *,
               tune_seeds: Sequence[int], report_seeds: Sequence[int], budget: int, fidelity: str | None = None,
-              name: str = "fitted", table_name: str = "table", search_seed: int = 0,
+              name: str = "fitted", table_name: str = "table", search_seed: int = 0, design: int | None = None,
               log: Callable[[str], None] = lambda s: None) -> Calibration:
-    """Fit ``free`` parameters of ``start`` to ``table`` (module docstring). ``budget``: candidates simulated."""
+    """Fit ``free`` parameters of ``start`` to ``table`` (module docstring). ``budget``: candidates simulated;
+    ``design``: how many of them the Latin hypercube takes (None: a third of the budget, at least 2 per parameter;
+    0: Nelder-Mead straight from the start, to refine a fitted profile)."""
     from scipy.optimize import minimize
     from scipy.stats import qmc
 
@@ -318,9 +322,9 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
     if moduli:
         start_values = match_moduli(table, scenario, start, free, start_values, moduli, tune_seeds[0], fidelity, log)
     u0 = np.array([p.position(v) for p, v in zip(free, start_values, strict=True)])
-    n_design = min(max(2 * d + 2, budget // 3), budget - 1)
-    design = qmc.LatinHypercube(d=d, seed=search_seed).random(n_design - 1) if n_design > 1 else np.empty((0, d))
-    for u in [u0, *design]:
+    n_design = min(max(2 * d + 2, budget // 3), budget - 1) if design is None else min(max(design, 1), budget - 1)
+    points = qmc.LatinHypercube(d=d, seed=search_seed).random(n_design - 1) if n_design > 1 else np.empty((0, d))
+    for u in [u0, *points]:
         score(u)
     remaining = budget - len(history)
     if remaining > 0:
@@ -342,7 +346,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
                   "then Nelder-Mead",
         "table": table_name, "scenario": scenario.name, "fidelity": fidelity, "started_from": start.name,
         "tune_seeds": [int(s) for s in tune_seeds], "report_seeds": [int(s) for s in report_seeds],
-        "evaluations": len(history), "objective": j_best, "search_seed": int(search_seed),
+        "evaluations": len(history), "design": n_design, "objective": j_best, "search_seed": int(search_seed),
         "free": {p.key: v for p, v in zip(free, values, strict=True)},
         "moduli_kpa": {m: fitted_scenario.materials[m].material.young * 1e-3 for m in scenario.references},
         "moments": {"names": list(MOMENTS), "materials": list(materials),

@@ -51,6 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--report-seeds", default=DEFAULT_REPORT_SEEDS,
                    help=f"seeds reported on, never tuned on (default {DEFAULT_REPORT_SEEDS})")
     r.add_argument("--budget", type=int, default=150, help="candidates simulated (default 150)")
+    r.add_argument("--design", type=int, default=None,
+                   help="candidates of the Latin hypercube before Nelder-Mead (default: a third of the budget; 0: "
+                   "refine the start profile with Nelder-Mead only)")
     r.add_argument("--fidelity", default=None, choices=("analytic", "rigid", "flex", "auto"),
                    help="fidelity of the simulated presses (default: the scenario's)")
     r.add_argument("--name", default=None, help="the profile's name (default: the output file's stem)")
@@ -95,6 +98,7 @@ def run_calibrate_realism(args: argparse.Namespace) -> int:
           f"{len(free)} free parameters, budget {budget}, tuning seeds {tune}, report seeds {report}", file=sys.stderr)
     result = calibrate(table, scenario, start, free, tune_seeds=tune, report_seeds=report, budget=budget,
                        fidelity=fidelity, name=args.name or args.out.stem, table_name=args.table.name,
+                       design=args.design,
                        log=lambda s: print(s, file=sys.stderr, flush=True))
     try:
         args.out.parent.mkdir(parents=True, exist_ok=True)
