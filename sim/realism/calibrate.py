@@ -341,9 +341,9 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
     tuned = sim_moments(tune_runs, materials, scenario.references, smooth=False)
     report = sim_moments(report_runs, materials, scenario.references, smooth=False)
     provenance = {
-        "method": "method of simulated moments (see sim/realism/calibrate.py): per material log mean n1 and a1, "
-                  "log CV n1 and a1, negative shares of n2 and a2, leave-one-out self posterior; Latin hypercube "
-                  "then Nelder-Mead",
+        "method": "method of simulated moments (sim/realism/calibrate.py): per material log mean n1, log CV of n1 "
+                  "and a1, share of n2 < 0, leave-one-out self posterior (a1's mean and a2's sign reported only); "
+                  "Latin hypercube then Nelder-Mead",
         "table": table_name, "scenario": scenario.name, "fidelity": fidelity, "started_from": start.name,
         "tune_seeds": [int(s) for s in tune_seeds], "report_seeds": [int(s) for s in report_seeds],
         "evaluations": len(history), "design": n_design, "objective": j_best, "search_seed": int(search_seed),
@@ -354,5 +354,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
                     **{f"tuned_{m}": tuned[i].tolist() for i, m in enumerate(materials)},
                     **{f"report_{m}": report[i].tolist() for i, m in enumerate(materials)}},
     }
-    fitted = replace(fitted, provenance=provenance)
+    fitted = replace(fitted, provenance=provenance,
+                     description=f"fitted by palpate calibrate realism to {table_name} on scenario {scenario.name} "
+                                 f"({fidelity}), from {start.name}")
     return Calibration(fitted, materials, real, tuned, report, j_best, len(history), report_runs)
