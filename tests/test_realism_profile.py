@@ -1,6 +1,7 @@
 """Realism profiles: presets, files validated on load (errors name file and key), names resolved, and the ideal
 profile replaying the simulation exactly as without profiles."""
 
+import contextlib
 import tomllib
 from dataclasses import replace
 from pathlib import Path
@@ -15,7 +16,6 @@ from palpate.core.world.scene import Material, ObjectSpec, Scene
 from palpate.sim.controller import HUMAN
 from palpate.sim.realism.profile import IDEAL, LAB, PRESETS, RealismProfile, TaxelRealism
 from palpate.sim.realism.profile_file import (
-    MAX_PROFILE_BYTES,
     load_profile,
     parse_profile,
     profile_to_toml,
@@ -25,6 +25,24 @@ from palpate.sim.realism.profile_file import (
 from palpate.sim.source import SimSource
 
 REPO = Path(__file__).resolve().parent.parent
+
+
+@contextlib.contextmanager
+def limits_lowered(assignment: str):
+    """A limit lowered for the block (palpate --limit NAME=VALUE)."""
+    import os
+
+    from palpate.core.limits import ENV
+
+    before = os.environ.get(ENV)
+    os.environ[ENV] = assignment
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(ENV, None)
+        else:
+            os.environ[ENV] = before
 
 
 @pytest.mark.parametrize("name", sorted(PRESETS))
@@ -76,9 +94,10 @@ def test_unreadable_files_are_refused_before_parsing(tmp_path):
     with pytest.raises(ValidationError, match=r"bad\.toml: not valid TOML"):
         load_profile(bad)
     big = tmp_path / "big.toml"
-    big.write_bytes(b"#" * (MAX_PROFILE_BYTES + 1))
-    with pytest.raises(ValidationError, match="too large"):
-        load_profile(big)
+    big.write_bytes(b"#" * 2_000_001)
+    with pytest.raises(ValidationError, match="text_mb"):
+        with limits_lowered("text_mb=2"):
+            load_profile(big)
     binary = tmp_path / "bin.toml"
     binary.write_bytes(b"\xff\xfe\x00")
     with pytest.raises(ValidationError, match="UTF-8"):

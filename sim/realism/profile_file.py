@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.files import read_text
 from palpate.core.world.table_reader import TableReader
 from palpate.sim.controller import HUMAN, Variability
 from palpate.sim.realism.profile import (
@@ -46,8 +47,6 @@ from palpate.sim.realism.profile import (
     TaxelRealism,
 )
 
-#: Largest profile file read, bytes (a profile is a few kB; refuse anything absurd before parsing).
-MAX_PROFILE_BYTES = 256 * 1024
 #: Where shipped profiles live; a scenario may name one by its file stem.
 PROFILES_DIR = Path(__file__).resolve().parent.parent.parent / "models" / "realism"
 
@@ -79,19 +78,13 @@ def resolve_profile(spec: str | Path | RealismProfile | None) -> RealismProfile:
 
 
 def load_profile(path: str | Path) -> RealismProfile:
-    """Read and validate a profile file (TOML). Errors name the file and the key."""
+    """Read and validate a profile file (TOML, bounded by the ``text_mb`` limit). Errors name the file and the key."""
     p = Path(path)
-    if not p.is_file():
-        raise ValidationError(f"{p}: realism profile not found")
-    size = p.stat().st_size
-    if size > MAX_PROFILE_BYTES:
-        raise ValidationError(f"{p}: {size} bytes is too large for a realism profile (limit {MAX_PROFILE_BYTES})")
+    text = read_text(p, "realism profile")
     try:
-        raw = tomllib.loads(p.read_bytes().decode("utf-8"))
+        raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValidationError(f"{p}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError:
-        raise ValidationError(f"{p}: not a UTF-8 text file") from None
     return parse_profile(raw, str(p), default_name=p.stem)
 
 
