@@ -11,6 +11,7 @@ from palpate.core.io import figures as fig
 from palpate.core.io.exports import export_haptic_material
 from palpate.core.perception.press import PressResult
 from palpate.core.session.explore import ObjectResult
+from palpate.core.session.progress import Progress
 from palpate.core.world.scenario import Scenario
 
 
@@ -33,26 +34,35 @@ def progress_series(obj: ObjectResult) -> fig.ProgressSeries:
 
 
 def write_figures(folder: Path, training: Mapping[str, Sequence[PressResult]], objects: Sequence[ObjectResult],
-                  render_3d: bool = True) -> list[Path]:
-    """Every figure of a run; returns the written paths."""
+                  render_3d: bool = True, progress: Progress | None = None) -> list[Path]:
+    """Every figure of a run, with a progress bar per figure; returns the written paths."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    paths = []
+    jobs: list = []  # (file name, draw(path) -> path or None)
     if training:
-        paths.append(fig.plot_training_series(folder / "training_series.png", training))
-        paths.append(fig.plot_interaction_profiles(folder / "interaction_profiles.png", training))
+        jobs.append(("training_series.png", lambda p: fig.plot_training_series(p, training)))
+        jobs.append(("interaction_profiles.png", lambda p: fig.plot_interaction_profiles(p, training)))
     for obj in objects:
         name, materials = obj.name, list(obj.geometry.materials)
         if not obj.geometry.voxel:
-            paths.append(fig.plot_map_snapshots(folder / f"{name}_map.png", name, obj.snapshots, obj.geometry,
-                                                obj.truth))
-            paths.append(fig.plot_entropy(folder / f"{name}_entropy.png", name, obj.snapshots[-2].probabilities,
-                                          obj.snapshots[-1].probabilities, obj.geometry))
+            jobs.append((f"{name}_map.png", lambda p, o=obj: fig.plot_map_snapshots(p, o.name, o.snapshots,
+                                                                                   o.geometry, o.truth)))
+            jobs.append((f"{name}_entropy.png", lambda p, o=obj: fig.plot_entropy(
+                p, o.name, o.snapshots[-2].probabilities, o.snapshots[-1].probabilities, o.geometry)))
         else:
-            paths.append(fig.plot_voxel_columns(folder / f"{name}_columns.png", name, obj.grid, obj.post, materials))
+            jobs.append((f"{name}_columns.png", lambda p, o=obj, m=materials: fig.plot_voxel_columns(
+                p, o.name, o.grid, o.post, m)))
             if render_3d:
-                p = fig.render_voxels_3d(folder / f"{name}_voxels_3d.png", obj.post, obj.grid.cell_size)
-                if p is not None:
-                    paths.append(p)
-    paths.append(fig.plot_progress(folder / "exploration_progress.png", [progress_series(o) for o in objects]))
+                jobs.append((f"{name}_voxels_3d.png", lambda p, o=obj, m=materials: fig.render_voxels_3d(
+                    p, o.post, o.grid.cell_size, o.name, m)))
+    series = [progress_series(o) for o in objects]
+    jobs.append(("exploration_progress.png", lambda p: fig.plot_progress(p, series)))
+    progress = progress or Progress(enabled=False)
+    progress.start("drawing figures", len(jobs))
+    paths = []
+    for i, (file, draw) in enumerate(jobs):
+        path = draw(folder / file)
+        if path is not None:
+            paths.append(path)
+        progress.update(i + 1, file)
     return paths

@@ -112,7 +112,8 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
 
     t0 = time.perf_counter()
     presses = {} if training is None else training.presses
-    figures = (write_figures(out / "figures", presses, objects, render_3d=scenario.outputs.render_3d)
+    figures = (write_figures(out / "figures", presses, objects, render_3d=scenario.outputs.render_3d,
+                             progress=progress)
                if scenario.outputs.figures else [])
     timing["figures_s"] = time.perf_counter() - t0
 
