@@ -25,6 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cell-mm", type=float, default=10.0,
                    help="grid cell for recordings without map geometry (default 10 mm)")
     p.add_argument("--no-figures", action="store_true", help="skip PNG figures")
+    p.add_argument("--salvage", action="store_true",
+                   help="replay a truncated or damaged recording (e.g. of a killed run) from its complete chunks")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=_replay)
@@ -46,11 +48,13 @@ def _replay(args: argparse.Namespace) -> int:
         layers = LayeredMemory.load(memory, layers_file)
     summary = replay_recording(args.recording, memory, args.out, layers=layers, cell_size=args.cell_mm * 1e-3,
                                progress=Progress(enabled=not (args.quiet or args.json)),
-                               figures=not args.no_figures)
+                               figures=not args.no_figures, salvage=args.salvage)
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
     elif not args.quiet:
+        if summary["salvaged"]:
+            print(f"{args.recording}: damaged or truncated; replayed what its complete chunks hold")
         for obj in summary["objects"]:
             print(f"{obj['name']}: {obj['presses']} presses replayed, mean entropy "
                   f"{obj['mean_entropy_after_postprocessing']:.3f} after post-processing")

@@ -30,17 +30,19 @@ class Progress:
     _total: int = field(default=0, init=False)
     _done: int = field(default=0, init=False)
     _t0: float = field(default=0.0, init=False)
+    _unit: str = field(default="step", init=False)
 
     def _live(self) -> bool:
         return self.enabled and bool(getattr(self.stream, "isatty", lambda: False)())
 
-    def start(self, stage: str, total: int) -> None:
-        """Begin a stage of ``total`` steps (ends the previous stage's bar)."""
+    def start(self, stage: str, total: int, unit: str = "step") -> None:
+        """Begin a stage of ``total`` steps (ends the previous stage's bar); ``unit="B"`` counts bytes."""
         self.close()
         self._stage, self._total, self._done, self._t0 = stage, max(int(total), 1), 0, time.perf_counter()
+        self._unit = unit
         if self._live():
             self._bar = tqdm(total=self._total, desc=stage, file=self.stream, leave=True, dynamic_ncols=True,
-                             unit="step", mininterval=0.1)
+                             unit=unit, unit_scale=unit == "B", unit_divisor=1024, mininterval=0.1)
 
     def update(self, done: int, note: str = "") -> None:
         """Show ``done`` of the stage's steps finished (``note``: a short status after the bar)."""
@@ -60,7 +62,8 @@ class Progress:
             self._bar = None
         elif self.enabled and self._stage:
             elapsed = time.perf_counter() - self._t0
-            self.stream.write(f"{self._stage}: {self._done}/{self._total} in {elapsed:.1f} s {note}".rstrip() + "\n")
+            amount = (f"{self._total / 2**20:.1f} MiB" if self._unit == "B" else f"{self._done}/{self._total}")
+            self.stream.write(f"{self._stage}: {amount} in {elapsed:.1f} s {note}".rstrip() + "\n")
             self.stream.flush()
         self._stage = ""
 

@@ -11,7 +11,6 @@ Two kinds of recordings:
 
 from __future__ import annotations
 
-import bisect
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,19 +37,30 @@ from palpate.core.session.report import assert_finite, fit_summary, versions
 REPLAY_FORMAT = "palpate-replay-summary"
 
 
-def _window(rec: PressRecording, t0: float, t1: float) -> PressRecording:
-    """The part of a recording with t0 <= t <= t1 (frames, poses and truth)."""
-    ft = [f.t for f in rec.frames]
-    pt = [p.t for p in rec.poses]
-    frames = rec.frames[bisect.bisect_left(ft, t0): bisect.bisect_right(ft, t1)]
-    poses = rec.poses[bisect.bisect_left(pt, t0): bisect.bisect_right(pt, t1)]
-    truth = None
-    if rec.truth is not None:
-        keep = (rec.truth.t >= t0) & (rec.truth.t <= t1)
-        if keep.any():
-            truth = GroundTruth(rec.truth.t[keep], rec.truth.force[keep], rec.truth.indentation[keep],
-                                rec.truth.material)
-    return PressRecording(frames, poses, truth, {})
+@dataclass(frozen=True)
+class _Timeline:
+    """A recording's frame and pose times, worked out once so each press window is two binary searches."""
+
+    stream: PressRecording
+    frame_t: np.ndarray
+    pose_t: np.ndarray
+
+    @classmethod
+    def of(cls, rec: PressRecording) -> _Timeline:
+        return cls(rec, np.array([f.t for f in rec.frames]), np.array([p.t for p in rec.poses]))
+
+    def window(self, t0: float, t1: float) -> PressRecording:
+        """The part of the recording with t0 <= t <= t1 (frames, poses and truth)."""
+        rec = self.stream
+        f0, f1 = np.searchsorted(self.frame_t, t0, "left"), np.searchsorted(self.frame_t, t1, "right")
+        p0, p1 = np.searchsorted(self.pose_t, t0, "left"), np.searchsorted(self.pose_t, t1, "right")
+        truth = None
+        if rec.truth is not None:
+            keep = (rec.truth.t >= t0) & (rec.truth.t <= t1)
+            if keep.any():
+                truth = GroundTruth(rec.truth.t[keep], rec.truth.force[keep], rec.truth.indentation[keep],
+                                    rec.truth.material)
+        return PressRecording(rec.frames[f0:f1], rec.poses[p0:p1], truth, {})
 
 
 @dataclass
@@ -70,7 +80,7 @@ def _layers_for(geometry: MapGeometry, memory: HapticMemory, layers: LayeredMemo
 
 def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path, *,
                      layers: LayeredMemory | None = None, cell_size: float = 0.01, progress: Progress | None = None,
-                     figures: bool = True) -> dict:
+                     figures: bool = True, salvage: bool = False) -> dict:
     """Run the perception stack on a recording and write maps, figures and summary.json into ``out_dir``.
 
     Args:
@@ -81,18 +91,28 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
         cell_size: grid cell, m, for recordings without map geometry.
         progress: progress bars (silent by default).
         figures: write PNG figures.
+        salvage: replay what the complete chunks of a truncated or damaged recording hold (a press whose window
+            was cut off is perceived from what is left of it).
     """
     progress = progress or Progress(enabled=False)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    rec = read_recording(path)
+    rec = read_recording(path, salvage=salvage, progress=progress)
     stream = recording_to_press_recording(rec)
     geoms = {name: MapGeometry.from_dict(g, f"{path}: metadata maps.{name}")
              for name, g in (rec.metadata.get("maps") or {}).items()}
     windows = [a for a in rec.annotations if a.kind == "press"]
+    if rec.salvaged and windows:
+        # The damage cut the stream: a press whose window reaches past the last frame or pose is incomplete.
+        end = min(stream.frames[-1].t if stream.frames else -np.inf, stream.poses[-1].t if stream.poses else -np.inf)
+        complete = [a for a in windows if float(a.data.get("t_end", np.inf)) <= end]
+        if len(complete) < len(windows) and progress is not None:
+            progress.message(f"{path}: {len(windows) - len(complete)} press(es) cut off by the damage are left out")
+        windows = complete
     objects: dict[str, _Replayed] = {}
     if windows:
         explore = [a for a in windows if a.data.get("phase") == "exploration"]
+        timeline = _Timeline.of(stream)
         progress.start("replaying presses", len(explore))
         for i, a in enumerate(explore):
             name = a.data.get("object", "recording")
@@ -100,7 +120,7 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
                 raise ValidationError(f"{path}: press annotation names object {name!r}, which has no map geometry "
                                       "in the recording's metadata")
             state = objects.setdefault(name, _Replayed(geoms[name], new_map(geoms[name])))
-            sub = _window(stream, float(a.data["t_start"]), float(a.data["t_end"]))
+            sub = timeline.window(float(a.data["t_start"]), float(a.data["t_end"]))
             target = tuple(float(v) for v in a.data.get("target_m", (np.nan, np.nan)))
             res = perceive_press(sub).at_target(target)
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
@@ -146,7 +166,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             (out / "figures").mkdir(exist_ok=True)
             fig.plot_map_snapshots(out / "figures" / f"{name}_map.png", name,
                                    [MapSnapshot.of(grid, "replayed"), MapSnapshot.of(post, "post-processed")], g)
-    summary = {"format": REPLAY_FORMAT, "version": 1, "recording": str(path), "materials": list(memory.materials),
+    summary = {"format": REPLAY_FORMAT, "version": 1, "recording": str(path), "salvaged": rec.salvaged,
+               "materials": list(memory.materials),
                "source_metadata": rec.metadata, "objects": summary_objects, "versions": versions(),
                "palpate": __version__}
     assert_finite(summary)

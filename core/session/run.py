@@ -104,6 +104,7 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
         objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers))
+    log.close()  # the recording is complete on disk before maps and figures are written
     timing["exploration_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
