@@ -13,6 +13,7 @@ from importlib.metadata import entry_points
 
 from palpate.core import __version__
 from palpate.core.errors import PalpateError
+from palpate.core.extras import EXTRA_OF_MODULE, missing_extra
 
 COMMANDS_GROUP = "palpate.commands"
 
@@ -30,17 +31,16 @@ def build_parser() -> argparse.ArgumentParser:
         try:
             register = ep.load()
         except ImportError as exc:  # an optional extra is missing: say so instead of hiding the command
-            p = sub.add_parser(ep.name, help=f"(unavailable: {exc})")
+            p = sub.add_parser(ep.name, help=f"(unavailable: {missing_extra(exc, 'it')})")
             p.set_defaults(func=_unavailable(ep.name, exc))
             continue
         register(sub)
     return parser
 
 
-def _unavailable(name: str, exc: Exception):
+def _unavailable(name: str, exc: ImportError):
     def handler(args: argparse.Namespace) -> int:
-        print(f"palpate {name}: unavailable because an optional dependency is missing: {exc}. "
-              "Install it with: pip install 'palpate[all]'", file=sys.stderr)
+        print(f"palpate: error: {missing_extra(exc, f'palpate {name}')}", file=sys.stderr)
         return 2
 
     return handler
@@ -54,6 +54,11 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except PalpateError as exc:
         print(f"palpate: error: {exc}", file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as exc:
+        if (exc.name or "").split(".")[0] not in EXTRA_OF_MODULE:
+            raise
+        print(f"palpate: error: {missing_extra(exc, f'palpate {args.command}')}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("palpate: interrupted", file=sys.stderr)

@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from palpate.core.cli.live import add_live_options, hold_live, open_live
 from palpate.core.world.actuator_kinds import actuator_names
 
 
@@ -37,6 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     a.add_argument("--finger", type=Path, default=None, help="dynamixel: finger description (models/fingers/*.toml)")
     p.add_argument("--record", type=Path, default=None,
                    help="also record every press's raw streams to this MCAP file (palpate replay reproduces the maps)")
+    add_live_options(p)
     p.set_defaults(func=_run)
 
 
@@ -50,12 +52,20 @@ def _run(args: argparse.Namespace) -> int:
     progress = Progress(enabled=not (args.quiet or args.json))
     progress.message(f"palpate run {scenario.name}: fidelity {scenario.fidelity}, seed {scenario.seed}, "
                      f"actuator {scenario.actuator.kind} -> {out}")
-    summary = run_scenario(scenario, out, progress=progress, source=args.source, record=args.record)
+    live = open_live(args)
+    try:
+        summary = run_scenario(scenario, out, progress=progress, source=args.source, record=args.record, live=live)
+    except BaseException:
+        if live is not None:
+            live.close()
+        raise
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
     elif not args.quiet:
         print(format_report(summary, out))
+    sys.stdout.flush()
+    hold_live(live, args.live_hold)
     return 0
 
 

@@ -12,6 +12,7 @@ Two kinds of recordings:
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,7 +22,8 @@ from palpate.core import __version__
 from palpate.core.errors import ValidationError
 from palpate.core.io import figures as fig
 from palpate.core.io.mcap_reader import read_recording
-from palpate.core.io.recording import recording_to_press_recording
+from palpate.core.io.mcap_writer import RecordingWriter
+from palpate.core.io.recording import Annotation, recording_to_press_recording
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
 from palpate.core.mapping.snapshot import MapSnapshot
@@ -72,6 +74,35 @@ class _Replayed:
     rows: list = field(default_factory=list)
 
 
+@dataclass
+class _Playback:
+    """Sends each replayed press's streams, and the map after it, to a live view at ``speed`` x real time."""
+
+    writer: RecordingWriter
+    speed: float
+    start: tuple[float, float] | None = None  # (recording time, wall clock) of the first press
+
+    def press(self, sub: PressRecording, annotation: Annotation | None, name: str, grid, geometry: MapGeometry,
+              res: PressResult) -> None:
+        times = [x.t for x in sub.frames[:1] + sub.poses[:1]]
+        t = min(times) if times else (annotation.t if annotation else 0.0)
+        if self.speed > 0:
+            if self.start is None:
+                self.start = (t, time.monotonic())
+            wait = (t - self.start[0]) / self.speed - (time.monotonic() - self.start[1])
+            if wait > 0:
+                time.sleep(wait)
+        if annotation is not None:
+            self.writer.write_annotation(annotation.t, annotation.kind, annotation.data)
+        for f in sub.frames:
+            self.writer.write_taxel(f)
+        for p in sub.poses:
+            self.writer.write_pose(p)
+        t_end = max([t] + [x.t for x in sub.frames[-1:] + sub.poses[-1:]])
+        surface = geometry.z_top if geometry.voxel else (res.press.h0 if res.press is not None else 0.0)
+        self.writer.write_map(t_end, name, grid.probabilities, grid.explored, geometry, float(surface))
+
+
 def _layers_for(geometry: MapGeometry, memory: HapticMemory, layers: LayeredMemory | None) -> LayeredMemory | None:
     if not geometry.voxel:
         return None
@@ -80,7 +111,7 @@ def _layers_for(geometry: MapGeometry, memory: HapticMemory, layers: LayeredMemo
 
 def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path, *,
                      layers: LayeredMemory | None = None, cell_size: float = 0.01, progress: Progress | None = None,
-                     figures: bool = True, salvage: bool = False) -> dict:
+                     figures: bool = True, salvage: bool = False, live=None, live_speed: float = 1.0) -> dict:
     """Run the perception stack on a recording and write maps, figures and summary.json into ``out_dir``.
 
     Args:
@@ -93,6 +124,9 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
         figures: write PNG figures.
         salvage: replay what the complete chunks of a truncated or damaged recording hold (a press whose window
             was cut off is perceived from what is left of it).
+        live: a live view (:class:`~palpate.core.io.live.LiveServer`) to send each press's streams and the map
+            after it to.
+        live_speed: with ``live``, play at this many times real time (0: as fast as the perception goes).
     """
     progress = progress or Progress(enabled=False)
     out = Path(out_dir)
@@ -110,9 +144,10 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             progress.message(f"{path}: {len(windows) - len(complete)} press(es) cut off by the damage are left out")
         windows = complete
     objects: dict[str, _Replayed] = {}
+    playback = None if live is None else _Playback(RecordingWriter(None, {}, live=live), float(live_speed))
+    timeline = _Timeline.of(stream)
     if windows:
         explore = [a for a in windows if a.data.get("phase") == "exploration"]
-        timeline = _Timeline.of(stream)
         progress.start("replaying presses", len(explore))
         for i, a in enumerate(explore):
             name = a.data.get("object", "recording")
@@ -127,6 +162,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
                                     fallback_xy=target)
             state.rows.append(_row(a.data.get("k", len(state.rows) + 1), a.data.get("cell"), res, posterior,
                                    state.grid))
+            if playback is not None:
+                playback.press(sub, a, name, state.grid, state.geometry, res)
             progress.update(i + 1)
     else:
         seg = presses_from_recording(stream)
@@ -145,6 +182,9 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
                 raise ValidationError(f"{path}: {res.rejected[-1]}")
             posterior = apply_press(state.grid, res, memory, None, fallback_xy=press.location)
             state.rows.append(_row(k + 1, None, res, posterior, state.grid))
+            if playback is not None:
+                playback.press(timeline.window(press.t_onset, press.t_release), None, "recording", state.grid,
+                               geometry, res)
             progress.update(k + 1)
 
     summary_objects = []

@@ -42,13 +42,14 @@ from palpate.core.world.workspace import map_geometries
 
 
 def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress | None = None,
-                 source: str | None = None, record: str | Path | None = None) -> dict:
+                 source: str | None = None, record: str | Path | None = None, live=None) -> dict:
     """Run a scenario end to end and write its outputs into ``out_dir``. Returns the summary (also summary.json).
 
     ``source`` names the registered simulated source that trains the memory and, with ``[actuator] kind = "sim"``,
     explores (default: ``training.source``); another actuator kind explores through
     :func:`palpate.core.session.actuators.open_actuators`. With ``record``, every press's raw streams (and ground
-    truth) go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps.
+    truth) go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps; with ``live`` (a
+    :class:`~palpate.core.io.live.LiveServer`) the same messages, and the map after every press, are served live.
     """
     progress = progress or Progress(enabled=False)
     out = Path(out_dir)
@@ -62,7 +63,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                        {"scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
                                      "seed": scenario.seed, "fidelity": scenario.fidelity},
                         "sources": [source] if kind == "sim" else [source, kind],
-                        "maps": {name: g.to_dict() for name, g in geometries.items()}})
+                        "maps": {name: g.to_dict() for name, g in geometries.items()}}, live=live)
         try:
             return _run(scenario, out, progress, *makers, seeds, log)
         finally:

@@ -13,6 +13,7 @@ from importlib.metadata import entry_points
 from typing import Protocol, runtime_checkable
 
 from palpate.core.errors import ValidationError
+from palpate.core.extras import missing_extra
 from palpate.core.perception.streams import PressRecording
 from palpate.core.world.scenario import Scenario
 from palpate.core.world.scene import ObjectSpec, Scene
@@ -74,7 +75,10 @@ def load_source(name: str):
     """
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         if ep.name == name:
-            return ep.load()
+            try:
+                return ep.load()
+            except ImportError as exc:
+                raise missing_extra(exc, f"the {name!r} source") from None
     known = ", ".join(sorted(available_sources())) or "none (is palpate installed?)"
     raise ValidationError(f"unknown source {name!r}; registered sources: {known}")
 
