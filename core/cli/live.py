@@ -22,6 +22,7 @@ def open_live(args: argparse.Namespace):
         return None
     from palpate.core.errors import ValidationError
     from palpate.core.io.live import LiveServer
+    from palpate.core.world.resources import models_dir
 
     if not (0 <= args.live <= 65535):
         raise ValidationError(f"--live: port must be 0..65535, got {args.live}")
@@ -29,8 +30,8 @@ def open_live(args: argparse.Namespace):
         raise ValidationError(f"--live-hold must be >= 0 s, got {args.live_hold}")
     server = LiveServer(port=args.live)
     # Printed even with --quiet: the address is what a user needs to connect.
-    print(f"live view on {server.url} (Foxglove: Open connection; layout docs/foxglove_layout.json)",
-          file=sys.stderr, flush=True)
+    print(f"live view on {server.url} (in Foxglove: Open connection; layout: import "
+          f"{models_dir() / 'foxglove_layout.json'})", file=sys.stderr, flush=True)
     return server
 
 

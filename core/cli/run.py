@@ -19,7 +19,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Run a scenario file end to end. Writes into DIR: summary.json, memory.json, maps/ (NPZ + JSON), "
         "figures/ (PNG) and haptic_materials/ (seed 002 export). Progress goes to stderr.",
     )
-    p.add_argument("scenario", type=Path, help="scenario file (TOML), e.g. scenarios/thesis_ch6.toml")
+    p.add_argument("scenario", help="scenario file (TOML), or the name of a shipped one (palpate scenarios list), "
+                   "e.g. thesis_ch6")
     p.add_argument("--out", type=Path, default=None, help="output folder (default: runs/<scenario name>)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--json", action="store_true", help="print summary.json to stdout instead of a text report")
@@ -45,9 +46,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _run(args: argparse.Namespace) -> int:
     from palpate.core.session.progress import Progress
     from palpate.core.session.run import run_scenario
+    from palpate.core.world.resources import find_scenario
     from palpate.core.world.scenario_file import load_scenario
 
-    scenario = with_actuator_options(load_scenario(args.scenario), args)
+    scenario = with_actuator_options(load_scenario(find_scenario(args.scenario)), args)
     out = args.out or Path("runs") / scenario.name
     progress = Progress(enabled=not (args.quiet or args.json))
     progress.message(f"palpate run {scenario.name}: fidelity {scenario.fidelity}, seed {scenario.seed}, "

@@ -1,7 +1,7 @@
 """The live view: the recording's channels served over Foxglove's WebSocket protocol while a run (or a replay) goes.
 
-Open Foxglove, "Open connection", ``ws://127.0.0.1:8765`` (the default port) and load ``docs/foxglove_layout.json``
-to see the fingertip, the taxel image, the map after every press and the press log as they happen. The server is
+Open Foxglove, "Open connection", ``ws://127.0.0.1:8765`` (the default port) and import the layout
+``models/foxglove_layout.json`` (shipped in the package; see ``docs/recordings.md``) to see the fingertip, the taxel image, the map after every press and the press log as they happen. The server is
 the Foxglove SDK's (``pip install 'palpate[live]'``); messages are the same JSON as in a recording
 (:mod:`~palpate.core.io.mcap_schemas`).
 

@@ -1,5 +1,6 @@
 """The palpate recording format: MCAP, one append-only file any source writes and any stage can replay, and that
-Foxglove shows natively (3D, Image, Plot, Log and Raw Messages panels; layout in ``docs/foxglove_layout.json``).
+Foxglove shows natively (3D, Image, Plot, Log and Raw Messages panels; the layout ``models/foxglove_layout.json``
+ships in the package, see ``docs/recordings.md``).
 
 Format version 2. Every channel has ``message_encoding="json"`` and a ``jsonschema`` schema. Where Foxglove has a
 well-known schema it is used under its own name (``foxglove.*``), so Foxglove knows what to draw; palpate adds a

@@ -64,5 +64,7 @@ def write_figures(folder: Path, training: Mapping[str, Sequence[PressResult]], o
         path = draw(folder / file)
         if path is not None:
             paths.append(path)
+        elif file.endswith("_voxels_3d.png"):
+            progress.message(f"{file} skipped: the 3-D render needs the 'viz' extra (pip install 'palpate[viz]')")
         progress.update(i + 1, file)
     return paths
