@@ -116,16 +116,17 @@ def test_scene_and_log_lines(small_run):
                                      for m in explore)
 
 
-def test_the_recording_is_complete_before_figures_are_drawn(tmp_path, monkeypatch):
+def test_the_recording_is_complete_when_exploration_ends(tmp_path, monkeypatch):
     from palpate.core.session import run as run_module
 
     seen = []
+    write_maps = run_module.write_maps
 
-    def figures(folder, training, objects, **kw):
+    def maps(*args):  # the first thing after exploration, before the wait for figures
         seen.append(read_recording(tmp_path / "run.mcap"))  # raises if the file were still open or truncated
-        return []
+        return write_maps(*args)
 
-    monkeypatch.setattr(run_module, "write_figures", figures)
+    monkeypatch.setattr(run_module, "write_maps", maps)
     raw = tomllib.loads(SMALL)
     raw["outputs"] = {"render_3d": False, "haptic_material": False}
     run_module.run_scenario(parse_scenario(raw, "small.toml"), tmp_path / "out", record=tmp_path / "run.mcap")

@@ -19,13 +19,16 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.probability import entropy
 from palpate.core.mapping.snapshot import MapSnapshot
-from palpate.core.perception.press import PressResult
+
+if TYPE_CHECKING:  # the figure process need not import the perception stack
+    from palpate.core.perception.press import PressResult
 
 DPI = 100
 PNG = {"compress_level": 1}  # zlib level 1: a few times faster than the default 6, files ~1.3x larger
@@ -52,6 +55,17 @@ def _figure(width: float, height: float):
     fig = Figure(figsize=(width, height), dpi=DPI)
     FigureCanvasAgg(fig)
     return fig
+
+
+def warm_up() -> None:
+    """Import matplotlib and draw a tiny figure with text (loads the fonts): what the first figure of a process
+    would otherwise pay. A background drawer calls it while the run still trains."""
+    import io
+
+    fig = _figure(1, 1)
+    ax = fig.add_subplot(projection="3d")
+    ax.set_title("x")
+    fig.savefig(io.BytesIO(), format="png", dpi=20)
 
 
 def _save(fig, path: Path) -> Path:

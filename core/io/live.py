@@ -1,9 +1,9 @@
 """The live view: the recording's channels served over Foxglove's WebSocket protocol while a run (or a replay) goes.
 
 Open Foxglove, "Open connection", ``ws://127.0.0.1:8765`` (the default port) and import the layout
-``models/foxglove_layout.json`` (shipped in the package; see ``docs/recordings.md``) to see the fingertip, the taxel image, the map after every press and the press log as they happen. The server is
-the Foxglove SDK's (``pip install 'palpate[live]'``); messages are the same JSON as in a recording
-(:mod:`~palpate.core.io.mcap_schemas`).
+``models/foxglove_layout.json`` (shipped in the package; see ``docs/recordings.md``) to see the fingertip, the
+taxel image, the map after every press and the press log as they happen. The server is the Foxglove SDK's
+(``pip install 'palpate[live]'``); messages are the same JSON as in a recording (:mod:`~palpate.core.io.mcap_schemas`).
 
 The maps and the scene are state, not events: a client that subscribes after they were sent gets the latest one at
 once, so a view opened late (or after the run) still shows the current map.

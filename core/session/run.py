@@ -30,7 +30,8 @@ from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.session.actuators import open_actuators
 from palpate.core.session.explore import ObjectResult, explore_object
-from palpate.core.session.outputs import write_figures, write_maps
+from palpate.core.session.figure_jobs import FigureDrawer, object_jobs, progress_job, training_jobs
+from palpate.core.session.outputs import write_maps
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import SUMMARY_FORMAT, SUMMARY_VERSION, assert_finite, fit_summary, object_summary
@@ -85,7 +86,14 @@ def _memory(scenario: Scenario, make_source, seeds, progress: Progress,
 
 def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds,
          log: PressLog) -> dict:
+    with FigureDrawer(out / "figures", background=scenario.outputs.figures) as drawer:
+        return _stages(scenario, out, progress, make_source, make_actuator, seeds, log, drawer)
+
+
+def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds, log: PressLog,
+            drawer: FigureDrawer) -> dict:
     timing: dict[str, float] = {}
+    draw = scenario.outputs.figures
     t0 = time.perf_counter()
     memory, training = _memory(scenario, make_source, seeds, progress, log)
     memory.save(out / "memory.json")
@@ -95,6 +103,9 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
         nz = max(1, int(round(ex.voxel_depth / ex.cell_size)))
         layers = train_layered_memory(memory, training.presses, ex.cell_size, nz)
         layers.save(out / "memory_layers.json")
+    presses = {} if training is None else training.presses
+    if draw:
+        drawer.submit(training_jobs(presses))
     timing["training_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -105,6 +116,10 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
         objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers))
+        if draw:
+            drawer.submit(object_jobs(objects[-1], scenario.outputs.render_3d))
+    if draw:
+        drawer.submit([progress_job(objects)])
     log.close()  # the recording is complete on disk before maps and figures are written
     timing["exploration_s"] = time.perf_counter() - t0
 
@@ -112,11 +127,9 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
     write_maps(out, objects, scenario)
     timing["maps_s"] = time.perf_counter() - t0
 
+    # Most figures were drawn in the background while the run went on: this is the wait for the rest.
     t0 = time.perf_counter()
-    presses = {} if training is None else training.presses
-    figures = (write_figures(out / "figures", presses, objects, render_3d=scenario.outputs.render_3d,
-                             progress=progress)
-               if scenario.outputs.figures else [])
+    figures = drawer.finish(progress) if draw else []
     timing["figures_s"] = time.perf_counter() - t0
 
     crossval = None if training is None else training.crossval
