@@ -32,6 +32,7 @@ OP_METADATA, OP_DATA_END = 0x0C, 0x0F
 _READ = {OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_METADATA, OP_DATA_END}
 _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
 _RECORD_HEAD = struct.Struct("<BQ")
+_SMALL = 1 << 16  # records we do not use are read (for the CRC) only up to this size
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 _CHUNK_HEAD = struct.Struct("<QQQI")  # start time, end time, uncompressed size, uncompressed crc
 
@@ -210,8 +211,13 @@ def read_records(f, path, size: int, limits: ReadLimits) -> Iterator:
         if offset + 9 + length > size:
             raise Damaged(f"truncated at byte {size} (last complete record ends at byte {offset})", offset, True)
         if op not in _READ:
-            f.seek(length, 1)  # attachments, indexes, statistics: never read into memory
-            crc = None
+            if length > _SMALL:  # an attachment: skipped unread (and the data section's CRC with it)
+                f.seek(length, 1)
+                crc = None
+            elif crc is not None:  # message indexes after each chunk: read only for the data section's CRC
+                crc = zlib.crc32(f.read(length), zlib.crc32(raw, crc))
+            else:
+                f.seek(length, 1)
             offset += 9 + length
             continue
         if length > limits.max_bytes:
