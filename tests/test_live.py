@@ -138,3 +138,17 @@ def test_palpate_run_live_serves_the_map(tmp_path):
         proc.terminate()
         proc.wait(30)
         proc.stderr.close()
+
+
+def test_replay_live_serves_the_rebuilt_maps(tmp_path):
+    from palpate.core.perception.memory import HapticMemory
+    from palpate.core.session.replay import replay_recording
+
+    v1 = Path(__file__).parent / "data" / "recording_v1"
+    with LiveServer(port=0) as server:
+        replay_recording(v1 / "run.mcap", HapticMemory.load(v1 / "memory.json"), tmp_path, figures=False,
+                         live=server, live_speed=0)
+        (latest,) = asyncio.run(_collect(server.url, "/map/slab", 1, 60))
+    grid = Grid2D.load(tmp_path / "maps" / "slab.npz")
+    np.testing.assert_allclose(_grid_probabilities(latest, grid.probabilities.shape[:2], ["soft", "medium", "hard"]),
+                               grid.probabilities, rtol=1e-6)
