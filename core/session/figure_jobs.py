@@ -75,9 +75,10 @@ def progress_job(objects: Sequence[ObjectResult]) -> FigureJob:
 class FigureDrawer:
     """Draws :class:`FigureJob` s into ``folder``, in one background process when ``background`` and the machine
     has more than one core, else in this process at :meth:`finish`. Use as a context manager (the background process
-    is stopped on the way out, also on errors)."""
+    is stopped on the way out, also on errors). ``preload``: modules the background process imports at start
+    (e.g. ``("pyvista",)`` when a 3-D render will be drawn)."""
 
-    def __init__(self, folder: Path, background: bool = True):
+    def __init__(self, folder: Path, background: bool = True, preload: tuple[str, ...] = ()):
         self.folder = Path(folder)
         self._pending: list[tuple[FigureJob, Future | None]] = []
         self._pool = None
@@ -86,7 +87,7 @@ class FigureDrawer:
 
             # spawn: a clean interpreter, whatever threads this process has started
             self._pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                                             initializer=figure_worker.start)
+                                             initializer=figure_worker.start, initargs=(tuple(preload),))
 
     def __enter__(self) -> FigureDrawer:
         return self

@@ -86,7 +86,9 @@ def _memory(scenario: Scenario, make_source, seeds, progress: Progress,
 
 def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds,
          log: PressLog) -> dict:
-    with FigureDrawer(out / "figures", background=scenario.outputs.figures) as drawer:
+    out_cfg = scenario.outputs
+    preload = ("pyvista",) if out_cfg.render_3d and scenario.exploration.map == "voxel" else ()
+    with FigureDrawer(out / "figures", background=out_cfg.figures, preload=preload) as drawer:
         return _stages(scenario, out, progress, make_source, make_actuator, seeds, log, drawer)
 
 
