@@ -29,7 +29,7 @@ from palpate.core.session import figure_jobs, run as run_module
 from palpate.core.world.resources import find_scenario
 from palpate.core.world.scenario_file import load_scenario
 if sys.argv[3] == "inline":
-    run_module.FigureDrawer = lambda folder, background: figure_jobs.FigureDrawer(folder, background=False)
+    run_module.FigureDrawer = lambda folder, **kw: figure_jobs.FigureDrawer(folder, background=False)
 cpu = {}
 finish = figure_jobs.FigureDrawer.finish
 def timed_finish(self, progress=None):
