@@ -11,6 +11,7 @@ when :meth:`FigureDrawer.finish` is called. Either way the files are identical.
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -82,11 +83,14 @@ class FigureDrawer:
         self.folder = Path(folder)
         self._pending: list[tuple[FigureJob, Future | None]] = []
         self._pool = None
-        if background and (os.cpu_count() or 1) > 1:
-            import multiprocessing
+        import multiprocessing
 
-            # spawn: a clean interpreter, whatever threads this process has started
-            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+        # fork (Linux): the drawer is a copy of this process, so it neither imports the caller's script again
+        # (as spawn would: a script without a __main__ guard would run twice) nor palpate and numpy. Elsewhere, and
+        # in a daemonic process (a pool's worker may not start processes), figures are drawn inline.
+        if (background and (os.cpu_count() or 1) > 1 and sys.platform.startswith("linux")
+                and not multiprocessing.current_process().daemon):
+            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("fork"),
                                              initializer=figure_worker.start, initargs=(tuple(preload),))
 
     def __enter__(self) -> FigureDrawer:
