@@ -8,11 +8,12 @@ import struct
 import subprocess
 import sys
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from palpate.core.errors import RecordingError
+from palpate.core.errors import RecordingError, ValidationError
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_records import MAGIC, ReadLimits
 from palpate.core.io.mcap_writer import RecordingWriter
@@ -33,14 +34,14 @@ def _map(entries: dict[str, str]) -> bytes:
     return struct.pack("<I", len(body)) + body
 
 
-def _zstd_rle(total: int) -> bytes:
-    """A zstd frame of ``total`` zero bytes made of RLE blocks (4 bytes per 128 KiB): 2 GiB in 64 KiB."""
+def _zstd_rle(total: int, byte: int = 0) -> bytes:
+    """A zstd frame of ``total`` bytes ``byte`` made of RLE blocks (4 bytes per 128 KiB): 2 GiB in 64 KiB."""
     out = bytearray(struct.pack("<I", 0xFD2FB528)) + bytes([0x00, 7 << 3])  # no content size; 128 KiB window
     left = total
     while left > 0:
         n = min(1 << 17, left)
         left -= n
-        out += ((left == 0) | (1 << 1) | (n << 3)).to_bytes(3, "little") + b"\0"
+        out += ((left == 0) | (1 << 1) | (n << 3)).to_bytes(3, "little") + bytes([byte])
     return bytes(out)
 
 
@@ -58,15 +59,16 @@ def test_a_chunk_declaring_gigabytes_fails_before_decompressing(tmp_path):
     path = tmp_path / "bomb.mcap"
     _mcap(path, _zstd_rle(2 << 30), declared=2 << 30)
     assert path.stat().st_size < 70_000
-    with pytest.raises(RecordingError, match=r"bomb.mcap: chunk at byte \d+ declares 2147483648 bytes uncompressed, "
-                                             r"over the limit of 64 MiB \(raise it with PALPATE_MCAP_MAX_MB\)"):
+    with pytest.raises(RecordingError, match=r"bomb.mcap: the chunk at byte \d+, decompressed, is 2147.48 MB, over "
+                                             r"the limit mcap_mb = 64 MB \(raise it with palpate --limit mcap_mb=N "
+                                             r"or PALPATE_LIMITS=mcap_mb=N; see docs/limits.md\)"):
         read_recording(path)
 
 
 BOMB_READER = """
 import resource, sys
 resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))  # 1 GiB of address space: a 2 GiB inflation fails
-from palpate.core.errors import RecordingError
+from palpate.core.errors import RecordingError, ValidationError
 from palpate.core.io.mcap_reader import read_recording
 try:
     read_recording(sys.argv[1])
@@ -98,10 +100,11 @@ def test_message_count_limit_and_raising_it(tmp_path, monkeypatch):
     path = tmp_path / "many.mcap"
     records = _tiny_messages(5000)
     _mcap(path, records, declared=len(records), compression="", crc=zlib.crc32(records))
-    monkeypatch.setenv("PALPATE_MCAP_MAX_MESSAGES", "1000")
-    with pytest.raises(RecordingError, match=r"many.mcap: more than 1000 messages .*PALPATE_MCAP_MAX_MESSAGES"):
+    monkeypatch.setenv("PALPATE_LIMITS", "mcap_messages=1000")
+    with pytest.raises(RecordingError, match=r"many.mcap: the number of messages \(by the chunk at byte \d+\) is 1001 "
+                                             r"messages, over the limit mcap_messages = 1000 messages"):
         read_recording(path)
-    monkeypatch.setenv("PALPATE_MCAP_MAX_MESSAGES", "5000")
+    monkeypatch.setenv("PALPATE_LIMITS", "mcap_messages=5000")
     rec = read_recording(path)  # the other tool's topic is skipped, the file is otherwise fine
     assert rec.frames == [] and rec.metadata == {}
 
@@ -110,23 +113,35 @@ def test_record_size_limit_and_raising_it(tmp_path, monkeypatch):
     path = tmp_path / "big.mcap"
     with RecordingWriter(path, {"note": "x" * 3_000_000}) as w:
         w.write_taxel(TaxelFrame(0.0, np.ones((4, 4), np.uint8), 1e-5))
-    monkeypatch.setenv("PALPATE_MCAP_MAX_MB", "1")
-    with pytest.raises(RecordingError, match=r"big.mcap: record at byte \d+ declares \d+ bytes, over the limit of "
-                                             r"1 MiB \(raise it with PALPATE_MCAP_MAX_MB\)"):
+    monkeypatch.setenv("PALPATE_LIMITS", "mcap_mb=1")
+    with pytest.raises(RecordingError, match=r"big.mcap: the record at byte \d+ is 3.0\d* MB, over the limit "
+                                             r"mcap_mb = 1 MB \(raise it with palpate --limit mcap_mb=N"):
         read_recording(path)
-    monkeypatch.setenv("PALPATE_MCAP_MAX_MB", "8")
+    monkeypatch.setenv("PALPATE_LIMITS", "mcap_mb=8")
     assert len(read_recording(path).frames) == 1
-    monkeypatch.setenv("PALPATE_MCAP_MAX_MB", "lots")
-    with pytest.raises(RecordingError, match="PALPATE_MCAP_MAX_MB='lots': expected a positive number"):
+    monkeypatch.setenv("PALPATE_LIMITS", "mcap_mb=lots")
+    with pytest.raises(ValidationError, match="PALPATE_LIMITS: limit mcap_mb needs a number"):
         read_recording(path)
 
 
-def test_limits_default_and_from_env(monkeypatch):
-    monkeypatch.delenv("PALPATE_MCAP_MAX_MB", raising=False)
-    monkeypatch.delenv("PALPATE_MCAP_MAX_MESSAGES", raising=False)
-    assert ReadLimits.from_env() == ReadLimits()
-    monkeypatch.setenv("PALPATE_MCAP_MAX_MESSAGES", "12")
-    assert ReadLimits.from_env().max_messages == 12
+def test_limits_default_and_raised_on_the_command_line(tmp_path, monkeypatch, capsys):
+    monkeypatch.delenv("PALPATE_LIMITS", raising=False)
+    assert ReadLimits.in_force() == ReadLimits() == ReadLimits(64_000_000, 4_000_000)
+    monkeypatch.setenv("PALPATE_LIMITS", "mcap_messages=12")
+    assert ReadLimits.in_force().max_messages == 12
+    monkeypatch.delenv("PALPATE_LIMITS")
+    path = tmp_path / "bomb.mcap"
+    _mcap(path, _zstd_rle(70_000_000, 0xFF), declared=70_000_000)
+    memory = Path(__file__).parent / "data" / "recording_v1" / "memory.json"
+    args = ["replay", str(path), "--memory", str(memory), "--out", str(tmp_path / "o")]
+    from palpate.core.cli import main
+
+    assert main(args) == 2
+    assert "over the limit mcap_mb = 64 MB" in capsys.readouterr().err
+    # raised for one command, the 70 MB chunk is inflated and read (its bytes are no MCAP records)
+    assert main(["--limit", "mcap_mb=100", *args]) == 2
+    err = capsys.readouterr().err
+    assert "mcap_mb" not in err and "bomb.mcap: recording is corrupt at byte" in err, err
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")

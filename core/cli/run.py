@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from palpate.core.cli.live import add_live_options, hold_live, open_live
+from palpate.core.names import file_stem
 from palpate.core.world.actuator_kinds import actuator_names
 
 
@@ -21,7 +22,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("scenario", help="scenario file (TOML), or the name of a shipped one (palpate scenarios list), "
                    "e.g. thesis_ch6")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default: runs/<scenario name>)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder, new or empty, or an earlier run's with --force (default: runs/<scenario name>)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an earlier run in --out (its summary, maps, figures, exports) and an existing "
+                   "--record file; inputs are never overwritten")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--json", action="store_true", help="print summary.json to stdout instead of a text report")
     p.add_argument("--source", default=None,
@@ -50,13 +55,14 @@ def _run(args: argparse.Namespace) -> int:
     from palpate.core.world.scenario_file import load_scenario
 
     scenario = with_actuator_options(load_scenario(find_scenario(args.scenario)), args)
-    out = args.out or Path("runs") / scenario.name
+    out = args.out or Path("runs") / file_stem(scenario.name)
     progress = Progress(enabled=not (args.quiet or args.json))
     progress.message(f"palpate run {scenario.name}: fidelity {scenario.fidelity}, seed {scenario.seed}, "
                      f"actuator {scenario.actuator.kind} -> {out}")
     live = open_live(args)
     try:
-        summary = run_scenario(scenario, out, progress=progress, source=args.source, record=args.record, live=live)
+        summary = run_scenario(scenario, out, progress=progress, source=args.source, record=args.record,
+                               force=args.force, live=live)
     except BaseException:
         if live is not None:
             live.close()

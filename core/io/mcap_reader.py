@@ -170,7 +170,7 @@ def read_recording(path, *, salvage: bool = False, limits: ReadLimits | None = N
         path: the .mcap file.
         salvage: accept a truncated or damaged file and return what its complete chunks hold
             (``Recording.salvaged`` is then True).
-        limits: sizes the file may make the reader allocate (default: :meth:`ReadLimits.from_env`).
+        limits: sizes the file may make the reader allocate (default: :meth:`ReadLimits.in_force`).
         progress: a :class:`~palpate.core.session.progress.Progress` to show the bytes read (optional).
 
     Raises:
@@ -180,7 +180,7 @@ def read_recording(path, *, salvage: bool = False, limits: ReadLimits | None = N
             the message's index on it).
     """
     path = Path(path)
-    limits = limits or ReadLimits.from_env()
+    limits = limits or ReadLimits.in_force()
     try:
         f = open(path, "rb")
     except OSError as exc:

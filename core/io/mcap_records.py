@@ -1,32 +1,34 @@
 """A bounded, streaming reader of MCAP records: every size a file declares is checked before anything is allocated.
 
 Only what a recording reader needs is parsed (header, schemas, channels, messages, chunks, metadata, data end,
-footer); every other record is skipped without being read into memory. Chunks are decompressed (zstd, lz4 or none)
+footer). Chunks are decompressed (zstd, lz4 or none)
 into at most their declared size, their CRC is checked, and the records inside are parsed from one buffer with
 ``struct.unpack_from`` (a few times faster than the mcap package's record objects).
 
-Limits (:class:`ReadLimits`, raised through environment variables, see ``docs/recordings.md``):
+Limits (:class:`ReadLimits`: the named limits ``mcap_mb`` and ``mcap_messages`` of :mod:`palpate.core.limits`,
+raised with ``palpate --limit NAME=N`` or ``PALPATE_LIMITS``, see ``docs/limits.md``):
 
-- ``PALPATE_MCAP_MAX_MB`` (default 64): the largest record read into memory and the largest decompressed chunk,
-  MiB;
-- ``PALPATE_MCAP_MAX_MESSAGES`` (default 4,000,000): messages in one file.
+- ``mcap_mb`` (default 64 MB): the largest record read into memory and the largest decompressed chunk;
+- ``mcap_messages`` (default 4,000,000): messages in one file.
 
 A file that breaks a limit fails at once with a :class:`~palpate.core.errors.RecordingError` naming the file, the
-byte offset, the size and the variable that raises the limit.
+byte offset, the size and how to raise the limit. Unused records (message indexes, statistics) are read only if
+small; attachments are skipped unread.
 """
 
 from __future__ import annotations
 
-import os
 import struct
 import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 
 from palpate.core.errors import RecordingError
+from palpate.core.limits import ENV as LIMITS_ENV
+from palpate.core.limits import LIMITS, limit
 
 MAGIC = b"\x89MCAP0\r\n"
-MIB = 1 << 20
+MB = 1_000_000  # the limits' MB
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
 OP_METADATA, OP_DATA_END = 0x0C, 0x0F
 _READ = {OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_METADATA, OP_DATA_END}
@@ -46,28 +48,21 @@ class ReadLimits:
         max_messages: most messages in one file.
     """
 
-    max_bytes: int = 64 * MIB
-    max_messages: int = 4_000_000
+    max_bytes: int = int(LIMITS["mcap_mb"].default * MB)
+    max_messages: int = int(LIMITS["mcap_messages"].default)
 
     @classmethod
-    def from_env(cls) -> ReadLimits:
-        """The defaults, raised or lowered by ``PALPATE_MCAP_MAX_MB`` and ``PALPATE_MCAP_MAX_MESSAGES``."""
-        default = cls()
-        return cls(max_bytes=int(_env_number("PALPATE_MCAP_MAX_MB", default.max_bytes / MIB) * MIB),
-                   max_messages=int(_env_number("PALPATE_MCAP_MAX_MESSAGES", default.max_messages)))
+    def in_force(cls) -> ReadLimits:
+        """The limits ``mcap_mb`` and ``mcap_messages`` as set now (``--limit``, ``PALPATE_LIMITS``, defaults)."""
+        return cls(max_bytes=int(limit("mcap_mb") * MB), max_messages=int(limit("mcap_messages")))
 
 
-def _env_number(name: str, default: float) -> float:
-    raw = os.environ.get(name)
-    if raw is None:
-        return default
-    try:
-        value = float(raw)
-    except ValueError:
-        value = float("nan")
-    if not value > 0 or value == float("inf"):
-        raise RecordingError(f"environment variable {name}={raw!r}: expected a positive number")
-    return value
+def _over(path, what: str, value: float, name: str) -> RecordingError:
+    lim = LIMITS[name]
+    scale = MB if lim.unit == "MB" else 1
+    return RecordingError(f"{path}: {what} is {value / scale:.6g} {lim.unit}, over the limit {name} = "
+                          f"{limit(name):g} {lim.unit} (raise it with palpate --limit {name}=N or "
+                          f"{LIMITS_ENV}={name}=N; see docs/limits.md)")
 
 
 @dataclass(frozen=True)
@@ -221,9 +216,7 @@ def read_records(f, path, size: int, limits: ReadLimits) -> Iterator:
             offset += 9 + length
             continue
         if length > limits.max_bytes:
-            raise RecordingError(
-                f"{path}: record at byte {offset} declares {length} bytes, over the limit of "
-                f"{limits.max_bytes // MIB} MiB (raise it with PALPATE_MCAP_MAX_MB)")
+            raise _over(path, f"the record at byte {offset}", length, "mcap_mb")
         body = f.read(length)
         if op == OP_DATA_END and crc is not None:
             expected = _U32.unpack_from(body, 0)[0] if length >= 4 else 0
@@ -247,9 +240,7 @@ def read_records(f, path, size: int, limits: ReadLimits) -> Iterator:
             if type(r) is Message:
                 messages += 1
                 if messages > limits.max_messages:
-                    raise RecordingError(
-                        f"{path}: more than {limits.max_messages} messages (limit; raise it with "
-                        "PALPATE_MCAP_MAX_MESSAGES)")
+                    raise _over(path, "the number of messages", messages, "mcap_messages")
             if r is not None:
                 yield r
         offset += 9 + length
@@ -265,9 +256,7 @@ def _chunk_records(body: bytes, path, offset: int, limits: ReadLimits, budget: i
     if p + n > len(body):
         raise ValueError("chunk records run past the chunk")
     if size > limits.max_bytes:
-        raise RecordingError(
-            f"{path}: chunk at byte {offset} declares {size} bytes uncompressed, over the limit of "
-            f"{limits.max_bytes // MIB} MiB (raise it with PALPATE_MCAP_MAX_MB)")
+        raise _over(path, f"the chunk at byte {offset}, decompressed,", size, "mcap_mb")
     data = _inflate(compression, bytes(body[p:p + n]), size)
     if crc and zlib.crc32(data) != crc:
         raise ValueError("chunk CRC mismatch")
@@ -285,8 +274,8 @@ def _chunk_records(body: bytes, path, offset: int, limits: ReadLimits, budget: i
             out.append(Message(cid, log_time, data[start + 22:stop]))
             budget -= 1
             if budget < 0:
-                raise RecordingError(f"{path}: more than {limits.max_messages} messages (limit reached in the chunk "
-                                     f"at byte {offset}; raise it with PALPATE_MCAP_MAX_MESSAGES)")
+                raise _over(path, f"the number of messages (by the chunk at byte {offset})",
+                            limits.max_messages + 1, "mcap_messages")
         elif op in (OP_SCHEMA, OP_CHANNEL):
             out.append(parse(op, data, start, stop))
         pos = stop

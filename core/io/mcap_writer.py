@@ -19,6 +19,7 @@ from palpate.core.io import foxglove_messages as fm
 from palpate.core.io.mcap_schemas import FORMAT_VERSION, METADATA_NAME, PROFILE, SCHEMAS, SENSOR_ID, VERSIONS_NAME
 from palpate.core.io.recording import JointState
 from palpate.core.mapping.geometry import MapGeometry
+from palpate.core.names import file_stem
 from palpate.core.perception.streams import PoseSample, TaxelFrame
 from palpate.core.world.scene import ObjectSpec
 
@@ -227,7 +228,7 @@ class RecordingWriter:
     def write_map(self, t: float, name: str, probabilities: np.ndarray, explored: np.ndarray, geometry: MapGeometry,
                   surface_z: float) -> None:
         """Append an object's map on ``/map/<name>`` (a Grid on the surface at ``surface_z`` m, or a VoxelGrid)."""
-        topic = f"/map/{_check_sensor_id(name)}"
+        topic = f"/map/{file_stem(name)}"  # a topic per object, whatever characters its name has
         ns = fm.time_ns(t, topic)
         schema, msg = fm.map_message(ns, name, probabilities, explored, geometry, surface_z)
         self._write(topic, schema, ns, msg)

@@ -22,6 +22,7 @@ import numpy as np
 
 from palpate.core.io import figure_worker
 from palpate.core.io import figures as fig
+from palpate.core.names import file_stem, inside
 from palpate.core.perception.press import PressResult
 from palpate.core.session.explore import ObjectResult
 from palpate.core.session.progress import Progress
@@ -48,15 +49,15 @@ def training_jobs(training: Mapping[str, Sequence[PressResult]]) -> list[FigureJ
 
 def object_jobs(obj: ObjectResult, render_3d: bool = True) -> list[FigureJob]:
     """An explored object's figures: map snapshots and entropy (2-D), or voxel columns and the 3-D render."""
-    name, geometry = obj.name, obj.geometry
+    name, geometry, stem = obj.name, obj.geometry, file_stem(obj.name)  # a name from a file is never a path
     if not geometry.voxel:
-        return [FigureJob(f"{name}_map.png", fig.plot_map_snapshots, (name, obj.snapshots, geometry, obj.truth)),
-                FigureJob(f"{name}_entropy.png", fig.plot_entropy,
+        return [FigureJob(f"{stem}_map.png", fig.plot_map_snapshots, (name, obj.snapshots, geometry, obj.truth)),
+                FigureJob(f"{stem}_entropy.png", fig.plot_entropy,
                           (name, obj.snapshots[-2].probabilities, obj.snapshots[-1].probabilities, geometry))]
     materials = list(geometry.materials)
-    jobs = [FigureJob(f"{name}_columns.png", fig.plot_voxel_columns, (name, obj.grid, obj.post, materials))]
+    jobs = [FigureJob(f"{stem}_columns.png", fig.plot_voxel_columns, (name, obj.grid, obj.post, materials))]
     if render_3d:
-        jobs.append(FigureJob(f"{name}_voxels_3d.png", fig.render_voxels_3d,
+        jobs.append(FigureJob(f"{stem}_voxels_3d.png", fig.render_voxels_3d,
                               (obj.post, obj.grid.cell_size, name, materials)))
     return jobs
 
@@ -106,7 +107,7 @@ class FigureDrawer:
             future = None
             if self._pool is not None:
                 try:
-                    future = self._pool.submit(figure_worker.draw, job.draw, self.folder / job.file, job.args)
+                    future = self._pool.submit(figure_worker.draw, job.draw, self._path(job), job.args)
                 except BrokenProcessPool:
                     self._pool = None
             self._pending.append((job, future))
@@ -124,7 +125,7 @@ class FigureDrawer:
                 except BrokenProcessPool:  # the background process died: draw the rest here
                     future = None
             if future is None:
-                path = job.draw(self.folder / job.file, *job.args)
+                path = job.draw(self._path(job), *job.args)
             if path is not None:
                 paths.append(Path(path))
             elif job.file.endswith("_voxels_3d.png"):
@@ -133,6 +134,9 @@ class FigureDrawer:
             progress.update(i + 1, job.file)
         self._pending = []
         return paths
+
+    def _path(self, job: FigureJob) -> Path:
+        return inside(self.folder, self.folder / job.file)
 
     def close(self) -> None:
         """Stop the background process (figures not yet drawn are dropped)."""

@@ -6,6 +6,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from palpate.core.io.exports import export_haptic_material
+from palpate.core.names import file_stem, inside
 from palpate.core.perception.press import PressResult
 from palpate.core.session.explore import ObjectResult
 from palpate.core.session.figure_jobs import FigureDrawer, object_jobs, progress_job, training_jobs
@@ -14,14 +15,16 @@ from palpate.core.world.scenario import Scenario
 
 
 def write_maps(out: Path, objects: Sequence[ObjectResult], scenario: Scenario) -> None:
-    """``maps/<object>.npz`` (+ ``_postprocessed``) with JSON sidecars, and the haptic-material export per object."""
+    """``maps/<object>.npz`` (+ ``_postprocessed``) with JSON sidecars, and the haptic-material export per object
+    (the object's name made a safe file stem, every path checked to lie inside ``out``)."""
     (out / "maps").mkdir(exist_ok=True)
     for obj in objects:
-        obj.grid.save(out / "maps" / f"{obj.name}.npz")
-        obj.post.save(out / "maps" / f"{obj.name}_postprocessed.npz")
+        stem = file_stem(obj.name)
+        obj.grid.save(inside(out, out / "maps" / f"{stem}.npz"))
+        obj.post.save(inside(out, out / "maps" / f"{stem}_postprocessed.npz"))
         if scenario.outputs.haptic_material and not obj.geometry.voxel:
-            export_haptic_material(obj.post, obj.grid, obj.results, scenario, out / "haptic_materials" / obj.name,
-                                   obj.name)
+            export_haptic_material(obj.post, obj.grid, obj.results, scenario,
+                                   inside(out, out / "haptic_materials" / stem), obj.name)
 
 
 def write_figures(folder: Path, training: Mapping[str, Sequence[PressResult]], objects: Sequence[ObjectResult],
