@@ -181,23 +181,26 @@ def read_recording(path, *, salvage: bool = False, limits: ReadLimits | None = N
     """
     path = Path(path)
     limits = limits or ReadLimits.in_force()
-    try:
-        f = open(path, "rb")
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot open recording: {exc.strerror}") from None
+    f, size = _open_regular(path)
     with f:
-        size = _regular_file_size(path, f)
         return _read(f, path, size, salvage, limits, progress)
 
 
-def _regular_file_size(path: Path, f) -> int:
+def _open_regular(path: Path):
+    """The open file and its size; opened without blocking (a FIFO does not wait for a writer) and refused unless
+    the open descriptor is a regular file (a device, pipe or folder cannot be a recording)."""
     import os
     import stat
 
-    st = os.fstat(f.fileno())
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot open recording: {exc.strerror}") from None
+    st = os.fstat(fd)
     if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
         raise RecordingError(f"{path}: not a regular file (a device, pipe or folder cannot be a recording)")
-    return st.st_size
+    return os.fdopen(fd, "rb"), st.st_size
 
 
 def _read(f, path: Path, size: int, salvage: bool, limits: ReadLimits, progress) -> Recording:

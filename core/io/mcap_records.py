@@ -154,7 +154,17 @@ def _parse(op: int, buf, pos: int, end: int):
 
 
 def _inflate(compression: str, data: bytes, size: int) -> bytes:
-    """A chunk's records, decompressed into at most ``size`` bytes (ValueError if they inflate to more)."""
+    """A chunk's records, decompressed into at most ``size`` bytes; ValueError if they inflate to more, or if the
+    compressed bytes are damaged (whatever the decompressor raises)."""
+    try:
+        return _inflate_checked(compression, data, size)
+    except ValueError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - zstandard.ZstdError, lz4's RuntimeError: damaged compressed bytes
+        raise ValueError(f"its {compression} data do not decompress ({type(exc).__name__}: {exc})") from None
+
+
+def _inflate_checked(compression: str, data: bytes, size: int) -> bytes:
     if compression == "":
         out = data
     elif compression == "zstd":
