@@ -96,6 +96,9 @@ class SimSource:
             session (one pad equilibration, one clock synchronisation).
     """
 
+    #: modules every fidelity imports when it presses (checked by the run before any work starts)
+    requires = ("mujoco",)
+
     def __init__(self, scene: Scene, fidelity: str = "auto", seed: int = 0,
                  variability: str | Variability = "robot", timestep: float | None = None,
                  realism: str | Path | RealismProfile | None = None):

@@ -35,6 +35,7 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.files import read_text
+from palpate.core.world.resources import models_dir
 from palpate.core.world.table_reader import TableReader
 from palpate.sim.controller import HUMAN, Variability
 from palpate.sim.realism.profile import (
@@ -47,8 +48,8 @@ from palpate.sim.realism.profile import (
     TaxelRealism,
 )
 
-#: Where shipped profiles live; a scenario may name one by its file stem.
-PROFILES_DIR = Path(__file__).resolve().parent.parent.parent / "models" / "realism"
+#: Where shipped profiles live (models/realism, also from a wheel); a scenario may name one by its file stem.
+PROFILES_DIR = models_dir() / "realism"
 
 
 def shipped_profiles() -> list[str]:
