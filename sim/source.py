@@ -18,6 +18,8 @@ are from ``palpate bench`` / benchmarks/tradeoff.py, which measures them):
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from palpate.core.errors import ValidationError
@@ -25,9 +27,12 @@ from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import run_analytic_press
-from palpate.sim.controller import HUMAN, ROBOT, Variability, press_profile
+from palpate.sim.controller import ROBOT, Variability, press_profile
 from palpate.sim.effective_modulus import depth_for_force
 from palpate.sim.flex import run_flex_press
+from palpate.sim.realism.profile import RealismProfile
+from palpate.sim.realism.profile_file import resolve_profile
+from palpate.sim.realism.stage import RealismSession
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
@@ -84,22 +89,27 @@ class SimSource:
         fidelity: "auto", "analytic", "rigid" or "flex".
         seed: seed of everything random (press variability, sensor noise); the n-th press of a source draws
             from (seed, n), so a source replays identically.
-        variability: "robot" (exact), "human" (default human-like variability) or a Variability.
+        variability: "robot" (exact), "human" (the realism profile's human-like press) or a Variability.
         timestep: physics step, s (rigid default 2 ms, flex default 5 ms; analytic samples at the taxel rate).
+        realism: a realism profile (:mod:`palpate.sim.realism`): a preset or shipped profile's name, a TOML path,
+            or a RealismProfile; None is ``ideal`` (the simulation exactly as without profiles). One source is one
+            session (one pad equilibration, one clock synchronisation).
     """
 
     #: modules every fidelity imports when it presses (checked by the run before any work starts)
     requires = ("mujoco",)
 
     def __init__(self, scene: Scene, fidelity: str = "auto", seed: int = 0,
-                 variability: str | Variability = "robot", timestep: float | None = None):
+                 variability: str | Variability = "robot", timestep: float | None = None,
+                 realism: str | Path | RealismProfile | None = None):
         if fidelity not in FIDELITIES:
             raise ValidationError(f"SimSource: fidelity must be one of {FIDELITIES}, got {fidelity!r}")
+        if isinstance(variability, str) and variability not in ("robot", "human"):
+            raise ValidationError(f"SimSource: variability must be 'robot', 'human' or a Variability, "
+                                  f"got {variability!r}")
+        self.realism = resolve_profile(realism)
         if isinstance(variability, str):
-            if variability not in ("robot", "human"):
-                raise ValidationError(f"SimSource: variability must be 'robot', 'human' or a Variability, "
-                                      f"got {variability!r}")
-            variability = ROBOT if variability == "robot" else HUMAN
+            variability = ROBOT if variability == "robot" else self.realism.press
         if timestep is not None and not (np.isfinite(timestep) and timestep > 0):
             raise ValidationError(f"SimSource: timestep must be > 0 s, got {timestep!r}")
         self.scene = scene
@@ -109,6 +119,8 @@ class SimSource:
         self.timestep = timestep
         self._presses = 0
         self._meshes: dict = {}
+        self._session = (None if self.realism.is_ideal else
+                         RealismSession(self.realism, scene.fingertip, scene.taxels, self.seed))
 
     def _mesh(self, obj: ObjectSpec):
         if obj.shape != "mesh":
@@ -135,26 +147,41 @@ class SimSource:
         fidelity = self.fidelity if self.fidelity != "auto" else choose_fidelity(obj, target, tip.radius)
         mesh = self._mesh(obj)
         surface_z, normal = surface_at(obj, target.x, target.y, mesh)
-        s_profile, s_taxel, s_pose = np.random.SeedSequence([self.seed, self._presses]).spawn(3)
+        # a fourth child for the realism keeps the first three (press, taxels, pose) as they always were
+        s_profile, s_taxel, s_pose, s_real = np.random.SeedSequence([self.seed, self._presses]).spawn(4)
         self._presses += 1
         timestep = self.timestep or 0.002
+
+        def object_depth_for_force(f: float) -> float:
+            # E*_eff at the radius the press reaches (layers, inclusions): exactly Hertz on one material
+            return depth_for_force(obj, target.x, target.y, surface_z, tip.radius, f)
+
+        real = None
+        if self._session is not None:
+            planned = target.depth if target.depth is not None else object_depth_for_force(target.force)
+            real = self._session.press(obj.name, target.x, target.y, object_depth_for_force, 2.0 * planned + 0.01,
+                                       np.random.default_rng(s_real))
         profile = press_profile(
             target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002), variability=self.variability,
             seed=int(s_profile.generate_state(1)[0]), normal=tuple(normal),
-            # E*_eff at the radius the press reaches (layers, inclusions): exactly Hertz on one material
-            depth_for_force=lambda f: depth_for_force(obj, target.x, target.y, surface_z, tip.radius, f),
+            depth_for_force=object_depth_for_force if real is None else real.bone_depth_for_force,
         )
+        physics_profile = profile if real is None else real.object_profile(profile)
         if fidelity == "analytic":
-            trace = run_analytic_press(self.scene, obj, profile)
+            trace = run_analytic_press(self.scene, obj, physics_profile)
         elif fidelity == "rigid":
-            trace = run_rigid_press(self.scene, obj, profile, timestep=timestep, mesh=mesh)
+            trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh)
         else:
             # flex has its own default step (5 ms: >= 1x real time at the default resolution, see
             # benchmarks/flex_resolution.py); the rigid default of 2 ms would make it 2.5x slower.
-            trace = run_flex_press(self.scene, obj, target, profile, timestep=self.timestep,
+            trace = run_flex_press(self.scene, obj, target, physics_profile, timestep=self.timestep,
                                    seed=int(s_profile.generate_state(1)[0]))
-        frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel))
-        poses = sample_poses(trace, self.scene.pose, np.random.default_rng(s_pose))
+        pose_spec, latency, response = self.scene.pose, 0.0, None
+        if real is not None:
+            trace = real.finish(trace, profile)
+            pose_spec, latency, response = real.pose_spec(pose_spec), real.latency, real.taxel_response
+        frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel), response=response)
+        poses = sample_poses(trace, pose_spec, np.random.default_rng(s_pose), latency=latency)
         meta = {
             "source": "sim", "fidelity": fidelity, "object": obj.name, "material": trace.material,
             "seed": self.seed, "press_index": self._presses - 1,
@@ -163,4 +190,6 @@ class SimSource:
             "profile": {k: v for k, v in profile.meta.items() if k != "phases"}, "phases": profile.meta["phases"],
             "physics": trace.meta,
         }
+        if real is not None:
+            meta["realism"] = real.meta()
         return PressRecording(frames=frames, poses=poses, truth=ground_truth(trace), meta=meta)

@@ -132,6 +132,10 @@ def format_report(summary: dict, out: Path) -> str:
             for (c, r), p in zip(obj["regions"], final, strict=True):
                 probs = "  ".join(f"{m}={v:.2f}" for m, v in zip(mats, p, strict=True))
                 lines.append(f"    region ({c},{r}): {probs}")
+    if summary.get("sim_to_real"):
+        from palpate.core.session.sim_to_real import format_sim_to_real
+
+        lines.append(format_sim_to_real(summary["sim_to_real"]))
     t = summary["timing"]
     lines.append("timing: " + ", ".join(f"{k[:-2]} {v:.1f} s" for k, v in t.items()))
     lines.append(f"outputs in {out}/ (summary.json, memory.json, maps/, figures/, haptic_materials/)")

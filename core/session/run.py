@@ -27,19 +27,22 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.io.realism_figures import plot_sim_vs_real
 from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.param_stats import table_from_csv, table_from_fits
 from palpate.core.session.actuators import open_actuators
 from palpate.core.session.explore import ObjectResult, explore_object
-from palpate.core.session.figure_jobs import FigureDrawer, object_jobs, progress_job, training_jobs
+from palpate.core.session.figure_jobs import FigureDrawer, FigureJob, object_jobs, progress_job, training_jobs
 from palpate.core.session.output_guard import check_output_file, prepare_output_folder
 from palpate.core.session.outputs import write_maps
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import SUMMARY_FORMAT, SUMMARY_VERSION, assert_finite, fit_summary, object_summary
 from palpate.core.session.report import versions as _versions
+from palpate.core.session.sim_to_real import sim_to_real_summary
 from palpate.core.session.sources import PressTarget, scenario_source_maker
-from palpate.core.session.training import TrainingResult, train_memory
+from palpate.core.session.training import TrainingResult, run_seeds, train_memory
 from palpate.core.world.scenario import ObjectEntry, Scenario
 from palpate.core.world.workspace import map_geometries
 
@@ -65,7 +68,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
     own = [Path(record).name] if record is not None and Path(record).resolve().parent == Path(out_dir).resolve() \
         else []
     out = prepare_output_folder(out_dir, "run", force=force, inputs=inputs, extra=own)
-    seeds = np.random.SeedSequence(scenario.seed).generate_state(4 + len(scenario.references) + len(scenario.objects))
+    seeds = run_seeds(scenario)
     source = source or scenario.training.source
     kind = scenario.actuator.kind
     geometries = map_geometries(scenario)
@@ -82,9 +85,12 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
 
 
 def scenario_inputs(scenario: Scenario) -> list[Path]:
-    """The files a run of ``scenario`` reads (the scenario, a trained memory, meshes, actuator files)."""
+    """The files a run of ``scenario`` reads (the scenario, a trained memory, meshes, actuator files, a realism
+    profile file and the real per-press table)."""
     paths = [scenario.path, scenario.training.memory, *(Path(e.spec.mesh_path) for e in scenario.objects
-                                                        if e.spec.mesh_path)]
+                                                        if e.spec.mesh_path), scenario.realism.real_params]
+    if scenario.realism.profile.endswith(".toml"):
+        paths.append(Path(scenario.realism.profile))
     options = scenario.actuator.options
     if dataclasses.is_dataclass(options):
         paths += [v for f in dataclasses.fields(options) if isinstance(v := getattr(options, f.name), Path)]
@@ -128,6 +134,13 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
     presses = {} if training is None else training.presses
     if draw:
         drawer.submit(training_jobs(presses))
+    sim_to_real = None
+    if training is not None and scenario.realism.real_params is not None:
+        real = table_from_csv(scenario.realism.real_params)
+        sim = table_from_fits({name: [r.fit for r in rs] for name, rs in presses.items()})
+        sim_to_real = sim_to_real_summary(sim, real, scenario.realism.real_params)
+        if draw:
+            drawer.submit([FigureJob("sim_vs_real.png", plot_sim_vs_real, (sim, real, memory.ddof))])
     timing["training_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -170,6 +183,8 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
             "accuracy": {m: float(np.asarray(crossval.confusion)[i, i]) for i, m in enumerate(scenario.references)},
         },
         "training": {name: [fit_summary(r.fit) for r in rs] for name, rs in presses.items()},
+        "realism": scenario.realism.profile,
+        "sim_to_real": sim_to_real,
         "objects": [object_summary(o) for o in objects],
         "figures": [str(Path(f).relative_to(out)) for f in figures],
         "timing": {k: round(v, 4) for k, v in timing.items()},

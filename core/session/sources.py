@@ -89,11 +89,13 @@ def load_source(name: str):
 
 def scenario_source_maker(scenario: Scenario, name: str = "sim"):
     """``make(objects, seed, variability)`` building the registered source ``name`` on the scenario's fingertip and
-    sensors: the shape every exploration and training loop asks for a source in."""
+    sensors (and its ``[realism]`` profile, when not ideal): the shape every exploration and training loop asks for a
+    source in."""
     factory = load_source(name)
+    realism = {} if scenario.realism.profile == "ideal" else {"realism": scenario.realism.profile}
 
     def make(objects: tuple[ObjectSpec, ...], seed: int, variability: str):
         scene = Scene(objects, scenario.fingertip, scenario.taxels, scenario.pose)
-        return factory(scene, fidelity=scenario.fidelity, seed=seed, variability=variability)
+        return factory(scene, fidelity=scenario.fidelity, seed=seed, variability=variability, **realism)
 
     return make
