@@ -15,7 +15,7 @@ from palpate.core.perception.crossval import leave_one_out
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.params_table import read_params_csv
 
-THESIS_CSV = Path(__file__).resolve().parent.parent / "tests" / "data" / "thesis_ch6_params.csv"
+THESIS_CSV = Path(__file__).resolve().parent.parent / "models" / "realism" / "seed000_tables_6_3_to_6_5.csv"
 
 
 def _scipy_loop(mem: HapticMemory, x: np.ndarray) -> np.ndarray:

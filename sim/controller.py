@@ -3,8 +3,10 @@
 Phases: approach from a small gap above the surface, press to a target depth (or to the depth a target force
 needs) at a given speed, optional hold, release back to the start height. A robot follows the target exactly;
 a human-like press varies speed and depth from press to press, shifts the press point by a small lateral jitter,
-and moves with a bell-shaped (minimum-jerk) velocity instead of constant speed. Every draw comes from a seeded
-generator, so the same seed gives the same press.
+and moves with a bell-shaped (minimum-jerk) velocity instead of constant speed; a realism profile
+(:mod:`palpate.sim.realism`) may add physiological tremor on the press axis and draw the finger's tilt and lateral
+slip, which the realism stage applies to the pad and the pose. Every draw comes from a seeded generator, so the
+same seed gives the same press.
 
 The trajectory is a :class:`PressProfile`; every fidelity level (analytic, rigid, flex) consumes it.
 """
@@ -78,6 +80,14 @@ class Variability:
         lateral_std: standard deviation of the press point's offset in x and y, m.
         hold_std: standard deviation added to the hold time, s (clipped at 0).
         smooth: use a bell-shaped (minimum-jerk) velocity in each phase, as human reaching does.
+        tilt_std: standard deviation of the finger's pitch and roll away from the press axis, rad; the contact
+            then meets the pad R sin(tilt) off its centre (applied by :mod:`palpate.sim.realism.finger`).
+        slip_std: standard deviation of the lateral slip of the finger (bone and nail, where the pose sensor
+            sits) per metre of indentation, m/m, in a random direction; the skin stays stuck to the object.
+        tremor: amplitude of physiological tremor along the press axis, m (8-12 Hz; ~0.05-0.2 mm for a finger
+            held against a light load, Elble & Koller 1990). 0 for none.
+        force_scale: the force a person actually stops at, relative to the instructed limit (people palpating
+            soft objects press far more lightly than a stated "up to 10 N"; 1 for a robot).
     """
 
     speed_cv: float = 0.15
@@ -85,15 +95,26 @@ class Variability:
     lateral_std: float = 3.0e-4
     hold_std: float = 0.02
     smooth: bool = True
+    tilt_std: float = 0.0
+    slip_std: float = 0.0
+    tremor: float = 0.0
+    force_scale: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("speed_cv", "depth_cv", "lateral_std", "hold_std"):
+        for name in ("speed_cv", "depth_cv", "lateral_std", "hold_std", "tilt_std", "slip_std", "tremor"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ValidationError(f"Variability.{name} must be a finite value >= 0, got {v!r}")
         if self.speed_cv >= 0.5 or self.depth_cv >= 0.5:
             raise ValidationError("Variability.speed_cv and depth_cv must stay below 0.5 (a press cannot reverse)")
+        if not (np.isfinite(self.force_scale) and 0.01 <= self.force_scale <= 10.0):
+            raise ValidationError(f"Variability.force_scale must be in [0.01, 10], got {self.force_scale!r}")
+        if self.tilt_std >= np.deg2rad(30.0):
+            raise ValidationError("Variability.tilt_std must stay below 30 deg (the pad would leave the contact)")
 
+
+#: Frequency band of physiological finger tremor, Hz (Elble & Koller 1990: 8-12 Hz).
+TREMOR_BAND_HZ = (8.0, 12.0)
 
 #: An exact robot press: no variability, constant speed.
 ROBOT = Variability(speed_cv=0.0, depth_cv=0.0, lateral_std=0.0, hold_std=0.0, smooth=False)
@@ -156,14 +177,14 @@ def press_profile(
         force_target = None
         if target.force is not None and depth_for_force is not None:
             # Depth and force limit: stop at whichever comes first, as a person pressing a hard sample does.
-            force_limit = float(target.force) * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
+            force_limit = float(target.force) * v.force_scale * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
             depth_at_limit = float(depth_for_force(force_limit))
             if np.isfinite(depth_at_limit) and 0 < depth_at_limit < depth:
                 depth, force_target = depth_at_limit, force_limit
     else:
         if depth_for_force is None:
             raise ValidationError("press_profile: a force target needs depth_for_force (force N -> depth m)")
-        force_target = float(target.force) * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
+        force_target = float(target.force) * v.force_scale * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
         depth = float(depth_for_force(force_target))
         if not (np.isfinite(depth) and depth > 0):
             raise ValidationError(f"press_profile: depth_for_force({force_target}) gave {depth!r}, expected > 0 m")
@@ -171,6 +192,10 @@ def press_profile(
     speed_out = target.speed * max(1.0 + v.speed_cv * rng.standard_normal(), 0.2)
     hold = max(target.hold + v.hold_std * rng.standard_normal(), 0.0) if v.hold_std > 0 else target.hold
     dx, dy = (v.lateral_std * rng.standard_normal(2)) if v.lateral_std > 0 else (0.0, 0.0)
+    # drawn after the others, and only when asked for, so a press without them replays exactly as before
+    tilt = v.tilt_std * rng.standard_normal(2) if v.tilt_std > 0 else None
+    slip = v.slip_std * rng.standard_normal(2) if v.slip_std > 0 else None
+    tremor = (rng.uniform(*TREMOR_BAND_HZ), rng.uniform(0.0, 2.0 * np.pi)) if v.tremor > 0 else None
 
     # a minimum-jerk move peaks at 1.875x its mean speed; scale its duration so the peak matches the command
     peak = 1.875 if v.smooth else 1.0
@@ -193,6 +218,10 @@ def press_profile(
         np.full(n_hold, z_bottom),
         (z_bottom + (z_top - z_bottom) * _ramp(n_out, v.smooth))[1:],
     ])
+    if tremor is not None:
+        # faded in and out over the whole movement, so the press still starts and ends at rest at z_top
+        window = np.sin(np.pi * t / t[-1]) ** 2
+        z = z + v.tremor * window * np.sin(2.0 * np.pi * tremor[0] * t + tremor[1])
     t_contact = t_in * _inverse_ramp(approach_gap / travel, v.smooth)
     t_lift = t_in + hold + t_out * _inverse_ramp(depth / travel, v.smooth)
     meta = {
@@ -215,6 +244,12 @@ def press_profile(
             "retract": [float(t_lift), float(t[-1])],
         },
     }
+    if tilt is not None:
+        meta["tilt"] = [float(a) for a in tilt]
+    if slip is not None:
+        meta["slip"] = [float(a) for a in slip]
+    if tremor is not None:
+        meta["tremor"] = {"amplitude": float(v.tremor), "frequency": float(tremor[0]), "phase": float(tremor[1])}
     return PressProfile(t=t, z=z, x=float(target.x + dx), y=float(target.y + dy), surface_z=float(surface_z),
                         meta=meta)
 

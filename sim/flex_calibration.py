@@ -21,9 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.world.resources import models_dir
 
 #: The shipped table.
-CALIBRATION_PATH = Path(__file__).resolve().parent.parent / "models" / "flex_calibration.json"
+CALIBRATION_PATH = models_dir() / "flex_calibration.json"
 #: Thickness of the calibration block, m (a / thickness < 0.1 over the calibrated presses).
 CAL_HEIGHT = 0.06
 #: Reference modulus of the calibration (the flex is E-invariant; this only fixes the units), Pa.

@@ -5,6 +5,9 @@ noise, rounded to integers, saturated at 255, and readings at or below the thres
 Pose: at ~``rate`` Hz with Gaussian sample-time jitter, the tip position plus seeded sub-millimetre noise and a
 small orientation noise; both sensors stamp samples on their own clock (simulation time + clock offset).
 Ground truth (force, indentation) is copied beside them at the physics rate.
+
+A realism profile (:mod:`palpate.sim.realism`) may add the pad's non-ideal response (a ``response`` applied to the
+sensel pressures before the counts) and the tracker's latency; without them the models are exactly the above.
 """
 
 from __future__ import annotations
@@ -45,12 +48,18 @@ def taxel_counts(pressure: np.ndarray, spec: TaxelSensorSpec, rng: np.random.Gen
 
 def sample_taxels(
     trace: PhysicsTrace, spec: TaxelSensorSpec, tip: FingertipSpec, rng: np.random.Generator,
-    sensor_id: str = "taxels",
+    sensor_id: str = "taxels", response=None,
 ) -> list[TaxelFrame]:
-    """Taxel frames at ``spec.rate`` Hz over the trace, stamped on the sensor clock (t + clock_offset)."""
+    """Taxel frames at ``spec.rate`` Hz over the trace, stamped on the sensor clock (t + clock_offset).
+
+    ``response(t, pressure) -> pressure`` (Pa, shape (n, rows, cols)), when given, is what the pad reports of the
+    true sensel pressures at the frame times (e.g. :class:`palpate.sim.realism.taxels.TaxelResponse`).
+    """
     trace.check_finite()
     t_sim = trace.t[0] + np.arange(int(np.floor((trace.t[-1] - trace.t[0]) * spec.rate + 1e-9)) + 1) / spec.rate
     pressure = _interp_rows(t_sim, trace.t, trace.sensel_pressure)
+    if response is not None:
+        pressure = response(t_sim, pressure)
     counts = taxel_counts(pressure, spec, rng)
     area = tip.sensel_area
     return [
@@ -79,12 +88,14 @@ def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def sample_poses(
-    trace: PhysicsTrace, spec: PoseSensorSpec, rng: np.random.Generator, sensor_id: str = "pose"
+    trace: PhysicsTrace, spec: PoseSensorSpec, rng: np.random.Generator, sensor_id: str = "pose",
+    latency: float = 0.0,
 ) -> list[PoseSample]:
     """Pose samples at ~``spec.rate`` Hz with time jitter, position/orientation noise, on the tracker clock.
 
     The sample is taken at the jittered simulation time and stamped with that time + clock_offset, as a tracker
-    stamps its own samples; jitter stays below a quarter period, so stamps increase strictly.
+    stamps its own samples; jitter stays below a quarter period, so stamps increase strictly. With a ``latency``
+    (s), a sample stamped t shows the finger where it was at t - latency (clamped to the trace).
     """
     trace.check_finite()
     period = 1.0 / spec.rate
@@ -95,10 +106,11 @@ def sample_poses(
     t_true = np.clip(t_true, trace.t[0], trace.t[-1])
     keep = np.concatenate([[True], np.diff(t_true) > 0])
     t_true = t_true[keep]
-    pos = _interp_rows(t_true, trace.t, trace.tip_position)
+    t_seen = t_true if latency == 0 else np.clip(t_true - latency, trace.t[0], trace.t[-1])
+    pos = _interp_rows(t_seen, trace.t, trace.tip_position)
     if spec.noise_std > 0:
         pos = pos + spec.noise_std * rng.standard_normal(pos.shape)
-    quat = _interp_rows(t_true, trace.t, trace.tip_quaternion)
+    quat = _interp_rows(t_seen, trace.t, trace.tip_quaternion)
     quat = _quat_mul(quat, _small_rotation(rng, len(t_true), ORIENTATION_NOISE))
     return [
         PoseSample(t=float(ts + spec.clock_offset), position=p, quaternion=q, sensor_id=sensor_id)

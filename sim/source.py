@@ -12,6 +12,7 @@ the table and the reason it returns says where and with what predicted errors.
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -21,8 +22,11 @@ from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import run_analytic_press
 from palpate.sim.contact.stack import object_law
-from palpate.sim.controller import HUMAN, ROBOT, PressProfile, Variability, press_profile
+from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profile
 from palpate.sim.flex import run_flex_press
+from palpate.sim.realism.profile import RealismProfile
+from palpate.sim.realism.profile_file import resolve_profile
+from palpate.sim.realism.stage import RealismSession
 from palpate.sim.rigid import rigid_depth_for_force, run_rigid_press
 from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
@@ -64,22 +68,31 @@ class SimSource:
         fidelity: "auto", "analytic", "rigid" or "flex".
         seed: seed of everything random (press variability, sensor noise); the n-th press of a source draws
             from (seed, n), so a source replays identically.
-        variability: "robot" (exact), "human" (default human-like variability) or a Variability.
+        variability: "robot" (exact), "human" (the realism profile's human-like press) or a Variability.
         timestep: physics step, s (rigid default 2 ms, flex its own; analytic samples at the taxel rate).
         tolerance: largest predicted force error ``auto`` accepts, fraction (default 5%).
         max_steps: physics steps one press may take; a longer one is refused before it runs.
+        realism: a realism profile (:mod:`palpate.sim.realism`): a preset or shipped profile's name, a TOML path,
+            or a RealismProfile; None is ``ideal`` (the simulation exactly as without profiles). One source is one
+            session (one pad equilibration, one clock synchronisation). Its finger pulp is in series with the
+            press point's contact law; the validity table (``auto``) is about the mechanics alone.
     """
+
+    #: modules every fidelity imports when it presses (checked by the run before any work starts)
+    requires = ("mujoco",)
 
     def __init__(self, scene: Scene, fidelity: str = "auto", seed: int = 0,
                  variability: str | Variability = "robot", timestep: float | None = None,
-                 tolerance: float = DEFAULT_TOLERANCE, max_steps: int = MAX_STEPS):
+                 tolerance: float = DEFAULT_TOLERANCE, max_steps: int = MAX_STEPS,
+                 realism: str | Path | RealismProfile | None = None):
         if fidelity not in FIDELITIES:
             raise ValidationError(f"SimSource: fidelity must be one of {FIDELITIES}, got {fidelity!r}")
+        if isinstance(variability, str) and variability not in ("robot", "human"):
+            raise ValidationError(f"SimSource: variability must be 'robot', 'human' or a Variability, "
+                                  f"got {variability!r}")
+        self.realism = resolve_profile(realism)
         if isinstance(variability, str):
-            if variability not in ("robot", "human"):
-                raise ValidationError(f"SimSource: variability must be 'robot', 'human' or a Variability, "
-                                      f"got {variability!r}")
-            variability = ROBOT if variability == "robot" else HUMAN
+            variability = ROBOT if variability == "robot" else self.realism.press
         if timestep is not None and not (np.isfinite(timestep) and timestep > 0):
             raise ValidationError(f"SimSource: timestep must be > 0 s, got {timestep!r}")
         if not (np.isfinite(tolerance) and 0 < tolerance < 1):
@@ -98,6 +111,8 @@ class SimSource:
         self._meshes: dict = {}
         self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
         self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.run_flex_press)
+        self._session = (None if self.realism.is_ideal else
+                         RealismSession(self.realism, scene.fingertip, scene.taxels, self.seed))
 
     def _mesh(self, obj: ObjectSpec):
         if obj.shape != "mesh":
@@ -139,7 +154,8 @@ class SimSource:
         fidelity, reason = self.explain(target)
         mesh = self._mesh(obj)
         surface_z, normal = surface_at(obj, target.x, target.y, mesh)
-        s_profile, s_taxel, s_pose = np.random.SeedSequence([self.seed, self._presses]).spawn(3)
+        # a fourth child for the realism keeps the first three (press, taxels, pose) as they always were
+        s_profile, s_taxel, s_pose, s_real = np.random.SeedSequence([self.seed, self._presses]).spawn(4)
         self._presses += 1
         timestep = self.timestep or 0.002
         seed = int(s_profile.generate_state(1)[0])
@@ -169,7 +185,8 @@ class SimSource:
             return prof
 
         law = None
-        if target.force is None:
+        real = None
+        if target.force is None and self._session is None:
             profile = profile_for(None)
             if fidelity in ("analytic", "rigid"):
                 law = object_law(obj, profile.x, profile.y, surface_z, tip.radius, law_depth(profile),
@@ -192,19 +209,33 @@ class SimSource:
                         return float("inf")  # the depth comes first: the force limit is never reached
                     raise
 
-            profile = profile_for(depth_for_force)
+            if self._session is None:
+                profile = profile_for(depth_for_force)
+            else:
+                real = self._realism(obj, point, target, law, depth_for_force, s_real)
+                profile = profile_for(real.bone_depth_for_force)
+        physics_profile = profile
+        if real is not None:
+            # the pulp's share taken out of the bone's press; the force the person stops at is felt through the
+            # pulp and the softened material, applied after the physics: the physics is held to the depth alone
+            physics_profile = real.object_profile(profile)
+            physics_profile = replace(physics_profile, meta=dict(physics_profile.meta, force_target=None))
         if fidelity == "analytic":
-            trace = run_analytic_press(self.scene, obj, profile, law=law)
+            trace = run_analytic_press(self.scene, obj, physics_profile, law=law)
         elif fidelity == "rigid":
-            trace = run_rigid_press(self.scene, obj, profile, timestep=timestep, mesh=mesh, law=law,
+            trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
                                     max_steps=self.max_steps)
         else:
             # flex has its own default step (up to 10 ms, see palpate.sim.flex.default_timestep): the rigid
             # default of 2 ms would make it 5x slower for nothing (its elasticity is integrated implicitly)
-            trace = run_flex_press(self.scene, obj, target, profile, timestep=self.timestep, seed=seed,
+            trace = run_flex_press(self.scene, obj, target, physics_profile, timestep=self.timestep, seed=seed,
                                    models=self._flex_models, max_steps=self.max_steps)
-        frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel))
-        poses = sample_poses(trace, self.scene.pose, np.random.default_rng(s_pose))
+        pose_spec, latency, response = self.scene.pose, 0.0, None
+        if real is not None:
+            trace = real.finish(trace, profile)
+            pose_spec, latency, response = real.pose_spec(pose_spec), real.latency, real.taxel_response
+        frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel), response=response)
+        poses = sample_poses(trace, pose_spec, np.random.default_rng(s_pose), latency=latency)
         meta = {
             "source": "sim", "fidelity": fidelity, "fidelity_reason": reason, "object": obj.name,
             "material": trace.material,
@@ -214,4 +245,25 @@ class SimSource:
             "profile": {k: v for k, v in profile.meta.items() if k != "phases"}, "phases": profile.meta["phases"],
             "physics": trace.meta,
         }
+        if real is not None:
+            meta["realism"] = real.meta()
         return PressRecording(frames=frames, poses=poses, truth=ground_truth(trace), meta=meta)
+
+    def _realism(self, obj: ObjectSpec, point: PressProfile, target: PressTarget, law, depth_for_force,
+                 stream: np.random.SeedSequence):
+        """This press's realism (:meth:`RealismSession.press`) at the drawn press point, planned on its law."""
+
+        def planning_depth(force: float) -> float:
+            try:
+                d = depth_for_force(force) if force < law.force[-1] else float("inf")
+            except ValidationError:
+                d = float("inf")
+            if np.isfinite(d):
+                return d
+            # past the deepest press allowed: Hertz's shape from the law's deepest point, only to tabulate the
+            # finger's series law (no press goes there)
+            return law.max_depth * (force / law.force[-1]) ** (2.0 / 3.0)
+
+        planned = target.depth if target.depth is not None else planning_depth(target.force)
+        return self._session.press(obj.name, point.x, point.y, planning_depth, 2.0 * planned + 0.01,
+                                   np.random.default_rng(stream))

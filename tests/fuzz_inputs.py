@@ -27,6 +27,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 TINY = REPO / "scenarios" / "sweeps" / "tiny_base.toml"
 DATA = Path(__file__).parent / "data"
+SEED_TABLE = REPO / "models" / "realism" / "seed000_tables_6_3_to_6_5.csv"
 
 
 @dataclass(frozen=True)
@@ -424,7 +425,7 @@ def _params(rng, box, out, bases) -> Try:
             lines.insert(k, lines[0])  # a repeated header line in the middle
         return f"line {k + 1} column {j + 1} = {cells[j][:20]!r}"
 
-    path, label = _line_try(rng, box, "params.csv", (DATA / "thesis_ch6_params.csv").read_text(), edit, first=1)
+    path, label = _line_try(rng, box, "params.csv", SEED_TABLE.read_text(), edit, first=1)
     cmd = str(rng.choice(["train", "crossval"]))
     argv = ("memory", "train", str(path), "-o", str(out / "m.json")) if cmd == "train" else \
         ("memory", "crossval", str(path))

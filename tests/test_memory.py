@@ -35,7 +35,7 @@ TABLE_6_7 = np.array([[0.82, 0.18, 0.00], [0.00, 1.00, 0.00], [0.00, 0.00, 1.00]
 HALF_UNIT = 0.05  # every number in Tables 6.3-6.6 is rounded to 0.1
 
 
-THESIS_CSV = Path(__file__).parent / "data" / "thesis_ch6_params.csv"
+THESIS_CSV = Path(__file__).resolve().parent.parent / "models" / "realism" / "seed000_tables_6_3_to_6_5.csv"
 
 
 @pytest.fixture(scope="module")
@@ -256,9 +256,9 @@ def test_fit_presses_takes_objects_with_params(thesis):
         HapticMemory().fit_presses([SimpleNamespace(params=[1, 2, 3])], ["x"])
 
 
-def test_from_table_path_and_rows(thesis, data_dir):
+def test_from_table_path_and_rows(thesis):
     params, labels, _ = thesis
-    a = HapticMemory.from_table(data_dir / "thesis_ch6_params.csv", ddof=1)
+    a = HapticMemory.from_table(THESIS_CSV, ddof=1)
     rows = [dict(material=lab, n1=p[0], n2=p[1], a1=p[2], a2=p[3]) for p, lab in zip(params, labels, strict=True)]
     b = HapticMemory.from_table(rows, ddof=1)
     np.testing.assert_array_equal(a.covs_N, b.covs_N)

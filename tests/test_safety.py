@@ -23,6 +23,7 @@ from palpate.core.world.haptic_material import HapticMaterialMap
 from palpate.core.world.scenario_file import load_scenario, parse_scenario
 
 REPO = Path(__file__).resolve().parent.parent
+SEED_TABLE = REPO / "models" / "realism" / "seed000_tables_6_3_to_6_5.csv"
 TINY = REPO / "scenarios" / "sweeps" / "tiny_base.toml"
 
 
@@ -190,10 +191,10 @@ def test_record_and_memory_outputs_never_destroy_inputs(tmp_path, capsys, data_d
     assert code == 2 and "exists; add --force" in _one_line_error(err, "important.txt")
     assert important.read_text() == "keep"
     params = tmp_path / "p.csv"
-    params.write_bytes((data_dir / "thesis_ch6_params.csv").read_bytes())
+    params.write_bytes((SEED_TABLE).read_bytes())
     code, _, err = _cli(["memory", "train", params, "-o", params, "--force"], capsys)
     assert code == 2 and "is an input" in _one_line_error(err, "p.csv")
-    assert params.read_bytes() == (data_dir / "thesis_ch6_params.csv").read_bytes()
+    assert params.read_bytes() == (SEED_TABLE).read_bytes()
     mem = tmp_path / "m.json"
     mem.write_text("{}")
     code, _, err = _cli(["memory", "train", params, "-o", mem], capsys)
@@ -401,7 +402,7 @@ def test_errors_are_one_line_and_tracebacks_come_with_debug(tmp_path, capsys, mo
 
 def test_memory_show_no_audit_is_the_recovery_the_audit_error_names(tmp_path, capsys, data_dir):
     mem = tmp_path / "m.json"
-    assert main(["memory", "train", str(data_dir / "thesis_ch6_params.csv"), "-o", str(mem)]) == 0
+    assert main(["memory", "train", str(SEED_TABLE), "-o", str(mem)]) == 0
     doc = json.loads(mem.read_text())
     doc["means_N"][0][0] += 1.0
     mem.write_text(json.dumps(doc))
@@ -435,7 +436,7 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path, data_dir):
     import sys
 
     mem = tmp_path / "m.json"
-    assert main(["memory", "train", str(data_dir / "thesis_ch6_params.csv"), "-o", str(mem)]) == 0
+    assert main(["memory", "train", str(SEED_TABLE), "-o", str(mem)]) == 0
     cli = "import sys; from palpate.core.cli import main; sys.exit(main())"
     proc = subprocess.Popen([sys.executable, "-c", cli, "memory", "show", str(mem)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE)

@@ -17,38 +17,70 @@ def thesis(tmp_path_factory):
     return scenario, run_scenario(scenario, tmp_path_factory.mktemp("thesis"))
 
 
-def test_leave_one_out_separates_the_reference_materials(thesis):
+def test_leave_one_out_reads_every_reference_material_mostly_as_itself(thesis):
     _, summary = thesis
-    confusion = np.asarray(summary["crossval"]["confusion"])
-    assert np.all(np.diag(confusion) >= 0.9), confusion
-    # Mean posterior (Table 6.7's other reading) also favours the true material on every row.
+    # Table 6.7's reading: the mean leave-one-out posterior favours the true material on every row; with the
+    # realism profile the presses are hard enough that some are misread (the seed's real data: 0.82 for Material_1)
     mean_post = np.asarray(summary["crossval"]["mean_posterior"])
     assert np.all(mean_post.argmax(axis=1) == np.arange(3))
+    assert np.all(np.diag(mean_post) < 0.999), mean_post  # no longer saturated at 1 as without realism
+    confusion = np.asarray(summary["crossval"]["confusion"])
+    assert np.all(np.diag(confusion) >= 0.7), confusion
 
 
-def test_each_explored_region_is_classified_as_its_material(thesis):
+def _region_truths(entry, obj, scenario):
+    from palpate.core.world.scene import material_index_at
+
+    origin, cell = np.asarray(obj["grid"]["origin_m"]), obj["grid"]["cell_size_m"]
+    names = [m.name for m in entry.spec.materials()]
+    out = []
+    for c, r in obj["regions"]:
+        xy = origin + (np.array([c, r]) - 0.5) * cell
+        idx = material_index_at(entry.spec, np.array([[*xy, entry.spec.height - 0.002]]), names)[0]
+        out.append(scenario.materials[names[idx]].like)
+    return out
+
+
+def test_explored_regions_are_mostly_read_as_their_material(thesis):
     scenario, summary = thesis
     refs = summary["materials"]
     for entry, obj in zip(scenario.objects, summary["objects"], strict=True):
         assert obj["presses"] == 10  # five regions x two presses, Table 6.8
         final = np.asarray(obj["posterior_per_cycle"][-1])
-        origin, cell = np.asarray(obj["grid"]["origin_m"]), obj["grid"]["cell_size_m"]
-        for (c, r), p in zip(obj["regions"], final, strict=True):
-            xy = origin + (np.array([c, r]) - 0.5) * cell
-            names = [m.name for m in entry.spec.materials()]
-            from palpate.core.world.scene import material_index_at
-
-            idx = material_index_at(entry.spec, np.array([[*xy, entry.spec.height - 0.002]]), names)[0]
-            truth = scenario.materials[names[idx]].like
-            assert refs[int(np.argmax(p))] == truth, (obj["name"], (c, r), p)
+        truths = _region_truths(entry, obj, scenario)
+        read = [refs[int(np.argmax(p))] for p in final]
+        assert sum(a == b for a, b in zip(read, truths, strict=True)) >= 3, (obj["name"], read, truths)
         # post-processing spreads the explored evidence: more cells correct, lower entropy
         acc = obj["accuracy"]
         assert acc["all_cells_after_postprocessing"] > acc["all_cells_before_postprocessing"]
         assert obj["mean_entropy_after_postprocessing"] < obj["mean_entropy_after_each_press"][-1]
 
 
-def test_object_1_has_two_regions_of_the_second_material(thesis):
-    # As in the seed (Table 6.9): Object_1 reads mostly as Material_1, with two regions like Material_2.
+def test_object_1_reads_the_rubber_strip_as_the_second_material(thesis):
+    # As in the seed (Table 6.9): two of Object_1's regions, those over the rubber strip, read as Material_2.
+    scenario, summary = thesis
+    obj = summary["objects"][0]
+    final = np.asarray(obj["posterior_per_cycle"][-1])
+    truths = _region_truths(scenario.objects[0], obj, scenario)
+    assert truths.count("Material_2") == 2
+    for p, truth in zip(final, truths, strict=True):
+        if truth == "Material_2":
+            assert int(np.argmax(p)) == 1, (p, truths)
+
+
+def test_the_run_reports_its_training_presses_against_the_seeds_tables(thesis):
+    """Issue 13's targets that the fitted profile meets on the main job's seed (6, never tuned on); the others are
+    reported in docs/realism.md with benchmarks/realism_targets.py's numbers over held-out seeds."""
     _, summary = thesis
-    final = np.asarray(summary["objects"][0]["posterior_per_cycle"][-1])
-    assert sorted(final.argmax(axis=1).tolist()) == [0, 0, 0, 1, 1]
+    report = summary["sim_to_real"]
+    assert report["real_table"].endswith("seed000_tables_6_3_to_6_5.csv")
+    assert "figures/sim_vs_real.png" in summary["figures"]
+    m = report["materials"]
+    assert set(m) == {"Material_1", "Material_2", "Material_3"}
+    assert 0.7 <= m["Material_1"]["cv_ratio_n1"] <= 1.3
+    assert 0.7 <= m["Material_1"]["cv_ratio_a1"] <= 1.3
+    assert 0.7 <= m["Material_3"]["cv_ratio_n1"] <= 1.3
+    for name in ("Material_1", "Material_2"):
+        assert abs(m[name]["negative_n2_per_10_difference"]) <= 2
+    # the simulated spread of n1 is now of the real one's order on every material (it was a third to a sixth)
+    assert all(e["cv_ratio_n1"] > 0.5 for e in m.values())

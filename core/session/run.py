@@ -27,12 +27,15 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.io.realism_figures import plot_sim_vs_real
 from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.param_stats import table_from_csv, table_from_fits
 from palpate.core.session.actuators import open_actuators
 from palpate.core.session.explore import ObjectResult, explore_object
+from palpate.core.session.figure_jobs import FigureDrawer, FigureJob, object_jobs, progress_job, training_jobs
 from palpate.core.session.output_guard import check_output_file, prepare_output_folder
-from palpate.core.session.outputs import write_figures, write_maps
+from palpate.core.session.outputs import write_maps
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import (
@@ -45,20 +48,23 @@ from palpate.core.session.report import (
     saturation_warning,
 )
 from palpate.core.session.report import versions as _versions
+from palpate.core.session.sim_to_real import sim_to_real_summary
 from palpate.core.session.sources import PressTarget, scenario_source_maker
-from palpate.core.session.training import TrainingResult, train_memory
+from palpate.core.session.training import TrainingResult, run_seeds, train_memory
 from palpate.core.world.scenario import ObjectEntry, Scenario
 from palpate.core.world.workspace import map_geometries
 
 
 def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress | None = None,
-                 source: str | None = None, record: str | Path | None = None, force: bool = False) -> dict:
+                 source: str | None = None, record: str | Path | None = None, force: bool = False,
+                 live=None) -> dict:
     """Run a scenario end to end and write its outputs into ``out_dir``. Returns the summary (also summary.json).
 
     ``source`` names the registered simulated source that trains the memory and, with ``[actuator] kind = "sim"``,
     explores (default: ``training.source``); another actuator kind explores through
     :func:`palpate.core.session.actuators.open_actuators`. With ``record``, every press's raw streams (and ground
-    truth) go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps.
+    truth) go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps; with ``live`` (a
+    :class:`~palpate.core.io.live.LiveServer`) the same messages, and the map after every press, are served live.
 
     ``out_dir`` must be new, empty or an earlier run's folder; an earlier run (and an existing ``record`` file) is
     replaced only with ``force`` (:mod:`palpate.core.session.output_guard`). No input is ever overwritten.
@@ -70,7 +76,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
     own = [Path(record).name] if record is not None and Path(record).resolve().parent == Path(out_dir).resolve() \
         else []
     out = prepare_output_folder(out_dir, "run", force=force, inputs=inputs, extra=own)
-    seeds = np.random.SeedSequence(scenario.seed).generate_state(4 + len(scenario.references) + len(scenario.objects))
+    seeds = run_seeds(scenario)
     source = source or scenario.training.source
     kind = scenario.actuator.kind
     geometries = map_geometries(scenario)
@@ -79,7 +85,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                        {"scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
                                      "seed": scenario.seed, "fidelity": scenario.fidelity},
                         "sources": [source] if kind == "sim" else [source, kind],
-                        "maps": {name: g.to_dict() for name, g in geometries.items()}})
+                        "maps": {name: g.to_dict() for name, g in geometries.items()}}, live=live)
         try:
             return _run(scenario, out, progress, *makers, seeds, log)
         finally:
@@ -87,9 +93,12 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
 
 
 def scenario_inputs(scenario: Scenario) -> list[Path]:
-    """The files a run of ``scenario`` reads (the scenario, a trained memory, meshes, actuator files)."""
+    """The files a run of ``scenario`` reads (the scenario, a trained memory, meshes, actuator files, a realism
+    profile file and the real per-press table)."""
     paths = [scenario.path, scenario.training.memory, *(Path(e.spec.mesh_path) for e in scenario.objects
-                                                        if e.spec.mesh_path)]
+                                                        if e.spec.mesh_path), scenario.realism.real_params]
+    if scenario.realism.profile.endswith(".toml"):
+        paths.append(Path(scenario.realism.profile))
     options = scenario.actuator.options
     if dataclasses.is_dataclass(options):
         paths += [v for f in dataclasses.fields(options) if isinstance(v := getattr(options, f.name), Path)]
@@ -111,7 +120,16 @@ def _memory(scenario: Scenario, make_source, seeds, progress: Progress,
 
 def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds,
          log: PressLog) -> dict:
+    out_cfg = scenario.outputs
+    preload = ("pyvista",) if out_cfg.render_3d and scenario.exploration.map == "voxel" else ()
+    with FigureDrawer(out / "figures", background=out_cfg.figures, preload=preload) as drawer:
+        return _stages(scenario, out, progress, make_source, make_actuator, seeds, log, drawer)
+
+
+def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds, log: PressLog,
+            drawer: FigureDrawer) -> dict:
     timing: dict[str, float] = {}
+    draw = scenario.outputs.figures
     t0 = time.perf_counter()
     memory, training = _memory(scenario, make_source, seeds, progress, log)
     memory.save(out / "memory.json")
@@ -121,6 +139,16 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
         nz = max(1, int(round(ex.voxel_depth / ex.cell_size)))
         layers = train_layered_memory(memory, training.presses, ex.cell_size, nz)
         layers.save(out / "memory_layers.json")
+    presses = {} if training is None else training.presses
+    if draw:
+        drawer.submit(training_jobs(presses))
+    sim_to_real = None
+    if training is not None and scenario.realism.real_params is not None:
+        real = table_from_csv(scenario.realism.real_params)
+        sim = table_from_fits({name: [r.fit for r in rs] for name, rs in presses.items()})
+        sim_to_real = sim_to_real_summary(sim, real, scenario.realism.real_params)
+        if draw:
+            drawer.submit([FigureJob("sim_vs_real.png", plot_sim_vs_real, (sim, real, memory.ddof))])
     timing["training_s"] = time.perf_counter() - t0
     if training is not None:
         for name, rs in training.presses.items():
@@ -135,16 +163,20 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
         seed_i = int(seeds[4 + len(scenario.references) + i])
         objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers))
         _warn(progress, saturation_warning(entry.spec.name, saturation([s.result for s in objects[-1].steps])))
+        if draw:
+            drawer.submit(object_jobs(objects[-1], scenario.outputs.render_3d))
+    if draw:
+        drawer.submit([progress_job(objects)])
+    log.close()  # the recording is complete on disk before maps and figures are written
     timing["exploration_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     write_maps(out, objects, scenario)
     timing["maps_s"] = time.perf_counter() - t0
 
+    # Most figures were drawn in the background while the run went on: this is the wait for the rest.
     t0 = time.perf_counter()
-    presses = {} if training is None else training.presses
-    figures = (write_figures(out / "figures", presses, objects, render_3d=scenario.outputs.render_3d)
-               if scenario.outputs.figures else [])
+    figures = drawer.finish(progress) if draw else []
     timing["figures_s"] = time.perf_counter() - t0
 
     crossval = None if training is None else training.crossval
@@ -165,6 +197,8 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
         },
         "training": {name: [fit_summary(r.fit) for r in rs] for name, rs in presses.items()},
         "training_saturation": {name: saturation(rs) for name, rs in presses.items()},
+        "realism": scenario.realism.profile,
+        "sim_to_real": sim_to_real,
         "objects": [object_summary(o) for o in objects],
         "figures": [str(Path(f).relative_to(out)) for f in figures],
         "timing": {k: round(v, 4) for k, v in timing.items()},

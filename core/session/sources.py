@@ -14,6 +14,7 @@ from inspect import signature
 from typing import Protocol, runtime_checkable
 
 from palpate.core.errors import ValidationError
+from palpate.core.extras import missing_extra, require_extra
 from palpate.core.perception.streams import PressRecording
 from palpate.core.world.scenario import Scenario
 from palpate.core.world.scene import ObjectSpec, Scene
@@ -71,21 +72,31 @@ def available_sources() -> dict[str, str]:
 def load_source(name: str):
     """Return the factory registered as ``name`` in ``palpate.sources``.
 
-    Raises ValidationError naming the known sources if ``name`` is not registered.
+    Raises ValidationError naming the known sources if ``name`` is not registered, and MissingExtraError naming the
+    extra to install if the source, or a module its ``requires`` attribute lists (imported only when it presses),
+    is missing.
     """
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         if ep.name == name:
-            return ep.load()
+            try:
+                factory = ep.load()
+            except ImportError as exc:
+                raise missing_extra(exc, f"the {name!r} source") from None
+            require_extra(f"the {name!r} source", *getattr(factory, "requires", ()))
+            return factory
     known = ", ".join(sorted(available_sources())) or "none (is palpate installed?)"
     raise ValidationError(f"unknown source {name!r}; registered sources: {known}")
 
 
 def scenario_source_maker(scenario: Scenario, name: str = "sim"):
     """``make(objects, seed, variability)`` building the registered source ``name`` on the scenario's fingertip and
-    sensors: the shape every exploration and training loop asks for a source in."""
+    sensors (and its ``[realism]`` profile, when not ideal): the shape every exploration and training loop asks for a
+    source in."""
     factory = load_source(name)
-    # the scenario's tolerance for ``auto``, given to the sources that take one
+    # the scenario's tolerance for ``auto``, given to the sources that take one; its realism profile when not ideal
     extra = {"tolerance": scenario.fidelity_tolerance} if "tolerance" in signature(factory).parameters else {}
+    if scenario.realism.profile != "ideal":
+        extra["realism"] = scenario.realism.profile
 
     def make(objects: tuple[ObjectSpec, ...], seed: int, variability: str):
         scene = Scene(objects, scenario.fingertip, scenario.taxels, scenario.pose)

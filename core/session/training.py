@@ -22,6 +22,17 @@ TRAINING_BLOCK = (0.08, 0.08, 0.04)  # m: a thick sample of each reference mater
 MIN_FITTED = 3
 
 
+def run_seeds(scenario: Scenario) -> np.ndarray:
+    """The seeds of a run of ``scenario`` (from ``scenario.seed``): 4 spare, then one per reference material (its
+    training session, :func:`training_seeds`), then one per object."""
+    return np.random.SeedSequence(scenario.seed).generate_state(4 + len(scenario.references) + len(scenario.objects))
+
+
+def training_seeds(scenario: Scenario) -> np.ndarray:
+    """The seed of each reference material's training session in a run of ``scenario``, in reference order."""
+    return run_seeds(scenario)[4:4 + len(scenario.references)]
+
+
 @dataclass(frozen=True)
 class TrainingResult:
     """A trained memory, its leave-one-out cross-validation, and every training press as perceived (by material,

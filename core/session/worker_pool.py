@@ -167,24 +167,28 @@ def run_tasks(fn: Callable, tasks: Sequence[tuple[object, tuple]], workers: int)
             busy = [w for w in pool if w.key is not None]
             ready = wait([w.conn for w in busy] + [w.proc.sentinel for w in busy])
             for w in busy:
+                outcome = None
                 if w.conn in ready:
-                    try:
+                    # A dead worker's pipe reads as end-of-file, and stays ready: it must be retired here, or the
+                    # loop spins on it for ever.
+                    with contextlib.suppress(EOFError, OSError):
                         outcome = w.conn.recv()
-                    except (EOFError, OSError):
-                        continue  # the worker died; its sentinel says so below
+                elif w.proc.sentinel not in ready:
+                    continue
+                if outcome is not None:
                     w.key = None
                     yield outcome
                     if pending:
                         give(w)
-                elif w.proc.sentinel in ready and w.key is not None:
-                    key, w.key = w.key, None
-                    w.proc.join()
-                    pool.remove(w)
-                    code = w.proc.exitcode
-                    how = f"signal {-code}" if code is not None and code < 0 else f"exit code {code}"
-                    yield Outcome(key, False, TaskFailure("WorkerDied", f"the worker process ended ({how})"))
-                    if pending:
-                        give(start())
+                    continue
+                key, w.key = w.key, None
+                w.proc.join()
+                pool.remove(w)
+                code = w.proc.exitcode
+                how = f"signal {-code}" if code is not None and code < 0 else f"exit code {code}"
+                yield Outcome(key, False, TaskFailure("WorkerDied", f"the worker process ended ({how})"))
+                if pending:
+                    give(start())
     finally:
         _stop(pool)
 

@@ -93,6 +93,22 @@ class OutputSpec:
 
 
 @dataclass(frozen=True)
+class RealismSpec:
+    """``[realism]``: how hard the simulated presses are, and the real data they are compared with.
+
+    Attributes:
+        profile: a realism profile for the simulated source: a preset or shipped profile's name ("ideal", "lab",
+            "thesis_ch6", ...) or the path of a profile file (resolved against the scenario's folder); the
+            simulation validates it when it opens the source.
+        real_params: a per-press parameter table of real presses of the reference materials (the CSV of
+            ``palpate memory``); when given, the run reports the simulated training presses against it.
+    """
+
+    profile: str = "ideal"
+    real_params: Path | None = None
+
+
+@dataclass(frozen=True)
 class Scenario:
     """A validated scenario. Lengths in m, moduli in Pa, forces in N, speeds in m/s."""
 
@@ -111,6 +127,7 @@ class Scenario:
     outputs: OutputSpec = field(default_factory=OutputSpec)
     raw: dict = field(default_factory=dict, repr=False)
     actuator: ActuatorSpec = field(default_factory=ActuatorSpec)
+    realism: RealismSpec = field(default_factory=RealismSpec)
     #: ``auto``'s tolerance: the largest predicted force error of a fidelity against the reference, fraction.
     fidelity_tolerance: float = 0.05
 

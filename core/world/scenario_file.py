@@ -34,6 +34,7 @@ from palpate.core.world.scenario_tables import (
     extrapolation_passes,
     object_entry,
     optional_force,
+    realism_spec,
     training_source,
 )
 from palpate.core.world.scene import FingertipSpec, Material, PoseSensorSpec, TaxelSensorSpec
@@ -208,12 +209,13 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     )
     out.finish()
     actuator = _actuator(top.sub("actuator"), base)
+    realism = realism_spec(top.sub("realism"), base)
     top.finish()
     unique_stems(materials, f"{file}: materials")
     unique_stems((o.spec.name for o in objects), f"{file}: objects")
     scenario = Scenario(name, Path(file) if file != "<scenario>" else None, description, seed, fidelity, materials,
                         fingertip, taxels, pose, training, exploration, tuple(objects), outputs, raw, actuator,
-                        fidelity_tolerance=tolerance)
+                        realism, fidelity_tolerance=tolerance)
     for i, entry in enumerate(objects):
         try:
             object_geometry(scenario, entry)

@@ -11,7 +11,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.files import brief
 from palpate.core.names import check_name
 from palpate.core.world.haptic_material import HapticMaterialMap
-from palpate.core.world.scenario import MaterialEntry, ObjectEntry
+from palpate.core.world.scenario import MaterialEntry, ObjectEntry, RealismSpec
 from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec
 from palpate.core.world.table_reader import REQUIRED, TableReader, resolve_path
 
@@ -32,6 +32,24 @@ def training_source(r: TableReader) -> str:
     if not value:
         raise r.err("source", "must name a registered source, e.g. 'sim'")
     return value
+
+
+def realism_spec(r: TableReader, base: Path) -> RealismSpec:
+    """``[realism]``: ``profile`` (a name, or a ``.toml`` path resolved against the scenario) and ``real_params``."""
+    profile = r.get("profile", str, "ideal")
+    if not profile:
+        raise r.err("profile", 'must name a profile ("ideal", "lab", a shipped profile) or a .toml file')
+    if profile.endswith(".toml") or "/" in profile or "\\" in profile:
+        path = resolve_path(base, profile)
+        if not path.is_file():
+            raise r.err("profile", f"realism profile file {path} not found")
+        profile = str(path)
+    real = r.get("real_params", str, "")
+    real_path = resolve_path(base, real) if real else None
+    if real_path is not None and not real_path.is_file():
+        raise r.err("real_params", f"per-press parameter table {real_path} not found")
+    r.finish()
+    return RealismSpec(profile, real_path)
 
 
 def optional_force(r: TableReader) -> float | None:

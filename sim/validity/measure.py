@@ -18,6 +18,7 @@ import numpy as np
 
 from palpate.core.errors import PalpateError, ValidationError
 from palpate.core.session.sources import PressTarget
+from palpate.core.world.resources import models_dir
 from palpate.core.world.scene import Scene
 from palpate.sim.analytic import run_analytic_press
 from palpate.sim.contact.stack import object_law
@@ -28,7 +29,7 @@ from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, law_depth
 from palpate.sim.validity.cases import FAMILIES, TIP_RADIUS, ValidityCase, case_object
 from palpate.sim.validity.reference import reference_force
 
-TABLE_PATH = Path(__file__).resolve().parents[2] / "models" / "validity_table.json"
+TABLE_PATH = models_dir() / "validity_table.json"
 FORMAT = "palpate-validity"
 VERSION = 1
 RUNGS = ("analytic", "rigid", "flex")

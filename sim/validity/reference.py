@@ -13,10 +13,11 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.world.resources import models_dir
 from palpate.sim.reference.fe import fe_press
 from palpate.sim.validity.cases import TIP_RADIUS, ValidityCase
 
-REFERENCE_PATH = Path(__file__).resolve().parents[2] / "models" / "reference_tables.json"
+REFERENCE_PATH = models_dir() / "reference_tables.json"
 FORMAT = "palpate-fe-reference"
 VERSION = 1
 MAX_BYTES = 5_000_000

@@ -1,0 +1,64 @@
+"""The sim-to-real report of a run: the simulated training presses against a real per-press table, per material.
+
+For every material in both, and for each of n1, n2, Phi_N, a1, a2, Phi_A: real and simulated mean, coefficient of
+variation and share of negative values (:func:`~palpate.core.perception.param_stats.column_stats`), and the
+distance between the two distributions: the energy distance of the standardised [n1, n2, a1, a2] rows
+(:func:`~palpate.core.perception.param_stats.material_distance`; 0 = the same distribution; two samples of 10 from
+one distribution typically give ~0.1-0.3). It also says, per material, how far the simulated CVs of n1 and a1 are
+from the real ones (ratio) and how many more presses of 10 have n2 < 0 (the targets of issue 13).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from palpate.core.perception.param_stats import STAT_COLUMNS, ColumnStats, PressTable, column_stats, material_distance
+
+DISTANCE = ("energy distance (Szekely & Rizzo) between the simulated and real [n1, n2, a1, a2] rows of one "
+            "material, each column divided by the real table's standard deviation; 0 = same distribution")
+
+
+def _stats(s: ColumnStats) -> dict:
+    return {"mean": s.mean, "sd": s.sd, "cv": s.cv, "negative_fraction": s.negative_fraction, "n": s.n}
+
+
+def sim_to_real_summary(sim: PressTable, real: PressTable, real_file: str | Path) -> dict:
+    """The report as summary.json holds it (``materials``: one entry per material found in both tables)."""
+    out: dict = {"real_table": str(real_file), "distance": DISTANCE, "materials": {}}
+    for name in sim.materials:
+        if name not in real.materials:
+            continue
+        s, r = sim.of(name), real.of(name)
+        if len(s) < 2 or len(r) < 2:
+            continue
+        cols = {c: {"real": _stats(column_stats(r[:, j])), "sim": _stats(column_stats(s[:, j]))}
+                for j, c in enumerate(STAT_COLUMNS)}
+        entry = {"presses": {"sim": len(s), "real": len(r)}, "columns": cols,
+                 "energy_distance": material_distance(s, r)}
+        for c in ("n1", "a1"):
+            sim_cv, real_cv = cols[c]["sim"]["cv"], cols[c]["real"]["cv"]
+            entry[f"cv_ratio_{c}"] = None if not (sim_cv and real_cv) else sim_cv / real_cv
+        entry["negative_n2_per_10_difference"] = round(10.0 * (cols["n2"]["sim"]["negative_fraction"]
+                                                               - cols["n2"]["real"]["negative_fraction"]), 9)
+        out["materials"][name] = entry
+    return out
+
+
+def _num(v, fmt: str) -> str:
+    return "n/a" if v is None else format(v, fmt)
+
+
+def format_sim_to_real(doc: dict) -> str:
+    """The report as printed: per material, real / simulated mean, CV and negative share of each column."""
+    lines = [f"Sim-to-real (training presses vs {doc['real_table']}): real / sim"]
+    lines.append(f"{'':14}{'column':>8}{'mean':>22}{'CV':>16}{'negative':>14}")
+    for name, m in doc["materials"].items():
+        for j, c in enumerate(STAT_COLUMNS):
+            r, s = m["columns"][c]["real"], m["columns"][c]["sim"]
+            lines.append(f"{name if j == 0 else '':14}{c:>8}{_num(r['mean'], '.4g'):>11} /{_num(s['mean'], '.4g'):>9}"
+                         f"{_num(r['cv'], '.2f'):>8} /{_num(s['cv'], '.2f'):>6}"
+                         f"{r['negative_fraction']:>7.1f} /{s['negative_fraction']:>5.1f}")
+        lines.append(f"{'':14}energy distance {m['energy_distance']:.2f}; CV ratio sim/real n1 "
+                     f"{_num(m['cv_ratio_n1'], '.2f')}, a1 {_num(m['cv_ratio_a1'], '.2f')}; "
+                     f"n2 < 0: {m['negative_n2_per_10_difference']:+.1f} per 10 presses")
+    return "\n".join(lines)

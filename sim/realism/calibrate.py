@@ -1,0 +1,360 @@
+"""Fit a realism profile to a real per-press parameter table: the method of simulated moments.
+
+The table (``palpate memory``'s CSV: material, n1, n2, a1, a2, phi_n, phi_a; e.g. seed 000's Tables 6.3-6.5) gives,
+per material, the statistics :data:`MOMENTS`: the location of n1 and a1 (log of the mean), their spread (log of the
+coefficient of variation), the shares of negative n2 and a2, and how well leave-one-out cross-validation reads the
+material as itself (mean posterior, Table 6.7); all but a1's location and a2's sign are fitted (:data:`SCALES`).
+A candidate profile is scored by simulating the scenario's training protocol (its reference materials, presses,
+depth, force, speed, fingertip and sensors) on each *tuning* seed with common random numbers, computing the same
+statistics per seed (samples of the same size as the table's, so a CV is compared with a CV of as many presses) and
+averaging them over the seeds; the objective is the sum of squared differences to the table's, each divided by the
+tolerance in :data:`SCALES`. Negative shares enter the objective smoothed (a logistic step a tenth of the column's
+spread wide) so the objective is continuous; every report uses the plain shares.
+
+Search: a Latin hypercube over the free parameters' box (seeded), then Nelder-Mead from its best point, within the
+box, until the evaluation budget is spent. Deterministic: the same table, scenario, start profile, free parameters,
+seeds and budget give the same profile. The fitted profile is then simulated on *report* seeds it was not tuned on,
+and its statistics there are what the profile's provenance and the command report.
+
+The scenario's moduli may be fitted too (free parameters ``young.<material>``: a factor on that reference material's
+Young's modulus): with a compliant finger n1 no longer scales with the modulus, so moduli chosen from the table's
+ratios of mean n1 under a rigid finger are not those that reproduce them. The fitted moduli are not part of the
+profile: they are reported (``provenance.moduli_kpa``) for the scenario's ``young_kpa``.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from palpate.core.errors import PalpateError, ValidationError
+from palpate.core.perception.crossval import leave_one_out
+from palpate.core.perception.param_stats import PressTable, table_from_fits
+from palpate.core.session.progress import Progress
+from palpate.core.session.training import train_memory, training_seeds
+from palpate.core.world.scenario import Scenario
+from palpate.core.world.scene import Scene
+from palpate.sim.realism.profile import RealismProfile
+from palpate.sim.realism.profile_file import parse_profile, profile_tables
+from palpate.sim.source import SimSource
+
+#: The statistics computed per material (see the module docstring).
+MOMENTS = ("log_mean_n1", "log_mean_a1", "log_cv_n1", "log_cv_a1", "negative_n2", "negative_a2", "loo_self")
+#: Tolerance of each statistic in the objective: a difference of one scale costs 1; inf: reported, not fitted.
+#: The location of a1 and the sign of a2 are left to the report: they depend on how the contact patch covers the
+#: scenario's pad (its size and pitch), which a profile does not change, and fitting them would pull the fit away
+#: from the spreads and the overlap it can reproduce.
+SCALES = np.array([0.15, np.inf, 0.15, 0.15, 0.15, np.inf, 0.06])
+#: Objective of a candidate whose presses could not be fitted (a wall, not a number to descend).
+FAILED = 1e6
+
+
+@dataclass(frozen=True)
+class FreeParameter:
+    """One fitted parameter: its key in the profile file (``section.key``, file units) and its search box."""
+
+    key: str
+    lo: float
+    hi: float
+    log: bool = False
+
+    def value(self, u: float) -> float:
+        """The parameter at position u in [0, 1] of its box."""
+        u = float(np.clip(u, 0.0, 1.0))
+        if self.log:
+            return float(np.exp(np.log(self.lo) + u * (np.log(self.hi) - np.log(self.lo))))
+        return self.lo + u * (self.hi - self.lo)
+
+    def position(self, v: float) -> float:
+        """The position in [0, 1] of the value v (clipped into the box)."""
+        v = float(np.clip(v, self.lo, self.hi))
+        if self.log:
+            return float((np.log(v) - np.log(self.lo)) / (np.log(self.hi) - np.log(self.lo)))
+        return (v - self.lo) / (self.hi - self.lo)
+
+
+#: Parameters the command may fit, with their search boxes (physically plausible ranges; docs/realism.md).
+FREE_PARAMETERS = {p.key: p for p in (
+    FreeParameter("finger.stiffness_n_per_mm", 0.2, 5.0, log=True),
+    FreeParameter("finger.stiffening_per_mm", 0.0, 3.0),
+    FreeParameter("finger.area_factor", 1.0, 4.0),
+    FreeParameter("finger.stiffness_cv", 0.0, 0.8),
+    FreeParameter("press.speed_cv", 0.0, 0.4),
+    FreeParameter("press.depth_cv", 0.0, 0.4),
+    FreeParameter("press.tilt_deg", 0.0, 12.0),
+    FreeParameter("press.slip", 0.0, 0.3),
+    FreeParameter("press.tremor_mm", 0.0, 0.3),
+    FreeParameter("press.force_scale", 0.05, 1.0, log=True),
+    FreeParameter("taxels.sensitivity", 0.5, 30.0, log=True),
+    FreeParameter("taxels.gain_spread", 0.0, 0.3),
+    FreeParameter("taxels.gain_drift", 0.0, 0.08),
+    FreeParameter("taxels.hysteresis", 0.0, 0.3),
+    FreeParameter("taxels.creep", 0.0, 0.2),
+    FreeParameter("taxels.nonlinearity", 0.0, 3.0),
+    FreeParameter("pose.latency_ms", -30.0, 30.0),
+    FreeParameter("pose.clock_offset_ms", 0.0, 60.0),
+    FreeParameter("pose.clock_wander_ms", 0.0, 60.0),
+    FreeParameter("material.relaxation", 0.0, 0.6),
+    FreeParameter("material.softening", 0.0, 0.3),
+)}
+#: What the command fits unless told otherwise: location (pulp stiffness, pad sensitivity) and spread.
+DEFAULT_FREE = ("finger.stiffness_n_per_mm", "finger.stiffening_per_mm", "finger.stiffness_cv", "press.depth_cv",
+                "taxels.sensitivity", "taxels.nonlinearity", "taxels.gain_drift", "pose.clock_wander_ms",
+                "material.relaxation")
+
+
+#: Search box of a factor on a reference material's modulus (``young.<material>``): the scenario's moduli are
+#: taken as right to within a factor of 3 (a foam is not a steel; an unbounded factor lets a modulus stand in for
+#: whatever the other parameters cannot reproduce).
+MODULUS_FACTOR_BOX = (1.0 / 3.0, 3.0)
+
+
+def free_parameters(keys: Sequence[str], references: Sequence[str] = ()) -> tuple[FreeParameter, ...]:
+    """The free parameters named by ``keys`` (``young.<material>`` for one of ``references``); ValidationError
+    naming the unknown ones and the known."""
+    moduli = {f"young.{m}": FreeParameter(f"young.{m}", *MODULUS_FACTOR_BOX, log=True) for m in references}
+    known = {**FREE_PARAMETERS, **moduli}
+    unknown = [k for k in keys if k not in known]
+    if unknown or not keys:
+        raise ValidationError(f"unknown free parameter(s) {unknown or '(none given)'}; known: {', '.join(known)}")
+    if len(set(keys)) != len(keys):
+        raise ValidationError(f"free parameters repeat: {list(keys)}")
+    return tuple(known[k] for k in keys)
+
+
+def with_moduli(scenario: Scenario, free: Sequence[FreeParameter], values: Sequence[float]) -> Scenario:
+    """The scenario with each ``young.<material>`` factor applied to that material's modulus."""
+    materials = dict(scenario.materials)
+    for p, v in zip(free, values, strict=True):
+        if p.key.startswith("young."):
+            entry = materials[p.key[6:]]
+            materials[p.key[6:]] = replace(entry, material=replace(entry.material, young=entry.material.young * v))
+    return replace(scenario, materials=materials)
+
+
+def with_values(profile: RealismProfile, free: Sequence[FreeParameter], values: Sequence[float],
+                name: str | None = None) -> RealismProfile:
+    """The profile with each free parameter set to its value (file units), validated as a file would be."""
+    tables = copy.deepcopy(profile_tables(profile))
+    for p, v in zip(free, values, strict=True):
+        section, key = p.key.split(".", 1)
+        if section == "young":
+            continue  # the scenario's, not the profile's (with_moduli)
+        tables.setdefault(section, {})[key] = float(v)
+    if name is not None:
+        tables["profile"]["name"] = name
+    tables.pop("provenance", None)
+    return parse_profile(tables, "<calibration>", profile.name)
+
+
+def current_values(profile: RealismProfile, free: Sequence[FreeParameter]) -> list[float]:
+    """The free parameters' values in ``profile`` (file units)."""
+    tables = profile_tables(profile)
+    return [1.0 if p.key.startswith("young.") else float(tables[p.key.split(".")[0]][p.key.split(".")[1]])
+            for p in free]
+
+
+def _negative_share(x: np.ndarray, smooth: bool) -> float:
+    if not smooth:
+        return float(np.mean(x < 0))
+    width = 0.1 * float(np.std(x)) + 1e-12
+    return float(np.mean(1.0 / (1.0 + np.exp(np.clip(x / width, -50.0, 50.0)))))
+
+
+def table_moments(table: PressTable, materials: Sequence[str], loo_self: np.ndarray, smooth: bool) -> np.ndarray:
+    """:data:`MOMENTS` of each material (rows in ``materials`` order), shape (M, len(MOMENTS)).
+
+    Raises ValidationError when a material has fewer than 3 presses or a non-positive mean n1 or a1.
+    """
+    out = np.empty((len(materials), len(MOMENTS)))
+    for i, name in enumerate(materials):
+        r = table.of(name)
+        if len(r) < 3:
+            raise ValidationError(f"{name}: {len(r)} fitted presses; the moments need at least 3")
+        n1, n2, a1, a2 = r[:, 0], r[:, 1], r[:, 3], r[:, 4]
+        if n1.mean() <= 0 or a1.mean() <= 0:
+            raise ValidationError(f"{name}: mean n1 {n1.mean():.3g} and mean a1 {a1.mean():.3g} must be > 0")
+        out[i] = [np.log(n1.mean()), np.log(a1.mean()), np.log(n1.std(ddof=1) / n1.mean() + 1e-9),
+                  np.log(a1.std(ddof=1) / a1.mean() + 1e-9), _negative_share(n2, smooth),
+                  _negative_share(a2, smooth), loo_self[i]]
+    return out
+
+
+def real_moments(table: PressTable, materials: Sequence[str]) -> np.ndarray:
+    """:data:`MOMENTS` of the real table (leave-one-out as a run computes it: ddof 0)."""
+    params = np.vstack([table.of(m)[:, [0, 1, 3, 4]] for m in materials])
+    labels = [m for m in materials for _ in range(len(table.of(m)))]
+    cv = leave_one_out(params, labels, materials=list(materials))
+    return table_moments(table, materials, np.diag(cv.mean_posterior), smooth=False)
+
+
+@dataclass(frozen=True)
+class SeedRun:
+    """One simulated training session of every reference material: its table and its leave-one-out diagonal."""
+
+    seed: int
+    table: PressTable
+    loo_self: np.ndarray
+
+
+def simulate_seed(scenario: Scenario, profile: RealismProfile, seed: int, fidelity: str) -> SeedRun:
+    """Train on the scenario's references as ``palpate run`` would with ``seed`` as the scenario seed."""
+    sc = replace(scenario, seed=int(seed))
+
+    def make_source(objects, s, variability):
+        scene = Scene(objects, scenario.fingertip, scenario.taxels, scenario.pose)
+        return SimSource(scene, fidelity=fidelity, seed=s, variability=variability, realism=profile)
+
+    result = train_memory(sc, make_source, training_seeds(sc), Progress(enabled=False))
+    table = table_from_fits({name: [r.fit for r in rs] for name, rs in result.presses.items()})
+    return SeedRun(int(seed), table, np.diag(result.crossval.mean_posterior).copy())
+
+
+def sim_moments(runs: Sequence[SeedRun], materials: Sequence[str], references: Sequence[str],
+                smooth: bool) -> np.ndarray:
+    """:data:`MOMENTS` averaged over seeds (each seed's statistics from its own presses)."""
+    idx = [list(references).index(m) for m in materials]
+    return np.mean([table_moments(r.table, materials, r.loo_self[idx], smooth) for r in runs], axis=0)
+
+
+def objective(sim: np.ndarray, real: np.ndarray) -> float:
+    """Sum over materials and moments of ((sim - real) / scale)^2."""
+    return float(np.sum(((sim - real) / SCALES[None, :]) ** 2))  # an infinite scale weighs 0
+
+
+def match_moduli(table: PressTable, scenario: Scenario, start: RealismProfile, free: Sequence[FreeParameter],
+                 values: Sequence[float], moduli: Sequence[int], seed: int, fidelity: str,
+                 log: Callable[[str], None], steps: int = 5) -> list[float]:
+    """The start's modulus factors moved until each fitted material's mean n1 matches the table's (secant steps in
+    log-log on one seed; n1 grows with the modulus), so the search starts where the locations already agree."""
+    values = list(values)
+    slope = {i: 0.5 for i in moduli}  # d log n1 / d log E: 1 with a rigid finger, less with a compliant one
+    previous: dict[int, tuple[float, float]] = {}
+    for _ in range(steps):
+        try:
+            run = simulate_seed(with_moduli(scenario, free, values), with_values(start, free, values), seed, fidelity)
+        except (PalpateError, ValidationError) as exc:
+            log(f"  matching moduli stopped: {exc}")
+            break
+        for i in moduli:
+            name = free[i].key[6:]
+            sim, real = float(np.mean(run.table.of(name)[:, 0])), float(np.mean(table.of(name)[:, 0]))
+            if sim <= 0:
+                continue
+            x, y = np.log(values[i]), np.log(sim)
+            if i in previous and abs(x - previous[i][0]) > 1e-6:
+                slope[i] = float(np.clip((y - previous[i][1]) / (x - previous[i][0]), 0.1, 2.0))
+            previous[i] = (x, y)
+            values[i] = free[i].value(free[i].position(float(np.exp(x + (np.log(real) - y) / slope[i]))))
+        log("  moduli matched to the mean n1: " + ", ".join(f"{free[i].key}={values[i]:.3g}" for i in moduli))
+    return values
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The result of :func:`calibrate`.
+
+    Attributes:
+        profile: the fitted profile (its provenance records the fit).
+        materials: the materials compared, in order.
+        real, tuned, report: (M, len(MOMENTS)) moments of the table, of the fitted profile on the tuning seeds and
+            on the report seeds (plain negative shares).
+        objective: the objective at the fitted profile (tuning seeds).
+        evaluations: how many candidates were simulated.
+        report_runs: the fitted profile's runs on the report seeds.
+    """
+
+    profile: RealismProfile
+    materials: tuple[str, ...]
+    real: np.ndarray
+    tuned: np.ndarray
+    report: np.ndarray
+    objective: float
+    evaluations: int
+    report_runs: tuple[SeedRun, ...]
+
+
+def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free: Sequence[FreeParameter], *,
+              tune_seeds: Sequence[int], report_seeds: Sequence[int], budget: int, fidelity: str | None = None,
+              name: str = "fitted", table_name: str = "table", search_seed: int = 0, design: int | None = None,
+              log: Callable[[str], None] = lambda s: None) -> Calibration:
+    """Fit ``free`` parameters of ``start`` to ``table`` (module docstring). ``budget``: candidates simulated;
+    ``design``: how many of them the Latin hypercube takes (None: a third of the budget, at least 2 per parameter;
+    0: Nelder-Mead straight from the start, to refine a fitted profile)."""
+    from scipy.optimize import minimize
+    from scipy.stats import qmc
+
+    materials = tuple(m for m in table.materials if m in scenario.references)
+    missing = [m for m in table.materials if m not in scenario.references]
+    if missing or not materials:
+        raise ValidationError(f"{table_name}: material(s) {missing or list(table.materials)} are not reference "
+                              f"materials of scenario {scenario.name!r} ({', '.join(scenario.references)})")
+    overlap = sorted(set(tune_seeds) & set(report_seeds))
+    if overlap or not tune_seeds or not report_seeds:
+        raise ValidationError(f"tuning and report seeds must be non-empty and disjoint; shared: {overlap}")
+    if budget < 2:
+        raise ValidationError(f"the evaluation budget must be >= 2, got {budget}")
+    fidelity = fidelity or scenario.fidelity
+    real = real_moments(table, materials)
+    history: list[tuple[float, np.ndarray]] = []
+
+    def score(u: np.ndarray) -> float:
+        values = [p.value(x) for p, x in zip(free, u, strict=True)]
+        try:
+            prof, sc = with_values(start, free, values), with_moduli(scenario, free, values)
+            runs = [simulate_seed(sc, prof, s, fidelity) for s in tune_seeds]
+            j = objective(sim_moments(runs, materials, scenario.references, smooth=True), real)
+        except (PalpateError, ValidationError) as exc:
+            j = FAILED
+            log(f"  candidate failed: {exc}")
+        history.append((j, np.asarray(u, dtype=float)))
+        best = min(h[0] for h in history)
+        log(f"  {len(history):4d}/{budget}  objective {j:10.3f}  best {best:10.3f}  " + ", ".join(
+            f"{p.key.split('.')[1]}={v:.3g}" for p, v in zip(free, values, strict=True)))
+        return j
+
+    d = len(free)
+    start_values = current_values(start, free)
+    moduli = [i for i, p in enumerate(free) if p.key.startswith("young.")]
+    if moduli:
+        start_values = match_moduli(table, scenario, start, free, start_values, moduli, tune_seeds[0], fidelity, log)
+    u0 = np.array([p.position(v) for p, v in zip(free, start_values, strict=True)])
+    n_design = min(max(2 * d + 2, budget // 3), budget - 1) if design is None else min(max(design, 1), budget - 1)
+    points = qmc.LatinHypercube(d=d, seed=search_seed).random(n_design - 1) if n_design > 1 else np.empty((0, d))
+    for u in [u0, *points]:
+        score(u)
+    remaining = budget - len(history)
+    if remaining > 0:
+        best_u = min(history, key=lambda h: h[0])[1]
+        simplex = np.vstack([best_u] + [np.clip(best_u + 0.15 * np.eye(d)[i] * (1 if best_u[i] < 0.85 else -1),
+                                                0.0, 1.0) for i in range(d)])
+        minimize(score, best_u, method="Nelder-Mead", bounds=[(0.0, 1.0)] * d,
+                 options={"maxfev": remaining, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-3})
+    j_best, u_best = min(history, key=lambda h: h[0])
+    values = [p.value(x) for p, x in zip(free, u_best, strict=True)]
+    fitted, fitted_scenario = with_values(start, free, values, name=name), with_moduli(scenario, free, values)
+    tune_runs = [simulate_seed(fitted_scenario, fitted, s, fidelity) for s in tune_seeds]
+    report_runs = tuple(simulate_seed(fitted_scenario, fitted, s, fidelity) for s in report_seeds)
+    tuned = sim_moments(tune_runs, materials, scenario.references, smooth=False)
+    report = sim_moments(report_runs, materials, scenario.references, smooth=False)
+    provenance = {
+        "method": "method of simulated moments (sim/realism/calibrate.py): per material log mean n1, log CV of n1 "
+                  "and a1, share of n2 < 0, leave-one-out self posterior (a1's mean and a2's sign reported only); "
+                  "Latin hypercube then Nelder-Mead",
+        "table": table_name, "scenario": scenario.name, "fidelity": fidelity, "started_from": start.name,
+        "tune_seeds": [int(s) for s in tune_seeds], "report_seeds": [int(s) for s in report_seeds],
+        "evaluations": len(history), "design": n_design, "objective": j_best, "search_seed": int(search_seed),
+        "free": {p.key: v for p, v in zip(free, values, strict=True)},
+        "moduli_kpa": {m: fitted_scenario.materials[m].material.young * 1e-3 for m in scenario.references},
+        "moments": {"names": list(MOMENTS), "materials": list(materials),
+                    **{f"real_{m}": real[i].tolist() for i, m in enumerate(materials)},
+                    **{f"tuned_{m}": tuned[i].tolist() for i, m in enumerate(materials)},
+                    **{f"report_{m}": report[i].tolist() for i, m in enumerate(materials)}},
+    }
+    fitted = replace(fitted, provenance=provenance,
+                     description=f"fitted by palpate calibrate realism to {table_name} on scenario {scenario.name} "
+                                 f"({fidelity}), from {start.name}")
+    return Calibration(fitted, materials, real, tuned, report, j_best, len(history), report_runs)
