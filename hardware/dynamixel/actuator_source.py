@@ -27,6 +27,7 @@ from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.actuator_kinds import ActuatorKind
 from palpate.core.world.table_reader import TableReader, resolve_path
+from palpate.hardware.clock import StepClock
 from palpate.hardware.dynamixel.driver import DynamixelFinger
 from palpate.hardware.dynamixel.finger import (
     FingerDescription,
@@ -220,9 +221,11 @@ def dynamixel_actuator(request, *, check_only: bool = False):
     start = inverse_kinematics(finger, float(request.targets[0, 0]), surface_z + finger.approach_height)
     stack = contextlib.ExitStack()
     try:
-        emulator, physics = physics_bus(finger, request.scene, start, baud=spec.baud)
+        # the emulated finger runs on a stepped clock: one control cycle per state read, as fast as the machine
+        # allows, and the same exploration every time
+        emulator, physics = physics_bus(finger, request.scene, start, baud=spec.baud, clock=StepClock())
         stack.enter_context(emulator)
-        driver = stack.enter_context(DynamixelFinger(emulator.port, spec.baud, finger))
+        driver = stack.enter_context(DynamixelFinger(emulator.port, spec.baud, finger, clock=emulator.clock))
         actuator = FingerActuator(driver, surface_z, streams=physics.actuator_streams(request.seed),
                                   pose_noise=spec.pose_noise, seed=request.seed)
     except BaseException:

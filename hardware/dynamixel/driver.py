@@ -9,13 +9,14 @@ DeviceError naming its id, after torque has been switched off on the servos that
 from __future__ import annotations
 
 import atexit
-import time
+import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
 
 from palpate.core.errors import DeviceError, ValidationError
+from palpate.hardware.clock import Clock, as_clock
 from palpate.hardware.dynamixel import control_table as ct
 from palpate.hardware.dynamixel.finger import (
     FingerDescription,
@@ -28,6 +29,9 @@ from palpate.hardware.dynamixel.press import press_and_release
 
 _STATE_START = ct.PRESENT_CURRENT[0]  # one sync read covers current (2), velocity (4), position (4)
 _STATE_LENGTH = 10
+# 200 Hz, a usual servo control rate over USB (the adapter's latency, not the 1 Mbaud bus, bounds a cycle); the press
+# loop moves its goal at most press.MAX_STEP_TIME of motion per cycle, the same 5 ms.
+DEFAULT_CYCLE = 0.005
 
 
 @dataclass(frozen=True)
@@ -67,18 +71,26 @@ class DynamixelFinger:
         baud: bus bit rate (one the SDK supports, e.g. 57600, 1000000).
         finger: its description (ids, limits, current limit).
         retries: times a corrupt status (bad CRC) is retried before giving up.
-        clock: time source, s.
+        clock: time source (see :mod:`palpate.hardware.clock`; default the wall clock). Give the emulator and the
+            driver one :class:`~palpate.hardware.clock.StepClock` and the emulated finger moves exactly one
+            ``cycle`` per state read, however loaded the machine is.
+        cycle: shortest control cycle, s: :meth:`read_state` sleeps out the rest of the cycle on ``clock`` (a real
+            bus usually takes about this long anyway; on a stepped clock this is what moves time on).
 
     Use as a context manager: ``with DynamixelFinger(port, 1_000_000, finger) as f: f.press(...)``.
     """
 
     def __init__(self, port: str, baud: int, finger: FingerDescription, *, retries: int = 3,
-                 clock: Callable[[], float] = time.monotonic):
+                 clock: Clock | Callable[[], float] | None = None, cycle: float = DEFAULT_CYCLE):
+        if not (math.isfinite(cycle) and 0 < cycle <= 0.1):
+            raise ValidationError(f"control cycle must be in (0, 0.1] s, got {cycle!r}")
         self.port_name = str(port)
         self.baud = int(baud)
         self.finger = finger
         self.retries = int(retries)
-        self.clock = clock
+        self.clock = as_clock(clock)
+        self.cycle = float(cycle)
+        self._next_cycle: float | None = None
         self.model = finger.model
         self._port = None
         self._ph = None
@@ -128,13 +140,18 @@ class DynamixelFinger:
         return self
 
     def _find_servos(self) -> None:
-        missing, wrong = [], []
+        missing, garbled, wrong = [], [], []
         for sid in self.finger.ids:
-            number = self._ping(sid)
+            number, corrupt = self._ping(sid)
             if number is None:
-                missing.append(sid)
+                (garbled if corrupt else missing).append(sid)
             elif number != self.model.number:
                 wrong.append(f"id {sid} is a {ct.model_name(number)}")
+        if garbled:
+            # something answered, so port and baud rate are right: the packets are damaged on the way
+            raise DeviceError(f"servo id(s) {garbled} on {self.port_name!r} answered only with corrupt packets (bad "
+                              f"CRC) in {self.retries + 1} tries each; check the cable, its connectors and "
+                              "termination, the supply voltage, and for another device talking on the bus")
         if len(missing) == len(self.finger.ids):
             raise DeviceError(f"no servo answered on {self.port_name!r} at {self.baud} baud (ids {self.finger.ids}); "
                               "check the port, the baud rate and the servo power")
@@ -143,14 +160,17 @@ class DynamixelFinger:
         if wrong:
             raise DeviceError(f"finger {self.finger.name!r} expects {self.model.name} servos but {', '.join(wrong)}")
 
-    def _ping(self, sid: int) -> int | None:
+    def _ping(self, sid: int) -> tuple[int | None, bool]:
+        """(model number or None, whether any answer came back corrupt)."""
+        corrupt = False
         for _ in range(self.retries + 1):
             number, result, _ = self._ph.ping(self._port, sid)
             if result == self._sdk.COMM_SUCCESS:
-                return int(number)
+                return int(number), corrupt
+            corrupt |= result == self._sdk.COMM_RX_CORRUPT
             if not self._retryable(result):
-                return None
-        return None
+                break
+        return None, corrupt
 
     def _configure(self) -> None:
         # every value is checked above or at load time; EEPROM writes need torque off
@@ -298,15 +318,16 @@ class DynamixelFinger:
         alert raises DeviceError with the servo's hardware error status.
         """
         self._require_open()
+        self._pace()
         sdk, ph, port = self._sdk, self._ph, self._port
         ids = self.finger.ids
         raw = np.zeros((len(ids), _STATE_LENGTH), dtype=np.uint8)
         failure = None
+        t = self.clock()
         for _ in range(self.retries + 1):
             result = self._sync_read.txPacket()
             if result != sdk.COMM_SUCCESS:
                 raise DeviceError(f"sync read on {self.port_name!r} could not be sent: {_comm_text(ph, result)}")
-            t = self.clock()
             failure = None
             alerts = []
             for k, sid in enumerate(ids):
@@ -339,6 +360,14 @@ class DynamixelFinger:
         ticks = raw[:, 6:10].copy().view("<i4").reshape(-1).astype(float)
         d = self.finger.directions
         return JointState(t, ticks_to_joints(self.finger, ticks), d * velocity, d * current)
+
+    def _pace(self) -> None:
+        """Sleep out the rest of the control cycle, so states are read at most once per ``cycle`` s."""
+        now = self.clock()
+        if self._next_cycle is not None and now < self._next_cycle:
+            self.clock.sleep(self._next_cycle - now)
+            now = self.clock()
+        self._next_cycle = now + self.cycle
 
     def _joint_name(self, sid: int) -> str:
         return next(j.name for j in self.finger.joints if j.servo_id == sid)

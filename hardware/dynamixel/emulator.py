@@ -27,6 +27,7 @@ from collections.abc import Callable, Iterable
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.hardware.clock import Clock, as_clock
 from palpate.hardware.dynamixel import control_table as ct
 from palpate.hardware.dynamixel.protocol import (
     BROADCAST_ID,
@@ -55,6 +56,8 @@ Observer = Callable[[float, np.ndarray], None]
 # Integration step of the servo dynamics; lazily integrated up to "now" before every answer.
 _MAX_SUBSTEP = 0.002
 _MAX_SUBSTEPS = 50
+# Instructions that observe the servos: the dynamics are brought up to the present before they are answered.
+_READS = (INST_PING, INST_READ, INST_SYNC_READ)
 # Registers the host may not write (read-only in the X-series table).
 _READ_ONLY = [ct.MODEL_NUMBER, ct.FIRMWARE_VERSION, ct.HARDWARE_ERROR_STATUS, ct.MOVING, ct.PRESENT_CURRENT,
               ct.PRESENT_VELOCITY, ct.PRESENT_POSITION, ct.PRESENT_INPUT_VOLTAGE, ct.PRESENT_TEMPERATURE]
@@ -79,7 +82,11 @@ class ServoBusEmulator(PtyDevice):
         load_model: external torque on each servo shaft (N*m) as a function of the shaft angles (rad, 0 at
             the centre tick), both in ``ids`` order. None means no load.
         initial_ticks: present positions at start (ticks, default the centre 2048).
-        clock: time source in s (monotonic by default).
+        clock: time source (:mod:`palpate.hardware.clock`; the wall clock by default). The servo dynamics are
+            integrated up to ``clock()`` whenever a servo is read (ping, read, sync read, or :meth:`register` /
+            :meth:`positions`). On the wall clock a write is applied at the time it arrives; on a virtual clock
+            (:class:`~palpate.hardware.clock.StepClock`) it takes effect from the last read, so the emulated motion
+            depends only on the host's packets and the clock's values, never on when this thread got to run.
         observer: called as ``observer(t, angles)`` after every integration substep with the time (s, on
             ``clock``) and the shaft angles reached (rad, 0 at the centre tick, ``ids`` order), so a physics
             backend can record what the servos actually did (the load model also sees trial positions).
@@ -92,7 +99,7 @@ class ServoBusEmulator(PtyDevice):
         baud: int = 1_000_000,
         load_model: LoadModel | None = None,
         initial_ticks: Iterable[float] | None = None,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Clock | Callable[[], float] | None = None,
         observer: Observer | None = None,
     ):
         self.ids = [int(i) for i in ids]
@@ -104,7 +111,7 @@ class ServoBusEmulator(PtyDevice):
         self.baud = int(baud)
         self.load_model = load_model
         self.observer = observer
-        self._clock = clock
+        self._clock = as_clock(clock)
         self._index = {sid: k for k, sid in enumerate(self.ids)}
         n = len(self.ids)
         self.memory = np.zeros((n, ct.TABLE_SIZE), dtype=np.uint8)
@@ -125,6 +132,11 @@ class ServoBusEmulator(PtyDevice):
         # Fault injection
         self.silent: set[int] = set()
         self._corrupt_next = 0
+
+    @property
+    def clock(self) -> Clock:
+        """The clock the servos run on (give the driver the same one)."""
+        return self._clock
 
     # ---- control table -------------------------------------------------------------------------------------
     def _init_table(self, k: int, sid: int) -> None:
@@ -303,9 +315,10 @@ class ServoBusEmulator(PtyDevice):
     def handle(self, packet: Packet) -> bytes:
         """Answer one instruction packet; returns the bytes the bus sends back (possibly none)."""
         with self._lock:
-            self._advance(self._clock())
-            self.instruction_counts[packet.instruction] += 1
             pid, inst, p = packet.id, packet.instruction, packet.params
+            if inst in _READS or not self._clock.virtual:
+                self._advance(self._clock())
+            self.instruction_counts[packet.instruction] += 1
             alive = [k for k, sid in enumerate(self.ids) if sid not in self.silent]
             if pid == BROADCAST_ID:
                 targets = alive

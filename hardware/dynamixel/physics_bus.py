@@ -17,7 +17,7 @@ from palpate.sim.finger_physics import FingerPhysics
 
 
 def physics_bus(finger: FingerDescription, scene: Scene, start: np.ndarray, *, baud: int = 1_000_000,
-                **physics_options):
+                clock=None, **physics_options):
     """A servo emulator for ``finger`` whose load and taxels come from the MuJoCo finger over ``scene``.
 
     Args:
@@ -26,6 +26,7 @@ def physics_bus(finger: FingerDescription, scene: Scene, start: np.ndarray, *, b
         start: joint angles at power-on, rad, inside the joint limits and with the tip clear of every object
             (e.g. ``inverse_kinematics(finger, x, top + finger.approach_height)``).
         baud: the bus bit rate.
+        clock: the servos' clock (:mod:`palpate.hardware.clock`; default the wall clock); give the driver the same.
         **physics_options: passed to :class:`FingerPhysics`.
 
     Returns:
@@ -42,5 +43,5 @@ def physics_bus(finger: FingerDescription, scene: Scene, start: np.ndarray, *, b
         raise ValidationError(f"physics_bus: at the start angles {q0.tolist()} rad the fingertip is "
                               f"{c.indentation * 1e3:.2f} mm inside an object; start above the surface")
     emulator = ServoBusEmulator(finger.ids, finger.model.number, baud, physics.load, joints_to_ticks(finger, q0),
-                                observer=physics.observe)
+                                clock=clock, observer=physics.observe)
     return emulator, physics
