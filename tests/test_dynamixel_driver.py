@@ -12,7 +12,7 @@ from palpate.core.errors import DeviceError, ValidationError
 from palpate.core.session.sources import PressTarget
 from palpate.hardware.clock import StepClock
 from palpate.hardware.dynamixel import control_table as ct
-from palpate.hardware.dynamixel.driver import DynamixelFinger, LostServo, scan
+from palpate.hardware.dynamixel.driver import DynamixelFinger, LostServo
 from palpate.hardware.dynamixel.emulator import ServoBusEmulator
 from palpate.hardware.dynamixel.finger import (
     forward_kinematics,
@@ -22,6 +22,7 @@ from palpate.hardware.dynamixel.finger import (
     surface_load_model,
 )
 from palpate.hardware.dynamixel.protocol import INST_SYNC_WRITE, INST_WRITE
+from palpate.hardware.dynamixel.scan import scan
 
 BAUD = 1_000_000
 SURFACE_Z = 0.03

@@ -66,8 +66,8 @@ def _cmd_scan(args) -> int:
     import json
 
     from palpate.core.errors import ValidationError
-    from palpate.hardware.dynamixel.driver import scan
     from palpate.hardware.dynamixel.emulator import ServoBusEmulator
+    from palpate.hardware.dynamixel.scan import scan
 
     _need_port(args)
     if not 0 <= args.max_id <= 252:
@@ -95,6 +95,7 @@ def _cmd_record(args) -> int:
     from palpate.core.errors import ValidationError
     from palpate.core.io.mcap_writer import RecordingWriter
     from palpate.core.session.sources import PressTarget
+    from palpate.hardware import exit_signals
     from palpate.hardware.dynamixel.driver import DynamixelFinger
     from palpate.hardware.dynamixel.emulator import ServoBusEmulator
     from palpate.hardware.dynamixel.finger import inverse_kinematics, joints_to_ticks, load_finger, surface_load_model
@@ -110,7 +111,7 @@ def _cmd_record(args) -> int:
     if args.press is not None:
         target = PressTarget(args.press, float(finger.base[1]), depth=args.depth, speed=args.speed, label="cli")
         plan_press(finger, target, args.surface_z)  # refuse an impossible press before touching the port
-    with contextlib.ExitStack() as stack:
+    with exit_signals.holding(), contextlib.ExitStack() as stack:
         port = args.port
         if args.emulate:
             x0 = args.press if args.press is not None else float(finger.base[0] + 0.5 * finger.lengths.sum())
@@ -127,6 +128,7 @@ def _cmd_record(args) -> int:
         driver = stack.enter_context(DynamixelFinger(port, args.baud, finger))
         t_start = time.monotonic()
         count = 0
+        stop_reason = "duration"
 
         def write(state, pose) -> None:
             nonlocal count
@@ -134,17 +136,25 @@ def _cmd_record(args) -> int:
             writer.write_pose(type(pose)(pose.t - t_start, pose.position, pose.quaternion, pose.sensor_id))
             count += 1
 
-        if target is not None:
-            writer.write_annotation(time.monotonic() - t_start, "press_start",
-                                    {"x": target.x, "depth": target.depth, "surface_z": args.surface_z})
-            result = driver.press(target, args.surface_z, on_state=write)
-            writer.write_annotation(time.monotonic() - t_start, "press_end",
-                                    {"stopped_by": result.stopped_by, "depth": result.depth, "force": result.force})
-        period = 1.0 / args.rate
-        with driver.safety():
-            while time.monotonic() - t_start < args.seconds:
-                state = driver.read_state()
-                write(state, driver.pose(state))
-                time.sleep(max(0.0, period - (time.monotonic() - state.t)))
+        try:
+            if target is not None:
+                writer.write_annotation(time.monotonic() - t_start, "press_start",
+                                        {"x": target.x, "depth": target.depth, "surface_z": args.surface_z})
+                result = driver.press(target, args.surface_z, on_state=write)
+                writer.write_annotation(time.monotonic() - t_start, "press_end", {
+                    "stopped_by": result.stopped_by, "depth": result.depth, "force": result.force})
+            period = 1.0 / args.rate
+            with driver.safety():
+                while time.monotonic() - t_start < args.seconds:
+                    state = driver.read_state()
+                    write(state, driver.pose(state))
+                    time.sleep(max(0.0, period - (time.monotonic() - state.t)))
+        except BaseException as exc:
+            # torque is already off (the driver's safety context); the recording says why it ended, then closes
+            stop_reason = "interrupted" if isinstance(exc, KeyboardInterrupt) else str(exc) or type(exc).__name__
+            raise
+        finally:
+            writer.write_annotation(time.monotonic() - t_start, "recording_end",
+                                    {"stop_reason": stop_reason, "samples": count})
     print(f"recorded {count} joint states and fingertip poses to {args.out}")
     return 0

@@ -1,9 +1,11 @@
 """Drive a Dynamixel finger through the official dynamixel-sdk (Protocol 2.0).
 
 Safety first: every command is checked against the joint limits (and the configured current limit against
-the servo model) before a byte is written; torque is switched off on any exception, on Ctrl-C, on exit of the
-context manager and at interpreter exit. A servo that stops answering ends what was running with a
-DeviceError naming its id, after torque has been switched off on the servos that still answer.
+the servo model) before a byte is written; torque is switched off on any exception, on Ctrl-C, on SIGTERM and
+SIGHUP (while a finger is open they raise :class:`~palpate.hardware.exit_signals.Terminated`, see
+:mod:`palpate.hardware.exit_signals`), on exit of the context manager and at interpreter exit. A servo that
+stops answering ends what was running with a DeviceError naming its id, after torque has been switched off on the
+servos that still answer.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from palpate.core.errors import DeviceError, ValidationError
+from palpate.hardware import exit_signals
 from palpate.hardware.clock import Clock, as_clock
 from palpate.hardware.dynamixel import control_table as ct
 from palpate.hardware.dynamixel.finger import (
@@ -98,6 +101,7 @@ class DynamixelFinger:
         self._sync_write = None
         self._sdk = None
         self._torque_on = False
+        self._signals_held = False
         self.lost: set[int] = set()
         # Answers retried because they were corrupt (bad CRC) or late (an emulator on a loaded machine, noise).
         self.corrupt_retries = 0
@@ -137,6 +141,7 @@ class DynamixelFinger:
         for sid in self.finger.ids:
             self._sync_read.addParam(sid)
         atexit.register(self.close)
+        self._signals_held = exit_signals.hold()
         return self
 
     def _find_servos(self) -> None:
@@ -194,6 +199,9 @@ class DynamixelFinger:
             self.disable_torque()
         finally:
             self._close_port()
+            if self._signals_held:
+                self._signals_held = False
+                exit_signals.release()
 
     def _close_port(self) -> None:
         try:
@@ -421,35 +429,3 @@ class DynamixelFinger:
         """Press and release at ``target`` (a PressTarget) on a surface at ``surface_z`` m; see press.py."""
 
         return press_and_release(self, target, surface_z, **kwargs)
-
-
-def scan(port: str, baud: int, ids: Iterable[int] = range(0, 253), timeout_ms: float | None = None) -> list[dict]:
-    """Ping ``ids`` on ``port``; returns ``[{"id", "model_number", "model", "firmware"}]`` for each that answers."""
-    import dynamixel_sdk as sdk
-
-    ph = sdk.PacketHandler(2.0)
-    p = sdk.PortHandler(str(port))
-    try:
-        opened = p.openPort()
-    except Exception as exc:
-        raise DeviceError(f"cannot open Dynamixel port {port!r}: {exc}") from None
-    if not opened:
-        raise DeviceError(f"cannot open Dynamixel port {port!r}")
-    try:
-        if not p.setBaudRate(int(baud)):
-            raise DeviceError(f"baud {baud} is not supported by dynamixel-sdk")
-        found = []
-        for sid in ids:
-            if not 0 <= sid <= 252:
-                raise ValidationError(f"servo ids are 0..252, got {sid}")
-            number, result, _ = ph.ping(p, sid)
-            if result == sdk.COMM_RX_CORRUPT:  # one retry: a single corrupt answer is not an absent servo
-                number, result, _ = ph.ping(p, sid)
-            if result == sdk.COMM_SUCCESS:
-                fw, r2, _ = ph.read1ByteTxRx(p, sid, ct.FIRMWARE_VERSION[0])
-                found.append({"id": sid, "model_number": int(number), "model": ct.model_name(int(number)),
-                              "firmware": int(fw) if r2 == sdk.COMM_SUCCESS else None})
-        return found
-    finally:
-        p.closePort()
-

@@ -129,6 +129,8 @@ class ServoBusEmulator(PtyDevice):
         # Observability for tests: instruction counts and a bounded log of applied writes (id, address, bytes).
         self.instruction_counts: collections.Counter[int] = collections.Counter()
         self.writes: collections.deque[tuple[int, int, bytes]] = collections.deque(maxlen=100_000)
+        # Called as on_write(servo id, address, bytes) after every applied write (e.g. to log torque changes).
+        self.on_write: Callable[[int, int, bytes], None] | None = None
         # Fault injection
         self.silent: set[int] = set()
         self._corrupt_next = 0
@@ -310,6 +312,8 @@ class ServoBusEmulator(PtyDevice):
             return ERR_RESULT_FAIL
         self.memory[k] = trial
         self.writes.append((self.ids[k], addr, bytes(data)))
+        if self.on_write is not None:
+            self.on_write(self.ids[k], addr, bytes(data))
         return 0
 
     def handle(self, packet: Packet) -> bytes:
@@ -400,6 +404,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--ids", default="1,2", help="comma-separated servo ids")
     parser.add_argument("--baud", type=int, default=1_000_000)
     parser.add_argument("--model", type=int, default=1020, help="model number (1020 = XM430-W350)")
+    parser.add_argument("--log-torque", action="store_true",
+                        help="print 'torque ID VALUE' on stdout whenever a servo's torque enable is written")
     args = parser.parse_args(argv)
     try:
         ids = [int(s) for s in args.ids.split(",") if s.strip()]
@@ -407,6 +413,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"--ids must be comma-separated integers, got {args.ids!r}", file=sys.stderr)
         return 2
     emu = ServoBusEmulator(ids, model_number=args.model, baud=args.baud)
+    if args.log_torque:
+        t_addr = ct.TORQUE_ENABLE[0]
+
+        def log(sid: int, addr: int, data: bytes) -> None:
+            if addr <= t_addr < addr + len(data):
+                print(f"torque {sid} {data[t_addr - addr]}", flush=True)
+
+        emu.on_write = log
     with emu:
         print(emu.port, flush=True)
         try:
