@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core import __version__
+from palpate.core.alignment.merge import session_pipeline
 from palpate.core.errors import ValidationError
 from palpate.core.io import figures as fig
 from palpate.core.io.mcap_reader import read_recording
@@ -109,7 +110,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
                                    state.grid))
             progress.update(i + 1)
     else:
-        seg = presses_from_recording(stream)
+        # a session merged from separate devices says how it is perceived (press axis from each press's motion)
+        seg = presses_from_recording(stream, session_pipeline(rec.metadata))
         if not seg.presses:
             reasons = "; ".join(sorted({r.reason for r in seg.rejected})) or "no contact in the taxel stream"
             raise ValidationError(f"{path}: no press found to replay ({reasons})")
