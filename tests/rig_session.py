@@ -145,10 +145,10 @@ def simulate(memory: HapticMemory, *, seed: int = 7, n_per_material: int = 5, st
                       np.concatenate(pose_q), np.array(locations))
 
 
-def write_tekscan(path: Path, s: RigSession) -> None:
-    """The pad's frames as a Tekscan ASCII movie export (RAW counts, 50 Hz, a 6x6 map with the pad at 1:5,1:5)."""
+def write_tekscan(path: Path, s: RigSession, period: float = FRAME) -> None:
+    """The pad's frames as a Tekscan ASCII movie export (RAW counts, a 6x6 map with the pad at 1:5,1:5)."""
     lines = ["DATA_TYPE MOVIE", "ROWS 6", "COLS 6", "ROW_SPACING 0.25 cm", "COL_SPACING 0.25 cm",
-             "SENSEL_AREA 0.0484 sq cm", f"SECONDS_PER_FRAME {FRAME}", "START_FRAME 1", "UNITS RAW",
+             "SENSEL_AREA 0.0484 sq cm", f"SECONDS_PER_FRAME {period}", "START_FRAME 1", "UNITS RAW",
              "ASCII_DATA @@", ""]
     for k, c in enumerate(s.counts):
         full = np.zeros((6, 6), dtype=int)
@@ -164,9 +164,11 @@ def liberty_times(t_true: np.ndarray, offset: float, drift_ppm: float) -> np.nda
     return np.round(((t_true * (1 + drift_ppm * 1e-6)) + offset) * 1000.0) / 1000.0
 
 
-def write_liberty(path: Path, t_dev: np.ndarray, p_world: np.ndarray, q_world: np.ndarray) -> None:
-    """Poses in the tracker frame on the tracker clock, as ``palpate record liberty`` writes them."""
-    a, b = tracker_frame()
+def write_liberty(path: Path, t_dev: np.ndarray, p_world: np.ndarray, q_world: np.ndarray,
+                  turned: bool = True) -> None:
+    """Poses in the tracker frame (the world frame unless ``turned``) on the tracker clock, as ``palpate record
+    liberty`` writes them."""
+    a, b = tracker_frame() if turned else (np.eye(3), np.zeros(3))
     qa = matrix_to_quaternion(a)
     p = p_world @ a.T + b
     q = quat_multiply(np.broadcast_to(qa, q_world.shape), q_world)

@@ -117,3 +117,16 @@ def _first_at_distance(p: np.ndarray, travel: float, horizon: int, sign: int) ->
         found[todo[far]] = j[far]
         todo = todo[~far]
     return found
+
+
+def press_windows(t: np.ndarray, c_p: np.ndarray) -> list[tuple[float, float]]:
+    """One time window per contact of a c_P series, s: each reaches half-way to its neighbours' contacts (the
+    first from -inf, the last to +inf), so the approach and retreat of each press stay with it. One window
+    (-inf, inf) when there are fewer than two contacts."""
+    found = contacts(t, c_p)
+    if len(found) < 2:
+        return [(-np.inf, np.inf)]
+    t = np.asarray(t, dtype=float)
+    cuts = [0.5 * (t[a.release] + t[b.onset]) for a, b in zip(found[:-1], found[1:], strict=True)]
+    edges = [-np.inf, *cuts, np.inf]
+    return list(zip(edges[:-1], edges[1:], strict=True))

@@ -78,15 +78,25 @@ def merge_session(frames: list[TaxelFrame], poses: list[PoseSample], clock: Cloc
     return MergedSession(list(frames), transform.apply(kept), clock, transform, int(np.count_nonzero(~keep)))
 
 
-def session_pipeline(metadata: dict, base: PipelineConfig | None = None) -> PipelineConfig:
-    """The pipeline a recording asks for in its ``session.perception`` metadata (``base`` otherwise)."""
-    base = base or PipelineConfig()
+def perception_of(metadata) -> dict | None:
+    """The ``session.perception`` a recording's (or a press's) metadata asks for, or None."""
     session = metadata.get("session") if isinstance(metadata, dict) else None
     wanted = session.get("perception") if isinstance(session, dict) else None
-    if not isinstance(wanted, dict):
+    return wanted if isinstance(wanted, dict) else None
+
+
+def pipeline_for(perception: dict | None, base: PipelineConfig | None = None) -> PipelineConfig:
+    """``base`` (default settings when None) with what ``perception`` asks for (see ``SESSION_PIPELINE``)."""
+    base = base or PipelineConfig()
+    if not perception:
         return base
-    from_motion = wanted.get("press_axis_from_motion", base.press_axis_from_motion)
+    from_motion = perception.get("press_axis_from_motion", base.press_axis_from_motion)
     if not isinstance(from_motion, bool):
         raise ValidationError(f"recording metadata session.perception.press_axis_from_motion must be true or false, "
                               f"got {from_motion!r}")
     return replace(base, press_axis_from_motion=from_motion)
+
+
+def session_pipeline(metadata: dict, base: PipelineConfig | None = None) -> PipelineConfig:
+    """The pipeline a recording asks for in its ``session.perception`` metadata (``base`` otherwise)."""
+    return pipeline_for(perception_of(metadata), base)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from palpate.core.alignment.merge import perception_of, pipeline_for
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import map_accuracy
 from palpate.core.mapping.geometry import MapGeometry
@@ -197,10 +198,13 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
             show_map(grid, post)
         rec = source.press(PressTarget(x, y, depth=depth, force=ex.max_force, speed=ex.speed,
                                        label=f"{entry.spec.name} cell {cell[0] + 1},{cell[1] + 1}"))
+        # a press from a session file says how it is perceived; the recording keeps that for replay
+        perception = perception_of(rec.meta)
         if log is not None:
-            rec = log.add(rec, {"phase": "exploration", "object": entry.spec.name, "k": k + 1,
-                                "cell": [cell[0] + 1, cell[1] + 1], "target_m": [x, y]})
-        res = perceive_press(rec).at_target((x, y))
+            info = {"phase": "exploration", "object": entry.spec.name, "k": k + 1, "cell": [cell[0] + 1, cell[1] + 1],
+                    "target_m": [x, y]}
+            rec = log.add(rec, {**info, "perception": perception} if perception else info)
+        res = perceive_press(rec, pipeline_for(perception) if perception else None).at_target((x, y))
         posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y))
         post = postprocess()
         last = cell

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core import __version__
-from palpate.core.alignment.merge import session_pipeline
+from palpate.core.alignment.merge import pipeline_for, session_pipeline
 from palpate.core.errors import ValidationError
 from palpate.core.io import figures as fig
 from palpate.core.io.mcap_reader import read_recording
@@ -103,7 +103,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             state = objects.setdefault(name, _Replayed(geoms[name], new_map(geoms[name])))
             sub = _window(stream, float(a.data["t_start"]), float(a.data["t_end"]))
             target = tuple(float(v) for v in a.data.get("target_m", (np.nan, np.nan)))
-            res = perceive_press(sub).at_target(target)
+            perception = a.data.get("perception")
+            res = perceive_press(sub, pipeline_for(perception) if perception else None).at_target(target)
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
                                     fallback_xy=target)
             state.rows.append(_row(a.data.get("k", len(state.rows) + 1), a.data.get("cell"), res, posterior,
