@@ -62,6 +62,26 @@ class StepClock:
                 self._t += float(seconds)
 
 
+class FastClock:
+    """The wall clock run ``factor`` times faster (``sleep`` waits the shorter wall time): a streaming emulator on it
+    sends a minute of its frames in a few seconds, with its own timing unchanged. For tests."""
+
+    virtual = False
+
+    def __init__(self, factor: float):
+        if not factor > 0:
+            raise ValueError(f"FastClock factor must be > 0, got {factor!r}")
+        self.factor = float(factor)
+        self._t0 = time.monotonic()
+
+    def __call__(self) -> float:
+        return (time.monotonic() - self._t0) * self.factor
+
+    def sleep(self, seconds: float) -> None:
+        if seconds > 0:
+            time.sleep(seconds / self.factor)
+
+
 #: The clock every device uses unless told otherwise.
 WALL_CLOCK = WallClock()
 

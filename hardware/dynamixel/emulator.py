@@ -108,10 +108,9 @@ class ServoBusEmulator(PtyDevice):
         if model_number not in ct.MODELS:
             raise ValidationError(f"emulator model number {model_number} unknown; known: {sorted(ct.MODELS)}")
         self.model = ct.MODELS[model_number]
-        self.baud = int(baud)
+        PtyDevice.__init__(self, int(baud), f"dxl-emulator ids {self.ids}", clock=as_clock(clock))
         self.load_model = load_model
         self.observer = observer
-        self._clock = as_clock(clock)
         self._index = {sid: k for k, sid in enumerate(self.ids)}
         n = len(self.ids)
         self.memory = np.zeros((n, ct.TABLE_SIZE), dtype=np.uint8)
@@ -122,10 +121,9 @@ class ServoBusEmulator(PtyDevice):
         self._pos = ticks.copy()
         for k, sid in enumerate(self.ids):
             self._init_table(k, sid)
-        self._last = self._clock()
+        self._last = self.clock()
         self._lock = threading.RLock()
         self._parser = PacketParser()
-        PtyDevice.__init__(self, self.baud, f"dxl-emulator ids {self.ids}")
         # Observability for tests: instruction counts and a bounded log of applied writes (id, address, bytes).
         self.instruction_counts: collections.Counter[int] = collections.Counter()
         self.writes: collections.deque[tuple[int, int, bytes]] = collections.deque(maxlen=100_000)
@@ -134,11 +132,6 @@ class ServoBusEmulator(PtyDevice):
         # Fault injection
         self.silent: set[int] = set()
         self._corrupt_next = 0
-
-    @property
-    def clock(self) -> Clock:
-        """The clock the servos run on (give the driver the same one)."""
-        return self._clock
 
     # ---- control table -------------------------------------------------------------------------------------
     def _init_table(self, k: int, sid: int) -> None:
@@ -172,7 +165,7 @@ class ServoBusEmulator(PtyDevice):
     def register(self, servo_id: int, reg: tuple[int, int], signed: bool = False) -> int:
         """Value of a control-table register of one servo (for inspection; not over the wire)."""
         with self._lock:
-            self._advance(self._clock())
+            self._advance(self.clock())
             return self._get(self._index[servo_id], reg, signed)
 
     def set_register(self, servo_id: int, reg: tuple[int, int], value: int) -> None:
@@ -186,7 +179,7 @@ class ServoBusEmulator(PtyDevice):
     def positions(self) -> np.ndarray:
         """Present positions of every servo, ticks (float, in ``ids`` order)."""
         with self._lock:
-            self._advance(self._clock())
+            self._advance(self.clock())
             return self._pos.copy()
 
     # ---- faults --------------------------------------------------------------------------------------------
@@ -320,8 +313,8 @@ class ServoBusEmulator(PtyDevice):
         """Answer one instruction packet; returns the bytes the bus sends back (possibly none)."""
         with self._lock:
             pid, inst, p = packet.id, packet.instruction, packet.params
-            if inst in _READS or not self._clock.virtual:
-                self._advance(self._clock())
+            if inst in _READS or not self.clock.virtual:
+                self._advance(self.clock())
             self.instruction_counts[packet.instruction] += 1
             alive = [k for k, sid in enumerate(self.ids) if sid not in self.silent]
             if pid == BROADCAST_ID:
@@ -388,7 +381,7 @@ class ServoBusEmulator(PtyDevice):
     # ---- bytes from the pty ----------------------------------------------------------------------------
     def on_start(self) -> None:
         """The servo dynamics integrate from the moment the bus is served."""
-        self._last = self._clock()
+        self._last = self.clock()
 
     def respond(self, data: bytes) -> bytes:
         """Answer the bytes the host wrote: the status packets of every complete instruction packet in them."""
