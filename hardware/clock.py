@@ -9,6 +9,7 @@ does: a test's outcome then depends on the messages exchanged, never on how load
 
 from __future__ import annotations
 
+import collections
 import threading
 import time
 from typing import Protocol
@@ -110,3 +111,36 @@ class _FreeRunning:
     def sleep(self, seconds: float) -> None:
         if seconds > 0:
             time.sleep(seconds)
+
+
+class DeviceTimeMap:
+    """A device's own times put on the host clock: ``host = device + offset``, the offset being the smallest
+    ``arrival - device`` seen over the last ``window`` s of arrivals (the least delayed sample: USB and scheduling
+    only ever add delay). The window lets the offset follow the two crystals' drift (50 ppm: 0.5 ms per 10 s)."""
+
+    def __init__(self, window: float = 10.0):
+        if not window > 0:
+            raise ValueError(f"DeviceTimeMap window must be > 0 s, got {window!r}")
+        self.window = float(window)
+        self._queue: collections.deque[tuple[float, float]] = collections.deque()  # (arrival, arrival - device)
+
+    def observe(self, device_t: float, arrival: float) -> None:
+        """A sample stamped ``device_t`` by the device arrived at host time ``arrival``."""
+        diff = arrival - device_t
+        q = self._queue
+        while q and q[-1][1] >= diff:  # a monotonic queue: the front is the window's minimum
+            q.pop()
+        q.append((arrival, diff))
+        while q[0][0] < arrival - self.window:
+            q.popleft()
+
+    @property
+    def offset(self) -> float | None:
+        """Host time minus device time, s (None before the first sample)."""
+        return self._queue[0][1] if self._queue else None
+
+    def host_time(self, device_t: float) -> float:
+        """``device_t`` on the host clock."""
+        if not self._queue:
+            raise ValueError("DeviceTimeMap: no sample seen yet")
+        return device_t + self._queue[0][1]
