@@ -182,6 +182,19 @@ class PtyDevice:
             err, self.thread_error = self.thread_error, None
             raise DeviceError(f"{self._name} on {self.port} failed: {err}") from err
 
+    def serve_until_interrupted(self, banner: str | None = None) -> None:
+        """Serve (starting if needed), print ``banner`` (default: the port) on stdout, and return on Ctrl-C or when
+        the serving thread ends: the body of an emulator's ``main``."""
+        self.start()
+        print(banner or self.port, flush=True)
+        try:
+            while self.serving:
+                time.sleep(0.2)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.stop()
+
     def __enter__(self):
         return self.start()
 

@@ -21,7 +21,6 @@ import collections
 import math
 import sys
 import threading
-import time
 from collections.abc import Callable, Iterable
 
 import numpy as np
@@ -414,13 +413,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"torque {sid} {data[t_addr - addr]}", flush=True)
 
         emu.on_write = log
-    with emu:
-        print(emu.port, flush=True)
-        try:
-            while emu.serving:
-                time.sleep(0.2)
-        except KeyboardInterrupt:
-            pass
+    emu.serve_until_interrupted()
     return 0
 
 

@@ -23,7 +23,6 @@ a test can count wrong poses a driver accepted.
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -379,15 +378,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     stations = tuple(int(s) for s in args.stations.split(","))
-    with LibertyEmulator(rate=args.rate, stations=stations, noise=args.noise, seed=args.seed,
-                         motion=press_motion(), baud=args.baud) as emu:
-        print(f"Liberty emulator on {emu.port} ({args.baud} baud, stations {list(stations)}); Ctrl-C to stop",
-              flush=True)
-        try:
-            while True:
-                time.sleep(0.5)
-        except KeyboardInterrupt:
-            pass
+    emu = LibertyEmulator(rate=args.rate, stations=stations, noise=args.noise, seed=args.seed, motion=press_motion(),
+                          baud=args.baud)
+    emu.serve_until_interrupted(f"Liberty emulator on {emu.port} ({args.baud} baud, stations {list(stations)}); "
+                                "Ctrl-C to stop")
     return 0
 
 

@@ -13,7 +13,6 @@ import argparse
 import math
 import sys
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -160,13 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--baud", type=int, default=115200)
     args = ap.parse_args(argv)
     source = press_counts(press_motion())
-    with TactileArrayEmulator(source, rate=args.rate, fmt=args.format, baud=args.baud) as emu:
-        print(emu.port, flush=True)
-        try:
-            while emu.serving:
-                time.sleep(0.2)
-        except KeyboardInterrupt:
-            pass
+    TactileArrayEmulator(source, rate=args.rate, fmt=args.format, baud=args.baud).serve_until_interrupted()
     return 0
 
 
