@@ -22,6 +22,7 @@ import numpy as np
 
 from palpate.core.errors import DeviceError, ValidationError
 from palpate.core.perception.streams import PoseSample
+from palpate.hardware.clock import DeviceTimeMap
 from palpate.hardware.polhemus.parser import RecordParser
 from palpate.hardware.polhemus.plausibility import Plausibility, RecordGate
 from palpate.hardware.polhemus.protocol import (
@@ -114,6 +115,9 @@ class LibertyDriver:
         self._scale = UNIT_TO_M[units]
         self._parser = self._new_parser()
         self.plausibility = plausibility or Plausibility()
+        # Set to a DeviceTimeMap to have streamed poses on the host clock (device time + least arrival delay).
+        self.host_time_map: DeviceTimeMap | None = None
+        self._last_host_t: dict[int, float] = {}
         self._gate = RecordGate(self.plausibility)
         self.stats = StreamStats(rejected=self._gate.rejected)
         self.streaming = False
@@ -289,19 +293,27 @@ class LibertyDriver:
     def _accept(self, rec: Record, t_host: float) -> list[PoseSample]:
         """The poses the plausibility gate accepts on seeing ``rec`` (counted in ``stats.records``)."""
         accepted = self._gate.feed(rec.station, np.asarray(rec.position, dtype=float) * self._scale, rec.quaternion,
-                                   rec.timestamp_ms, rec.frame, t_host, rec)
-        return [self._counted(self._pose(r, t)) for t, r in accepted]
+                                   rec.timestamp_ms, rec.frame, t_host, (rec, t_host))
+        return [self._counted(self._pose(r, t, host)) for t, (r, host) in accepted]
 
     def _flush_gate(self) -> list[PoseSample]:
-        return [self._counted(self._pose(r, t)) for t, r in self._gate.flush()]
+        return [self._counted(self._pose(r, t, host)) for t, (r, host) in self._gate.flush()]
 
     def _counted(self, pose: PoseSample) -> PoseSample:
         station = int(pose.sensor_id.removeprefix("liberty_station"))
         self.stats.records[station] = self.stats.records.get(station, 0) + 1
         return pose
 
-    def _pose(self, rec: Record, t: float) -> PoseSample:
-        """A record as a PoseSample at time ``t`` (s; the device clock unwrapped by the gate, or the host's)."""
+    def _pose(self, rec: Record, t: float, host: float | None = None) -> PoseSample:
+        """A record as a PoseSample at time ``t`` (s; the device clock unwrapped by the gate, or the host's); with a
+        ``host_time_map``, device times arriving at host time ``host`` are put on the host clock."""
+        if self.host_time_map is not None and host is not None and rec.timestamp_ms is not None:
+            self.host_time_map.observe(t, host)
+            t = self.host_time_map.host_time(t)
+            last = self._last_host_t.get(rec.station)
+            if last is not None and t <= last:  # the offset fell (a less delayed record): keep times increasing
+                t = last + 1e-6
+            self._last_host_t[rec.station] = t
         return PoseSample(
             t=t,
             position=np.asarray(rec.position, dtype=float) * self._scale,

@@ -211,6 +211,11 @@ class LibertyEmulator(PtyDevice):
         s = self.faults.silent_after
         return s is not None and self.records_sent >= s
 
+    @property
+    def epoch(self) -> float:
+        """The clock's reading at the device's time zero (another emulator can share it: one motion, two devices)."""
+        return self._t0
+
     def device_time(self) -> float:
         """Seconds on the device clock."""
         return self.clock() - self._t0

@@ -61,11 +61,13 @@ class TactileArrayEmulator(PtyDevice):
         faults: line faults.
         seed: seed of the faults.
         start_counter: the counter of the first frame.
+        epoch: the clock reading ``source`` counts its time from (default: when serving starts); give another
+            emulator's (``LibertyEmulator.epoch``) and both devices see one motion.
     """
 
     def __init__(self, source: Source, *, rows: int = 4, cols: int = 4, rate: float = 50.0, fmt: str = "binary",
                  baud: int = 115200, clock=None, faults: TactileFaults | None = None, seed: int = 0,
-                 start_counter: int = 0):
+                 start_counter: int = 0, epoch: float | None = None):
         self.rows, self.cols = check_shape(rows, cols)
         if fmt not in FORMATS:
             raise ValidationError(f"tactile array format must be one of {FORMATS}, got {fmt!r}")
@@ -82,6 +84,7 @@ class TactileArrayEmulator(PtyDevice):
         self._k = 0
         self._counter0 = int(start_counter)
         self._t0 = 0.0
+        self._epoch = epoch
         self.sent: list[tuple[int, float]] = []  # (counter, device time) of every frame sent, for tests
         self.dropped = self.corrupted = 0
 
@@ -110,7 +113,8 @@ class TactileArrayEmulator(PtyDevice):
         if f.drop_every and k % f.drop_every == 0:
             self.dropped += 1
             return b""
-        counts = np.asarray(self.source(t - self._t0), dtype=np.uint8).reshape(self.rows, self.cols)
+        since = t - (self._t0 if self._epoch is None else self._epoch)
+        counts = np.asarray(self.source(since), dtype=np.uint8).reshape(self.rows, self.cols)
         data = bytearray(self._encode(counter, counts))
         if f.corrupt_every and k % f.corrupt_every == 0:
             data[len(data) // 2] ^= 0x10
