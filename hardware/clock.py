@@ -43,6 +43,7 @@ class StepClock:
 
     Args:
         start: the time at creation, s.
+        wall_ratio: each sleep also waits this fraction of it on the wall clock (0: none).
 
     Every emulator and driver sharing one StepClock sees the same instants: a driver that reads its servos once
     per control cycle and sleeps out the rest of the cycle advances the emulated physics by exactly that cycle.
@@ -50,17 +51,24 @@ class StepClock:
 
     virtual = True
 
-    def __init__(self, start: float = 0.0):
+    def __init__(self, start: float = 0.0, wall_ratio: float = 0.0):
+        if not 0 <= wall_ratio <= 1:
+            raise ValueError(f"StepClock wall_ratio must be in [0, 1], got {wall_ratio!r}")
         self._t = float(start)
+        self._wall_ratio = float(wall_ratio)
         self._lock = threading.Lock()
 
     def __call__(self) -> float:
         return self._t
 
     def sleep(self, seconds: float) -> None:
+        """Advance by ``seconds``; with ``wall_ratio`` also wait that fraction of it on the wall (time for other
+        threads, such as a streaming emulator's, to run)."""
         if seconds > 0:
             with self._lock:
                 self._t += float(seconds)
+            if self._wall_ratio:
+                time.sleep(seconds * self._wall_ratio)
 
 
 class FastClock:

@@ -106,11 +106,12 @@ class PtyDevice:
         self._out += data
 
     def _wait(self) -> float:
-        poll = VIRTUAL_POLL if self.clock.virtual else POLL
         due = self.next_emit()
         if due is None:
-            return poll
-        return min(poll, max(0.0, due - self.clock())) if not self.clock.virtual else poll
+            return POLL  # nothing to send unasked: sleep until the host writes
+        if self.clock.virtual:
+            return VIRTUAL_POLL  # virtual time moves when the host sleeps on it: look again soon
+        return min(POLL, max(0.0, due - self.clock()))
 
     def _serve(self) -> None:
         try:

@@ -35,6 +35,12 @@ _STATE_LENGTH = 10
 # 200 Hz, a usual servo control rate over USB (the adapter's latency, not the 1 Mbaud bus, bounds a cycle); the press
 # loop moves its goal at most press.MAX_STEP_TIME of motion per cycle, the same 5 ms.
 DEFAULT_CYCLE = 0.005
+SERIAL_POLL = 0.001  # s
+# How long dynamixel-sdk waits for an answer on a virtual clock, ms of wall time. On the wall clock it waits what the
+# bus needs (~34 ms at 1 Mbaud); an emulator whose thread a loaded machine leaves unscheduled for longer is not a
+# lost servo, and waiting costs the emulated servos no time. A servo silenced on purpose is still declared lost,
+# after retries + 1 such waits.
+VIRTUAL_ANSWER_TIMEOUT_MS = 300.0
 
 
 @dataclass(frozen=True)
@@ -73,7 +79,7 @@ class DynamixelFinger:
         port: serial device (e.g. /dev/ttyUSB0, or an emulator's pty).
         baud: bus bit rate (one the SDK supports, e.g. 57600, 1000000).
         finger: its description (ids, limits, current limit).
-        retries: times a corrupt status (bad CRC) is retried before giving up.
+        retries: times a corrupt or missing status is retried before giving up.
         clock: time source (see :mod:`palpate.hardware.clock`; default the wall clock). Give the emulator and the
             driver one :class:`~palpate.hardware.clock.StepClock` and the emulated finger moves exactly one
             ``cycle`` per state read, however loaded the machine is.
@@ -90,8 +96,8 @@ class DynamixelFinger:
         self.port_name = str(port)
         self.baud = int(baud)
         self.finger = finger
-        self.retries = int(retries)
         self.clock = as_clock(clock)
+        self.retries = int(retries)
         self.cycle = float(cycle)
         self._next_cycle: float | None = None
         self.model = finger.model
@@ -130,6 +136,12 @@ class DynamixelFinger:
             port.closePort()
             raise DeviceError(f"baud {self.baud} is not supported by dynamixel-sdk on {self.port_name!r}")
         self._port, self._ph = port, sdk.PacketHandler(2.0)
+        # dynamixel-sdk polls its port with reads that return at once, a busy loop holding the interpreter: an
+        # emulator thread in this process then waits for a turn (seen: a second on a loaded machine), and a real bus
+        # burns a core. Reads that wait up to 1 ms for the bytes asked for release it meanwhile.
+        port.ser.timeout = SERIAL_POLL
+        if self.clock.virtual:
+            port.setPacketTimeout = lambda _length: port.setPacketTimeoutMillis(VIRTUAL_ANSWER_TIMEOUT_MS)
         try:
             self._find_servos()
             self._configure()

@@ -175,6 +175,16 @@ class ServoBusEmulator(PtyDevice):
             if reg == ct.PRESENT_POSITION:
                 self._pos[k] = float(value)
 
+    @property
+    def integrated_until(self) -> float:
+        """The clock time up to which the servo dynamics have been integrated, s."""
+        return self._last
+
+    def last_positions(self) -> np.ndarray:
+        """Positions at :attr:`integrated_until`, ticks (nothing is integrated: the motion stays the host's)."""
+        with self._lock:
+            return self._pos.copy()
+
     def positions(self) -> np.ndarray:
         """Present positions of every servo, ticks (float, in ``ids`` order)."""
         with self._lock:

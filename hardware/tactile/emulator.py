@@ -63,11 +63,14 @@ class TactileArrayEmulator(PtyDevice):
         start_counter: the counter of the first frame.
         epoch: the clock reading ``source`` counts its time from (default: when serving starts); give another
             emulator's (``LibertyEmulator.epoch``) and both devices see one motion.
+        ready: ``ready(t)`` (clock time) says whether the frame at t can be made yet (a physics behind the array
+            that has not reached t); the frame is sent when it can, late but with its own counter.
     """
 
     def __init__(self, source: Source, *, rows: int = 4, cols: int = 4, rate: float = 50.0, fmt: str = "binary",
                  baud: int = 115200, clock=None, faults: TactileFaults | None = None, seed: int = 0,
-                 start_counter: int = 0, epoch: float | None = None):
+                 start_counter: int = 0, epoch: float | None = None,
+                 ready: Callable[[float], bool] | None = None):
         self.rows, self.cols = check_shape(rows, cols)
         if fmt not in FORMATS:
             raise ValidationError(f"tactile array format must be one of {FORMATS}, got {fmt!r}")
@@ -85,6 +88,7 @@ class TactileArrayEmulator(PtyDevice):
         self._counter0 = int(start_counter)
         self._t0 = 0.0
         self._epoch = epoch
+        self._ready = ready
         self.sent: list[tuple[int, float]] = []  # (counter, device time) of every frame sent, for tests
         self.dropped = self.corrupted = 0
 
@@ -101,7 +105,7 @@ class TactileArrayEmulator(PtyDevice):
         with self._lock:
             while True:
                 due = self.next_emit()
-                if due is None or due > now:
+                if due is None or due > now or (self._ready is not None and not self._ready(due)):
                     break
                 self._k += 1
                 out += self._frame(self._k, due)

@@ -190,6 +190,13 @@ class TactileArrayReader:
             out.append(frame)
         return out
 
+    def latest(self) -> float:
+        """Host time of the newest frame kept (-inf before the first)."""
+        with self._lock:
+            if not self._frames or self._map.offset is None:
+                return float("-inf")
+            return self._frames[-1][0] * self.period + self._map.offset
+
     def between(self, t0: float, t1: float) -> list[TaxelFrame]:
         """Kept frames with t0 <= t <= t1 (host clock), all timed with the current offset."""
         with self._lock:
