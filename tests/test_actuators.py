@@ -340,8 +340,8 @@ def test_the_emulated_finger_explores_through_the_wire_and_closes_the_bus(repo_d
     np.testing.assert_array_equal(replayed.probabilities, ran.probabilities)
 
 
-def test_the_command_line_switches_the_finger_to_a_real_port_and_needs_its_tactile_array(repo_dir, tmp_path, monkeypatch,
-                                                                            capsys):
+def test_the_command_line_switches_the_finger_to_a_real_port_and_needs_its_tactile_array(repo_dir, tmp_path,
+                                                                                        monkeypatch, capsys):
     from palpate.core.cli import main
 
     _forbid_motion(monkeypatch)
