@@ -6,6 +6,7 @@ from collections.abc import Iterable
 
 from palpate.core.errors import DeviceError, ValidationError
 from palpate.hardware.dynamixel import control_table as ct
+from palpate.hardware.dynamixel.driver import SERIAL_POLL
 
 
 def scan(port: str, baud: int, ids: Iterable[int] = range(0, 253), timeout_ms: float | None = None) -> list[dict]:
@@ -23,12 +24,14 @@ def scan(port: str, baud: int, ids: Iterable[int] = range(0, 253), timeout_ms: f
     try:
         if not p.setBaudRate(int(baud)):
             raise DeviceError(f"baud {baud} is not supported by dynamixel-sdk")
+        p.ser.timeout = SERIAL_POLL  # reads that wait, not a busy loop (see driver.SERIAL_POLL)
         found = []
         for sid in ids:
             if not 0 <= sid <= 252:
                 raise ValidationError(f"servo ids are 0..252, got {sid}")
             number, result, _ = ph.ping(p, sid)
-            if result == sdk.COMM_RX_CORRUPT:  # one retry: a single corrupt answer is not an absent servo
+            if result in (sdk.COMM_RX_CORRUPT, sdk.COMM_RX_TIMEOUT):
+                # one retry: a single corrupt or missed answer is not an absent servo
                 number, result, _ = ph.ping(p, sid)
             if result == sdk.COMM_SUCCESS:
                 fw, r2, _ = ph.read1ByteTxRx(p, sid, ct.FIRMWARE_VERSION[0])
