@@ -4,7 +4,9 @@ By default SIGTERM and SIGHUP end a Python process at once: no ``finally``, no `
 Dynamixel finger keeps its torque on and a recording loses its last chunk and summary. While :func:`holding` is
 active (a finger is open, a recording command runs), both signals raise :class:`Terminated` in the main thread
 instead, so the paths that already handle Ctrl-C and errors (the driver's safety contexts, ``with`` blocks,
-``atexit``) switch torque off and finish files on them too. SIGINT stays Python's KeyboardInterrupt.
+``atexit``) switch torque off and finish files on them too. SIGINT stays Python's KeyboardInterrupt. A signal that
+lands while a recording's writer is in the middle of a record is delivered again a moment later, so the file's last
+record is whole.
 
 :class:`Terminated` is a :class:`SystemExit` carrying the shell's exit code for the signal (128 + signal number),
 so code that catches ``Exception`` does not swallow it and an uncaught one ends the process with that code. Once
@@ -17,9 +19,12 @@ Handlers can only be installed from the main thread; elsewhere :func:`holding` d
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import threading
 
+#: A signal that arrives while a recording is being written is delivered again after this long, s.
+REDELIVER = 0.01
 #: The signals turned into :class:`Terminated`.
 SIGNALS = tuple(s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)) if s is not None)
 
@@ -47,12 +52,35 @@ class _State:
 _STATE = _State()
 
 
+def _interrupt(signum, frame) -> None:
+    """SIGINT: Python's KeyboardInterrupt, but never in the middle of a recording's record."""
+    if _writing(frame):
+        threading.Timer(REDELIVER, os.kill, (os.getpid(), signum)).start()
+        return
+    raise KeyboardInterrupt
+
+
 def _handler(signum, frame) -> None:
     if _STATE.terminating:
         _STATE.ignored.append(signum)  # a clean-up in progress is not interrupted again
         return
+    if _writing(frame):
+        # an exception inside a recording's writer would leave a record half written (the file unreadable):
+        # the signal is delivered again in a moment, when the write is done
+        threading.Timer(REDELIVER, os.kill, (os.getpid(), signum)).start()
+        return
     _STATE.terminating = True
     raise Terminated(signum)
+
+
+def _writing(frame) -> bool:
+    """Whether the interrupted code is inside a recording's writer (palpate's or the mcap library's)."""
+    while frame is not None:
+        name = frame.f_code.co_filename.replace("\\", "/")
+        if name.endswith("io/mcap_writer.py") or "/mcap/" in name or "/zstandard/" in name:
+            return True
+        frame = frame.f_back
+    return False
 
 
 def hold() -> bool:
@@ -65,6 +93,8 @@ def hold() -> bool:
             _STATE.terminating = False
             for s in SIGNALS:
                 _STATE.previous[s] = signal.signal(s, _handler)
+            if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+                _STATE.previous[signal.SIGINT] = signal.signal(signal.SIGINT, _interrupt)
         _STATE.depth += 1
     return True
 

@@ -76,11 +76,15 @@ class Bus:
 
         port = sdk.PortHandler(self.port)
         assert port.openPort() and port.setBaudRate(BAUD)
+        port.ser.timeout = 0.001  # reads that wait rather than spin (see driver.SERIAL_POLL)
         ph = sdk.PacketHandler(2.0)
         try:
             out = {}
             for sid in IDS:
-                value, result, error = ph.read1ByteTxRx(port, sid, ct.TORQUE_ENABLE[0])
+                for _ in range(5):  # the bus's process may be slow to answer on a loaded machine: ask again
+                    value, result, error = ph.read1ByteTxRx(port, sid, ct.TORQUE_ENABLE[0])
+                    if result == sdk.COMM_SUCCESS:
+                        break
                 assert result == sdk.COMM_SUCCESS and error == 0, ph.getTxRxResult(result)
                 out[sid] = value
             return out
@@ -121,7 +125,9 @@ def test_the_record_command_killed_mid_press_leaves_torque_off_and_a_finished_re
     log = _kill_when_holding(bus, client, sig)
     assert client.returncode == (130 if sig == signal.SIGINT else 128 + sig), client.stderr.read()
     assert bus.torque() == {sid: 0 for sid in IDS}
-    assert [f"torque {sid} 0" for sid in IDS] == log[-len(IDS):]  # switched off after it had been on
+    # switched off after it had been on: every servo's last torque write is a 0
+    last_on = max(i for i, line in enumerate(log) if line.endswith(" 1"))
+    assert all(f"torque {sid} 0" in log[last_on + 1:] for sid in IDS), log[last_on:]
     rec = read_recording(out)  # finished: no salvage needed
     assert not rec.salvaged and len(rec.joints) > 10
     end = [a for a in rec.annotations if a.kind == "recording_end"]

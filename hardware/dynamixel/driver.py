@@ -40,7 +40,7 @@ SERIAL_POLL = 0.001  # s
 # bus needs (~34 ms at 1 Mbaud); an emulator whose thread a loaded machine leaves unscheduled for longer is not a
 # lost servo, and waiting costs the emulated servos no time. A servo silenced on purpose is still declared lost,
 # after retries + 1 such waits.
-VIRTUAL_ANSWER_TIMEOUT_MS = 300.0
+VIRTUAL_ANSWER_TIMEOUT_MS = 1000.0
 
 
 @dataclass(frozen=True)
