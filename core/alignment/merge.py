@@ -94,7 +94,13 @@ def pipeline_for(perception: dict | None, base: PipelineConfig | None = None) ->
     if not isinstance(from_motion, bool):
         raise ValidationError(f"recording metadata session.perception.press_axis_from_motion must be true or false, "
                               f"got {from_motion!r}")
-    return replace(base, press_axis_from_motion=from_motion)
+    features = perception.get("features", base.features)
+    gain = perception.get("calibration_n_per_count")
+    if gain is not None and not (isinstance(gain, int | float) and not isinstance(gain, bool) and gain > 0):
+        raise ValidationError(f"recording metadata session.perception.calibration_n_per_count must be a number > 0, "
+                              f"got {gain!r}")
+    return replace(base, press_axis_from_motion=from_motion, features=features,
+                   calibration=base.calibration if gain is None else float(gain))
 
 
 def session_pipeline(metadata: dict, base: PipelineConfig | None = None) -> PipelineConfig:

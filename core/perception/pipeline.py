@@ -23,6 +23,10 @@ from palpate.core.perception.sync import synchronise
 log = logging.getLogger(__name__)
 
 
+#: What a press fit uses: both interaction laws, or the kinesthetic one alone (c_P from a force).
+FEATURES = ("both", "kinesthetic")
+
+
 @dataclass(frozen=True)
 class PipelineConfig:
     """Knobs of the signal path (SI units).
@@ -36,6 +40,7 @@ class PipelineConfig:
         press_axis_from_motion: measure each press's height and indentation along the direction the fingertip
             moved during that contact instead of ``press_axis`` (a tracker whose frame is tilted, a person's press;
             see :mod:`palpate.core.perception.press_axis`).
+        features: "both" (kinesthetic and cutaneous laws) or "kinesthetic" (c_P from a force: no contact area).
         on_threshold, off_threshold: hysteresis levels on c_P (None: from the data's noise).
         min_duration: shortest accepted contact, s.
         min_depth: shallowest accepted press, m.
@@ -48,6 +53,7 @@ class PipelineConfig:
     calibration: Calibration = None
     press_axis: tuple[float, float, float] = (0.0, 0.0, -1.0)
     press_axis_from_motion: bool = False
+    features: str = "both"
     on_threshold: float | None = None
     off_threshold: float | None = None
     min_duration: float = 0.1
@@ -55,6 +61,8 @@ class PipelineConfig:
     min_samples: int = 5
 
     def __post_init__(self) -> None:
+        if self.features not in FEATURES:
+            raise ValidationError(f"PipelineConfig.features must be one of {FEATURES}, got {self.features!r}")
         if not np.isfinite(self.clock_offset):
             raise ValidationError(f"PipelineConfig.clock_offset must be finite (s), got {self.clock_offset!r}")
         if not (np.isfinite(self.max_gap) and self.max_gap > 0):

@@ -118,7 +118,7 @@ def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory
                 grid.update_voxel(ix, iy, iz, p)
         done = [p for p in posts if p is not None]
         return done[-1] if done else None
-    p = memory.predict_proba(res.fit.params[None, :])[0]
+    p = memory.predict_proba(res.fit.params[None, :], features=res.fit.features)[0]
     try:
         grid.update(*res.location, p)
     except ValidationError:

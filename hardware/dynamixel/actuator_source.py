@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.perception.force_channel import PERCEPTION as FORCE_PERCEPTION
 from palpate.core.perception.pipeline import PipelineConfig
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
@@ -73,6 +74,8 @@ class DynamixelOptions:
         pose_noise: standard deviation of noise added to each fingertip position, m per axis.
         approach_height: height above the surface where each press starts, m (None: the finger file's).
         taxels: the tactile array's serial settings (port, format, rate, baud; None with ``emulate``).
+        pad: False for a finger with no tactile pad: each press's c_P is the fingertip force from its joint currents
+            and the memory judges it by its kinesthetic model alone (training too: :attr:`perception`).
     """
 
     port: str | None = None
@@ -82,6 +85,12 @@ class DynamixelOptions:
     pose_noise: float = 0.0
     approach_height: float | None = None
     taxels: TaxelPort | None = None
+    pad: bool = True
+
+    @property
+    def perception(self) -> dict | None:
+        """How this actuator's presses are perceived, when not as taxels (the run trains its memory alike)."""
+        return None if self.pad else dict(FORCE_PERCEPTION)
 
 
 def parse_options(r: TableReader, base: Path) -> DynamixelOptions:
@@ -98,19 +107,22 @@ def parse_options(r: TableReader, base: Path) -> DynamixelOptions:
         raise r.err("finger", "must name a finger description file (models/fingers/*.toml)")
     approach = r.number("approach_mm", None, lo=0.0, lo_open=True)
     taxel_port = r.get("taxels", str, "") or None
+    pad = r.get("pad", bool, True)
+    if not pad and taxel_port:
+        raise r.err("taxels", "not used with pad = false (a finger without a pad measures its force by its currents)")
     if emulate and taxel_port:
         raise r.err("taxels", "not used with emulate = true (the emulated tactile array opens its own pseudo-terminal)")
     fmt = r.get("taxel_format", str, "binary")
     if fmt not in FORMATS:
         raise r.err("taxel_format", f"must be one of {', '.join(FORMATS)}, got {fmt!r}")
     taxels = None
-    if emulate or taxel_port:
+    if pad and (emulate or taxel_port):
         taxels = TaxelPort(taxel_port or "emulator", fmt, r.number("taxel_rate", 50.0, lo=0.0, lo_open=True),
                            r.integer("taxel_baud", 115200, lo=1))
     return DynamixelOptions(port=port, baud=r.integer("baud", DynamixelOptions.baud, lo=1),
                             finger=resolve_path(base, finger), emulate=emulate,
                             pose_noise=r.number("pose_noise_mm", 0.0, lo=0.0) * 1e-3,
-                            approach_height=None if approach is None else approach * 1e-3, taxels=taxels)
+                            approach_height=None if approach is None else approach * 1e-3, taxels=taxels, pad=pad)
 
 
 class FingerSession:
@@ -224,10 +236,10 @@ def dynamixel_actuator(request, *, check_only: bool = False):
     finger = finger_for(request)
     check_reach(finger, request)
     if not spec.emulate:
-        if spec.taxels is None:
+        if spec.taxels is None and spec.pad:
             raise ValidationError(f"actuator.taxels: missing: the finger on {spec.port!r} needs the tactile array's "
                                   "serial port (taxels = \"/dev/ttyACM0\", or --taxels PORT) for its presses to be "
-                                  "perceived")
+                                  "perceived, or pad = false for a finger without one (c_P from its joint currents)")
         if check_only:
             return None
         return _real_finger(spec, finger, request)
@@ -247,16 +259,20 @@ def dynamixel_actuator(request, *, check_only: bool = False):
         clock = StepClock(wall_ratio=WALL_RATIO)
         emulator, physics = physics_bus(finger, request.scene, start, baud=spec.baud, clock=clock)
         stack.enter_context(emulator)
-        source, ready = physics_taxels(physics, emulator, seed=request.seed)
-        taxels = spec.taxels or TaxelPort("emulator")
-        array = stack.enter_context(TactileArrayEmulator(
-            source, rows=request.scene.fingertip.rows, cols=request.scene.fingertip.cols,
-            rate=request.scene.taxels.rate, fmt=taxels.fmt, baud=taxels.baud, clock=clock, epoch=0.0, ready=ready))
-        reader = stack.enter_context(open_reader(replace(taxels, port=array.port, rate=request.scene.taxels.rate),
-                                                 request.scene, clock))
+        if spec.pad:
+            source, ready = physics_taxels(physics, emulator, seed=request.seed)
+            taxels = spec.taxels or TaxelPort("emulator")
+            array = stack.enter_context(TactileArrayEmulator(
+                source, rows=request.scene.fingertip.rows, cols=request.scene.fingertip.cols,
+                rate=request.scene.taxels.rate, fmt=taxels.fmt, baud=taxels.baud, clock=clock, epoch=0.0, ready=ready))
+            reader = stack.enter_context(open_reader(replace(taxels, port=array.port, rate=request.scene.taxels.rate),
+                                                     request.scene, clock))
+            streams = reader_streams(reader, physics.truth)
+        else:
+            streams = _truth_only(physics)
         driver = stack.enter_context(DynamixelFinger(emulator.port, spec.baud, finger, clock=clock))
-        actuator = FingerActuator(driver, surface_z, streams=reader_streams(reader, physics.truth),
-                                  pose_noise=spec.pose_noise, seed=request.seed)
+        actuator = FingerActuator(driver, surface_z, streams=streams, pose_noise=spec.pose_noise, seed=request.seed,
+                                  force_from_currents=not spec.pad)
     except BaseException:
         stack.close()
         raise
@@ -268,17 +284,24 @@ def _real_finger(spec: DynamixelOptions, finger: FingerDescription, request) -> 
     surface_z = request.obj.height
     stack = contextlib.ExitStack()
     try:
-        reader = stack.enter_context(open_reader(spec.taxels, request.scene, WALL_CLOCK))
+        streams = None
+        if spec.pad:
+            streams = reader_streams(stack.enter_context(open_reader(spec.taxels, request.scene, WALL_CLOCK)))
         driver = stack.enter_context(DynamixelFinger(spec.port, spec.baud, finger, clock=WALL_CLOCK))
-        actuator = FingerActuator(driver, surface_z, streams=reader_streams(reader), pose_noise=spec.pose_noise,
-                                  seed=request.seed)
+        actuator = FingerActuator(driver, surface_z, streams=streams, pose_noise=spec.pose_noise, seed=request.seed,
+                                  force_from_currents=not spec.pad)
     except BaseException:
         stack.close()
         raise
     return FingerSession(actuator, stack)
 
 
+def _truth_only(physics):
+    """``streams`` giving the physics' ground truth and no taxel frames (a finger without a pad)."""
+    return lambda t0, t1: ([], physics.truth(t0, t1))
+
+
 #: The entry point ``dynamixel`` of ``palpate.actuators``.
 DYNAMIXEL = ActuatorKind(keys=("port", "baud", "finger", "emulate", "pose_noise_mm", "approach_mm", "taxels",
-                               "taxel_format", "taxel_rate", "taxel_baud"),
+                               "taxel_format", "taxel_rate", "taxel_baud", "pad"),
                          parse=parse_options, make=dynamixel_actuator, extra="hardware")
