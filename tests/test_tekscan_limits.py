@@ -104,8 +104,10 @@ def test_the_export_is_never_its_own_output(tmp_path, capsys):
     path = tmp_path / "grip.csv"
     path.write_text(HEADER + "\nFrame 1\n1,2,3\n4,5,6\n")
     before = path.read_bytes()
-    assert main(["import", "tekscan", str(path), "--out", str(path)]) == 2
-    assert "is the Tekscan export being imported" in capsys.readouterr().err
+    assert main(["import", "tekscan", str(path), "--out", str(path), "--force"]) == 2
+    assert "is an input of this command" in capsys.readouterr().err
+    with pytest.raises(ValidationError, match="is the Tekscan export being imported"):
+        import_tekscan(path, path)
     assert path.read_bytes() == before
     assert main(["import", "tekscan", str(path), "--out", str(tmp_path / "r.mcap")]) == 0
     assert len(read_recording(tmp_path / "r.mcap").frames) == 1

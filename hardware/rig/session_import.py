@@ -38,6 +38,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.perception.streams import PoseSample, TaxelFrame
+from palpate.core.session.output_guard import check_output_file
 from palpate.hardware.tekscan.importer import file_sha256, parse_start_time
 from palpate.hardware.tekscan.reader import movie_frames, read_tekscan, select_region
 
@@ -183,6 +184,7 @@ def add_import_command(imports: argparse._SubParsersAction) -> None:
     p.add_argument("--taxels", required=True, type=Path, help="Tekscan ASCII/CSV export, or an MCAP with taxel frames")
     p.add_argument("--poses", required=True, type=Path, help="MCAP with the fingertip's poses (palpate record liberty)")
     p.add_argument("--out", required=True, type=Path, help="the session recording to write (.mcap)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --out (never an input)")
     p.add_argument("--region", help="R0:R1,C0:C1: the fingertip pad's block of a larger Tekscan map")
     p.add_argument("--start-time", help="ISO 8601 time of the export's first frame (default 0 s)")
     p.add_argument("--full-scale", type=_pressure_pa, metavar="PRESSURE",
@@ -206,6 +208,11 @@ def add_import_command(imports: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    check_output_file(args.out, inputs=[args.taxels, args.poses, args.calibration, args.workspace],
+                      force=args.force)
+    if args.save_workspace is not None:
+        check_output_file(args.save_workspace, inputs=[args.taxels, args.poses, args.calibration, args.workspace,
+                                                       args.out], force=args.force, option="--save-workspace")
     clock = None
     if args.clock_offset is not None:
         clock = ClockMap(offset=args.clock_offset, rate=-args.clock_drift_ppm * 1e-6)

@@ -23,6 +23,7 @@ from palpate.core.alignment.merge import SESSION_PIPELINE
 from palpate.core.errors import ValidationError
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.perception.streams import PoseSample, TaxelFrame
+from palpate.core.session.output_guard import check_output_file
 from palpate.hardware import exit_signals
 from palpate.hardware.clock import DeviceTimeMap
 from palpate.hardware.polhemus.cli import parse_stations
@@ -45,6 +46,7 @@ def add_record_command(record: argparse._SubParsersAction) -> None:
     p.add_argument("--liberty", help="serial port of the Liberty")
     p.add_argument("--seconds", type=float, required=True, help="how long to record, s")
     p.add_argument("--out", type=Path, required=True, help="the recording to write (.mcap)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --out")
     p.add_argument("--taxel-format", choices=FORMATS, default="binary", help="the array's wire format")
     p.add_argument("--taxel-rate", type=float, default=50.0, help="the array's frame rate, Hz (default 50)")
     p.add_argument("--taxel-baud", type=int, default=115200, help="the array's bit rate (default 115200)")
@@ -68,6 +70,7 @@ def run_record(args: argparse.Namespace) -> int:
     if not args.sensel_area_mm2 > 0:
         raise ValidationError(f"--sensel-area-mm2 must be > 0, got {args.sensel_area_mm2}")
     (station,) = parse_stations(args.station)
+    check_output_file(args.out, force=args.force)
     with exit_signals.holding(), contextlib.ExitStack() as stack:
         taxel_port, liberty_port = args.taxels, args.liberty
         if args.emulate:
