@@ -47,6 +47,7 @@ class _State:
         self.previous: dict[int, object] = {}
         self.terminating = False
         self.ignored: list[int] = []
+        self.critical = 0  # depth of deferring() blocks
 
 
 _STATE = _State()
@@ -54,7 +55,7 @@ _STATE = _State()
 
 def _interrupt(signum, frame) -> None:
     """SIGINT: Python's KeyboardInterrupt, but never in the middle of a recording's record."""
-    if _writing(frame):
+    if _STATE.critical or _writing(frame):
         threading.Timer(REDELIVER, os.kill, (os.getpid(), signum)).start()
         return
     raise KeyboardInterrupt
@@ -64,7 +65,7 @@ def _handler(signum, frame) -> None:
     if _STATE.terminating:
         _STATE.ignored.append(signum)  # a clean-up in progress is not interrupted again
         return
-    if _writing(frame):
+    if _STATE.critical or _writing(frame):
         # an exception inside a recording's writer would leave a record half written (the file unreadable):
         # the signal is delivered again in a moment, when the write is done
         threading.Timer(REDELIVER, os.kill, (os.getpid(), signum)).start()
@@ -111,6 +112,17 @@ def release() -> None:
             for s, previous in _STATE.previous.items():
                 signal.signal(s, previous if previous is not None else signal.SIG_DFL)
             _STATE.previous.clear()
+
+
+@contextlib.contextmanager
+def deferring():
+    """A block no signal interrupts (it is delivered again 10 ms after the block ends): what must happen together,
+    such as writing a sample and counting it."""
+    _STATE.critical += 1
+    try:
+        yield
+    finally:
+        _STATE.critical -= 1
 
 
 @contextlib.contextmanager

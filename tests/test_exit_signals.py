@@ -28,7 +28,8 @@ API_CLIENT = """
 import sys, time
 from palpate.hardware.dynamixel.driver import DynamixelFinger
 from palpate.hardware.dynamixel.finger import load_finger
-finger = DynamixelFinger(sys.argv[1], 1_000_000, load_finger(sys.argv[2])).open()  # no 'with', no close()
+# no 'with', no close(); retries: the bus is another process on a machine the test may load heavily
+finger = DynamixelFinger(sys.argv[1], 1_000_000, load_finger(sys.argv[2]), retries=10).open()
 finger.enable_torque()
 print("holding", flush=True)
 while True:
@@ -121,7 +122,8 @@ def test_the_record_command_killed_mid_press_leaves_torque_off_and_a_finished_re
     client = subprocess.Popen(
         [sys.executable, "-c", PALPATE, "record", "dynamixel", "--port", bus.port, "--finger",
          str(repo_dir / "models" / "fingers" / "planar2.toml"), "--seconds", "120", "--out", str(out),
-         "--press", "0.07", "--speed", "0.002"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+         "--press", "0.07", "--speed", "0.002", "--retries", "10"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True)
     log = _kill_when_holding(bus, client, sig)
     assert client.returncode == (130 if sig == signal.SIGINT else 128 + sig), client.stderr.read()
     assert bus.torque() == {sid: 0 for sid in IDS}

@@ -36,6 +36,9 @@ _STATE_LENGTH = 10
 # loop moves its goal at most press.MAX_STEP_TIME of motion per cycle, the same 5 ms.
 DEFAULT_CYCLE = 0.005
 SERIAL_POLL = 0.001  # s
+# Confirmed writes of torque off tried per servo (each with its retries) before giving up on it.
+TORQUE_OFF_TRIES = 5
+BROADCAST_ID = 0xFE
 # How long dynamixel-sdk waits for an answer on a virtual clock, ms of wall time. On the wall clock it waits what the
 # bus needs (~34 ms at 1 Mbaud); an emulator whose thread a loaded machine leaves unscheduled for longer is not a
 # lost servo, and waiting costs the emulated servos no time. A servo silenced on purpose is still declared lost,
@@ -291,14 +294,23 @@ class DynamixelFinger:
             return []
         done = []
         self._port.is_using = False  # an exception may have left a transfer half done
+        try:
+            # first to every servo at once (a broadcast needs no answer: it works even when answers are lost) ...
+            self._ph.write1ByteTxOnly(self._port, BROADCAST_ID, ct.TORQUE_ENABLE[0], 0)
+            self._port.is_using = False
+        except Exception:
+            pass
+        # ... then servo by servo, until each confirms or TORQUE_OFF_TRIES are spent
         for sid in self.finger.ids:
             if sid in self.lost:
                 continue
-            try:
-                self._write(sid, ct.TORQUE_ENABLE, 0)
-                done.append(sid)
-            except Exception:
-                pass
+            for _ in range(TORQUE_OFF_TRIES):
+                try:
+                    self._write(sid, ct.TORQUE_ENABLE, 0)
+                    done.append(sid)
+                    break
+                except Exception:
+                    self._port.is_using = False
         self._torque_on = False
         return done
 

@@ -25,6 +25,8 @@ def scan(port: str, baud: int, ids: Iterable[int] = range(0, 253), timeout_ms: f
         if not p.setBaudRate(int(baud)):
             raise DeviceError(f"baud {baud} is not supported by dynamixel-sdk")
         p.ser.timeout = SERIAL_POLL  # reads that wait, not a busy loop (see driver.SERIAL_POLL)
+        if timeout_ms is not None:  # e.g. an emulator sharing a loaded machine: wait longer for each answer
+            p.setPacketTimeout = lambda _length: p.setPacketTimeoutMillis(float(timeout_ms))
         found = []
         for sid in ids:
             if not 0 <= sid <= 252:
