@@ -31,8 +31,9 @@ from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.session.actuators import open_actuators
 from palpate.core.session.explore import ObjectResult, explore_object
+from palpate.core.session.figure_jobs import FigureDrawer, object_jobs, progress_job, training_jobs
 from palpate.core.session.output_guard import check_output_file, prepare_output_folder
-from palpate.core.session.outputs import write_figures, write_maps
+from palpate.core.session.outputs import write_maps
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import SUMMARY_FORMAT, SUMMARY_VERSION, assert_finite, fit_summary, object_summary
@@ -44,13 +45,15 @@ from palpate.core.world.workspace import map_geometries
 
 
 def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress | None = None,
-                 source: str | None = None, record: str | Path | None = None, force: bool = False) -> dict:
+                 source: str | None = None, record: str | Path | None = None, force: bool = False,
+                 live=None) -> dict:
     """Run a scenario end to end and write its outputs into ``out_dir``. Returns the summary (also summary.json).
 
     ``source`` names the registered simulated source that trains the memory and, with ``[actuator] kind = "sim"``,
     explores (default: ``training.source``); another actuator kind explores through
     :func:`palpate.core.session.actuators.open_actuators`. With ``record``, every press's raw streams (and ground
-    truth) go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps.
+    truth) go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps; with ``live`` (a
+    :class:`~palpate.core.io.live.LiveServer`) the same messages, and the map after every press, are served live.
 
     ``out_dir`` must be new, empty or an earlier run's folder; an earlier run (and an existing ``record`` file) is
     replaced only with ``force`` (:mod:`palpate.core.session.output_guard`). No input is ever overwritten.
@@ -71,7 +74,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                        {"scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
                                      "seed": scenario.seed, "fidelity": scenario.fidelity},
                         "sources": [source] if kind == "sim" else [source, kind],
-                        "maps": {name: g.to_dict() for name, g in geometries.items()}})
+                        "maps": {name: g.to_dict() for name, g in geometries.items()}}, live=live)
         try:
             return _run(scenario, out, progress, *makers, seeds, log)
         finally:
@@ -103,7 +106,16 @@ def _memory(scenario: Scenario, make_source, seeds, progress: Progress,
 
 def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds,
          log: PressLog) -> dict:
+    out_cfg = scenario.outputs
+    preload = ("pyvista",) if out_cfg.render_3d and scenario.exploration.map == "voxel" else ()
+    with FigureDrawer(out / "figures", background=out_cfg.figures, preload=preload) as drawer:
+        return _stages(scenario, out, progress, make_source, make_actuator, seeds, log, drawer)
+
+
+def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds, log: PressLog,
+            drawer: FigureDrawer) -> dict:
     timing: dict[str, float] = {}
+    draw = scenario.outputs.figures
     t0 = time.perf_counter()
     memory, training = _memory(scenario, make_source, seeds, progress, log)
     memory.save(out / "memory.json")
@@ -113,6 +125,9 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
         nz = max(1, int(round(ex.voxel_depth / ex.cell_size)))
         layers = train_layered_memory(memory, training.presses, ex.cell_size, nz)
         layers.save(out / "memory_layers.json")
+    presses = {} if training is None else training.presses
+    if draw:
+        drawer.submit(training_jobs(presses))
     timing["training_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -123,16 +138,20 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
         objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers))
+        if draw:
+            drawer.submit(object_jobs(objects[-1], scenario.outputs.render_3d))
+    if draw:
+        drawer.submit([progress_job(objects)])
+    log.close()  # the recording is complete on disk before maps and figures are written
     timing["exploration_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     write_maps(out, objects, scenario)
     timing["maps_s"] = time.perf_counter() - t0
 
+    # Most figures were drawn in the background while the run went on: this is the wait for the rest.
     t0 = time.perf_counter()
-    presses = {} if training is None else training.presses
-    figures = (write_figures(out / "figures", presses, objects, render_3d=scenario.outputs.render_3d)
-               if scenario.outputs.figures else [])
+    figures = drawer.finish(progress) if draw else []
     timing["figures_s"] = time.perf_counter() - t0
 
     crossval = None if training is None else training.crossval

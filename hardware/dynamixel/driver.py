@@ -13,7 +13,6 @@ from __future__ import annotations
 import atexit
 import math
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,6 +27,7 @@ from palpate.hardware.dynamixel.finger import (
     joints_to_ticks,
     ticks_to_joints,
 )
+from palpate.hardware.dynamixel.joint_state import JointState, LostServo
 from palpate.hardware.dynamixel.press import press_and_release
 
 _STATE_START = ct.PRESENT_CURRENT[0]  # one sync read covers current (2), velocity (4), position (4)
@@ -44,31 +44,6 @@ BROADCAST_ID = 0xFE
 # lost servo, and waiting costs the emulated servos no time. A servo silenced on purpose is still declared lost,
 # after retries + 1 such waits.
 VIRTUAL_ANSWER_TIMEOUT_MS = 1000.0
-
-
-@dataclass(frozen=True)
-class JointState:
-    """Joint state of the finger at one time.
-
-    Attributes:
-        t: time, s (the driver's monotonic clock).
-        position: joint angles, rad, shape (n,).
-        velocity: joint velocities, rad/s, shape (n,).
-        current: servo currents expressed on the joints (sign follows the joint angle), A, shape (n,).
-    """
-
-    t: float
-    position: np.ndarray
-    velocity: np.ndarray
-    current: np.ndarray
-
-
-class LostServo(DeviceError):
-    """A servo stopped answering; ``servo_id`` names it."""
-
-    def __init__(self, message: str, servo_id: int):
-        super().__init__(message)
-        self.servo_id = servo_id
 
 
 def _comm_text(packet_handler, result: int) -> str:
