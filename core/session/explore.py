@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from palpate.core.alignment.merge import perception_of, pipeline_for
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import map_accuracy
 from palpate.core.mapping.geometry import MapGeometry
@@ -117,7 +118,7 @@ def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory
                 grid.update_voxel(ix, iy, iz, p)
         done = [p for p in posts if p is not None]
         return done[-1] if done else None
-    p = memory.predict_proba(res.fit.params[None, :])[0]
+    p = memory.predict_proba(res.fit.params[None, :], features=res.fit.features)[0]
     try:
         grid.update(*res.location, p)
     except ValidationError:
@@ -203,10 +204,13 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
                                   f"[{cell[0] + 1}, {cell[1] + 1}] at ({x * 1e3:.1f}, {y * 1e3:.1f}) mm: {exc} "
                                   "(check the object's size_mm, grid_origin_mm, grid_cells and exploration.cell_mm)"
                                   ) from None
+        # a press from a session file says how it is perceived; the recording keeps that for replay
+        perception = perception_of(rec.meta)
         if log is not None:
-            rec = log.add(rec, {"phase": "exploration", "object": entry.spec.name, "k": k + 1,
-                                "cell": [cell[0] + 1, cell[1] + 1], "target_m": [x, y]})
-        res = perceive_press(rec).at_target((x, y))
+            info = {"phase": "exploration", "object": entry.spec.name, "k": k + 1, "cell": [cell[0] + 1, cell[1] + 1],
+                    "target_m": [x, y]}
+            rec = log.add(rec, {**info, "perception": perception} if perception else info)
+        res = perceive_press(rec, pipeline_for(perception) if perception else None).at_target((x, y))
         posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y))
         post = postprocess()
         if log is not None:

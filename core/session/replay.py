@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core import __version__
+from palpate.core.alignment.merge import pipeline_for, session_pipeline
 from palpate.core.errors import ValidationError
 from palpate.core.files import brief
 from palpate.core.io import figures as fig
@@ -215,7 +216,10 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
                                       "geometry in the recording's metadata")
             state = objects.setdefault(w.object, _Replayed(geoms[w.object], new_map(geoms[w.object])))
             sub = timeline.window(w.t_start, w.t_end)
-            res = perceive_press(sub).at_target(w.target)
+            # a press whose streams asked for their own perception (a session file's) is perceived so again
+            perception = annotations[id(w)].data.get("perception")
+            perception = perception if isinstance(perception, dict) else None
+            res = perceive_press(sub, pipeline_for(perception) if perception else None).at_target(w.target)
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
                                     fallback_xy=w.target)
             state.rows.append(_row(w.k if w.k is not None else len(state.rows) + 1, w.cell, res, posterior,
@@ -224,7 +228,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
                 playback.press(sub, annotations[id(w)], w.object, state.grid, state.geometry, res)
             progress.update(i + 1)
     else:
-        seg = presses_from_recording(stream)
+        # a session merged from separate devices says how it is perceived (press axis from each press's motion)
+        seg = presses_from_recording(stream, session_pipeline(rec.metadata))
         if not seg.presses:
             reasons = "; ".join(sorted({r.reason for r in seg.rejected})) or "no contact in the taxel stream"
             raise ValidationError(f"{path}: no press found to replay ({reasons})")

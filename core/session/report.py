@@ -24,7 +24,8 @@ def fit_summary(fit: PressFit | None) -> dict | None:
     """The per-press fit as reported: n1, n2, phi_n, a1, a2, phi_a (c_D in mm, c_A in mm^2); None without fit."""
     if fit is None:
         return None
-    return {k: float(getattr(fit, k)) for k in ("n1", "n2", "phi_n", "a1", "a2", "phi_a")}
+    return {**{k: float(getattr(fit, k)) for k in ("n1", "n2", "phi_n", "a1", "a2", "phi_a")},
+            "features": fit.features}
 
 
 def _posterior(p: np.ndarray | None) -> list[float] | None:
@@ -64,6 +65,9 @@ def object_summary(obj: ObjectResult) -> dict:
         "mean_entropy_after_each_press": [r["mean_entropy"] for r in rows],
         "mean_entropy_after_postprocessing": float(obj.post.mean_entropy()),
         "true_materials": list(obj.true_materials),
+        # the map's posteriors came from the memory's kinesthetic and cutaneous models, or (a finger without a pad,
+        # c_P from its joint currents) from the kinesthetic one alone
+        "features": sorted({r["fit"]["features"] for r in rows if r["fit"] is not None}),
     }
 
 
