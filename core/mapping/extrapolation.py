@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.mapping.calibration import check_unit_interval
 from palpate.core.mapping.neighbourhood import box3_sum
 from palpate.core.mapping.probability import (
     check_base,
@@ -28,7 +29,7 @@ def _inverse_entropy_weights(p: np.ndarray, h, base: float, h_min: float) -> np.
 
 
 def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12, h=None,
-                           passes: int | None = 1) -> np.ndarray:
+                           passes: int | None = 1, certainty: float = 1.0) -> np.ndarray:
     """Estimate unexplored cells from their explored 8-neighbours, weighted by 1/H (seed 000 eq. 6.15).
 
     Seed 000 writes the sum over "the eight grid cells surrounding" v, and motivates it as estimating unexplored
@@ -53,6 +54,10 @@ def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12
             single step; k > 1 lets each pass treat the cells filled by the previous passes as sources, so an
             estimate reaches k cells from the explored ones; None repeats until no unexplored cell that can be
             reached is left.
+        certainty: share of each pass's estimate kept, (0, 1]; the rest is spread uniformly over the materials
+            (1 = the seed). A neighbour's material continues into a cell only with some probability (a wall or a
+            one-cell feature may lie between), so a calibrated estimate is less certain than its sources, and a
+            cell filled k passes away is filled with certainty**k.
 
     Returns:
         A new array: unexplored cells within ``passes`` cells (8-connected, in-grid) of an explored cell get the
@@ -64,7 +69,11 @@ def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12
     n = check_passes(passes)
     h_min = check_h_min(h_min)
     w = _inverse_entropy_weights(arr, h, base, h_min)
-    return extrapolate_passes(arr, mask, w, n, check_base(base), h_min)
+    return extrapolate_passes(arr, mask, w, n, check_base(base), h_min, check_certainty(certainty))
+
+
+def check_certainty(certainty: float) -> float:
+    return check_unit_interval(certainty, "extrapolation certainty")
 
 
 def check_passes(passes) -> int | None:
@@ -77,11 +86,11 @@ def check_passes(passes) -> int | None:
 
 
 def extrapolate_passes(arr: np.ndarray, mask: np.ndarray, w: np.ndarray, passes: int | None, base: float,
-                        h_min: float) -> np.ndarray:
+                        h_min: float, certainty: float = 1.0) -> np.ndarray:
     """Eq. 6.15 repeated: pass k fills the unfilled cells next to a cell known after pass k - 1 (explored or
     filled), each weighted by 1/H of its current values; stops after ``passes`` passes or when a pass fills
     nothing. One pass is exactly :func:`extrapolate_plane`."""
-    out = extrapolate_plane(arr, mask, w)
+    out = extrapolate_plane(arr, mask, w, certainty)
     if passes == 1:
         return out
     known = mask | (box3_sum(mask.astype(float), axes=(0, 1)) > 0)
@@ -93,13 +102,14 @@ def extrapolate_passes(arr: np.ndarray, mask: np.ndarray, w: np.ndarray, passes:
         if not (grown & ~known).any():
             break  # the remaining cells have no known cell anywhere in their plane
         w = 1.0 / np.maximum(entropy_unchecked(out, base), h_min)
-        out, known = extrapolate_plane(out, known, w), grown
+        out, known = extrapolate_plane(out, known, w, certainty), grown
         k += 1
     return out
 
 
-def extrapolate_plane(arr: np.ndarray, mask: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Kernel of :func:`extrapolate_unexplored` on validated arrays; ``w`` = 1/H per cell."""
+def extrapolate_plane(arr: np.ndarray, mask: np.ndarray, w: np.ndarray, certainty: float = 1.0) -> np.ndarray:
+    """Kernel of :func:`extrapolate_unexplored` on validated arrays; ``w`` = 1/H per cell; each estimate keeps
+    ``certainty`` of itself and spreads the rest uniformly."""
     w = np.where(mask, w, 0.0)
     # Unexplored cells have zero weight, so for them the 3x3 box sum is exactly the sum over the 8 neighbours
     # (no subtraction of a huge certain centre, no cancellation); explored cells are not written. Off-grid
@@ -109,6 +119,9 @@ def extrapolate_plane(arr: np.ndarray, mask: np.ndarray, w: np.ndarray) -> np.nd
     target = ~mask & (acc_den > 0)
     out = arr.copy()
     np.divide(acc_num, acc_den[..., None], out=out, where=target[..., None])
+    if certainty != 1.0:
+        m = arr.shape[-1]
+        out[target] = certainty * out[target] + (1.0 - certainty) / m
     return out
 
 

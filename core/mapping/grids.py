@@ -15,6 +15,7 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import map_accuracy
 from palpate.core.mapping.extrapolation import (
+    check_certainty,
     check_passes,
     extrapolate_passes,
     extrapolate_plane,
@@ -225,17 +226,18 @@ class Grid2D(_CategoricalMap):
             raise ValidationError(f"p_meas must have shape ({len(self.materials)},) (one value per material "
                                   f"{self.materials}), got {shape}")
 
-    def postprocessed(self, h_min: float = 1e-12, passes: int | None = 1) -> Grid2D:
+    def postprocessed(self, h_min: float = 1e-12, passes: int | None = 1, certainty: float = 1.0) -> Grid2D:
         """A new grid with unexplored cells extrapolated by :func:`extrapolate_unexplored`; self is untouched.
 
         ``passes`` repeats eq. 6.15 from the cells filled by the previous pass (1 = the seed; None = until every
-        cell is filled). The explored mask is copied unchanged: extrapolated cells are estimates, not
-        measurements.
+        cell is filled); each pass keeps ``certainty`` of its estimate and spreads the rest uniformly (1 = the
+        seed). The explored mask is copied unchanged: extrapolated cells are estimates, not measurements.
         """
         out = self._empty_like()
         h_min = check_h_min(h_min)
         w = 1.0 / np.maximum(entropy_unchecked(self._p, self.base), h_min)
-        out._p = extrapolate_passes(self._p, self._explored, w, check_passes(passes), self.base, h_min)
+        out._p = extrapolate_passes(self._p, self._explored, w, check_passes(passes), self.base, h_min,
+                                    check_certainty(certainty))
         out._explored = self._explored.copy()
         return out
 

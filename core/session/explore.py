@@ -13,6 +13,7 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import map_accuracy
+from palpate.core.mapping.calibration import SEED_CALIBRATION, MapCalibration
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import Grid2D, VoxelGrid, new_map
 from palpate.core.mapping.snapshot import MapSnapshot
@@ -37,7 +38,8 @@ class PressStep:
         target: planned (x, y), m; planned_depth: m.
         score: the policy's score for the target (None for list-driven policies).
         result: what the press was perceived as.
-        posterior: the posterior the press fused into the map (the deepest layer's on a voxel map), or None.
+        posterior: the memory's posterior for the press (the deepest layer's on a voxel map), or None; the map
+            fused it tempered by the scenario's map calibration.
         mean_entropy, mean_entropy_postprocessed: of the map after the press (map's entropy base).
         accuracy_explored: of the explored cells before post-processing (None without truth).
         accuracy_postprocessed: of all cells after post-processing (None without truth).
@@ -92,8 +94,12 @@ class ObjectResult:
 
 
 def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory,
-                layers: LayeredMemory | None, fallback_xy: tuple[float, float]) -> np.ndarray | None:
-    """Update a map with one perceived press (seed 001 eq. 2), in place; returns the posterior it fused.
+                layers: LayeredMemory | None, fallback_xy: tuple[float, float],
+                calibration: MapCalibration = SEED_CALIBRATION) -> np.ndarray | None:
+    """Update a map with one perceived press (seed 001 eq. 2), in place, and return the memory's posterior for it.
+
+    The map fuses that posterior tempered by ``calibration`` (:func:`palpate.core.mapping.calibration.press_evidence`;
+    the default, the seeds' setting, fuses it as it is).
 
     2-D: the press's posterior updates the cell under the measured press location (the planned cell if the
     finger slipped off the grid). Voxels: every layer the press reached gets the posterior of ``layers`` for a fit
@@ -114,14 +120,14 @@ def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory
             ix, iy = grid.column_of(*fallback_xy)
         for iz, p in enumerate(posts):
             if p is not None:
-                grid.update_voxel(ix, iy, iz, p)
+                grid.update_voxel(ix, iy, iz, calibration.evidence(p))
         done = [p for p in posts if p is not None]
         return done[-1] if done else None
     p = memory.predict_proba(res.fit.params[None, :])[0]
     try:
-        grid.update(*res.location, p)
+        grid.update(*res.location, calibration.evidence(p))
     except ValidationError:
-        grid.update(*fallback_xy, p)
+        grid.update(*fallback_xy, calibration.evidence(p))
     return p
 
 
@@ -167,9 +173,11 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
     budget = len(regions0) * ex.presses_per_region if ex.policy == "predefined" else ex.budget
     policy = make_policy(ex.policy, cells=list(regions0), repeats=ex.presses_per_region, seed=seed, memory=memory,
                          travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None,
-                         passes=ex.extrapolation_passes, objective=ex.objective, feature_size=ex.feature_size)
+                         passes=ex.extrapolation_passes, objective=ex.objective, feature_size=ex.feature_size,
+                         certainty=ex.calibration.extrapolation_certainty)
     # The one post-processing the policies plan on, the run reports and the map files hold.
-    postprocess = grid.postprocessed if voxel else (lambda: grid.postprocessed(passes=ex.extrapolation_passes))
+    postprocess = grid.postprocessed if voxel else (lambda: grid.postprocessed(
+        passes=ex.extrapolation_passes, certainty=ex.calibration.extrapolation_certainty))
     source = make_source((entry.spec,), seed, ex.variability)
     if not callable(getattr(source, "press", None)):
         raise ValidationError(f"exploring {entry.spec.name}: the source/actuator {type(source).__name__} has no "
@@ -201,7 +209,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
             rec = log.add(rec, {"phase": "exploration", "object": entry.spec.name, "k": k + 1,
                                 "cell": [cell[0] + 1, cell[1] + 1], "target_m": [x, y]})
         res = perceive_press(rec).at_target((x, y))
-        posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y))
+        posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y), calibration=ex.calibration)
         post = postprocess()
         last = cell
         steps.append(PressStep(k + 1, cell, (x, y), depth, target.score, res, posterior, float(grid.mean_entropy()),

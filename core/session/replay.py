@@ -23,6 +23,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.io import figures as fig
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.recording import recording_to_press_recording
+from palpate.core.mapping.calibration import MapCalibration
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
 from palpate.core.mapping.snapshot import MapSnapshot
@@ -89,6 +90,9 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
     stream = recording_to_press_recording(rec)
     geoms = {name: MapGeometry.from_dict(g, f"{path}: metadata maps.{name}")
              for name, g in (rec.metadata.get("maps") or {}).items()}
+    # The run's map calibration (a recording made before it was recorded used the seeds' maps).
+    calibration = MapCalibration.from_dict(rec.metadata.get("map_calibration") or {},
+                                           f"{path}: metadata map_calibration")
     windows = [a for a in rec.annotations if a.kind == "press"]
     objects: dict[str, _Replayed] = {}
     if windows:
@@ -104,7 +108,7 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             target = tuple(float(v) for v in a.data.get("target_m", (np.nan, np.nan)))
             res = perceive_press(sub).at_target(target)
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
-                                    fallback_xy=target)
+                                    fallback_xy=target, calibration=calibration)
             state.rows.append(_row(a.data.get("k", len(state.rows) + 1), a.data.get("cell"), res, posterior,
                                    state.grid))
             progress.update(i + 1)
@@ -123,7 +127,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             res = press_result(press)
             if res.fit is None:
                 raise ValidationError(f"{path}: {res.rejected[-1]}")
-            posterior = apply_press(state.grid, res, memory, None, fallback_xy=press.location)
+            posterior = apply_press(state.grid, res, memory, None, fallback_xy=press.location,
+                                    calibration=calibration)
             state.rows.append(_row(k + 1, None, res, posterior, state.grid))
             progress.update(k + 1)
 
@@ -131,7 +136,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
     (out / "maps").mkdir(exist_ok=True)
     for name, state in objects.items():
         grid = state.grid
-        post = grid.postprocessed()
+        post = grid.postprocessed() if state.geometry.voxel else grid.postprocessed(
+            certainty=calibration.extrapolation_certainty)
         grid.save(out / "maps" / f"{name}.npz")
         post.save(out / "maps" / f"{name}_postprocessed.npz")
         g = state.geometry

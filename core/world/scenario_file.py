@@ -15,6 +15,7 @@ import tomllib
 from pathlib import Path
 
 from palpate.core.errors import ValidationError
+from palpate.core.mapping.calibration import DEFAULT_CALIBRATION, MapCalibration
 from palpate.core.mapping.geometry import MAP_KINDS
 from palpate.core.planning.info_gain import OBJECTIVES
 from palpate.core.planning.registry import POLICY_NAMES
@@ -150,7 +151,10 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         travel_cost_per_mm=ex.number("travel_cost_per_mm", 0.0, lo=0.0),
         extrapolation_passes=extrapolation_passes(ex),
         objective=ex.choice("objective", OBJECTIVES, "accuracy"),
-        feature_size=ex.number("feature_size_mm", 60.0, lo=0.0, lo_open=True) * 1e-3,
+        feature_size=None if "feature_size_mm" not in ex.table else ex.number("feature_size_mm", lo=0.0,
+                                                                               lo_open=True) * 1e-3,
+        calibration=MapCalibration(**{key: ex.number(key, getattr(DEFAULT_CALIBRATION, key), lo=0.0, lo_open=True,
+                                                     hi=1.0) for key in DEFAULT_CALIBRATION.to_dict()}),
     )
     if exploration.stop_min_gain is not None and exploration.policy != "info_gain":
         raise ex.err("stop_min_gain", f"only the info_gain policy predicts a gain; policy is {exploration.policy!r}")
@@ -180,6 +184,7 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         figures=out.get("figures", bool, True),
         haptic_material=out.get("haptic_material", bool, True),
         render_3d=out.get("render_3d", bool, True),
+        attainable_accuracy=out.get("attainable_accuracy", bool, True),
     )
     out.finish()
     actuator = _actuator(top.sub("actuator"), base)
