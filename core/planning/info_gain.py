@@ -20,12 +20,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.mapping.probability import entropy_unchecked
 from palpate.core.planning.entropy_gain import disagreement, expected_gain
 from palpate.core.planning.incremental import GainCache
 from palpate.core.planning.map_views import (
+    CERTAIN_FRACTION,
     argmax_cell,
     certain_columns,
-    column_entropy,
     distance_mm,
     explored_plane,
     h_max,
@@ -118,6 +119,7 @@ class InfoGain:
     incremental: bool = True
     _table: tuple[np.ndarray, np.ndarray] | None = field(default=None, init=False, repr=False)
     _cache: GainCache | None = field(default=None, init=False, repr=False)
+    _terms: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.objective not in OBJECTIVES:
@@ -156,7 +158,7 @@ class InfoGain:
                                            temperature=self.belief_temperature)
             return expected_gain(grid, post, self.table(), self.max_depth)
         if self._accuracy_mode(grid):
-            return self._cache_for(grid).full(grid, post)
+            return self._cache_for(grid).full(grid, post).copy()
         return expected_gain(grid, post, self.table(), self.max_depth)
 
     def _cache_for(self, grid) -> GainCache:
@@ -187,34 +189,53 @@ class InfoGain:
         j, i = np.unravel_index(int(np.argmin(d)), d.shape)
         return int(lx[i]), int(ly[j])
 
-    def _value(self, grid, post) -> tuple[np.ndarray, np.ndarray]:
-        """(gain plus the terms of what a press can reveal (module docstring), the part of it in cells: gain and
-        hole bonus, which the stop rule compares), both (ny, nx)."""
+    def _value(self, grid, post) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(value: gain plus the terms of what a press can reveal (module docstring); the part of it in cells, the
+        gain and hole bonus, which the stop rule compares; the columns a press may go to), each (ny, nx)."""
+        allowed = None
         if self._accuracy_mode(grid):
             cache = self._cache_for(grid)
             gain = cache.update(grid, post, local=self.incremental)
-        else:
-            gain = self.gains(grid, post)
+            return self._accuracy_terms(grid, post, gain, cache.window)
+        gain = self.gains(grid, post)
+        allowed = ~certain_columns(grid, post, self.max_depth)
         if is_voxel(grid):
-            return gain, gain
-        cells = gain
-        if self.coverage_weight > 0:
-            cells = cells + self.coverage_weight * uncovered(grid)
-        value = cells
-        if self.objective == "entropy" and self.boundary_weight > 0:
-            value = value + self.boundary_weight * disagreement(grid)
-        if self.objective == "accuracy" and self.entropy_weight > 0:
-            # orders presses only: a calibrated map never reaches zero entropy, so it would never let a run stop
-            value = value + self.entropy_weight / h_max(grid) * column_entropy(grid, post, None)
-        return value, cells
+            return gain, gain, allowed
+        cells = gain + self.coverage_weight * uncovered(grid) if self.coverage_weight > 0 else gain
+        value = cells + self.boundary_weight * disagreement(grid) if self.boundary_weight > 0 else cells
+        return value, cells, allowed
+
+    def _accuracy_terms(self, grid, post, gain: np.ndarray, window) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Value, cells and allowed columns of the accuracy objective on a 2-D map, refreshed only in ``window``
+        (rows, columns) when the gains were (every term is as local as the gain: module
+        :mod:`~palpate.core.planning.incremental`), everywhere when ``window`` is None."""
+        if window is None or self._terms is None or self._terms[0].shape != gain.shape:
+            ny, nx = gain.shape
+            self._terms = (np.empty((ny, nx)), np.empty((ny, nx)), np.empty((ny, nx), dtype=bool))
+            window = (slice(0, ny), slice(0, nx))
+        value, cells, allowed = self._terms
+        ys, xs = window
+        if ys.stop <= ys.start or xs.stop <= xs.start:
+            return value, cells, allowed
+        ny, nx = gain.shape
+        explored = np.asarray(grid.explored)
+        # uncovered() of the window needs the explored cells one row/column beyond it
+        cy0, cy1, cx0, cx1 = max(0, ys.start - 1), min(ny, ys.stop + 1), max(0, xs.start - 1), min(nx, xs.stop + 1)
+        around = uncovered(_Explored(explored[cy0:cy1, cx0:cx1]))
+        unc = around[ys.start - cy0:ys.stop - cy0, xs.start - cx0:xs.stop - cx0]
+        h = entropy_unchecked(np.asarray(post.probabilities)[ys, xs], post.base)
+        c = gain[ys, xs] + self.coverage_weight * unc if self.coverage_weight > 0 else gain[ys, xs]
+        cells[ys, xs] = c
+        value[ys, xs] = c + self.entropy_weight / h_max(grid) * h if self.entropy_weight > 0 else c
+        allowed[ys, xs] = ~(explored[ys, xs] & (h <= CERTAIN_FRACTION * h_max(grid)))
+        return value, cells, allowed
 
     def next_target(self, grid, post=None, last=None) -> Target | None:
         """The column with the best value less travel cost, or the next lattice cell. Its ``score`` is the best
         expected gain in cells (hole bonus included, travel and the entropy term aside): what the
         ``stop_min_gain`` rule compares. None when every column is explored and certain."""
         post = postprocess(grid, self.passes, self.certainty) if post is None else post
-        value, cells = self._value(grid, post)
-        allowed = ~certain_columns(grid, post, self.max_depth)
+        value, cells, allowed = self._value(grid, post)
         best = float(np.max(np.where(allowed, cells, -np.inf))) if allowed.any() else None
         seed_cell = self._spread_cell(grid, last)
         if seed_cell is not None:
@@ -227,3 +248,10 @@ class InfoGain:
             return None
         ix, iy = cell
         return Target(ix, iy, target_depth(grid, post, ix, iy, self.max_depth), best)
+
+
+@dataclass(frozen=True)
+class _Explored:
+    """Just the explored mask of a map (what :func:`uncovered` reads)."""
+
+    explored: np.ndarray
