@@ -120,6 +120,11 @@ def test_summary_reports_calibration_and_attainable_accuracy(small_run):
     level = ceiling["level"] * ceiling["ceiling"]
     expected = next((k + 1 for k, a in enumerate(acc_run) if a >= level - 1e-12), None)
     assert ceiling["presses_to_level_of_ceiling"] == expected
+    from palpate.core.cli.run import format_report
+
+    text = format_report(summary, out)
+    assert f"attainable accuracy (every column pressed once, same physics) {100 * ceiling['ceiling']:.0f}%" in text
+    assert f"calibration error (ECE) of the post-processed map {cal['ece']:.3f} over {cal['cells']} cells" in text
 
 
 def test_run_writes_every_output(small_run):

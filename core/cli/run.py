@@ -109,6 +109,15 @@ def format_report(summary: dict, out: Path) -> str:
             f"after post-processing; mean entropy {obj['mean_entropy_after_each_press'][-1]:.3f} -> "
             f"{obj['mean_entropy_after_postprocessing']:.3f}"
         )
+        ceiling = obj.get("attainable_accuracy") or {}
+        if ceiling.get("ceiling") is not None:
+            lines.append(f"    attainable accuracy (every column pressed once, same physics) {_pct(ceiling['ceiling'])}; "
+                         f"presses to 95%: {ceiling['presses_to_level'] or 'not reached'}, to 95% of the attainable: "
+                         f"{ceiling['presses_to_level_of_ceiling'] or 'not reached'}")
+        cal = obj.get("calibration")
+        if cal:
+            lines.append(f"    calibration error (ECE) of the post-processed map {cal['ece']:.3f} over {cal['cells']} "
+                         "cells")
         if obj.get("posterior_per_cycle"):
             final = obj["posterior_per_cycle"][-1]
             for (c, r), p in zip(obj["regions"], final, strict=True):
