@@ -111,9 +111,9 @@ def format_report(summary: dict, out: Path) -> str:
         )
         ceiling = obj.get("attainable_accuracy") or {}
         if ceiling.get("ceiling") is not None:
-            lines.append(f"    attainable accuracy (every column pressed once, same physics) {_pct(ceiling['ceiling'])}; "
-                         f"presses to 95%: {ceiling['presses_to_level'] or 'not reached'}, to 95% of the attainable: "
-                         f"{ceiling['presses_to_level_of_ceiling'] or 'not reached'}")
+            lines.append(f"    attainable accuracy (every column pressed once, same physics) "
+                         f"{_pct(ceiling['ceiling'])}; presses to 95%: {ceiling['presses_to_level'] or 'not reached'}, "
+                         f"to 95% of the attainable: {ceiling['presses_to_level_of_ceiling'] or 'not reached'}")
         cal = obj.get("calibration")
         if cal:
             lines.append(f"    calibration error (ECE) of the post-processed map {cal['ece']:.3f} over {cal['cells']} "
