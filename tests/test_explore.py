@@ -435,3 +435,26 @@ def test_the_shipped_info_gain_scenario_maps_the_block_with_fewer_presses_than_c
     # a hard cell was found: the lump is not averaged away
     named = {sc.references[int(np.argmax(r["posterior"]))] for r in obj["per_press"] if r["posterior"]}
     assert "Material_3" in named
+
+
+def test_attainable_accuracy_reuses_a_full_raster_and_presses_every_column_otherwise(trained):
+    from palpate.core.session.ceiling import attainable_accuracy, ceiling_summary
+    from palpate.core.session.explore import explore_object
+    from palpate.core.session.progress import Progress
+    from palpate.core.session.sources import scenario_source_maker
+
+    def run(**exploration):
+        sc = _scenario(**exploration)
+        make = scenario_source_maker(sc)
+        return sc, make, explore_object(sc, sc.objects[0], trained, make, 21, Progress(enabled=False))
+
+    sc, make, full = run(policy="raster", budget=12)  # 4 x 3 cells: the run is its own ceiling
+    c = attainable_accuracy(sc, sc.objects[0], trained, make, 5, Progress(enabled=False), full)
+    assert (c.reused_run, c.presses, c.accuracy) == (True, 12, full.steps[-1].accuracy_postprocessed)
+    sc, make, short = run(policy="info_gain", budget=3)
+    c = attainable_accuracy(sc, sc.objects[0], trained, make, 5, Progress(enabled=False), short)
+    assert not c.reused_run and c.presses == 12 and 0.5 <= c.accuracy <= 1.0
+    s = ceiling_summary(short, c)
+    acc = [st.accuracy_postprocessed for st in short.steps]
+    assert s["ceiling"] == c.accuracy and s["ceiling_presses"] == 12
+    assert s["presses_to_level"] == next((k + 1 for k, a in enumerate(acc) if a >= 0.95), None)
