@@ -22,10 +22,15 @@ from palpate.core.mapping.probability import (
 )
 
 
+def _given_weights(p: np.ndarray, h, h_min: float) -> np.ndarray | None:
+    """1/H of the given entropies ``h`` (H floored at ``h_min``), or None to weight by ``p``'s own entropies."""
+    return None if h is None else 1.0 / np.maximum(check_h(h, p.shape[:-1]), h_min)
+
+
 def _inverse_entropy_weights(p: np.ndarray, h, base: float, h_min: float) -> np.ndarray:
     """1/H per distribution, with H floored at ``h_min`` so a certain cell gets a huge but finite weight."""
-    hh = entropy_unchecked(p, check_base(base)) if h is None else check_h(h, p.shape[:-1])
-    return 1.0 / np.maximum(hh, h_min)
+    w = _given_weights(p, h, h_min)
+    return inverse_entropy(p, check_base(base), h_min) if w is None else w
 
 
 def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12, h=None,
@@ -68,8 +73,8 @@ def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12
     mask = check_mask(explored, arr.shape[:-1], "explored")
     n = check_passes(passes)
     h_min = check_h_min(h_min)
-    w = _inverse_entropy_weights(arr, h, base, h_min)
-    return extrapolate_passes(arr, mask, w, n, check_base(base), h_min, check_certainty(certainty))
+    return extrapolate_passes(arr, mask, _given_weights(arr, h, h_min), n, check_base(base), h_min,
+                              check_certainty(certainty))
 
 
 def check_certainty(certainty: float) -> float:
@@ -85,12 +90,13 @@ def check_passes(passes) -> int | None:
     return int(passes)
 
 
-def extrapolate_passes(arr: np.ndarray, mask: np.ndarray, w: np.ndarray, passes: int | None, base: float,
+def extrapolate_passes(arr: np.ndarray, mask: np.ndarray, w: np.ndarray | None, passes: int | None, base: float,
                         h_min: float, certainty: float = 1.0) -> np.ndarray:
     """Eq. 6.15 repeated: pass k fills the unfilled cells next to a cell known after pass k - 1 (explored or
     filled), each weighted by 1/H of its current values; stops after ``passes`` passes or when a pass fills
-    nothing. One pass is exactly :func:`extrapolate_plane`."""
-    out = extrapolate_plane(arr, mask, w, certainty)
+    nothing. One pass is exactly :func:`extrapolate_plane` (weights ``w``, or None: 1/H of ``arr``), each keeping
+    ``certainty`` of its estimates."""
+    out = extrapolate_plane(arr, mask, w, base=base, h_min=h_min, certainty=certainty)
     if passes == 1:
         return out
     known = mask | (box3_sum(mask.astype(float), axes=(0, 1)) > 0)
@@ -101,28 +107,80 @@ def extrapolate_passes(arr: np.ndarray, mask: np.ndarray, w: np.ndarray, passes:
         grown = known | (box3_sum(known.astype(float), axes=(0, 1)) > 0)
         if not (grown & ~known).any():
             break  # the remaining cells have no known cell anywhere in their plane
-        w = 1.0 / np.maximum(entropy_unchecked(out, base), h_min)
-        out, known = extrapolate_plane(out, known, w, certainty), grown
+        out, known = extrapolate_plane(out, known, base=base, h_min=h_min, certainty=certainty), grown
         k += 1
     return out
 
 
-def extrapolate_plane(arr: np.ndarray, mask: np.ndarray, w: np.ndarray, certainty: float = 1.0) -> np.ndarray:
-    """Kernel of :func:`extrapolate_unexplored` on validated arrays; ``w`` = 1/H per cell; each estimate keeps
-    ``certainty`` of itself and spreads the rest uniformly."""
-    w = np.where(mask, w, 0.0)
-    # Unexplored cells have zero weight, so for them the 3x3 box sum is exactly the sum over the 8 neighbours
-    # (no subtraction of a huge certain centre, no cancellation); explored cells are not written. Off-grid
-    # neighbours never enter the sums, which is the edge/corner rule.
-    acc_num = box3_sum(w[..., None] * arr, axes=(0, 1))
-    acc_den = box3_sum(w, axes=(0, 1))
-    target = ~mask & (acc_den > 0)
-    out = arr.copy()
-    np.divide(acc_num, acc_den[..., None], out=out, where=target[..., None])
-    if certainty != 1.0:
-        m = arr.shape[-1]
-        out[target] = certainty * out[target] + (1.0 - certainty) / m
+def inverse_entropy(p: np.ndarray, base: float, h_min: float) -> np.ndarray:
+    """1/H per distribution of validated ``p``, H floored at ``h_min`` (a certain cell: huge but finite)."""
+    h = entropy_unchecked(p, base)
+    np.maximum(h, h_min, out=h)
+    return np.divide(1.0, h, out=h)
+
+
+def extrapolate_plane(arr: np.ndarray, mask: np.ndarray, w: np.ndarray | None = None, *, base: float = 10.0,
+                      h_min: float = 1e-12, certainty: float = 1.0) -> np.ndarray:
+    """Kernel of :func:`extrapolate_unexplored` on validated arrays: one pass of eq. 6.15 over the plane axes
+    (0, 1); ``w`` = 1/H per cell, or None to weight by :func:`inverse_entropy` of ``arr`` (``base``, ``h_min``);
+    each estimate keeps ``certainty`` of itself and spreads the rest uniformly over the materials.
+
+    The plane is worked through in blocks of rows small enough to stay in the CPU cache, each cell's values (its
+    depth layers and materials) side by side in one row, so nothing loops over the short materials axis. Sums
+    follow :func:`~palpate.core.mapping.neighbourhood.box3_sum`'s order, so the floats are the same.
+    """
+    n0, n1, m = arr.shape[0], arr.shape[1], arr.shape[-1]
+    k = arr[0, 0].size if arr.size else m  # values per cell
+    kw = k // m  # weights per cell
+    out = np.empty_like(arr)
+    src = arr.reshape(n0, n1 * k)
+    dst = out.reshape(n0, n1 * k)
+    cells = mask.reshape(n0, -1)
+    # Buffers for a block and a row of neighbours each side, with zeros around: off-grid neighbours never enter
+    # the sums, which is the edge/corner rule. Allocated once, so no block pays for fresh memory.
+    rows_max = min(_BLOCK_ROWS, n0) + 2
+    num_pad, w_pad = np.zeros((rows_max + 2, (n1 + 2) * k)), np.zeros((rows_max + 2, (n1 + 2) * kw))
+    num_cols, w_cols = np.empty((rows_max + 2, n1 * k)), np.empty((rows_max + 2, n1 * kw))
+    for r0 in range(0, n0, _BLOCK_ROWS):
+        r1 = min(r0 + _BLOCK_ROWS, n0)
+        lo, hi = max(r0 - 1, 0), min(r1 + 1, n0)
+        rows = hi - lo
+        num_pad[rows + 1] = 0.0  # below the grid's last row (or not read)
+        w_pad[rows + 1] = 0.0
+        # Unexplored cells weigh nothing, so for them the 3x3 box sum is exactly the sum over the 8 neighbours
+        # (no subtraction of a huge certain centre, no cancellation); explored cells are not written.
+        wb = w_pad[1:rows + 1, kw:kw + n1 * kw]
+        w_all = inverse_entropy(arr[lo:hi], base, h_min) if w is None else w[lo:hi]
+        np.multiply(w_all.reshape(rows, -1), cells[lo:hi], out=wb)  # where(explored, w, 0): w is finite, >= 0
+        np.multiply(np.repeat(wb, m, axis=1), src[lo:hi], out=num_pad[1:rows + 1, k:k + n1 * k])
+        num = _box_rows(num_pad, num_cols, k, rows, r0 - lo, r1 - lo)
+        den = _box_rows(w_pad, w_cols, kw, rows, r0 - lo, r1 - lo)
+        target = ~cells[r0:r1] & (den > 0)
+        num /= np.repeat(np.where(target, den, 1.0), m, axis=1)
+        if certainty != 1.0:
+            num *= certainty
+            num += (1.0 - certainty) / m
+        block = dst[r0:r1]
+        np.copyto(block, src[r0:r1])
+        np.copyto(block, num, where=np.repeat(target, m, axis=1))
     return out
+
+
+#: Rows per block of :func:`extrapolate_plane`: a block's few buffers stay in a core's cache on a 1000-cell row.
+_BLOCK_ROWS = 32
+
+
+def _box_rows(pad: np.ndarray, cols: np.ndarray, k: int, rows: int, a0: int, a1: int) -> np.ndarray:
+    """3x3 box sums of rows a0:a1 of the block held in ``pad`` (its first ``rows`` + 2 rows, zeros around, cells
+    of k values side by side), added in :func:`~palpate.core.mapping.neighbourhood.box3_sum`'s order: columns
+    then rows, each centre + one side, then + the other. ``cols`` takes the column sums."""
+    width = pad.shape[1] - 2 * k
+    h = cols[:rows + 2]
+    np.add(pad[:rows + 2, k:k + width], pad[:rows + 2, :width], out=h)
+    h += pad[:rows + 2, 2 * k:]
+    v = h[a0 + 1:a1 + 1] + h[a0:a1]
+    v += h[a0 + 2:a1 + 2]
+    return v
 
 
 def vertical_gaps(mask: np.ndarray) -> np.ndarray:

@@ -65,7 +65,7 @@ def check_shape(shape, n: int, name: str) -> tuple[int, ...]:
 
 def index_along(coord: float, start: float, cell: float, n: int, axis: str) -> int:
     """Cell index containing ``coord`` on one axis; the far edge belongs to the last cell."""
-    if not np.isfinite(coord):
+    if not math.isfinite(coord):
         raise ValidationError(f"{axis} must be finite, got {coord!r}")
     end = start + n * cell
     # A small tolerance so that a point on the far edge (or a rounding hair outside) maps to the last cell.

@@ -13,13 +13,14 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.mapping.accuracy import map_accuracy
+from palpate.core.mapping.categorical_map import CategoricalMap, cell_indices
 from palpate.core.mapping.extrapolation import (
     check_certainty,
     check_passes,
     extrapolate_passes,
     extrapolate_plane,
     extrapolate_vertical_kernel,
+    inverse_entropy,
     verify_continuity_kernel,
     vertical_gaps,
 )
@@ -32,111 +33,13 @@ from palpate.core.mapping.geometry import (
     check_shape,
     index_along,
 )
-from palpate.core.mapping.map_files import common_meta, construct, meta_value, read_map_files, write_map_files
-from palpate.core.mapping.probability import check_base, check_h_min, check_mask, entropy, entropy_unchecked, update
+from palpate.core.mapping.map_files import common_meta, construct, meta_value, read_map_files
+from palpate.core.mapping.probability import (
+    check_h_min,
+)
 
 
-def _read_only(arr: np.ndarray) -> np.ndarray:
-    view = arr.view()
-    view.flags.writeable = False
-    return view
-
-
-class _CategoricalMap:
-    """Shared behaviour of :class:`Grid2D` and :class:`VoxelGrid`: arrays, entropy, MAP, accuracy, files."""
-
-    _kind = ""
-    _axes = ""
-
-    def __init__(self, materials, shape: tuple[int, ...], p_min: float, base: float):
-        self.materials = check_materials(materials)
-        m = len(self.materials)
-        if not (np.isfinite(p_min) and 0 < p_min < 1.0 / m):
-            raise ValidationError(f"p_min must be in (0, 1/M) = (0, {1.0 / m:.4g}), got {p_min!r}")
-        self.p_min = float(p_min)
-        self.base = check_base(base)
-        self._p = np.full(shape + (m,), 1.0 / m)
-        self._explored = np.zeros(shape, dtype=bool)
-
-    @property
-    def probabilities(self) -> np.ndarray:
-        """Read-only view of the per-cell distributions; see the class docstring for the axis order."""
-        return _read_only(self._p)
-
-    @property
-    def explored(self) -> np.ndarray:
-        """Read-only boolean mask of cells that received at least one measurement."""
-        return _read_only(self._explored)
-
-    def entropy(self, base: float | None = None) -> np.ndarray:
-        """Entropy of every cell, in units of ``base`` (default: the map's base)."""
-        return entropy(self._p, base=self.base if base is None else base)
-
-    def mean_entropy(self, base: float | None = None) -> float:
-        """Mean entropy over all cells (the seeds' measure of how uncertain the whole map still is)."""
-        return float(self.entropy(base).mean())
-
-    def map_estimate(self) -> np.ndarray:
-        """Index of the most probable material per cell (maximum a posteriori)."""
-        return self._p.argmax(axis=-1)
-
-    def accuracy(self, truth_idx, mask=None) -> float:
-        """Fraction of cells whose MAP material equals ``truth_idx`` (the rule of
-        :func:`~palpate.core.mapping.accuracy.map_accuracy`: an undecided cell counts as wrong).
-
-        Args:
-            truth_idx: int array with the map's cell shape; -1 marks cells with no truth (outside the object or
-                a material not in the map), which are ignored.
-            mask: optional boolean array of the same shape restricting which cells count (e.g. explored only).
-
-        Raises:
-            ValidationError: wrong shape, indices outside [-1, M), or no cell left to count.
-        """
-        shape = self._p.shape[:-1]
-        truth = np.asarray(truth_idx)
-        if truth.shape != shape or not np.issubdtype(truth.dtype, np.integer):
-            raise ValidationError(f"truth_idx must be an integer array of shape {shape}, got {truth.dtype} "
-                                  f"{truth.shape}")
-        m = len(self.materials)
-        if ((truth < -1) | (truth >= m)).any():
-            raise ValidationError(f"truth_idx must be in [-1, {m}) (-1 = no truth), got values outside")
-        acc = map_accuracy(self._p, truth, None if mask is None else check_mask(mask, shape, "mask"))
-        if acc is None:
-            raise ValidationError("accuracy: no cell with a truth label (and inside mask) to count")
-        return acc
-
-    def _with_arrays(self, p: np.ndarray, explored: np.ndarray):
-        """Install loaded (already validated) arrays; returns self."""
-        self._p = p.astype(float)
-        self._explored = explored.copy()
-        return self
-
-    def _update_at(self, index: tuple, p_meas) -> None:
-        self._p[index] = update(self._p[index], p_meas, p_min=self.p_min)
-        self._explored[index] = True
-
-    def _meta(self) -> dict:
-        return {
-            "kind": self._kind,
-            "axes": self._axes,
-            "materials": list(self.materials),
-            "shape": list(self.shape),  # (nx, ny) or (nx, ny, nz), as the constructor takes it
-            "cell_size_m": self.cell_size,
-            "origin_m": list(self.origin),
-            "base": self.base,
-            "p_min": self.p_min,
-        }
-
-    def save(self, path) -> tuple[Path, Path]:
-        """Write the map: arrays to ``path`` (NPZ, no pickled objects) and metadata to the same name with .json.
-
-        Returns:
-            (npz path, json path).
-        """
-        return write_map_files(path, self._p, self._explored, self._meta())
-
-
-class Grid2D(_CategoricalMap):
+class Grid2D(CategoricalMap):
     """A 2-D probabilistic material map over the workspace plane (seed 000 §6.6-6.7).
 
     Geometry: ``origin`` = (x0, y0) is the corner of the grid with the smallest x and y; cell (ix, iy) covers
@@ -214,10 +117,21 @@ class Grid2D(_CategoricalMap):
         self._check_meas(p_meas)
         self._update_at((iy, ix), p_meas)
 
+    def update_cells(self, ix, iy, p_meas) -> None:
+        """Fuse many measurements at once: ``p_meas[i]`` (shape (n, M)) into cell (ix[i], iy[i]), in order.
+
+        The result is exactly that of ``update_cell`` called for each i in turn (a cell listed twice receives both
+        measurements, one after the other), vectorised. Nothing is changed when an argument is invalid.
+        """
+        nx, ny = self.shape
+        ix, iy = cell_indices({"ix": ix, "iy": iy}, (nx, ny))
+        self._update_many((iy, ix), p_meas)
+
     def update(self, x: float, y: float, p_meas) -> tuple[int, int]:
         """Fuse one press at (x, y), m, into the cell containing it; returns that cell's (ix, iy)."""
         ix, iy = self.cell_of(x, y)
-        self.update_cell(ix, iy, p_meas)
+        self._check_meas(p_meas)
+        self._update_at((iy, ix), p_meas)
         return ix, iy
 
     def _check_meas(self, p_meas) -> None:
@@ -233,13 +147,10 @@ class Grid2D(_CategoricalMap):
         cell is filled); each pass keeps ``certainty`` of its estimate and spreads the rest uniformly (1 = the
         seed). The explored mask is copied unchanged: extrapolated cells are estimates, not measurements.
         """
-        out = self._empty_like()
         h_min = check_h_min(h_min)
-        w = 1.0 / np.maximum(entropy_unchecked(self._p, self.base), h_min)
-        out._p = extrapolate_passes(self._p, self._explored, w, check_passes(passes), self.base, h_min,
-                                    check_certainty(certainty))
-        out._explored = self._explored.copy()
-        return out
+        p = extrapolate_passes(self._p, self._explored, None, check_passes(passes), self.base, h_min,
+                               check_certainty(certainty))
+        return self._like(p)
 
     def _empty_like(self) -> Grid2D:
         return Grid2D(self.materials, self.shape, origin=self.origin, cell_size=self.cell_size, p_min=self.p_min,
@@ -259,7 +170,7 @@ class Grid2D(_CategoricalMap):
         return grid._with_arrays(p, explored)
 
 
-class VoxelGrid(_CategoricalMap):
+class VoxelGrid(CategoricalMap):
     """A volumetric probabilistic material map below a surface (seed 001).
 
     Geometry: ``origin`` = (x0, y0) is the corner with the smallest x and y, ``z_top`` the surface height (m);
@@ -336,6 +247,12 @@ class VoxelGrid(_CategoricalMap):
             raise ValidationError(f"p must have shape ({m},) (materials {self.materials}), got {np.shape(p)}")
         self._update_at(idx, p)
 
+    def update_voxels(self, ix, iy, iz, p_meas) -> None:
+        """Fuse many measurements at once: ``p_meas[i]`` (shape (n, M)) into voxel (ix[i], iy[i], iz[i]), in
+        order; exactly ``update_voxel`` for each i in turn, vectorised. Nothing is changed when an argument is
+        invalid."""
+        self._update_many(cell_indices({"ix": ix, "iy": iy, "iz": iz}, self.shape), p_meas)
+
     def layers_reached(self, depth_reached: float) -> int:
         """How many voxels from the surface a press of indentation ``depth_reached`` (m, > 0) passes through.
 
@@ -383,19 +300,14 @@ class VoxelGrid(_CategoricalMap):
         h_min = check_h_min(h_min)
         # One set of weights serves both vertical stages: stage (1) changes only unexplored voxels and stage (2)
         # reads only explored ones.
-        w = 1.0 / np.maximum(entropy_unchecked(self._p, self.base), h_min)
+        w = inverse_entropy(self._p, self.base, h_min)
         p = extrapolate_vertical_kernel(self._p, self._explored, w)
         p = verify_continuity_kernel(p, self._explored, w)
         if lateral:
             filled = self._explored | vertical_gaps(self._explored)
-            w = 1.0 / np.maximum(entropy_unchecked(p, self.base), h_min)
-            side = extrapolate_plane(p, self._explored, w)
+            side = extrapolate_plane(p, self._explored, base=self.base, h_min=h_min)
             p = np.where(filled[..., None], p, side)
-        out = VoxelGrid(self.materials, self.shape, origin=self.origin, z_top=self.z_top, cell_size=self.cell_size,
-                        p_min=self.p_min, base=self.base)
-        out._p = p
-        out._explored = self._explored.copy()
-        return out
+        return self._like(p)
 
     @classmethod
     def load(cls, path) -> VoxelGrid:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -100,6 +101,23 @@ class ContactSeries:
 
 def press_axis_unit(press_axis) -> np.ndarray:
     """The press axis as a unit 3-vector; ValidationError if it is not a finite non-zero 3-vector."""
+    if isinstance(press_axis, tuple):
+        try:
+            return _unit_axis(press_axis)
+        except TypeError:  # a tuple holding something unhashable: checked below
+            pass
+    return _unit_axis_checked(press_axis)
+
+
+@lru_cache(maxsize=64)
+def _unit_axis(press_axis: tuple) -> np.ndarray:
+    """Cached for the few axes a process presses along: every press asks for the same one."""
+    axis = _unit_axis_checked(press_axis)
+    axis.flags.writeable = False
+    return axis
+
+
+def _unit_axis_checked(press_axis) -> np.ndarray:
     axis = np.asarray(press_axis, dtype=float).reshape(-1)
     if axis.shape != (3,) or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) < 1e-12:
         raise ValidationError(f"press_axis must be a finite non-zero 3-vector, got {press_axis!r}")
@@ -128,34 +146,57 @@ def contact_features(
     Raises:
         ValidationError: bad threshold, calibration or press axis, or a calibration returning bad values.
     """
-    if isinstance(noise_threshold, bool) or not isinstance(noise_threshold, int | np.integer):
-        raise ValidationError(f"noise_threshold must be an integer count (0..254), got {noise_threshold!r}")
-    if not 0 <= noise_threshold <= 254:
-        raise ValidationError(f"noise_threshold must be in 0..254 counts, got {noise_threshold}")
+    check_noise_threshold(noise_threshold)
     axis = press_axis_unit(press_axis)
-    counts = np.asarray(stream.counts)
-    n = len(counts)
-    active = counts > noise_threshold
-    c_a = active.reshape(n, -1).sum(axis=1) * float(stream.sensel_area)
-    c_p = _intensity(counts, active, calibration)
+    c_p, c_a = intensity_and_area(np.asarray(stream.counts), float(stream.sensel_area), noise_threshold,
+                                  calibration)
     position = np.asarray(stream.position, dtype=float)
+    z = position[:, 2].copy()
     return ContactSeries(
         t=np.asarray(stream.t, dtype=float),
         c_P=c_p,
         c_A=c_a,
-        height=-(position @ axis),
+        height=_height(position, z, axis),
         xy=position[:, :2].copy(),
         valid=np.asarray(stream.valid, dtype=bool),
         calibrated=calibration is not None,
-        z=position[:, 2].copy(),
+        z=z,
     )
 
 
-def _intensity(counts: np.ndarray, active: np.ndarray, calibration: Calibration) -> np.ndarray:
+def _height(position: np.ndarray, z: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """Height along -axis of positions (n, 3), m: element by element, so a pose's height does not depend on how
+    many poses are computed with it (a matrix product's rounding does), and a stream fed sample by sample gets the
+    same floats."""
+    if axis[0] == 0.0 and axis[1] == 0.0 and axis[2] == -1.0:
+        return z  # pressing straight down: -(0 x + 0 y - z) is z to the bit, but for the sign of a zero
+    return -(position[:, 0] * axis[0] + position[:, 1] * axis[1] + position[:, 2] * axis[2])
+
+
+def check_noise_threshold(noise_threshold) -> None:
+    """ValidationError unless the threshold is an integer count in 0..254."""
+    if isinstance(noise_threshold, bool) or not isinstance(noise_threshold, int | np.integer):
+        raise ValidationError(f"noise_threshold must be an integer count (0..254), got {noise_threshold!r}")
+    if not 0 <= noise_threshold <= 254:
+        raise ValidationError(f"noise_threshold must be in 0..254 counts, got {noise_threshold}")
+
+
+def intensity_and_area(counts: np.ndarray, sensel_area: float, noise_threshold: int,
+                       calibration: Calibration) -> tuple[np.ndarray, np.ndarray]:
+    """c_P (counts, or N when calibrated) and c_A (m^2) of frames (n, rows, cols): eq. 6.2 and 6.3 over the
+    sensels above ``noise_threshold``. The threshold is trusted to be checked (see :func:`contact_features`)."""
+    active = counts > noise_threshold
+    c_a = active.reshape(len(counts), -1).sum(axis=1) * sensel_area
+    return _intensity(counts, active, calibration, noise_threshold), c_a
+
+
+def _intensity(counts: np.ndarray, active: np.ndarray, calibration: Calibration, noise_threshold: int) -> np.ndarray:
     """Sum over the active sensels of each frame, in counts or (calibrated) N."""
     n = len(counts)
     if calibration is None:
-        return np.where(active, counts, 0).reshape(n, -1).sum(axis=1, dtype=np.int64).astype(float)
+        # Unsigned counts: with threshold 0 the inactive sensels already contribute nothing.
+        live = counts if noise_threshold == 0 and counts.dtype.kind == "u" else np.where(active, counts, 0)
+        return live.reshape(n, -1).sum(axis=1, dtype=np.int64).astype(float)
     if callable(calibration):
         force = np.asarray(calibration(counts.astype(float)), dtype=float)
         if force.shape != counts.shape:

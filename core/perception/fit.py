@@ -16,6 +16,7 @@ in counts/mm^1.5, a1 in counts/mm^3, n2 and a2 in counts.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,15 +77,63 @@ def fit_power_law(x, y, exponent: float = 1.5) -> PowerLawFit:
         FitError: fewer than 3 samples, mismatched lengths, NaN/inf, negative x, constant x, all-zero y, or a
             result that would not be finite.
     """
+    x, y = _samples(x, y, exponent)
+    with np.errstate(over="ignore", invalid="ignore"):  # bad samples are named below, not warned about
+        return _power_law(x, y, exponent)
+
+
+def _samples(x, y, exponent: float) -> tuple[np.ndarray, np.ndarray]:
+    """x and y as 1-D float arrays of the same length >= 3, for an exponent that is positive and finite."""
     x = np.asarray(x, dtype=float).reshape(-1)
     y = np.asarray(y, dtype=float).reshape(-1)
-    if not (np.isfinite(exponent) and exponent > 0):
+    if not (math.isfinite(exponent) and exponent > 0):
         raise FitError(f"exponent must be a positive finite number, got {exponent!r}")
     if x.shape != y.shape:
         raise FitError(f"x and y must have the same length, got {len(x)} and {len(y)}")
+    if len(x) < 3:
+        raise FitError(f"a 2-parameter fit needs at least 3 samples, got {len(x)}")
+    return x, y
+
+
+def _power_law(x: np.ndarray, y: np.ndarray, exponent: float) -> PowerLawFit:
+    """:func:`fit_power_law` of arrays from :func:`_samples`, under the caller's np.errstate."""
     n = len(x)
-    if n < 3:
-        raise FitError(f"a 2-parameter fit needs at least 3 samples, got {n}")
+    u = x**exponent
+    # sum / n is np.mean's arithmetic, without its wrapper
+    u_mean = float(u.sum()) / n
+    y_mean = float(y.sum()) / n
+    # The means check the samples: NaN or inf in x or y, a negative x (NaN power) and an overflowing x^exponent
+    # all make one of them non-finite, and only all-zero y gives a zero mean with nothing to fit. Only then are
+    # the samples searched for what is wrong.
+    if not (math.isfinite(u_mean) and math.isfinite(y_mean)) or y_mean == 0.0:
+        _check_samples(x, y, u, exponent)
+    du = u - u_mean
+    scale = math.sqrt(float((du * du).sum()) / n)
+    # Constant x (up to rounding) leaves the slope undefined. max(u) <= n mean(u), so the second test runs only
+    # when the first, cheaper one cannot decide.
+    if scale <= 2e-12 * n * u_mean and scale <= 1e-12 * max(u_mean, float(u.max())):
+        raise FitError(f"x is constant ({x[0]:g}) over all {n} samples: the slope k1 is undefined")
+    z = du / scale
+    yc = y - y_mean
+    szz = float(z @ z)  # = n by construction, kept explicit for clarity of the formulas below
+    b1 = float(z @ yc) / szz
+    k1 = b1 / scale
+    k2 = y_mean - k1 * u_mean
+    resid = yc - b1 * z
+    phi = float(resid @ resid)
+    s2 = phi / (n - 2)
+    var_k1 = s2 / (szz * scale**2)
+    var_k2 = s2 / n + u_mean**2 * var_k1
+    cov = -u_mean * var_k1
+    if not all(map(math.isfinite, (k1, k2, phi, var_k1, var_k2, cov))):
+        raise FitError(f"fit of {n} samples did not give finite estimates (x up to {x.max():g}, |y| up to "
+                       f"{np.abs(y).max():g}); rescale the data")
+    return PowerLawFit(k1=k1, k2=k2, phi=phi, se_k1=math.sqrt(var_k1), se_k2=math.sqrt(var_k2), n=n,
+                       cov_k1k2=cov, exponent=float(exponent))
+
+
+def _check_samples(x: np.ndarray, y: np.ndarray, u: np.ndarray, exponent: float) -> None:
+    """FitError naming the first bad sample (non-finite, negative x), all-zero y or an overflowing x^exponent."""
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         bad = int(np.argmax(~(np.isfinite(x) & np.isfinite(y))))
         raise FitError(f"non-finite sample at index {bad}: x={x[bad]!r}, y={y[bad]!r}")
@@ -92,35 +141,9 @@ def fit_power_law(x, y, exponent: float = 1.5) -> PowerLawFit:
         bad = int(np.argmax(x < 0))
         raise FitError(f"x must be >= 0 (an indentation or an area), got x={x[bad]!r} at index {bad}")
     if not np.any(y != 0):
-        raise FitError(f"all {n} y samples are zero: no contact intensity to fit")
-    with np.errstate(over="ignore"):
-        u = x**exponent
+        raise FitError(f"all {len(y)} y samples are zero: no contact intensity to fit")
     if not np.all(np.isfinite(u)):
         raise FitError(f"x^{exponent} overflows; x up to {x.max():g} is out of range")
-    u_mean = float(u.mean())
-    du = u - u_mean
-    scale = float(np.sqrt(np.mean(du**2)))
-    # Constant x (up to rounding) leaves the slope undefined.
-    if scale <= 1e-12 * max(abs(u_mean), float(np.abs(u).max())):
-        raise FitError(f"x is constant ({x[0]:g}) over all {n} samples: the slope k1 is undefined")
-    z = du / scale
-    y_mean = float(y.mean())
-    szz = float(z @ z)  # = n by construction, kept explicit for clarity of the formulas below
-    b1 = float(z @ (y - y_mean)) / szz
-    k1 = b1 / scale
-    k2 = y_mean - k1 * u_mean
-    resid = (y - y_mean) - b1 * z
-    phi = float(resid @ resid)
-    s2 = phi / (n - 2)
-    var_k1 = s2 / (szz * scale**2)
-    var_k2 = s2 / n + u_mean**2 * var_k1
-    cov = -u_mean * var_k1
-    out = (k1, k2, phi, var_k1, var_k2, cov)
-    if not all(np.isfinite(v) for v in out):
-        raise FitError(f"fit of {n} samples did not give finite estimates (x up to {x.max():g}, |y| up to "
-                       f"{np.abs(y).max():g}); rescale the data")
-    return PowerLawFit(k1=k1, k2=k2, phi=phi, se_k1=float(np.sqrt(var_k1)), se_k2=float(np.sqrt(var_k2)), n=n,
-                       cov_k1k2=cov, exponent=float(exponent))
 
 
 @dataclass(frozen=True)
@@ -184,13 +207,28 @@ def fit_samples(c_P, c_A, c_D, *, where: str = "press", press_index: int = -1,
             that stays constant over the press phase.
     """
     try:
-        fn = fit_power_law(np.asarray(c_D) * _M_TO_MM, c_P)
+        fn, fa = _fit_laws(c_P, c_A, c_D)
     except FitError as exc:
-        raise FitError(f"{where}: kinesthetic fit (c_P vs c_D) failed: {exc}") from exc
-    try:
-        fa = fit_power_law(np.asarray(c_A) * _M2_TO_MM2, c_P)
-    except FitError as exc:
-        raise FitError(f"{where}: cutaneous fit (c_P vs c_A) failed: {exc}") from exc
+        raise FitError(f"{where}: {exc}") from exc
+    return _press_fit(fn, fa, press_index, location, calibrated)
+
+
+def _fit_laws(c_P, c_A, c_D) -> tuple[PowerLawFit, PowerLawFit]:
+    """The kinesthetic and the cutaneous fit; FitError names the law that failed."""
+    with np.errstate(over="ignore", invalid="ignore"):  # bad samples are named, not warned about
+        try:
+            fn = _power_law(*_samples(np.asarray(c_D) * _M_TO_MM, c_P, 1.5), 1.5)
+        except FitError as exc:
+            raise FitError(f"kinesthetic fit (c_P vs c_D) failed: {exc}") from exc
+        try:
+            fa = _power_law(*_samples(np.asarray(c_A) * _M2_TO_MM2, c_P, 1.5), 1.5)
+        except FitError as exc:
+            raise FitError(f"cutaneous fit (c_P vs c_A) failed: {exc}") from exc
+    return fn, fa
+
+
+def _press_fit(fn: PowerLawFit, fa: PowerLawFit, press_index: int, location: tuple[float, float],
+               calibrated: bool) -> PressFit:
     return PressFit(
         n1=fn.k1, n2=fn.k2, phi_n=fn.phi, a1=fa.k1, a2=fa.k2, phi_a=fa.phi,
         se_n1=fn.se_k1, se_n2=fn.se_k2, se_a1=fa.se_k1, se_a2=fa.se_k2,
@@ -200,8 +238,11 @@ def fit_samples(c_P, c_A, c_D, *, where: str = "press", press_index: int = -1,
 
 def fit_press(press: Press) -> PressFit:
     """Fit both interaction laws to the press phase of a segmented press (see :func:`fit_samples`)."""
-    return fit_samples(press.c_P, press.c_A, press.c_D, where=f"press {press.index} at t={press.t_onset:.3f} s",
-                       press_index=press.index, location=press.location, calibrated=press.calibrated)
+    try:
+        fn, fa = _fit_laws(press.c_P, press.c_A, press.c_D)
+    except FitError as exc:
+        raise FitError(f"press {press.index} at t={press.t_onset:.3f} s: {exc}") from exc
+    return _press_fit(fn, fa, press.index, press.location, press.calibrated)
 
 
 @dataclass(frozen=True)

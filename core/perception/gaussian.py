@@ -13,6 +13,8 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 
+_LOG_2PI = math.log(2.0 * math.pi)
+
 
 def regularise_covariance(cov: np.ndarray, min_eig: float, fallback_var: np.ndarray) -> tuple[np.ndarray, float]:
     """Load the diagonal of a covariance just enough that it is well conditioned relative to each dimension's scale.
@@ -82,11 +84,11 @@ class GaussianFactors:
 
     def log_pdf(self, x: np.ndarray) -> np.ndarray:
         """(n, M) log densities of the rows of x (n, d)."""
-        diff = x[:, None, :] - self.means[None, :, :]  # (n, M, d)
+        diff = x[:, None, :] - self.means  # (n, M, d)
         z = np.einsum("mij,nmj->nmi", self.chol_inv, diff)
-        maha = np.einsum("nmi,nmi->nm", z, z)
+        maha = (z * z).sum(axis=-1)
         d = self.means.shape[1]
-        return -0.5 * (maha + self.log_det[None, :] + d * math.log(2.0 * math.pi))
+        return -0.5 * (maha + self.log_det + d * _LOG_2PI)
 
 
 def gaussian_log_pdf(x: np.ndarray, means: np.ndarray, covs: np.ndarray) -> np.ndarray:

@@ -15,6 +15,7 @@ validates them and learns, and predicting before :meth:`fit` (or :meth:`load`) r
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -190,9 +191,9 @@ class HapticMemory:
     def predict_log_proba(self, params) -> np.ndarray:
         """Log posterior log P(M | n, a) (eq. 6.11), shape (n, M), normalised with log-sum-exp."""
         ll = self.log_likelihood(params)
-        joint = ll + self._log_prior[None, :]
+        joint = ll + self._log_prior
         out = joint - _logsumexp_rows(joint)
-        if np.isnan(out).any():  # unreachable for validated input; never hand NaN onwards
+        if math.isnan(float(out.sum())):  # unreachable for validated input; never hand NaN onwards
             row = int(np.argwhere(np.isnan(out))[0, 0])
             raise ValidationError(f"params[{row}]: posterior is not finite; log-likelihoods {ll[row].tolist()}")
         return out
@@ -299,14 +300,17 @@ class HapticMemory:
 
 def _logsumexp_rows(a: np.ndarray) -> np.ndarray:
     """log sum exp over each row, shape (n, 1): the largest term is kept out of the sum (as scipy does, for
-    precision), without scipy's per-call overhead on a handful of materials."""
+    precision), without scipy's per-call overhead on a handful of materials. Rows hold at least one finite value."""
     a_max = a.max(axis=1, keepdims=True)
     is_max = a == a_max
-    n_max = is_max.sum(axis=1, keepdims=True).astype(float)
-    with np.errstate(invalid="ignore"):
-        rest = np.exp(np.where(is_max, -np.inf, a - a_max)).sum(axis=1, keepdims=True)
-    rest = np.where(rest == 0, rest, rest / n_max)
-    return np.log1p(rest) + np.log(n_max) + a_max
+    rest = np.exp(a - a_max)
+    rest[is_max] = 0.0
+    rest = rest.sum(axis=1, keepdims=True)
+    if np.count_nonzero(is_max) == len(a):  # one largest term per row: log(1) = 0 and rest / 1 = rest
+        return np.log1p(rest) + a_max
+    n_max = is_max.sum(axis=1, keepdims=True)
+    rest /= n_max
+    return np.log1p(rest) + np.log(n_max.astype(float)) + a_max
 
 
 def _normalise_prior(prior, materials: list[str]) -> np.ndarray:

@@ -88,6 +88,7 @@ def presses_from_recording(rec: PressRecording, config: PipelineConfig = DEFAULT
         min_duration=config.min_duration,
         min_depth=config.min_depth,
         min_samples=config.min_samples,
+        series_checked=True,  # made just now from validated streams
     )
 
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from palpate.core.errors import FitError
 from palpate.core.perception.fit import PressFit, fit_press
-from palpate.core.perception.pipeline import PipelineConfig, presses_from_recording
+from palpate.core.perception.pipeline import DEFAULT_CONFIG, PipelineConfig, presses_from_recording
 from palpate.core.perception.segment import Press
 from palpate.core.perception.streams import PressRecording
 
@@ -74,7 +74,7 @@ def perceive_press(recording: PressRecording, pipeline_config: PipelineConfig | 
     Returns a PressResult whose ``fit`` is None (with reasons in ``rejected``) when no usable press was found.
     When noise splits the one press that was made, the deepest part is kept and that is said in ``rejected``.
     """
-    seg = presses_from_recording(recording, pipeline_config or PipelineConfig())
+    seg = presses_from_recording(recording, pipeline_config or DEFAULT_CONFIG)
     planned = (recording.meta or {}).get("target")
     planned = planned if isinstance(planned, dict) else {}
     # The planned target, when the source says it (SimSource does); callers that know it replace it anyway.

@@ -14,15 +14,16 @@ too short, too shallow, too few samples, invalid pose): nothing is dropped silen
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.features import ContactSeries
+from palpate.core.perception.smallstats import line_fit
+from palpate.core.perception.thresholds import Thresholds, contact_intervals, estimate_thresholds
 
-# Consistent scale factor of the median absolute deviation for a Gaussian.
-_MAD_TO_SIGMA = 1.4826
 # Fewest samples for the line that locates the first contact (two define it, more average the noise).
 _ONSET_FIT_MIN = 4
 
@@ -109,61 +110,18 @@ class Segmentation:
         return Thresholds(self.on_threshold, self.off_threshold, self.baseline, self.noise)
 
 
-@dataclass(frozen=True)
-class Thresholds:
-    """Hysteresis levels on c_P and the noise statistics they came from."""
-
-    on: float
-    off: float
-    baseline: float
-    noise: float
-
-
-def estimate_thresholds(
-    c_P: np.ndarray, on_threshold: float | None = None, off_threshold: float | None = None
-) -> Thresholds:
-    """Hysteresis levels from the data's own noise where not given.
-
-    The baseline is the 5th percentile of c_P (contact-free samples are the low ones); the noise is the robust
-    standard deviation of second differences (MAD / sqrt 6), which the smooth ramps of a press barely affect.
-    Defaults are on = baseline + max(6 noise, f) and off = baseline + max(3 noise, f / 4), where f is a
-    thousandth of the stream's range above baseline, so a perfectly clean stream still needs a real rise.
-
-    Raises:
-        ValidationError: non-finite thresholds or off >= on.
-    """
-    c = np.asarray(c_P, dtype=float)
-    if len(c) == 0:
-        raise ValidationError("cannot estimate thresholds from an empty contact series")
-    baseline = float(np.percentile(c, 5))
-    # Second differences cancel the steady ramps of pressing and releasing, which would inflate a spread of
-    # first differences in a stream that is mostly contact; for white noise their variance is 6 sigma^2.
-    d2 = np.diff(c, 2)
-    noise = float(_MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6)) if len(d2) else 0.0
-    # A floor for perfectly clean data (noise 0): contact must still rise by a thousandth of the stream's range.
-    floor = 1e-3 * (float(c.max()) - baseline) or 1.0
-    on = baseline + max(6 * noise, floor) if on_threshold is None else float(on_threshold)
-    if off_threshold is None:
-        off = baseline + max(3 * noise, 0.25 * floor)
-        if on_threshold is not None:
-            off = min(off, 0.5 * (baseline + on))
-    else:
-        off = float(off_threshold)
-    if not (np.isfinite(on) and np.isfinite(off)):
-        raise ValidationError(f"on_threshold and off_threshold must be finite, got {on!r} and {off!r}")
-    if off >= on:
-        raise ValidationError(
-            f"off_threshold ({off:g}) must be below on_threshold ({on:g}) for hysteresis (units of c_P)"
-        )
-    return Thresholds(on=on, off=off, baseline=baseline, noise=noise)
-
-
 def check_series(series: ContactSeries) -> None:
-    for name in ("t", "c_P", "c_A", "height", "xy"):
-        arr = np.asarray(getattr(series, name), dtype=float)
-        if not np.all(np.isfinite(arr)):
-            raise ValidationError(f"ContactSeries.{name} holds NaN or inf; expected finite values")
-    if len(series.t) > 1 and np.any(np.diff(series.t) <= 0):
+    """ValidationError unless every array of the series is finite and its times increase strictly."""
+    names = ("t", "c_P", "c_A", "height", "xy")
+    arrays = [np.asarray(getattr(series, name), dtype=float) for name in names]
+    # NaN and inf survive a sum, so one sum per array checks it; the culprit is looked for only on failure (or on
+    # an overflow of finite values, which then passes).
+    if not math.isfinite(sum(float(a.sum()) for a in arrays)):
+        for name, arr in zip(names, arrays, strict=True):
+            if not np.all(np.isfinite(arr)):
+                raise ValidationError(f"ContactSeries.{name} holds NaN or inf; expected finite values")
+    t = arrays[0]
+    if len(t) > 1 and not (t[1:] > t[:-1]).all():
         raise ValidationError("ContactSeries.t must increase strictly")
 
 
@@ -184,6 +142,7 @@ def segment_presses(
     min_duration: float = 0.1,
     min_depth: float = 0.0005,
     min_samples: int = 5,
+    series_checked: bool = False,
 ) -> Segmentation:
     """Find the presses in a contact series.
 
@@ -194,6 +153,9 @@ def segment_presses(
         min_duration: shortest contact (onset to release) accepted, s.
         min_depth: shallowest press accepted (largest c_D), m.
         min_samples: fewest press-phase samples accepted (>= 3, what a fit needs).
+        series_checked: True when the series is known to be finite with strictly increasing times, as
+            :func:`~palpate.core.perception.features.contact_features` makes it from a synchronised stream; it is
+            then not checked again.
 
     Returns:
         A :class:`Segmentation`: accepted presses and rejected contacts with reasons ("partial: stream ends before
@@ -203,7 +165,8 @@ def segment_presses(
     Raises:
         ValidationError: non-finite series, bad thresholds or limits.
     """
-    check_series(series)
+    if not series_checked:
+        check_series(series)
     check_limits(min_duration, min_depth, min_samples)
     th = estimate_thresholds(series.c_P, on_threshold, off_threshold)
     presses, rejected, _ = segment_series(
@@ -211,30 +174,6 @@ def segment_presses(
         final=True, first_index=0,
     )
     return Segmentation(presses, rejected, th.on, th.off, th.baseline, th.noise)
-
-
-def contact_intervals(c_P: np.ndarray, on: float, off: float) -> list[tuple[int, int | None]]:
-    """Contacts found by hysteresis, as (onset, release) sample indices.
-
-    onset is the first sample above ``off`` of the run that crosses ``on`` (-1 when the stream starts inside the
-    contact); release is the first sample at or below ``off`` after it (None if the stream ends first).
-    """
-    c = np.asarray(c_P, dtype=float)
-    n = len(c)
-    idx = np.arange(n)
-    last_on = np.maximum.accumulate(np.where(c > on, idx, -1))
-    last_off = np.maximum.accumulate(np.where(c <= off, idx, -1))
-    state = last_on > last_off
-    prev = np.concatenate(([False], state[:-1]))
-    starts = np.flatnonzero(state & ~prev)
-    ends = np.flatnonzero(~state & prev)
-    out: list[tuple[int, int | None]] = []
-    for s in starts:
-        k = np.searchsorted(ends, s)
-        release = int(ends[k]) if k < len(ends) else None
-        onset = int(last_off[s]) + 1 if last_off[s] >= 0 else -1
-        out.append((onset, release))
-    return out
 
 
 def segment_series(
@@ -253,91 +192,133 @@ def segment_series(
     last finished contact (0 if none), so the approach to the next contact, which bounds its first-contact
     height, is kept.
     """
-    t, c_p = series.t, series.c_P
+    t = series.t
     n = len(t)
+    limits = PressLimits(min_duration, min_depth, min_samples)
     presses: list[Press] = []
     rejected: list[RejectedPress] = []
     index = first_index
     i_top = 0  # start of the approach to the next contact: the previous release
-    for onset, release in contact_intervals(c_p, th.on, th.off):
+    for onset, release in contact_intervals(series.c_P, th.on, th.off):
         if release is None and not final:
             break
         i0 = max(onset, 0)
         end = n - 1 if release is None else release
         if onset < 0:
-            outcome = RejectedPress(float(t[0]), float(t[end]),
-                                    "partial: stream starts in contact, first contact not observed", index)
+            outcome = RejectedPress(float(t[0]), float(t[end]), STARTS_IN_CONTACT, index)
         elif release is None:
-            outcome = RejectedPress(float(t[i0]), float(t[end]), "partial: stream ends before release", index)
+            outcome = RejectedPress(float(t[i0]), float(t[end]), ENDS_IN_CONTACT, index)
         else:
-            outcome = _build_press(series, th, i_top, i0, release, index,
-                                   min_duration=min_duration, min_depth=min_depth, min_samples=min_samples)
+            w = slice(i0 - 1, release + 1)
+            outcome = build_press(series.t[w], series.c_P[w], series.c_A[w], series.height[w], series.xy[w],
+                                  series.valid[w], _ApproachSlice(series, i_top, i0), th, limits, index,
+                                  series.calibrated)
         (presses if isinstance(outcome, Press) else rejected).append(outcome)
         index += 1
         i_top = end
     return presses, rejected, i_top
 
 
-def _build_press(
-    series: ContactSeries,
-    th: Thresholds,
-    i_top: int,
-    i0: int,
-    release: int,
-    index: int,
-    *,
-    min_duration: float,
-    min_depth: float,
-    min_samples: int,
-) -> Press | RejectedPress:
-    t, c_p, h = series.t, series.c_P, series.height
-    t_start, t_end = float(t[i0]), float(t[release])
-    valid = series.valid[i0 - 1:release + 1]
-    if not np.all(valid):
+STARTS_IN_CONTACT = "partial: stream starts in contact, first contact not observed"
+ENDS_IN_CONTACT = "partial: stream ends before release"
+
+
+@dataclass(frozen=True)
+class PressLimits:
+    """What a contact must reach to become a press: duration s, depth m, press-phase samples."""
+
+    min_duration: float
+    min_depth: float
+    min_samples: int
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """The last approach sample at or above a height, and the sample after it (times s, heights m)."""
+
+    t: float
+    h: float
+    t_next: float
+    h_next: float
+
+
+class _ApproachSlice:
+    """The approach to a contact in a whole series: samples i_top (the previous release) to i0 - 1."""
+
+    def __init__(self, series: ContactSeries, i_top: int, i0: int):
+        self.t, self.h, self.valid, self.sl = series.t, series.height, series.valid, slice(i_top, i0)
+
+    def highest_valid(self, floor: float) -> float:
+        """Highest height of a valid approach sample, and ``floor`` (m)."""
+        return float(np.max(self.h[self.sl][self.valid[self.sl]], initial=floor))
+
+    def last_at_or_above(self, height: float) -> Crossing | None:
+        """The last approach sample at or above ``height`` (None if there is none)."""
+        above = np.flatnonzero(self.h[self.sl] >= height)
+        if not len(above):
+            return None
+        j = self.sl.start + int(above[-1])
+        return Crossing(float(self.t[j]), float(self.h[j]), float(self.t[j + 1]), float(self.h[j + 1]))
+
+
+def build_press(t, c_p, c_a, h, xy, valid, approach, th: Thresholds, limits: PressLimits, index: int,
+                calibrated: bool) -> Press | RejectedPress:
+    """The press of one released contact, or why it is rejected.
+
+    Args:
+        t, c_p, c_a, h, xy, valid: the contact's samples (time s, intensity, area m^2, height m, (x, y) m, pose
+            usable), from the last sample before the onset to the release, both included.
+        approach: the samples before the contact back to the previous release (``highest_valid`` and
+            ``last_at_or_above``, as :class:`_ApproachSlice` answers them for a whole series).
+        th, limits: the hysteresis levels and what a press must reach.
+        index: the contact's position in the stream; calibrated: c_P in N.
+    """
+    t_start, t_end = float(t[1]), float(t[-1])
+    if not valid.all():
         bad = int(np.count_nonzero(~valid))
         return RejectedPress(t_start, t_end,
                              f"invalid pose: {bad} of {len(valid)} samples in a pose gap or outside the pose span",
                              index)
     duration = t_end - t_start
-    if duration < min_duration:
-        return RejectedPress(t_start, t_end, f"too short: {duration:.3f} s < min_duration {min_duration:g} s", index)
+    if duration < limits.min_duration:
+        return RejectedPress(t_start, t_end, f"too short: {duration:.3f} s < min_duration "
+                             f"{limits.min_duration:g} s", index)
     # The deepest point by the pose and the intensity maximum coincide on good data; when a clock-offset error
     # or a slow pose rate separates them, the samples in between contradict each other (one stream says
     # pressing, the other releasing), so the press phase stops at the first of the two.
-    peak = i0 + min(int(np.argmin(h[i0:release])), int(np.argmax(c_p[i0:release])))
-    h0, t_onset = _first_contact(t, c_p - th.baseline, h, series.valid, i_top, i0, peak, th.on - th.baseline)
-    depth = float(np.max(h0 - h[i0:peak + 1]))
-    if depth < min_depth:
+    peak = 1 + min(int(h[1:-1].argmin()), int(c_p[1:-1].argmax()))
+    sl = slice(1, peak + 1)
+    h0, t_onset = _first_contact(t, c_p[sl] - th.baseline, h, approach, th.on - th.baseline)
+    indent = h0 - h[sl]
+    depth = float(indent.max())
+    if depth < limits.min_depth:
         return RejectedPress(t_start, t_end, f"too shallow: depth {depth * 1e3:.3f} mm < min_depth "
-                             f"{min_depth * 1e3:g} mm", index)
-    k = peak - i0 + 1
-    if k < min_samples:
+                             f"{limits.min_depth * 1e3:g} mm", index)
+    k = peak
+    if k < limits.min_samples:
         return RejectedPress(t_start, t_end, f"too few samples: {k} press-phase samples < min_samples "
-                             f"{min_samples}", index)
-    sl = slice(i0, peak + 1)
-    xy = np.asarray(series.xy[sl], dtype=float)
+                             f"{limits.min_samples}", index)
+    xy = np.asarray(xy[sl], dtype=float)
     return Press(
         index=index,
         t_onset=t_onset,
         t_peak=float(t[peak]),
         t_release=t_end,
         h0=h0,
-        location=(float(xy[:, 0].mean()), float(xy[:, 1].mean())),
+        location=(float(xy[:, 0].sum()) / k, float(xy[:, 1].sum()) / k),  # np.mean's arithmetic
         depth=depth,
         t=np.asarray(t[sl], dtype=float),
         c_P=np.asarray(c_p[sl], dtype=float),
-        c_A=np.asarray(series.c_A[sl], dtype=float),
-        c_D=np.clip(h0 - h[sl], 0.0, None),
+        c_A=np.asarray(c_a[sl], dtype=float),
+        c_D=np.maximum(indent, 0.0, out=indent),
         xy=xy,
-        calibrated=series.calibrated,
+        calibrated=calibrated,
     )
 
 
-def _first_contact(
-    t: np.ndarray, excess: np.ndarray, h: np.ndarray, valid: np.ndarray, i_top: int, i0: int, peak: int,
-    detect: float,
-) -> tuple[float, float]:
-    """Height (m) and time (s) of first contact of the contact whose first sample above the off level is i0.
+def _first_contact(t: np.ndarray, ex: np.ndarray, h: np.ndarray, approach, detect: float) -> tuple[float, float]:
+    """Height (m) and time (s) of first contact; ``t``, ``h`` from the last sample before the onset on, ``ex`` c_P
+    above the baseline over the press phase (onset to peak).
 
     Under eq. 6.6, (c_P - baseline)^(2/3) is linear in height with its root at h0. The line is fitted to the early
     press phase, from the on level (reliably above noise) to half the peak, where sensels hidden by noise
@@ -345,25 +326,22 @@ def _first_contact(
     onset. h0 is clamped between the first contact sample and the highest point of the approach (samples i_top to
     i0), and defaults to the middle of the last free / first contact bracket if no line can be fitted.
     """
-    h_free, h_lo = float(h[i0 - 1]), float(h[i0])
-    approach = slice(i_top, i0)
-    h_hi = float(np.max(h[approach][valid[approach]], initial=h_free))
+    h_free, h_lo = float(h[0]), float(h[1])
+    h_hi = approach.highest_valid(h_free)
     if h_hi <= h_lo:  # not moving into the object at the onset: the last free height is the best we know
-        return h_free, float(t[i0 - 1])
-    ex = excess[i0:peak + 1]
-    y = np.clip(ex, 0.0, None) ** (2.0 / 3.0)
+        return h_free, float(t[0])
     window = np.flatnonzero((ex >= detect) & (ex <= 0.5 * ex.max()))
     if len(window) < _ONSET_FIT_MIN:
         window = np.arange(min(_ONSET_FIT_MIN, len(ex)))
-    x = h[i0:peak + 1][window]
+    x = h[1:1 + len(ex)][window]
     h0 = 0.5 * (h_free + h_lo) if h_free > h_lo else h_lo
-    if len(window) >= 2 and np.ptp(x) > 0:
-        slope, intercept = np.polyfit(x, y[window], 1)
+    if len(window) >= 2 and x.max() > x.min():
+        slope, intercept = line_fit(x, np.maximum(ex[window], 0.0) ** (2.0 / 3.0))
         if slope < 0:
-            h0 = float(np.clip(-intercept / slope, h_lo, h_hi))
+            h0 = min(max(-intercept / slope, h_lo), h_hi)
     # Time of first contact: where the approach last crossed h0 going down.
-    above = np.flatnonzero(h[i_top:i0] >= h0)
-    j = i_top + int(above[-1]) if len(above) else i0 - 1
-    hj, hk = float(h[j]), float(h[j + 1])
-    frac = 0.0 if hj == hk else float(np.clip((hj - h0) / (hj - hk), 0.0, 1.0))
-    return h0, float(t[j] + frac * (t[j + 1] - t[j]))
+    c = approach.last_at_or_above(h0)
+    if c is None:
+        c = Crossing(float(t[0]), h_free, float(t[1]), h_lo)
+    frac = 0.0 if c.h == c.h_next else min(max((c.h - h0) / (c.h - c.h_next), 0.0), 1.0)
+    return h0, float(c.t + frac * (c.t_next - c.t))

@@ -6,6 +6,7 @@ Tekscan-like sensor reports them; calibration to force happens later, in :mod:`p
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -144,23 +145,44 @@ def frames_to_arrays(frames: list[TaxelFrame]) -> tuple[np.ndarray, np.ndarray, 
     """
     if not frames:
         raise ValidationError("no taxel frames")
-    shape = frames[0].counts.shape
-    area = frames[0].sensel_area
-    # One array comparison instead of a per-frame isclose: this runs on every frame of long recordings.
-    areas = np.fromiter((f.sensel_area for f in frames), dtype=float, count=len(frames))
-    bad_area = np.abs(areas - area) > 1e-9 * abs(area)
-    if bad_area.any():
-        i = int(np.argmax(bad_area))
-        raise ValidationError(f"taxel frame {i} has sensel area {areas[i]}, expected {area}")
-    for i, f in enumerate(frames):
-        if f.counts.shape != shape:
-            raise ValidationError(f"taxel frame {i} has shape {f.counts.shape}, expected {shape}")
-    t = np.fromiter((f.t for f in frames), dtype=float, count=len(frames))
-    if len(t) > 1 and np.any(np.diff(t) <= 0):
-        bad = int(np.argmax(np.diff(t) <= 0)) + 1
-        raise ValidationError(f"taxel frame times must increase strictly; frame {bad} is at t={t[bad]}")
-    counts = np.stack([f.counts for f in frames])
+    n = len(frames)
+    first = frames[0]
+    area = first.sensel_area
+    # Every frame was validated when it was made; what is left to check is that they agree with each other. The
+    # usual case (one sensel area, one shape) costs a set and one array; a disagreement is then located.
+    if len({f.sensel_area for f in frames}) > 1:
+        areas = np.fromiter((f.sensel_area for f in frames), dtype=float, count=n)
+        bad_area = np.abs(areas - area) > 1e-9 * abs(area)
+        if bad_area.any():
+            i = int(np.argmax(bad_area))
+            raise ValidationError(f"taxel frame {i} has sensel area {areas[i]}, expected {area}")
+    shape = first.counts.shape
+    try:
+        counts = np.array([f.counts for f in frames])
+    except ValueError:  # frames of different shapes
+        counts = None
+    if counts is None or counts.shape[1:] != shape:
+        for i, f in enumerate(frames):
+            if f.counts.shape != shape:
+                raise ValidationError(f"taxel frame {i} has shape {f.counts.shape}, expected {shape}")
+    t = np.fromiter([f.t for f in frames], dtype=float, count=n)
+    _check_increasing(t, "taxel frame times must increase strictly; frame")
     return t, counts, area
+
+
+def _check_increasing(t: np.ndarray, what: str) -> None:
+    if len(t) > 1 and not (t[1:] > t[:-1]).all():
+        bad = int(np.argmax(t[1:] <= t[:-1])) + 1
+        raise ValidationError(f"{what} {bad} is at t={t[bad]}")
+
+
+def pose_times_positions(poses: list[PoseSample]) -> tuple[np.ndarray, np.ndarray]:
+    """(t [n] s, position [n, 3] m) of pose samples; ValidationError if time does not increase strictly."""
+    if not poses:
+        raise ValidationError("no pose samples")
+    t = np.fromiter([p.t for p in poses], dtype=float, count=len(poses))
+    _check_increasing(t, "pose times must increase strictly; sample")
+    return t, np.array([p.position for p in poses])
 
 
 def poses_to_arrays(poses: list[PoseSample]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -168,12 +190,26 @@ def poses_to_arrays(poses: list[PoseSample]) -> tuple[np.ndarray, np.ndarray, np
 
     Raises ValidationError if time does not increase strictly.
     """
-    if not poses:
-        raise ValidationError("no pose samples")
-    t = np.fromiter((p.t for p in poses), dtype=float, count=len(poses))
-    if len(t) > 1 and np.any(np.diff(t) <= 0):
-        bad = int(np.argmax(np.diff(t) <= 0)) + 1
-        raise ValidationError(f"pose times must increase strictly; sample {bad} is at t={t[bad]}")
-    pos = np.stack([p.position for p in poses])
-    quat = np.stack([p.quaternion for p in poses])
-    return t, pos, quat
+    t, pos = pose_times_positions(poses)
+    return t, pos, np.array([p.quaternion for p in poses])
+
+
+def shifted_in_time(samples: list[TaxelFrame] | list[PoseSample], dt: float) -> list:
+    """Copies of taxel frames or pose samples with every timestamp moved by ``dt`` s, sharing their arrays.
+
+    The samples were validated when they were made and only their times change, so the copies are not validated
+    again (rebuilding each dataclass would check every array once more); a shift that leaves a time non-finite
+    is a ValidationError.
+    """
+    if not math.isfinite(dt):
+        raise ValidationError(f"time shift must be a finite number of seconds, got {dt!r}")
+    times = [s.t + dt for s in samples]
+    if not all(map(math.isfinite, times)):
+        raise ValidationError(f"shifting by {dt!r} s takes a timestamp out of the finite range")
+    out = []
+    for s, t in zip(samples, times, strict=True):
+        copy = object.__new__(type(s))
+        # A frozen dataclass's fields live in its __dict__; only t differs from the validated original.
+        copy.__dict__.update(s.__dict__, t=t)
+        out.append(copy)
+    return out

@@ -10,12 +10,20 @@ bridged silently. :func:`estimate_clock_offset` recovers an unknown offset from 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.perception.streams import PoseSample, TaxelFrame, frames_to_arrays, poses_to_arrays
+from palpate.core.perception.streams import (
+    PoseSample,
+    TaxelFrame,
+    frames_to_arrays,
+    pose_times_positions,
+)
 
 # Below this angle between two quaternions slerp's sin(theta) denominator loses precision; the chord (normalised
 # linear interpolation) is then exact to ~1e-12 rad.
@@ -37,7 +45,6 @@ class Gap:
     duration: float
 
 
-@dataclass
 class SyncedStream:
     """Taxel frames with the fingertip pose interpolated at their times.
 
@@ -46,7 +53,9 @@ class SyncedStream:
         counts: raw counts, shape (n, rows, cols), uint8.
         sensel_area: area of one sensel, m^2.
         position: fingertip position at each taxel time, m, shape (n, 3), world frame.
-        quaternion: fingertip orientation (w, x, y, z) at each taxel time, unit norm, shape (n, 4).
+        quaternion: fingertip orientation (w, x, y, z) at each taxel time, unit norm, shape (n, 4). Nothing in the
+            contact features reads it, so :func:`synchronise` passes a function that interpolates it (slerp) the
+            first time it is read; an array may be given as well.
         valid: True where the pose is interpolated between two pose samples at most ``max_gap`` apart;
             False outside the pose time span or inside a gap. Pose values of invalid frames are placeholders
             (the nearest interpolation, always finite) and must not be used.
@@ -54,17 +63,31 @@ class SyncedStream:
         clock_offset: offset added to pose timestamps, s.
     """
 
-    t: np.ndarray
-    counts: np.ndarray
-    sensel_area: float
-    position: np.ndarray
-    quaternion: np.ndarray
-    valid: np.ndarray
-    gaps: list[Gap] = field(default_factory=list)
-    clock_offset: float = 0.0
+    def __init__(self, t: np.ndarray, counts: np.ndarray, sensel_area: float, position: np.ndarray,
+                 quaternion: np.ndarray | Callable[[], np.ndarray], valid: np.ndarray, gaps: list[Gap] | None = None,
+                 clock_offset: float = 0.0):
+        self.t = t
+        self.counts = counts
+        self.sensel_area = sensel_area
+        self.position = position
+        self._quaternion = quaternion
+        self.valid = valid
+        self.gaps = [] if gaps is None else gaps
+        self.clock_offset = clock_offset
+
+    @property
+    def quaternion(self) -> np.ndarray:
+        """Orientation at each taxel time, (n, 4) (interpolated on first access)."""
+        if callable(self._quaternion):
+            self._quaternion = self._quaternion()
+        return self._quaternion
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def __repr__(self) -> str:
+        return (f"SyncedStream({len(self)} frames, {self.n_invalid} without pose, {len(self.gaps)} gap(s), "
+                f"clock_offset={self.clock_offset!r} s)")
 
     @property
     def n_invalid(self) -> int:
@@ -104,7 +127,7 @@ def _check_scalar(name: str, value: float, *, positive: bool = False) -> float:
         v = float(value)
     except (TypeError, ValueError) as exc:
         raise ValidationError(f"{name} must be a number in seconds, got {value!r}") from exc
-    if not np.isfinite(v) or (positive and v <= 0):
+    if not math.isfinite(v) or (positive and v <= 0):
         raise ValidationError(f"{name} must be a {'positive ' if positive else ''}finite time in s, got {value!r}")
     return v
 
@@ -135,48 +158,43 @@ def synchronise(
     clock_offset = _check_scalar("clock_offset", clock_offset)
     max_gap = _check_scalar("max_gap", max_gap, positive=True)
     t, counts, area = frames_to_arrays(frames)
-    tp, pos, quat = poses_to_arrays(poses)
+    tp, pos = pose_times_positions(poses)
     if len(tp) < 2:
         raise ValidationError(f"synchronise needs at least 2 pose samples to interpolate, got {len(tp)}")
     tp = tp + clock_offset
-    position, quaternion, valid = _interpolate_pose(t, tp, pos, quat, max_gap)
-
-    dt = np.diff(tp)
-    gap_idx = np.flatnonzero(dt > max_gap)
+    # Interval i spans [tp[i], tp[i+1]]; the last sample belongs to the last interval, times before the first
+    # sample to the first one (searching the inner samples counts exactly that).
+    i = np.searchsorted(tp[1:-1], t, side="right")
+    i1 = i + 1
+    t0 = tp[i]
+    dt_i = tp[i1] - t0
+    s = (t - t0) / dt_i
+    np.minimum(np.maximum(s, 0.0, out=s), 1.0, out=s)  # np.clip's result, without its overhead
+    p0 = pos[i]
+    position = p0 + s[:, None] * (pos[i1] - p0)
+    dt = tp[1:] - tp[:-1]
+    gap_idx = np.flatnonzero(dt > max_gap) if float(dt.max()) > max_gap else ()
+    if t[0] >= tp[0] and t[-1] <= tp[-1] and not len(gap_idx):
+        valid = np.ones(len(t), dtype=bool)  # every frame inside the span and no dropout
+    else:
+        in_span = (t >= tp[0]) & (t <= tp[-1])
+        # A frame exactly on a pose sample has a measured pose even if the interval after it is a dropout.
+        in_gap = (dt_i > max_gap) & (s != 0.0) & (s != 1.0)
+        valid = in_span & ~in_gap
     # Only dropouts that matter for the taxel stream are reported: those overlapping its time span.
     gaps = [
-        Gap(float(tp[i]), float(tp[i + 1]), float(dt[i]))
-        for i in gap_idx
-        if tp[i + 1] > t[0] and tp[i] < t[-1]
+        Gap(float(tp[k]), float(tp[k + 1]), float(dt[k]))
+        for k in gap_idx
+        if tp[k + 1] > t[0] and tp[k] < t[-1]
     ]
-    return SyncedStream(
-        t=t,
-        counts=counts,
-        sensel_area=float(area),
-        position=position,
-        quaternion=quaternion,
-        valid=valid,
-        gaps=gaps,
-        clock_offset=clock_offset,
-    )
+    return SyncedStream(t, counts, float(area), position, partial(_orientation, poses, i, s), valid, gaps,
+                        clock_offset)
 
 
-def _interpolate_pose(
-    t: np.ndarray, tp: np.ndarray, pos: np.ndarray, quat: np.ndarray, max_gap: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pose at times ``t`` from samples at ``tp`` (same clock); returns (position, quaternion, valid)."""
-    n = len(tp)
-    # Interval i spans [tp[i], tp[i+1]]; the last sample belongs to the last interval.
-    i = np.clip(np.searchsorted(tp, t, side="right") - 1, 0, n - 2)
-    t0, t1 = tp[i], tp[i + 1]
-    s = np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
-    position = pos[i] + s[:, None] * (pos[i + 1] - pos[i])
-    quaternion = slerp(quat[i], quat[i + 1], s)
-    in_span = (t >= tp[0]) & (t <= tp[-1])
-    # A frame exactly on a pose sample has a measured pose even if the interval after it is a dropout.
-    on_sample = (s == 0.0) | (s == 1.0)
-    in_gap = ((t1 - t0) > max_gap) & ~on_sample
-    return position, quaternion, in_span & ~in_gap
+def _orientation(poses: list[PoseSample], i: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Orientation between pose samples i and i + 1 at fractions s (slerp), (n, 4)."""
+    quat = np.array([p.quaternion for p in poses])
+    return slerp(quat[i], quat[i + 1], s)
 
 
 def estimate_clock_offset(
@@ -207,7 +225,7 @@ def estimate_clock_offset(
     max_offset = _check_scalar("max_offset", max_offset, positive=True)
     resolution = _check_scalar("resolution", resolution, positive=True)
     t, counts, _ = frames_to_arrays(frames)
-    tp, pos, _ = poses_to_arrays(poses)
+    tp, pos = pose_times_positions(poses)
     axis = np.asarray(press_axis, dtype=float)
     axis = axis / np.linalg.norm(axis)
     depth_p = pos @ axis  # grows as the finger moves into the object

@@ -6,13 +6,12 @@ reproduces the run's maps bit for bit.
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from palpate.core.io.mcap_writer import RecordingWriter
-from palpate.core.perception.streams import GroundTruth, PressRecording
+from palpate.core.perception.streams import GroundTruth, PressRecording, shifted_in_time
 
 
 class PressLog:
@@ -59,12 +58,10 @@ def _start_time(rec) -> float:
 
 
 def shift_recording(rec, dt: float):
-    """A copy of a PressRecording with every timestamp moved by ``dt`` seconds."""
+    """A copy of a PressRecording with every timestamp moved by ``dt`` seconds (the samples' arrays are shared)."""
     if dt == 0.0:
         return rec
-    frames = [replace(f, t=f.t + dt) for f in rec.frames]
-    poses = [replace(p, t=p.t + dt) for p in rec.poses]
     truth = None
     if rec.truth is not None:
         truth = GroundTruth(np.asarray(rec.truth.t) + dt, rec.truth.force, rec.truth.indentation, rec.truth.material)
-    return PressRecording(frames, poses, truth, dict(rec.meta))
+    return PressRecording(shifted_in_time(rec.frames, dt), shifted_in_time(rec.poses, dt), truth, dict(rec.meta))
