@@ -22,6 +22,7 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.probability import entropy_unchecked
 from palpate.core.planning.entropy_gain import disagreement, expected_gain
+from palpate.core.planning.expected_accuracy import expected_accuracy_gain
 from palpate.core.planning.incremental import GainCache
 from palpate.core.planning.map_views import (
     CERTAIN_FRACTION,
@@ -158,7 +159,9 @@ class InfoGain:
                                            temperature=self.belief_temperature)
             return expected_gain(grid, post, self.table(), self.max_depth)
         if self._accuracy_mode(grid):
-            return self._cache_for(grid).full(grid, post).copy()
+            return expected_accuracy_gain(grid, post, self.table(), reach=self.belief_reach,
+                                          correlation_cells=self.correlation_cells(grid),
+                                          temperature=self.belief_temperature, surprise=self.belief_surprise)
         return expected_gain(grid, post, self.table(), self.max_depth)
 
     def _cache_for(self, grid) -> GainCache:
