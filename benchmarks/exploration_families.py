@@ -141,22 +141,32 @@ def calibration_report(title: str, results: list[dict], rows: list[str]) -> dict
 
 
 def reliability_figure(path: str, tables: dict, title: str) -> None:
+    """Reliability diagram (fraction right against confidence per bin, marker area by cell count) and the cell
+    count per bin, one line per policy."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(5, 5))
+    fig, (ax, hist) = plt.subplots(2, 1, figsize=(5.5, 7), gridspec_kw={"height_ratios": [3, 1]}, sharex=True)
     ax.plot([0, 1], [0, 1], color="k", lw=0.6, ls="--", label="calibrated")
-    for row, t in tables.items():
+    width = 0.1 / (len(tables) + 1)
+    for i, (row, t) in enumerate(tables.items()):
         keep = t.count > 0
-        ax.plot(t.confidence[keep], t.accuracy[keep], marker="o", label=f"{row} (ECE {t.ece:.3f})")
-    ax.set_xlabel("confidence of the most probable material")
+        line, = ax.plot(t.confidence[keep], t.accuracy[keep], lw=0.8,
+                        label=f"{row} (ECE {t.ece:.3f}, {t.cells} cells)")
+        ax.scatter(t.confidence[keep], t.accuracy[keep], s=8 + 200 * t.count[keep] / t.count.max(),
+                   color=line.get_color())
+        centres = 0.5 * (t.edges[1:] + t.edges[:-1])
+        hist.bar(centres - 0.05 + (i + 1) * width, t.count, width=width, color=line.get_color())
     ax.set_ylabel("fraction right")
     ax.set_xlim(0.2, 1.0)
-    ax.set_ylim(0.0, 1.0)
+    ax.set_ylim(0.0, 1.02)
     ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7, loc="upper left")
+    hist.set_yscale("log")
+    hist.set_ylabel("cells per bin")
+    hist.set_xlabel("confidence of the most probable material (post-processed map)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
