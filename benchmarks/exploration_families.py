@@ -16,8 +16,9 @@ Offline (default), presses are answered from the memory's predicted outcomes for
 their maps' calibration: the expected calibration error (ECE) of the post-processed map's most probable material,
 pooled over cells and scenes at 20/35/50/100% of each scene's cells pressed, and a reliability figure (--figure).
 
---confused replaces the "firm" reference by a material almost as soft as "soft" (26 vs 20 kPa), so the memory
-confuses the two: info_gain should still degrade gracefully and stay the best policy.
+--confused makes the "firm" reference feel almost like "soft" (18.7 kPa, Poisson 0.4: E / (1 - nu^2) 1.3% above
+soft's), so the memory names the wrong one of the two in about a fifth of presses: info_gain should still degrade
+gracefully and stay the best policy.
 
 Run: .venv/bin/python benchmarks/exploration_families.py [--scenes N] [--split tuning|report|both] [--physics K]
      [--policies a,b] [--confused] [--figure PNG] [--json PATH]

@@ -13,6 +13,7 @@ with every cell pressed once (the attainable accuracy), and a run's presses are 
 
 from __future__ import annotations
 
+import hashlib
 import math
 import tempfile
 from dataclasses import dataclass
@@ -152,7 +153,9 @@ def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memo
 
 def felt_cells_cached(fs: FamilyScene) -> np.ndarray:
     """:func:`felt_cells` of a scene, kept in CACHE_DIR (a few ms per cell to compute)."""
-    path = CACHE_DIR / f"felt_{fs.seed}{'_confused' if fs.confused else ''}.npy"
+    # keyed on the materials too: a variant of the same layout (--confused) feels different
+    key = hashlib.sha1(repr(fs.materials).encode()).hexdigest()[:10]
+    path = CACHE_DIR / f"felt_{fs.seed}_{key}.npy"
     if path.is_file():
         got = np.load(path, allow_pickle=False)
         if got.shape == fs.grid_cells[::-1]:

@@ -46,8 +46,9 @@ FAMILIES = ("boxes", "oblique", "curved", "stripes", "dots", "nested", "patchwor
 TUNING_SEEDS = range(0, 100000)
 REPORT_SEEDS = range(100000, 200000)
 HEIGHT_MM = 40.0
-#: Young's modulus (kPa) of "firm" in the confused-memory variant: 1.3x soft, so presses on the two overlap.
-CONFUSED_FIRM_KPA = 26.0
+#: Young's modulus (kPa) of "firm" in the confused-memory variant: its plane-strain modulus E / (1 - nu^2) is 1.3%
+#: above soft's, so the memory trained on them names the wrong one of the two in about a fifth of presses.
+CONFUSED_FIRM_KPA = 18.7
 #: Bumped whenever a seed's scene changes (caches of derived data are keyed on it).
 GENERATOR_VERSION = 1
 
@@ -83,7 +84,7 @@ class FamilyScene:
                      for r in self.references)
 
     def with_confusion(self) -> FamilyScene:
-        """The same layout with "firm" (and its like-materials) made almost as soft as "soft", so the memory
+        """The same layout with "firm" (and its like-materials) made to feel almost like "soft", so the memory
         trained on them confuses the two (scene unchanged when it has no firm material)."""
         scale = CONFUSED_FIRM_KPA / next(e for n, e, _ in REFERENCES if n == "firm")
         mats = tuple((n, like, round(e * scale, 2) if like == "firm" else e, nu) for n, like, e, nu in self.materials)
