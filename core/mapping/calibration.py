@@ -1,8 +1,7 @@
 """Maps whose confidence can be trusted: what one press is allowed to claim, and how to measure calibration.
 
 A haptic memory's Gaussians are far apart, so a press's posterior is ~0.9999 for one material even where the press
-straddled a wall or blurred a one-cell feature and read the wrong material (about 1 press in 17 on scenes with
-walls anywhere, 15 mm cells). Fused as it is, such a press makes a map cell (and, through eq. 6.15, its
+straddled a wall or blurred a one-cell feature and read the wrong material. Fused as it is, such a press makes a map cell (and, through eq. 6.15, its
 neighbours) certain and wrong. :func:`press_evidence` tempers what a press contributes:
 
     p  proportional to  posterior ** temperature           (the memory's likelihood tempered; uniform prior)
@@ -79,8 +78,8 @@ class MapCalibration:
 
 #: The seeds' maps: a press fuses its posterior as it is, eq. 6.15 copies its neighbours with full confidence.
 SEED_CALIBRATION = MapCalibration()
-#: What a scenario uses unless it says otherwise: chosen on benchmarks/exploration_families.py's tuning seeds with
-#: physics presses (a press misreads about 1 time in 17 where walls run anywhere under 10-20 mm cells).
+#: What a scenario uses unless it says otherwise: chosen with physics presses on the tuning seeds of
+#: benchmarks/exploration_families.py (walls anywhere under 10-20 mm cells), whose report-only seeds measure it.
 DEFAULT_CALIBRATION = MapCalibration(press_reliability=0.94, extrapolation_certainty=0.95)
 
 

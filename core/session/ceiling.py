@@ -1,7 +1,7 @@
 """Attainable accuracy: what a full raster reaches with the scene's own physics, and how fast a run got near it.
 
-A press is ~11 mm across at palpation depth, so it blurs walls and one-cell features: on 10 mm cells even a press
-on every cell may leave 5-12% of the cells wrong, and "95% right" is then out of reach for any policy. The ceiling
+A press is ~11 mm across at palpation depth, so it blurs walls and one-cell features: on cells of about that size
+even a press on every cell leaves some cells wrong, and "95% right" may be out of reach for any policy. The ceiling
 is measured, not modelled: every column of the map is pressed once, in raster order, by a fresh simulated source
 (its own seed), and the post-processed map is scored like the run's. A run that itself pressed every column in
 raster order is its own ceiling.
