@@ -2,7 +2,8 @@
 
 A haptic memory's Gaussians are far apart, so a press's posterior is ~0.9999 for one material even where the press
 straddled a wall or blurred a one-cell feature and read the wrong material. Fused as it is, such a press makes a
-map cell (and, through eq. 6.15, its neighbours) certain and wrong. :func:`press_evidence` tempers what a press contributes:
+map cell (and, through eq. 6.15, its neighbours) certain and wrong. :func:`press_evidence` tempers what a press
+contributes:
 
     p  proportional to  posterior ** temperature           (the memory's likelihood tempered; uniform prior)
     p  <-  reliability * p + (1 - reliability) / M        (a press misreads, for reasons the memory cannot see,
