@@ -44,3 +44,17 @@ class RecordingError(PalpateError, ValueError):
 
 class NotFittedError(ValidationError):
     """A model was asked to predict before it was fitted (or loaded)."""
+
+
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP reached a process that unwinds on them (a sweep ending its workers on the way out).
+
+    Like KeyboardInterrupt, not an Exception: nothing that catches errors swallows it.
+
+    Attributes:
+        signum: the signal's number (the command exits with 128 + signum).
+    """
+
+    def __init__(self, signum: int, name: str):
+        super().__init__(name)
+        self.signum = signum

@@ -25,7 +25,6 @@ on the pad plane (the pad is wrapped onto the sphere by arc length), and average
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import ndtr
 
 from palpate.core.errors import SimulationDiverged, ValidationError
 from palpate.core.session.sources import PressTarget
@@ -75,6 +74,10 @@ def sensel_pressure(pad_xy: np.ndarray, forces: np.ndarray, fingertip: Fingertip
         fingertip: pad layout.
         skin_sigma: standard deviation of the skin's spreading kernel, m.
     """
+    # scipy.special costs ~0.3 s to import; only a flex press needs it, so every CLI start and sweep worker that
+    # never runs one does not pay for it
+    from scipy.special import ndtr
+
     centres = fingertip.sensel_centres().reshape(-1, 2)
     if len(forces) == 0:
         return np.zeros((fingertip.rows, fingertip.cols))

@@ -103,7 +103,7 @@ def test_bad_folders_are_rejected_with_the_key(tmp_path, rng):
     with pytest.raises(ValidationError, match="does not match manifest shape"):
         HapticMaterialMap.read(tmp_path)
     mpath.write_text("{not json")
-    with pytest.raises(ValidationError, match="invalid JSON"):
+    with pytest.raises(ValidationError, match="manifest.json:1: not valid JSON"):
         HapticMaterialMap.read(tmp_path)
 
 

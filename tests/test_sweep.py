@@ -70,7 +70,8 @@ def _precreate_finished(out: Path, variant) -> float:
     """A finished run of ``variant`` that a rerun must keep (its summary carries a marker)."""
     run = out / "runs" / variant.id
     run.mkdir(parents=True)
-    (run / "variant.json").write_text(json.dumps({"id": variant.id, "overrides": variant.overrides}))
+    (run / "variant.json").write_text(json.dumps({"id": variant.id, "overrides": variant.overrides,
+                                                  "digest": variant.digest}))
     (run / "summary.json").write_text(json.dumps({"marker": "kept", "objects": [], "crossval": None}))
     return (run / "summary.json").stat().st_mtime_ns
 
@@ -145,3 +146,122 @@ def test_missing_ray_is_a_clear_error(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray now raises ImportError
     with pytest.raises(ValidationError, match="Ray is not installed"):
         run_sweep(load_sweep(TINY), tmp_path, ray="auto", log=lambda s: None)
+
+
+# ---- safety: stale results, a second sweep, killed sweeps ------------------------------------------------
+
+def _own_sweep(tmp_path: Path, seeds=(1, 2)) -> Path:
+    """A two-variant sweep over a private copy of the tiny base scenario (so the test may edit the base)."""
+    base = tmp_path / "base.toml"
+    base.write_text((TINY.parent / "tiny_base.toml").read_text())
+    path = tmp_path / "sweep.toml"
+    path.write_text('[sweep]\nname = "own"\nbase = "base.toml"\n'
+                    f'[[axes]]\nkey = "scenario.seed"\nvalues = {list(seeds)}\n')
+    return path
+
+
+def test_a_changed_base_scenario_is_rerun_not_reused(tmp_path):
+    path = _own_sweep(tmp_path)
+    out = tmp_path / "out"
+    first = run_sweep(load_sweep(path), out, workers=1, log=lambda s: None)
+    assert [r["status"] for r in first] == ["done", "done"]
+    assert [r["status"] for r in run_sweep(load_sweep(path), out, workers=1, log=lambda s: None)] == \
+        ["done (earlier)", "done (earlier)"]
+    base = tmp_path / "base.toml"
+    base.write_text(base.read_text().replace("budget = 3", "budget = 2"))
+    lines: list[str] = []
+    again = run_sweep(load_sweep(path), out, workers=1, log=lines.append)
+    assert [r["status"] for r in again] == ["done", "done"]
+    assert "2 finished earlier from another base scenario or input files: rerun" in lines[0]
+    assert [r["presses"] for r in again] == [2, 2] and [r["presses"] for r in first] == [3, 3]
+    record = json.loads((out / "runs" / again[0]["variant"] / "variant.json").read_text())
+    assert record["digest"] == load_sweep(path).variants[0].digest != ""
+
+
+def test_a_second_sweep_on_the_same_folder_is_refused(tmp_path):
+    from palpate.core.session.sweep import sweep_lock
+
+    path = _own_sweep(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    with sweep_lock(out), pytest.raises(ValidationError, match=r"another palpate sweep \(pid \d+\) is running"):
+        run_sweep(load_sweep(path), out, workers=1, log=lambda s: None)
+    assert not (out / "runs").exists()
+    assert [r["status"] for r in run_sweep(load_sweep(path), out, workers=1, log=lambda s: None)] == ["done", "done"]
+
+
+def test_a_folder_of_another_sweep_or_not_a_sweep_is_refused(tmp_path):
+    path = _own_sweep(tmp_path)
+    out = tmp_path / "out"
+    run_sweep(load_sweep(path), out, workers=1, log=lambda s: None)
+    with pytest.raises(ValidationError, match="holds the results of sweep 'own', not 't'"):
+        run_sweep(load_sweep(_sweep_file(tmp_path, "")), out, workers=1, log=lambda s: None)
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "thesis.pdf").write_bytes(b"%PDF")
+    with pytest.raises(ValidationError, match="not empty and holds no palpate output"):
+        run_sweep(load_sweep(path), other, workers=1, log=lambda s: None)
+
+
+def _children(pid: int) -> set[int]:
+    out = set()
+    for task in Path(f"/proc/{pid}/task").glob("*/children"):
+        out.update(int(p) for p in task.read_text().split())
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="reads worker pids from /proc (Linux)")
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_workers_end_with_a_killed_sweep_and_release_its_stdout(tmp_path, sig):
+    path = _own_sweep(tmp_path, seeds=list(range(1, 9)))
+    out = tmp_path / "out"
+    cli = "import sys; from palpate.core.cli import main; sys.exit(main())"
+    proc = subprocess.Popen([sys.executable, "-c", cli, "sweep", str(path), "--out", str(out), "--workers", "2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True,
+                            env=dict(os.environ, MPLBACKEND="Agg"))
+    deadline = time.monotonic() + 120
+    workers: set[int] = set()
+    while time.monotonic() < deadline and proc.poll() is None:
+        workers = _children(proc.pid)
+        if len(workers) == 2 and len(list(out.glob("runs/*/variant.json"))) >= 2:
+            break
+        time.sleep(0.02)
+    assert len(workers) == 2, "the sweep did not start two workers"
+    os.kill(proc.pid, sig)  # the parent only: not its process group
+    # the pipe reaches its end only when no worker holds it any more (a `| tee` would otherwise hang)
+    output, _ = proc.communicate(timeout=60)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and any(_alive(w) for w in workers):
+        time.sleep(0.05)
+    assert not any(_alive(w) for w in workers), "a worker outlived its sweep"
+    finished = set(out.glob("runs/*/summary.json"))
+    time.sleep(1.0)
+    assert set(out.glob("runs/*/summary.json")) == finished, "a run finished after its sweep was killed"
+    assert len(finished) < 8
+    if sig == signal.SIGTERM:
+        assert proc.returncode == 128 + signal.SIGTERM
+        assert b"Traceback" not in output and output.strip().endswith(b"palpate: terminated by SIGTERM")
+    # the lock died with the sweep: the next one resumes and runs only what is missing
+    rows = run_sweep(load_sweep(path), out, workers=2, log=lambda s: None)
+    assert sum(r["status"] == "done (earlier)" for r in rows) == len(finished)
+    assert all(r["status"].startswith("done") for r in rows)
+
+
+def test_the_digest_follows_the_files_a_variant_reads(tmp_path):
+    path = _own_sweep(tmp_path)
+    base = tmp_path / "base.toml"
+    base.write_text(base.read_text().replace("[training]", '[training]\nmemory = "mem.json"'))
+    (tmp_path / "mem.json").write_text('{"a": 1}')
+    first = load_sweep(path).variants
+    assert first[0].digest != first[1].digest  # the seeds differ
+    assert [v.digest for v in load_sweep(path).variants] == [v.digest for v in first]
+    (tmp_path / "mem.json").write_text('{"a": 2}')
+    assert all(a.digest != b.digest for a, b in zip(first, load_sweep(path).variants, strict=True))

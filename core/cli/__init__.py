@@ -2,17 +2,24 @@
 
 Each command group lives next to the code it drives and registers itself through the entry-point group
 ``palpate.commands`` (a function ``register(subparsers)``), so that core never imports sim or hardware.
-A command's handler returns an exit code; palpate errors become a one-line message and exit code 2.
+A command's handler returns an exit code. Every error a user can cause (a palpate error, a file that cannot be
+read or written) is one line on stderr naming the file, key or line, with exit code 2; anything else is a bug,
+reported in one line with exit code 1. ``--debug`` shows the traceback instead. Exit codes: 0 done, 1 failed (a
+bug, or a sweep with failed variants), 2 a user error, 130 interrupted, 143 or 129 ended by SIGTERM or SIGHUP (a
+sweep ends its workers first), 141 the reader of stdout went away.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from importlib.metadata import entry_points
 
 from palpate.core import __version__
-from palpate.core.errors import PalpateError
+from palpate.core.errors import PalpateError, Terminated
+from palpate.core.limits import ENV as LIMITS_ENV
+from palpate.core.limits import LIMITS, set_limit
 
 COMMANDS_GROUP = "palpate.commands"
 
@@ -24,6 +31,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Haptic softness perception by press-and-release palpation: simulate, record, perceive, map.",
     )
     parser.add_argument("--version", action="version", version=f"palpate {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="show the full traceback of an error (also: environment variable PALPATE_DEBUG=1)")
+    parser.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
+                        help="raise (or lower) a limit on what files may make palpate read, for this command and "
+                        f"the processes it starts; names: {', '.join(LIMITS)} (docs/limits.md)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for ep in sorted(entry_points(group=COMMANDS_GROUP), key=lambda e: e.name):
@@ -50,14 +62,59 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``palpate`` console script. Returns the process exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    debug = args.debug or os.environ.get("PALPATE_DEBUG", "") not in ("", "0")
+    saved = os.environ.get(LIMITS_ENV)
     try:
+        for assignment in args.limit:
+            set_limit(assignment)
         return int(args.func(args) or 0)
-    except PalpateError as exc:
-        print(f"palpate: error: {exc}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
         print("palpate: interrupted", file=sys.stderr)
         return 130
+    except Terminated as exc:
+        print(f"palpate: terminated by {exc}", file=sys.stderr)
+        return 128 + exc.signum
+    except BrokenPipeError:
+        # the reader of our output (``| head``) has gone: say nothing more, and let no later flush fail
+        _silence_stdout()
+        return 141
+    except Exception as exc:
+        if debug:
+            raise
+        code, line = error_line(exc)
+        print(line, file=sys.stderr)
+        return code
+    finally:  # --limit holds for this command and the processes it started, not for a caller of main()
+        if saved is None:
+            os.environ.pop(LIMITS_ENV, None)
+        else:
+            os.environ[LIMITS_ENV] = saved
+
+
+def error_line(exc: BaseException) -> tuple[int, str]:
+    """The exit code and the one line a user sees for an exception (module docstring)."""
+    if isinstance(exc, PalpateError):
+        return 2, f"palpate: error: {_one_line(str(exc))}"
+    if isinstance(exc, OSError) and exc.strerror:
+        where = f"{exc.filename}: " if exc.filename else ""
+        return 2, f"palpate: error: {where}{exc.strerror}"
+    if isinstance(exc, MemoryError):
+        return 2, ("palpate: error: out of memory; a file or option asks for more than this machine has "
+                   "(see docs/limits.md)")
+    return 1, (f"palpate: internal error: {type(exc).__name__}: {_one_line(str(exc))[:300]} (a bug in palpate: "
+               "please report it; rerun with --debug for the traceback)")
+
+
+def _one_line(text: str) -> str:
+    return "; ".join(line.strip() for line in text.splitlines() if line.strip())
+
+
+def _silence_stdout() -> None:
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

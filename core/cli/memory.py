@@ -13,6 +13,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.perception.crossval import leave_one_out
 from palpate.core.perception.memory import DEFAULT_MIN_EIG, HapticMemory
 from palpate.core.perception.params_table import read_params_csv
+from palpate.core.session.output_guard import check_output_file
 
 CSV_HELP = "per-press parameters CSV: header with material,n1,n2,a1,a2 (any order, extra columns ignored)"
 
@@ -28,6 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         description="Learn a haptic memory from a per-press parameters CSV and save it as JSON.")
     t.add_argument("params", type=Path, help=CSV_HELP)
     t.add_argument("-o", "--output", type=Path, required=True, help="memory JSON file to write")
+    t.add_argument("--force", action="store_true", help="overwrite an existing --output (never the params CSV)")
     _model_options(t)
     t.set_defaults(func=cmd_train)
 
@@ -44,6 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                     "regularisation and training size.")
     s.add_argument("memory", type=Path, help="memory JSON file written by 'palpate memory train'")
     s.add_argument("--json", action="store_true", help="print the memory's parameters as JSON")
+    s.add_argument("--no-audit", action="store_true",
+                   help="show a memory whose stored parameters do not match a re-fit of its training data (an "
+                   "edited or corrupted file) instead of refusing it")
     s.set_defaults(func=cmd_show)
 
 
@@ -72,6 +77,15 @@ def _memory_kwargs(args: argparse.Namespace) -> dict:
     return kwargs
 
 
+def _naming(path: Path, learn):
+    """``learn()``, with a model error (too few presses of a material, a singular covariance) naming the table
+    whose rows caused it."""
+    try:
+        return learn()
+    except ValidationError as exc:
+        raise ValidationError(f"{path}: {exc}") from None
+
+
 def _table(header: list[str], rows: list[list[str]]) -> str:
     """Right-aligned columns except the first, separated by two spaces."""
     cells = [header] + rows
@@ -84,8 +98,9 @@ def _table(header: list[str], rows: list[list[str]]) -> str:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    check_output_file(args.output, inputs=[args.params], force=args.force, option="--output")
     params, labels, _ = read_params_csv(args.params)
-    mem = HapticMemory(**_memory_kwargs(args)).fit(params, labels)
+    mem = _naming(args.params, lambda: HapticMemory(**_memory_kwargs(args)).fit(params, labels))
     mem.save(args.output)
     counts = {m: labels.count(m) for m in mem.materials}
     print(f"trained on {len(labels)} presses of {len(mem.materials)} materials "
@@ -99,7 +114,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def cmd_crossval(args: argparse.Namespace) -> int:
     params, labels, _ = read_params_csv(args.params)
-    cv = leave_one_out(params, labels, **_memory_kwargs(args))
+    cv = _naming(args.params, lambda: leave_one_out(params, labels, **_memory_kwargs(args)))
     if args.json:
         print(json.dumps(cv.to_dict(), indent=1))
         return 0
@@ -120,7 +135,7 @@ def cmd_crossval(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
-    mem = HapticMemory.load(args.memory)
+    mem = HapticMemory.load(args.memory, audit=not args.no_audit)
     counts = [mem.training_labels.count(m) for m in mem.materials]
     if args.json:
         doc = mem.to_dict()

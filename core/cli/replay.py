@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -19,7 +20,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("recording", type=Path, help="MCAP recording")
     p.add_argument("--memory", type=Path, required=True, help="trained haptic memory (JSON)")
-    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--out", type=Path, required=True,
+                   help="output folder: new or empty, or an earlier replay's with --force")
+    p.add_argument("--force", action="store_true", help="replace an earlier replay in --out")
+    p.add_argument("--no-audit", action="store_true",
+                   help="accept a memory whose stored parameters do not match a re-fit of its training data")
     p.add_argument("--memory-layers", type=Path, default=None,
                    help="per-voxel-layer memories (default: memory_layers.json beside --memory, if present)")
     p.add_argument("--cell-mm", type=float, default=10.0,
@@ -37,16 +42,17 @@ def _replay(args: argparse.Namespace) -> int:
     from palpate.core.session.progress import Progress
     from palpate.core.session.replay import replay_recording
 
-    if not args.cell_mm > 0:
-        raise ValidationError(f"--cell-mm must be > 0, got {args.cell_mm}")
-    memory = HapticMemory.load(args.memory)
+    if not (math.isfinite(args.cell_mm) and args.cell_mm > 0):
+        raise ValidationError(f"--cell-mm must be a finite number > 0, got {args.cell_mm}")
+    memory = HapticMemory.load(args.memory, audit=not args.no_audit)
     layers_file = args.memory_layers or args.memory.with_name("memory_layers.json")
     layers = None
     if args.memory_layers is not None or layers_file.is_file():
         layers = LayeredMemory.load(memory, layers_file)
     summary = replay_recording(args.recording, memory, args.out, layers=layers, cell_size=args.cell_mm * 1e-3,
                                progress=Progress(enabled=not (args.quiet or args.json)),
-                               figures=not args.no_figures)
+                               figures=not args.no_figures, force=args.force,
+                               inputs=[args.memory, layers_file if layers is not None else None])
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")

@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from palpate.core.names import file_stem
 from palpate.core.world.actuator_kinds import actuator_names
 
 
@@ -19,7 +20,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "figures/ (PNG) and haptic_materials/ (seed 002 export). Progress goes to stderr.",
     )
     p.add_argument("scenario", type=Path, help="scenario file (TOML), e.g. scenarios/thesis_ch6.toml")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default: runs/<scenario name>)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder, new or empty, or an earlier run's with --force (default: runs/<scenario name>)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an earlier run in --out (its summary, maps, figures, exports) and an existing "
+                   "--record file; inputs are never overwritten")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--json", action="store_true", help="print summary.json to stdout instead of a text report")
     p.add_argument("--source", default=None,
@@ -46,11 +51,12 @@ def _run(args: argparse.Namespace) -> int:
     from palpate.core.world.scenario_file import load_scenario
 
     scenario = with_actuator_options(load_scenario(args.scenario), args)
-    out = args.out or Path("runs") / scenario.name
+    out = args.out or Path("runs") / file_stem(scenario.name)
     progress = Progress(enabled=not (args.quiet or args.json))
     progress.message(f"palpate run {scenario.name}: fidelity {scenario.fidelity}, seed {scenario.seed}, "
                      f"actuator {scenario.actuator.kind} -> {out}")
-    summary = run_scenario(scenario, out, progress=progress, source=args.source, record=args.record)
+    summary = run_scenario(scenario, out, progress=progress, source=args.source, record=args.record,
+                           force=args.force)
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")

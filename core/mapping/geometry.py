@@ -13,7 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from palpate.core import limits
 from palpate.core.errors import ValidationError
+from palpate.core.files import brief
 from palpate.core.mapping.probability import check_base
 
 MAP_KINDS = ("grid2d", "voxel")
@@ -24,11 +26,11 @@ def check_materials(materials) -> list[str]:
         raise ValidationError("materials must be a list of names, not a single string")
     names = list(materials)
     if len(names) < 2:
-        raise ValidationError(f"a map needs at least 2 materials, got {names!r}")
+        raise ValidationError(f"a map needs at least 2 materials, got {brief(names)}")
     if not all(isinstance(n, str) and n for n in names):
-        raise ValidationError(f"materials must be non-empty strings, got {names!r}")
+        raise ValidationError(f"materials must be non-empty strings, got {brief(names)}")
     if len(set(names)) != len(names):
-        raise ValidationError(f"materials must be unique, got {names!r}")
+        raise ValidationError(f"materials must be unique, got {brief(names)}")
     return names
 
 
@@ -36,9 +38,9 @@ def check_positive(value, name: str) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise ValidationError(f"{name} must be a number > 0, got {value!r}") from None
+        raise ValidationError(f"{name} must be a number > 0, got {brief(value)}") from None
     if not (np.isfinite(v) and v > 0):
-        raise ValidationError(f"{name} must be a finite number > 0, got {value!r}")
+        raise ValidationError(f"{name} must be a finite number > 0, got {brief(value)}")
     return v
 
 
@@ -46,9 +48,9 @@ def check_finite_tuple(value, n: int, name: str) -> tuple[float, ...]:
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError):
-        raise ValidationError(f"{name} must be {n} numbers, got {value!r}") from None
+        raise ValidationError(f"{name} must be {n} numbers, got {brief(value)}") from None
     if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise ValidationError(f"{name} must be {n} finite numbers, got {value!r}")
+        raise ValidationError(f"{name} must be {n} finite numbers, got {brief(value)}")
     return tuple(float(v) for v in arr)
 
 
@@ -56,10 +58,10 @@ def check_shape(shape, n: int, name: str) -> tuple[int, ...]:
     try:
         vals = tuple(shape)
     except TypeError:
-        raise ValidationError(f"{name} must be {n} positive integers, got {shape!r}") from None
+        raise ValidationError(f"{name} must be {n} positive integers, got {brief(shape)}") from None
     if len(vals) != n or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v > 0
                                  for v in vals):
-        raise ValidationError(f"{name} must be {n} positive integers, got {shape!r}")
+        raise ValidationError(f"{name} must be {n} positive integers, got {brief(shape)}")
     return tuple(int(v) for v in vals)
 
 
@@ -113,6 +115,8 @@ class MapGeometry:
         object.__setattr__(self, "cell_size", check_positive(self.cell_size, "cell_size"))
         what = "shape (nx, ny, nz)" if self.kind == "voxel" else "shape (nx, ny)"
         object.__setattr__(self, "shape", check_shape(self.shape, 3 if self.kind == "voxel" else 2, what))
+        limits.check("map_cells", f"a map of shape {list(self.shape)}: its cell count", math.prod(self.shape))
+        limits.check("materials", "a map's materials", len(self.materials))
         object.__setattr__(self, "entropy_base", check_base(self.entropy_base))
         if self.kind == "voxel":
             if self.z_top is None:

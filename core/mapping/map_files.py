@@ -6,12 +6,16 @@ Both are validated on read; every error names the file and the key.
 from __future__ import annotations
 
 import json
+import math
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
 
+from palpate.core import files, limits
 from palpate.core.errors import ValidationError
+from palpate.core.files import brief
 from palpate.core.mapping.geometry import check_finite_tuple, check_positive
 from palpate.core.mapping.probability import check_base, first_index
 
@@ -43,12 +47,9 @@ def read_map_files(path, kind: str) -> tuple[dict, np.ndarray, np.ndarray]:
     if npz.suffix != ".npz":
         raise ValidationError(f"map file must end in .npz, got {npz}")
     for f in (npz, sidecar):
-        if not f.is_file():
+        if not f.exists():
             raise ValidationError(f"map file {f} does not exist (a map is an .npz with a .json beside it)")
-    try:
-        meta = json.loads(sidecar.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValidationError(f"{sidecar}: not valid JSON ({exc})") from None
+    meta = files.read_json(sidecar, "map sidecar")
     if not isinstance(meta, dict):
         raise ValidationError(f"{sidecar}: expected a JSON object at top level, got {type(meta).__name__}")
     required = ("format", "version", "kind", "materials", "shape", "cell_size_m", "origin_m", "base", "p_min")
@@ -56,28 +57,14 @@ def read_map_files(path, kind: str) -> tuple[dict, np.ndarray, np.ndarray]:
         if key not in meta:
             raise ValidationError(f"{sidecar}: missing key {key!r}")
     if meta["format"] != FORMAT_NAME:
-        raise ValidationError(f"{sidecar}: key 'format' must be {FORMAT_NAME!r}, got {meta['format']!r}")
+        raise ValidationError(f"{sidecar}: key 'format' must be {FORMAT_NAME!r}, got {brief(meta['format'])}")
     if meta["version"] != FORMAT_VERSION:
-        raise ValidationError(f"{sidecar}: key 'version' is {meta['version']!r}; this palpate reads version "
+        raise ValidationError(f"{sidecar}: key 'version' is {brief(meta['version'])}; this palpate reads version "
                               f"{FORMAT_VERSION}")
     if meta["kind"] != kind:
-        raise ValidationError(f"{sidecar}: key 'kind' is {meta['kind']!r}, expected {kind!r}")
-    try:
-        arrays = np.load(npz, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise ValidationError(f"{npz}: not a readable NPZ file ({exc})") from None
-    with arrays:
-        for key in ("probabilities", "explored"):
-            if key not in arrays.files:
-                raise ValidationError(f"{npz}: missing array {key!r} (has {arrays.files})")
-        extra = sorted(set(arrays.files) - {"probabilities", "explored"})
-        if extra:
-            raise ValidationError(f"{npz}: unexpected arrays {extra}")
-        try:
-            p = arrays["probabilities"]
-            explored = arrays["explored"]
-        except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
-            raise ValidationError(f"{npz}: cannot read arrays ({exc})") from None
+        raise ValidationError(f"{sidecar}: key 'kind' is {brief(meta['kind'])}, expected {kind!r}")
+    arrays = read_npz(npz, {"probabilities": ("<f8", "<f4"), "explored": ("|b1",)})
+    p, explored = arrays["probabilities"], arrays["explored"]
     if p.dtype.kind != "f":
         raise ValidationError(f"{npz}: 'probabilities' must be a float array, got {p.dtype}")
     if explored.dtype != bool:
@@ -95,6 +82,45 @@ def read_map_files(path, kind: str) -> tuple[dict, np.ndarray, np.ndarray]:
     if not isinstance(meta["materials"], list) or p.shape[-1] != len(meta["materials"]):
         raise ValidationError(f"{sidecar}: key 'materials' must list the {p.shape[-1]} materials of {npz}")
     return meta, p, explored
+
+
+def read_npz(path: Path, expected: dict[str, tuple[str, ...]]) -> dict[str, np.ndarray]:
+    """The arrays of an NPZ file holding exactly the arrays ``expected`` (name -> allowed dtype strings).
+
+    Sizes are checked before anything is decoded: the file's size, and each array's size as its ``.npy`` header
+    declares it (shape x item size), against the limit ``npz_mb``; an array is then read by numpy, which reads no
+    more than its header declares, so a member that inflates to gigabytes is never inflated. Never unpickles.
+    """
+    files.regular_file(path, "map NPZ")
+    limits.check("npz_mb", f"{path}: file size", path.stat().st_size)
+    out = {}
+    try:
+        with zipfile.ZipFile(path) as zf:
+            names = {n.removesuffix(".npy"): n for n in zf.namelist()}
+            missing = sorted(set(expected) - set(names))
+            extra = sorted(set(names) - set(expected))
+            if missing:
+                raise ValidationError(f"{path}: missing array {missing[0]!r} (has {brief(sorted(names))})")
+            if extra:
+                raise ValidationError(f"{path}: unexpected arrays {brief(extra)}")
+            for name, member in names.items():
+                with zf.open(member) as f:
+                    version = np.lib.format.read_magic(f)
+                    reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                              else np.lib.format.read_array_header_2_0)
+                    shape, _, dtype = reader(f)
+                if dtype.str not in expected[name]:
+                    kinds = " or ".join("boolean" if d == "|b1" else f"float{8 * int(d[-1])}" for d in expected[name])
+                    raise ValidationError(f"{path}: array {name!r} must be a {kinds} array, got {dtype}")
+                limits.check("npz_mb", f"{path}: array {name!r} of shape {list(shape)}: decoded size",
+                             math.prod(shape) * dtype.itemsize)
+                with zf.open(member) as f:
+                    out[name] = np.lib.format.read_array(f, allow_pickle=False)
+    except ValidationError:
+        raise
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, RuntimeError, zlib.error) as exc:
+        raise ValidationError(f"{path}: not a readable NPZ file ({brief(str(exc), 120)})") from None
+    return out
 
 
 def meta_value(meta: dict, key: str, sidecar: Path, check):

@@ -16,12 +16,14 @@ A layer no training press reached gives no evidence.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from palpate.core import files, limits
 from palpate.core.errors import FitError, ValidationError
 from palpate.core.perception.fit import fit_samples
 from palpate.core.perception.memory import HapticMemory
@@ -119,20 +121,31 @@ class LayeredMemory:
     @classmethod
     def load(cls, full: HapticMemory, path: str | Path) -> LayeredMemory:
         """Read :meth:`save`'s file back around the whole-press memory ``full``."""
-        try:
-            doc = json.loads(Path(path).read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise ValidationError(f"{path}: cannot read layered memory: {exc}") from None
+        doc = files.read_json(path, "layered memory")
         if not isinstance(doc, Mapping) or doc.get("format") != FORMAT_NAME or doc.get("version") != FORMAT_VERSION:
             raise ValidationError(f"{path}: key 'format' must be {FORMAT_NAME!r} version {FORMAT_VERSION}")
-        try:
-            layers = tuple(d if d is None or isinstance(d, str)
-                           else HapticMemory.from_dict(d, source=f"{path}: layers[{i}]")
-                           for i, d in enumerate(doc["layers"]))
-            cell = float(doc["cell_size_m"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValidationError(f"{path}: missing or malformed key {exc}") from None
-        return cls(full, layers, cell)
+        raw_layers, cell = doc.get("layers"), doc.get("cell_size_m")
+        if not isinstance(raw_layers, list) or not raw_layers:
+            raise ValidationError(f"{path}: key 'layers' must be a non-empty list (a memory, a material name or "
+                                  "null per layer)")
+        limits.check("map_cells", f"{path}: key 'layers': layer count", len(raw_layers))
+        if isinstance(cell, bool) or not isinstance(cell, (int, float)) or not (math.isfinite(cell) and cell > 0):
+            raise ValidationError(f"{path}: key 'cell_size_m' must be a finite number > 0, got {files.brief(cell)}")
+        layers = []
+        for i, d in enumerate(raw_layers):
+            if d is not None and not isinstance(d, (str, Mapping)):
+                raise ValidationError(f"{path}: key 'layers[{i}]' must be a memory, a material name or null, got "
+                                      f"{files.brief(d)}")
+            if isinstance(d, str) and d not in full.materials:
+                raise ValidationError(f"{path}: key 'layers[{i}]' names {files.brief(d)}, not a material of the "
+                                      f"memory {list(full.materials)}")
+            if isinstance(d, Mapping):
+                d = HapticMemory.from_dict(d, source=f"{path}: layers[{i}]")
+                if not set(d.materials) <= set(full.materials):
+                    raise ValidationError(f"{path}: key 'layers[{i}]' judges materials {list(d.materials)}, not all "
+                                          f"in the memory's {list(full.materials)}")
+            layers.append(d)
+        return cls(full, tuple(layers), float(cell))
 
 
 def train_layered_memory(full: HapticMemory, training: Mapping[str, Sequence[PressResult]], cell: float,

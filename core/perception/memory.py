@@ -31,6 +31,8 @@ from palpate.core.perception.params_table import read_params_csv, rows_to_params
 #: Fewest presses per material: a 2-D covariance from two points is always singular.
 MIN_SAMPLES = 3
 DEFAULT_MIN_EIG = 1e-6
+#: The recovery an audit error names: a memory that fails its audit can still be read on purpose.
+NO_AUDIT = "to use it anyway: --no-audit on palpate memory show or palpate replay, audit=False in Python"
 
 
 def _check_settings(materials, min_eig, ddof) -> list[str] | None:
@@ -283,12 +285,12 @@ class HapticMemory:
             try:
                 ref = mem.refit()
             except ValidationError as exc:
-                raise ValidationError(f"{source}: key 'training' cannot be re-fitted: {exc}") from None
+                raise ValidationError(f"{source}: key 'training' cannot be re-fitted: {exc} ({NO_AUDIT})") from None
             for key in ("means_N", "covs_N", "means_A", "covs_A"):
                 if not np.allclose(getattr(ref, key), getattr(rec, key), rtol=1e-9, atol=0.0):
                     raise ValidationError(
                         f"{source}: key '{key}' does not match a re-fit of key 'training' (ddof={rec.ddof}); the "
-                        "file was edited or corrupted (load with audit=False to accept it)"
+                        f"file was edited or corrupted ({NO_AUDIT})"
                     )
         return mem
 

@@ -7,7 +7,6 @@ arrays, no model); :class:`~palpate.core.perception.memory.HapticMemory` builds 
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -15,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core import files, limits
 from palpate.core.errors import ValidationError
 from palpate.core.perception.gaussian import cholesky_checked
 
@@ -40,22 +40,8 @@ class MemoryRecord:
 
 
 def read_json(path: str | Path) -> dict:
-    """Decode a memory file; ValidationError naming the file (and line) for unreadable or non-JSON content."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ValidationError(f"{path}: cannot read haptic memory: {exc.strerror or exc}") from None
-    except UnicodeDecodeError:
-        raise ValidationError(f"{path}: not a UTF-8 JSON haptic memory") from None
-
-    def _no_constants(name):
-        raise ValidationError(f"{path}: contains {name}; expected finite numbers only")
-
-    try:
-        return json.loads(text, parse_constant=_no_constants)
-    except json.JSONDecodeError as exc:
-        raise ValidationError(f"{path}:{exc.lineno}: not valid JSON: {exc.msg}") from None
+    """Decode a memory file (bounded, see :mod:`palpate.core.files`); ValidationError naming the file (and line)."""
+    return files.read_json(path, "haptic memory")
 
 
 def _get(doc: Mapping, key: str, source: str):
@@ -87,7 +73,8 @@ def _regularisation(reg, materials: list[str], source: str) -> dict[str, dict[st
         for part in ("N", "A"):
             v = entry[part]
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValidationError(f"{source}: key 'regularisation.{name}.{part}' is {v!r}, expected a number >= 0")
+                raise ValidationError(f"{source}: key 'regularisation.{name}.{part}' is {files.brief(v)}, expected "
+                                      "a number >= 0")
         out[name] = {"N": float(entry["N"]), "A": float(entry["A"])}
     return out
 
@@ -98,24 +85,26 @@ def parse_memory(doc, source: str = "<memory>") -> MemoryRecord:
         raise ValidationError(f"{source}: expected a JSON object, got {type(doc).__name__}")
     fmt = _get(doc, "format", source)
     if fmt != FORMAT_NAME:
-        raise ValidationError(f"{source}: key 'format' is {fmt!r}, expected {FORMAT_NAME!r}")
+        raise ValidationError(f"{source}: key 'format' is {files.brief(fmt)}, expected {FORMAT_NAME!r}")
     version = _get(doc, "version", source)
     if version != FORMAT_VERSION:
-        raise ValidationError(f"{source}: key 'version' is {version!r}; this palpate reads version {FORMAT_VERSION}")
+        raise ValidationError(f"{source}: key 'version' is {files.brief(version)}; this palpate reads version "
+                              f"{FORMAT_VERSION}")
     materials = _get(doc, "materials", source)
     if (not isinstance(materials, list) or not materials
             or not all(isinstance(m, str) and m.strip() for m in materials) or len(set(materials)) != len(materials)):
         raise ValidationError(f"{source}: key 'materials' must be a non-empty list of distinct names")
     m = len(materials)
+    limits.check("materials", f"{source}: key 'materials'", m)
     ddof = _get(doc, "ddof", source)
     min_eig = _get(doc, "min_eig", source)
     if isinstance(ddof, bool) or ddof not in (0, 1):
-        raise ValidationError(f"{source}: key 'ddof' is {ddof!r}, expected 0 or 1")
+        raise ValidationError(f"{source}: key 'ddof' is {files.brief(ddof)}, expected 0 or 1")
     if isinstance(min_eig, bool) or not isinstance(min_eig, (int, float)) or not 0 < min_eig < 1:
-        raise ValidationError(f"{source}: key 'min_eig' is {min_eig!r}, expected a number in (0, 1)")
+        raise ValidationError(f"{source}: key 'min_eig' is {files.brief(min_eig)}, expected a number in (0, 1)")
     prior = _array(_get(doc, "prior", source), "prior", source, (m,))
     if np.any(prior < 0) or not np.isclose(prior.sum(), 1.0, rtol=0, atol=1e-9):
-        raise ValidationError(f"{source}: key 'prior' must be >= 0 and sum to 1, got {prior.tolist()}")
+        raise ValidationError(f"{source}: key 'prior' must be >= 0 and sum to 1, got {files.brief(prior.tolist())}")
     arrays = {}
     for key, shape in (("means_N", (m, 2)), ("means_A", (m, 2)), ("covs_N", (m, 2, 2)), ("covs_A", (m, 2, 2))):
         arrays[key] = _array(_get(doc, key, source), key, source, shape)
@@ -129,11 +118,11 @@ def parse_memory(doc, source: str = "<memory>") -> MemoryRecord:
     if not isinstance(training, Mapping):
         raise ValidationError(f"{source}: key 'training' must be an object with 'params' and 'labels'")
     t_labels = _get(training, "labels", f"{source}: training")
-    if not isinstance(t_labels, list):
+    if not isinstance(t_labels, list) or not all(isinstance(lab, str) for lab in t_labels):
         raise ValidationError(f"{source}: key 'training.labels' must be a list of material names")
     t_params = _array(_get(training, "params", f"{source}: training"), "training.params", source, (len(t_labels), 4))
     unknown = sorted({lab for lab in t_labels if lab not in materials}, key=str)
     if unknown:
-        raise ValidationError(f"{source}: key 'training.labels' names {unknown}, not in 'materials'")
+        raise ValidationError(f"{source}: key 'training.labels' names {files.brief(unknown)}, not in 'materials'")
     return MemoryRecord(tuple(materials), prior, int(ddof), float(min_eig), arrays["means_N"], arrays["covs_N"],
                         arrays["means_A"], arrays["covs_A"], regularisation, t_params, tuple(t_labels))

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core import files
 from palpate.core.errors import ValidationError
 from palpate.core.perception.params import MAX_ABS_PARAM, PARAM_COLUMNS, as_labels, as_params
 
@@ -28,12 +29,7 @@ def read_params_csv(path: str | Path) -> tuple[np.ndarray, list[str], dict[str, 
     """
     path = Path(path)
     name = path.name
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise ValidationError(f"{path}: cannot read params CSV: {exc.strerror or exc}") from None
-    except UnicodeDecodeError as exc:
-        raise ValidationError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    text = files.read_text(path, "params CSV", encoding="utf-8-sig")
 
     lines = [(i + 1, line) for i, line in enumerate(text.splitlines())]
     content = [(no, line) for no, line in lines if line.strip() and not line.lstrip().startswith("#")]
@@ -79,9 +75,9 @@ def read_params_csv(path: str | Path) -> tuple[np.ndarray, list[str], dict[str, 
             try:
                 v = float(cell)
             except ValueError:
-                raise ValidationError(f"{name}:{no}: column '{c}': {cell!r} is not a number") from None
+                raise ValidationError(f"{name}:{no}: column '{c}': {files.brief(cell)} is not a number") from None
             if not math.isfinite(v) or abs(v) > MAX_ABS_PARAM:
-                raise ValidationError(f"{name}:{no}: column '{c}': {cell!r} is not a finite number")
+                raise ValidationError(f"{name}:{no}: column '{c}': {files.brief(cell)} is not a finite number")
             params[r, j] = v
         for h in raw_extra:
             raw_extra[h].append(row[col[h]].strip())
@@ -110,7 +106,7 @@ def rows_to_params(rows) -> tuple[np.ndarray, list[str]]:
             try:
                 vals.append(float(row[k]))
             except (TypeError, ValueError):
-                raise ValidationError(f"row {i}: column {k!r}: {row[k]!r} is not a number") from None
+                raise ValidationError(f"row {i}: column {k!r}: {files.brief(row[k])} is not a number") from None
         params.append(vals)
         labels.append(row["material"])
     if not params:

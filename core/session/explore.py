@@ -203,8 +203,14 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
         x, y = (float(v) for v in cells_xy[cell[1], cell[0]])
         if callable(show_map):
             show_map(grid, post)
-        rec = source.press(PressTarget(x, y, depth=depth, force=ex.max_force, speed=ex.speed,
-                                       label=f"{entry.spec.name} cell {cell[0] + 1},{cell[1] + 1}"))
+        try:
+            rec = source.press(PressTarget(x, y, depth=depth, force=ex.max_force, speed=ex.speed,
+                                           label=f"{entry.spec.name} cell {cell[0] + 1},{cell[1] + 1}"))
+        except ValidationError as exc:  # e.g. a map reaching past its object: name the scenario, object and cell
+            raise ValidationError(f"{scenario.path or 'scenario'}: object {entry.spec.name!r}, cell "
+                                  f"[{cell[0] + 1}, {cell[1] + 1}] at ({x * 1e3:.1f}, {y * 1e3:.1f}) mm: {exc} "
+                                  "(check the object's size_mm, grid_origin_mm, grid_cells and exploration.cell_mm)"
+                                  ) from None
         if log is not None:
             rec = log.add(rec, {"phase": "exploration", "object": entry.spec.name, "k": k + 1,
                                 "cell": [cell[0] + 1, cell[1] + 1], "target_m": [x, y]})

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TextIO
 
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
+from palpate.core.names import file_stem, inside
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.actuators import ActuatorRequest
 from palpate.core.session.operator import ABORT, MAX_PROMPTS, HumanOperator, recordings_from_files
@@ -100,7 +101,8 @@ def operator_actuator(request: ActuatorRequest, *, check_only: bool = False):
     output = request.output if request.output is not None else sys.stderr
     figure_dir = None
     if spec.figures and request.out_dir is not None:
-        figure_dir = Path(request.out_dir) / "figures" / "operator" / request.obj.name
+        out = Path(request.out_dir)
+        figure_dir = inside(out, out / "figures" / "operator" / file_stem(request.obj.name))
     output.write(f"\nOperator: explore {request.obj.name} ({request.shape[0]} x {request.shape[1]} cells of "
                  f"{request.cell_size * 1e3:.0f} mm, corner at x = {request.origin[0] * 1e3:.1f} mm, "
                  f"y = {request.origin[1] * 1e3:.1f} mm); press recordings from {folder}\n")

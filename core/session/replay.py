@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import bisect
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,6 +21,7 @@ import numpy as np
 
 from palpate.core import __version__
 from palpate.core.errors import ValidationError
+from palpate.core.files import brief
 from palpate.core.io import figures as fig
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.recording import recording_to_press_recording
@@ -27,12 +29,14 @@ from palpate.core.mapping.calibration import MapCalibration
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
 from palpate.core.mapping.snapshot import MapSnapshot
+from palpate.core.names import inside, unique_stems
 from palpate.core.perception.layered_memory import LayeredMemory
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.pipeline import presses_from_recording
 from palpate.core.perception.press import PressResult, perceive_press, press_result
 from palpate.core.perception.streams import GroundTruth, PressRecording
 from palpate.core.session.explore import apply_press
+from palpate.core.session.output_guard import prepare_output_folder
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import assert_finite, fit_summary, versions
 
@@ -69,9 +73,55 @@ def _layers_for(geometry: MapGeometry, memory: HapticMemory, layers: LayeredMemo
     return layers if layers is not None else LayeredMemory.whole_press(memory, geometry.cell_size, geometry.shape[2])
 
 
+@dataclass(frozen=True)
+class PressWindow:
+    """A ``press`` annotation of a recording made by ``palpate run --record``, validated: the phase, the object
+    explored, the press's time window (s), its planned target (m), its number and cell."""
+
+    phase: str
+    object: str
+    t_start: float
+    t_end: float
+    target: tuple[float, float]
+    k: int | None
+    cell: list | None
+
+
+def press_window(data, where: str) -> PressWindow:
+    """Validate one press annotation's fields (they come from a file); ValidationError naming ``where`` and the
+    field."""
+    if not isinstance(data, dict):
+        raise ValidationError(f"{where}: expected an object of fields, got {brief(data)}")
+
+    def number(key, default=None):
+        v = data.get(key, default)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ValidationError(f"{where}: field {key!r} must be a finite number, got {brief(v)}")
+        return float(v)
+
+    phase, obj = data.get("phase"), data.get("object", "recording")
+    for key, v in (("phase", phase), ("object", obj)):
+        if not isinstance(v, str):
+            raise ValidationError(f"{where}: field {key!r} must be a string, got {brief(v)}")
+    t_start, t_end = number("t_start"), number("t_end")
+    if t_end < t_start:
+        raise ValidationError(f"{where}: field 't_end' {t_end} is before 't_start' {t_start}")
+    target = data.get("target_m", [math.nan, math.nan])
+    if not (isinstance(target, list) and len(target) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in target)):
+        raise ValidationError(f"{where}: field 'target_m' must be two numbers (m), got {brief(target)}")
+    k, cell = data.get("k"), data.get("cell")
+    if k is not None and (isinstance(k, bool) or not isinstance(k, int)):
+        raise ValidationError(f"{where}: field 'k' must be an integer, got {brief(k)}")
+    if cell is not None and not (isinstance(cell, list) and len(cell) <= 3
+                                 and all(isinstance(c, int) and not isinstance(c, bool) for c in cell)):
+        raise ValidationError(f"{where}: field 'cell' must be a list of integers, got {brief(cell)}")
+    return PressWindow(phase, obj, t_start, t_end, (float(target[0]), float(target[1])), k, cell)
+
+
 def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path, *,
                      layers: LayeredMemory | None = None, cell_size: float = 0.01, progress: Progress | None = None,
-                     figures: bool = True) -> dict:
+                     figures: bool = True, force: bool = False, inputs=()) -> dict:
     """Run the perception stack on a recording and write maps, figures and summary.json into ``out_dir``.
 
     Args:
@@ -82,34 +132,41 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
         cell_size: grid cell, m, for recordings without map geometry.
         progress: progress bars (silent by default).
         figures: write PNG figures.
+        force: replace an earlier replay in ``out_dir``; ``inputs``: further files read (never deleted).
+
+    Names from the recording (objects in its metadata and annotations) are only names: each map is written as
+    ``maps/<safe file stem>.npz`` inside ``out_dir``.
     """
     progress = progress or Progress(enabled=False)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    if not (isinstance(cell_size, (int, float)) and math.isfinite(cell_size) and cell_size > 0):
+        raise ValidationError(f"replay: cell_size must be a finite number > 0 m, got {brief(cell_size)}")
     rec = read_recording(path)
     stream = recording_to_press_recording(rec)
-    geoms = {name: MapGeometry.from_dict(g, f"{path}: metadata maps.{name}")
-             for name, g in (rec.metadata.get("maps") or {}).items()}
+    maps = rec.metadata.get("maps") or {}
+    if not isinstance(maps, dict):
+        raise ValidationError(f"{path}: metadata 'maps' must be an object of map geometries, got {brief(maps)}")
+    geoms = {name: MapGeometry.from_dict(g, f"{path}: metadata maps.{name}") for name, g in maps.items()}
     # The run's map calibration (a recording made before it was recorded used the seeds' maps).
     calibration = MapCalibration.from_dict(rec.metadata.get("map_calibration") or {},
                                            f"{path}: metadata map_calibration")
-    windows = [a for a in rec.annotations if a.kind == "press"]
+    windows = [(i, a) for i, a in enumerate(rec.annotations) if a.kind == "press"]
+    presses = [press_window(a.data, f"{path}: annotation {i} (press)") for i, a in windows]
+    explore = [w for w in presses if w.phase == "exploration"]
+    stems = unique_stems({w.object for w in explore} if windows else {"recording"}, f"{path}: object names")
+    out = prepare_output_folder(out_dir, "replay", force=force, inputs=[path, *inputs])
     objects: dict[str, _Replayed] = {}
     if windows:
-        explore = [a for a in windows if a.data.get("phase") == "exploration"]
         progress.start("replaying presses", len(explore))
-        for i, a in enumerate(explore):
-            name = a.data.get("object", "recording")
-            if name not in geoms:
-                raise ValidationError(f"{path}: press annotation names object {name!r}, which has no map geometry "
-                                      "in the recording's metadata")
-            state = objects.setdefault(name, _Replayed(geoms[name], new_map(geoms[name])))
-            sub = _window(stream, float(a.data["t_start"]), float(a.data["t_end"]))
-            target = tuple(float(v) for v in a.data.get("target_m", (np.nan, np.nan)))
-            res = perceive_press(sub).at_target(target)
+        for i, w in enumerate(explore):
+            if w.object not in geoms:
+                raise ValidationError(f"{path}: press annotation names object {brief(w.object)}, which has no map "
+                                      "geometry in the recording's metadata")
+            state = objects.setdefault(w.object, _Replayed(geoms[w.object], new_map(geoms[w.object])))
+            sub = _window(stream, w.t_start, w.t_end)
+            res = perceive_press(sub).at_target(w.target)
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
-                                    fallback_xy=target, calibration=calibration)
-            state.rows.append(_row(a.data.get("k", len(state.rows) + 1), a.data.get("cell"), res, posterior,
+                                    fallback_xy=w.target, calibration=calibration)
+            state.rows.append(_row(w.k if w.k is not None else len(state.rows) + 1, w.cell, res, posterior,
                                    state.grid))
             progress.update(i + 1)
     else:
@@ -138,8 +195,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
         grid = state.grid
         post = grid.postprocessed() if state.geometry.voxel else grid.postprocessed(
             certainty=calibration.extrapolation_certainty)
-        grid.save(out / "maps" / f"{name}.npz")
-        post.save(out / "maps" / f"{name}_postprocessed.npz")
+        grid.save(inside(out, out / "maps" / f"{stems[name]}.npz"))
+        post.save(inside(out, out / "maps" / f"{stems[name]}_postprocessed.npz"))
         g = state.geometry
         summary_objects.append({
             "name": name, "map": g.kind,
@@ -150,7 +207,7 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
         })
         if figures and not g.voxel:
             (out / "figures").mkdir(exist_ok=True)
-            fig.plot_map_snapshots(out / "figures" / f"{name}_map.png", name,
+            fig.plot_map_snapshots(inside(out, out / "figures" / f"{stems[name]}_map.png"), name,
                                    [MapSnapshot.of(grid, "replayed"), MapSnapshot.of(post, "post-processed")], g)
     summary = {"format": REPLAY_FORMAT, "version": 1, "recording": str(path), "materials": list(memory.materials),
                "source_metadata": rec.metadata, "objects": summary_objects, "versions": versions(),

@@ -19,6 +19,7 @@ Stages (each timed in ``summary["timing"]``):
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -31,6 +32,7 @@ from palpate.core.perception.memory import HapticMemory
 from palpate.core.session.actuators import open_actuators
 from palpate.core.session.ceiling import Ceiling, attainable_accuracy, ceiling_summary
 from palpate.core.session.explore import ObjectResult, explore_object
+from palpate.core.session.output_guard import check_output_file, prepare_output_folder
 from palpate.core.session.outputs import write_figures, write_maps
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
@@ -50,17 +52,24 @@ from palpate.core.world.workspace import map_geometries
 
 
 def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress | None = None,
-                 source: str | None = None, record: str | Path | None = None) -> dict:
+                 source: str | None = None, record: str | Path | None = None, force: bool = False) -> dict:
     """Run a scenario end to end and write its outputs into ``out_dir``. Returns the summary (also summary.json).
 
     ``source`` names the registered simulated source that trains the memory and, with ``[actuator] kind = "sim"``,
     explores (default: ``training.source``); another actuator kind explores through
     :func:`palpate.core.session.actuators.open_actuators`. With ``record``, every press's raw streams (and ground
     truth) go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps.
+
+    ``out_dir`` must be new, empty or an earlier run's folder; an earlier run (and an existing ``record`` file) is
+    replaced only with ``force`` (:mod:`palpate.core.session.output_guard`). No input is ever overwritten.
     """
     progress = progress or Progress(enabled=False)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    inputs = scenario_inputs(scenario)
+    if record is not None:
+        check_output_file(record, inputs=inputs, force=force, option="--record", outputs=Path(out_dir), kind="run")
+    own = [Path(record).name] if record is not None and Path(record).resolve().parent == Path(out_dir).resolve() \
+        else []
+    out = prepare_output_folder(out_dir, "run", force=force, inputs=inputs, extra=own)
     seeds = np.random.SeedSequence(scenario.seed).generate_state(4 + len(scenario.references) + len(scenario.objects))
     source = source or scenario.training.source
     kind = scenario.actuator.kind
@@ -76,6 +85,16 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
             return _run(scenario, out, progress, *makers, seeds, log)
         finally:
             log.close()
+
+
+def scenario_inputs(scenario: Scenario) -> list[Path]:
+    """The files a run of ``scenario`` reads (the scenario, a trained memory, meshes, actuator files)."""
+    paths = [scenario.path, scenario.training.memory, *(Path(e.spec.mesh_path) for e in scenario.objects
+                                                        if e.spec.mesh_path)]
+    options = scenario.actuator.options
+    if dataclasses.is_dataclass(options):
+        paths += [v for f in dataclasses.fields(options) if isinstance(v := getattr(options, f.name), Path)]
+    return [p for p in paths if p is not None]
 
 
 def _memory(scenario: Scenario, make_source, seeds, progress: Progress,
@@ -173,4 +192,4 @@ def _say_fidelity(entry: ObjectEntry, scenario: Scenario, make_source, progress:
     progress.message(f"fidelity {fidelity}: {reason}")
 
 
-__all__ = ["run_scenario"]
+__all__ = ["run_scenario", "scenario_inputs"]

@@ -1,237 +1,85 @@
-"""Sweeps: a grid of scenario variants run on a process pool or a Ray cluster, gathered into one table.
+"""Running a sweep: every variant of a sweep file (:mod:`~palpate.core.session.sweep_file`) on local worker
+processes or a Ray cluster, gathered into one table.
 
-A sweep file (TOML) names a base scenario and the axes to vary::
+Runs go to ``OUT/runs/<variant id>/``. A run is finished when its ``summary.json`` exists and its
+``variant.json`` records the same overrides and the same digest of what it ran, so a sweep killed midway resumes
+without redoing finished runs, and a run whose base scenario (or any file it read) changed since is run again.
+The key metrics of every run are gathered in ``OUT/sweep.csv`` and ``OUT/sweep.json``.
 
-    [sweep]
-    name = "fidelity_seeds"
-    base = "../thesis_ch6.toml"          # relative to the sweep file
-
-    [overrides]                          # applied to every variant (dotted key -> value)
-    "outputs.figures" = false
-
-    [[axes]]                             # the grid is the product of every axis' values
-    key = "scenario.fidelity"
-    values = ["analytic", "rigid"]
-
-    [[axes]]
-    key = "materials.Material_2.young_kpa"   # a list of tables is addressed by an entry's name
-    values = [100.0, 115.0]
-
-Each variant is the base scenario's TOML dictionary with the overrides applied; every variant is validated with
-:func:`palpate.core.world.scenario.parse_scenario` before anything runs. Runs go to ``OUT/runs/<variant id>/`` and a run
-is finished when its ``summary.json`` exists and names the same overrides, so a sweep killed midway resumes without
-redoing finished runs. The key metrics of every run are gathered in ``OUT/sweep.csv`` and ``OUT/sweep.json``.
+Safety: a lock file (``OUT/.sweep.lock``, held with an OS lock that ends with the process) stops a second sweep
+on the same folder; the local workers end with the sweep (:mod:`~palpate.core.session.worker_pool`); ``OUT``
+must be new, empty or a palpate sweep of the same name.
 """
 
 from __future__ import annotations
 
-import copy
+import contextlib
 import csv
 import io
-import itertools
 import json
 import math
-import re
+import os
+import shutil
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
+from palpate.core import files
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
+from palpate.core.names import inside
+from palpate.core.session.output_guard import prepare_output_folder
 from palpate.core.session.run import run_scenario
+from palpate.core.session.sweep_file import Sweep, Variant, load_sweep, set_key, variant_digest, variant_id
+from palpate.core.session.worker_pool import Outcome, TaskFailure, run_tasks, terminating_signals
 from palpate.core.world.scenario_file import parse_scenario
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
 
 SWEEP_FORMAT = "palpate-sweep"
 VARIANT_FILE = "variant.json"
+LOCK_FILE = ".sweep.lock"
 #: Columns of the gathered table, in order (per-object accuracies are added after these).
 BASE_COLUMNS = ("variant", "status", "wall_s", "crossval_accuracy", "presses", "map_accuracy")
 
-
-@dataclass(frozen=True)
-class Variant:
-    """One run of the sweep: its id, the overrides that make it, and the scenario dictionary they give."""
-
-    id: str
-    overrides: dict
-    raw: dict
+__all__ = ["Sweep", "Variant", "is_finished", "load_sweep", "run_sweep", "run_variant", "set_key", "variant_digest",
+           "variant_id", "write_table"]
 
 
-@dataclass(frozen=True)
-class Sweep:
-    """A parsed sweep file: name, base scenario path and its folder, and the variants in grid order."""
-
-    name: str
-    file: Path
-    base: Path
-    variants: tuple[Variant, ...]
-
-
-def set_key(raw: dict, key: str, value, where: str) -> None:
-    """Set the dotted ``key`` of a scenario dictionary in place.
-
-    A segment that meets a list of tables picks the entry whose ``name`` equals it (``materials.foam.young_kpa``)
-    or the entry at that 0-based index. The last segment may be new (adding an optional key); intermediate
-    segments must exist, so a typo is an error, not a silent new table.
-    """
-    parts = key.split(".")
-    if not all(parts):
-        raise ValidationError(f"{where}: key {key!r} has an empty segment")
-    node = raw
-    for i, part in enumerate(parts[:-1]):
-        here = ".".join(parts[: i + 1])
-        if isinstance(node, dict):
-            if part not in node:
-                raise ValidationError(f"{where}: key {key!r}: the base scenario has no {here!r}")
-            node = node[part]
-        elif isinstance(node, list):
-            node = _list_entry(node, part, key, here, where)
-        else:
-            raise ValidationError(f"{where}: key {key!r}: {here!r} is a value, not a table")
-    last = parts[-1]
-    if isinstance(node, dict):
-        node[last] = copy.deepcopy(value)
-    elif isinstance(node, list):
-        idx = node.index(_list_entry(node, last, key, key, where))
-        node[idx] = copy.deepcopy(value)
-    else:
-        raise ValidationError(f"{where}: key {key!r}: its parent is a value, not a table")
-
-
-def _list_entry(node: list, part: str, key: str, here: str, where: str):
-    for entry in node:
-        if isinstance(entry, dict) and entry.get("name") == part:
-            return entry
-    if part.isdigit() and int(part) < len(node):
-        return node[int(part)]
-    names = [e.get("name") for e in node if isinstance(e, dict)]
-    raise ValidationError(f"{where}: key {key!r}: no entry named {part!r} in {here.rsplit('.', 1)[0]!r} "
-                          f"(names: {names}, or a 0-based index below {len(node)})")
-
-
-def variant_id(index: int, overrides: dict) -> str:
-    """A folder-safe id: the grid index, then each axis' last key segment and value (``v003_fidelity-rigid``)."""
-    parts = [f"v{index:03d}"]
-    for key, value in overrides.items():
-        parts.append(f"{key.rsplit('.', 1)[-1]}-{value}")
-    return re.sub(r"[^A-Za-z0-9_.=-]+", "_", "_".join(parts))[:120]
-
-
-def _read_toml(path: Path, what: str) -> dict:
+def _read_json(path: Path):
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ValidationError(f"{path}: {what} file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ValidationError(f"{path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError:
-        raise ValidationError(f"{path}: not a UTF-8 text file") from None
-
-
-def load_sweep(path: str | Path) -> Sweep:
-    """Read and validate a sweep file and every variant it makes.
-
-    Raises:
-        ValidationError: naming the sweep file, the key and what was expected (or the variant whose scenario
-            is invalid, with the scenario's own message).
-    """
-
-    file = Path(path)
-    doc = _read_toml(file, "sweep")
-    unknown = sorted(set(doc) - {"sweep", "overrides", "axes"})
-    if unknown:
-        raise ValidationError(f"{file}: unknown top-level key(s) {unknown}; expected [sweep], [overrides], [[axes]]")
-    head = doc.get("sweep")
-    if not isinstance(head, dict):
-        raise ValidationError(f"{file}: a [sweep] table with name and base is required")
-    bad = sorted(set(head) - {"name", "base", "description"})
-    if bad:
-        raise ValidationError(f"{file}: [sweep]: unknown key(s) {bad}; expected name, base, description")
-    name, base = head.get("name"), head.get("base")
-    if not isinstance(name, str) or not name:
-        raise ValidationError(f"{file}: sweep.name must be a non-empty string")
-    if not isinstance(base, str) or not base:
-        raise ValidationError(f"{file}: sweep.base must be the path of the base scenario (TOML)")
-    base_path = (file.parent / base).resolve()
-    base_raw = _read_toml(base_path, f"base scenario (sweep.base in {file})")
-
-    fixed = doc.get("overrides", {})
-    if not isinstance(fixed, dict):
-        raise ValidationError(f"{file}: [overrides] must be a table of dotted key = value")
-    fixed = _flatten(fixed)
-    axes = doc.get("axes", [])
-    if not isinstance(axes, list) or not all(isinstance(a, dict) for a in axes):
-        raise ValidationError(f"{file}: axes must be an array of tables [[axes]] with key and values")
-    keys, values = [], []
-    for i, ax in enumerate(axes):
-        where = f"{file}: axes[{i}]"
-        if set(ax) != {"key", "values"}:
-            raise ValidationError(f"{where}: needs exactly 'key' (dotted scenario key) and 'values' (a list), "
-                                  f"got {sorted(ax)}")
-        if not isinstance(ax["key"], str) or not isinstance(ax["values"], list) or not ax["values"]:
-            raise ValidationError(f"{where}: key must be a string and values a non-empty list")
-        if ax["key"] in keys:
-            raise ValidationError(f"{where}: key {ax['key']!r} is already an axis")
-        keys.append(ax["key"])
-        values.append(ax["values"])
-
-    variants = []
-    for index, combo in enumerate(itertools.product(*values)):
-        overrides = dict(zip(keys, combo, strict=True))
-        vid = variant_id(index, overrides)
-        raw = copy.deepcopy(base_raw)
-        where = f"{file} (variant {vid})"
-        for key, value in {**fixed, **overrides}.items():
-            set_key(raw, key, value, where)
-        try:
-            parse_scenario(raw, f"{base_path} with {where} overrides", base_dir=base_path.parent)
-        except ValidationError as exc:
-            raise ValidationError(f"{where}: the variant's scenario is invalid: {exc}") from None
-        variants.append(Variant(vid, overrides, raw))
-    return Sweep(name, file, base_path, tuple(variants))
-
-
-def _flatten(table: dict, prefix: str = "") -> dict:
-    """Dotted keys of a (possibly nested) overrides table; quoted dotted keys stay as they are."""
-    out = {}
-    for k, v in table.items():
-        key = f"{prefix}{k}"
-        if isinstance(v, dict):
-            out.update(_flatten(v, key + "."))
-        else:
-            out[key] = v
-    return out
+        return files.read_json(path, "sweep run record")
+    except ValidationError:
+        return None
 
 
 def is_finished(run_dir: Path, variant: Variant) -> bool:
-    """True when ``run_dir`` holds a complete run of ``variant`` (summary.json written, same overrides)."""
-    try:
-        summary = json.loads((run_dir / "summary.json").read_text())
-        meta = json.loads((run_dir / VARIANT_FILE).read_text())
-    except (OSError, ValueError):
+    """True when ``run_dir`` holds a complete run of ``variant``: summary.json written, and variant.json naming
+    the same overrides and the same digest of what the run read."""
+    meta = _read_json(run_dir / VARIANT_FILE)
+    if not (isinstance(meta, dict) and meta.get("overrides") == variant.overrides
+            and meta.get("digest") == variant.digest):
         return False
-    return isinstance(summary, dict) and isinstance(meta, dict) and meta.get("overrides") == variant.overrides
+    return isinstance(_read_json(run_dir / "summary.json"), dict)
 
 
-def run_variant(raw: dict, base_dir: str, run_dir: str, vid: str, overrides: dict) -> dict:
-    """Run one variant into ``run_dir`` (the worker of both pools); returns its row of key metrics.
+def run_variant(raw: dict, base_dir: str, run_dir: str, vid: str, overrides: dict, digest: str = "",
+                source: str = "") -> dict:
+    """Run one variant into ``run_dir`` (the task of both pools); returns its row of key metrics.
 
-    The variant record is written first and summary.json last (by the run job), so a killed run is never taken
-    for a finished one.
+    ``source`` names the variant in messages (the base scenario and the sweep file). ``run_dir`` is the sweep's
+    own folder of this variant: whatever an unfinished or stale run left there is
+    removed first. The variant record (with the digest of what is run) is written before the run and
+    summary.json last (by the run), so a killed run is never taken for a finished one.
     """
-
     out = Path(run_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "summary.json").unlink(missing_ok=True)
-    (out / VARIANT_FILE).write_text(json.dumps({"id": vid, "overrides": overrides}, indent=1))
-    scenario = parse_scenario(raw, f"variant {vid}", base_dir=Path(base_dir))
+    if out.is_symlink() or out.is_file():
+        out.unlink()
+    elif out.exists():
+        shutil.rmtree(out)
+    prepare_output_folder(out, "run")
+    (out / VARIANT_FILE).write_text(json.dumps({"id": vid, "overrides": overrides, "digest": digest}, indent=1))
+    scenario = parse_scenario(raw, source or f"variant {vid}", base_dir=Path(base_dir))
     t0 = time.perf_counter()
-    summary = run_scenario(scenario, out)
+    summary = run_scenario(scenario, out, force=True)
     return metrics_row(vid, summary, time.perf_counter() - t0)
 
 
@@ -254,6 +102,48 @@ def metrics_row(vid: str, summary: dict, wall: float | None) -> dict:
     return row
 
 
+@contextlib.contextmanager
+def sweep_lock(out: Path):
+    """Hold ``OUT/.sweep.lock`` for the block; ValidationError when another sweep holds it. The OS releases the
+    lock when the holder ends, however it ends (a killed sweep leaves no stale lock)."""
+    path = out / LOCK_FILE
+    try:  # never through a symlink: truncating the lock file must not truncate a file elsewhere
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+    except OSError as exc:
+        raise ValidationError(f"--out {out}: cannot use {path} as the sweep's lock file "
+                              f"({exc.strerror or exc})") from None
+    try:
+        try:
+            _lock(fd)
+        except OSError:
+            holder = os.read(fd, 64).decode(errors="replace").strip() or "another process"
+            raise ValidationError(f"--out {out}: another palpate sweep ({holder}) is running on this folder; wait "
+                                  "for it to end or give another --out") from None
+        os.ftruncate(fd, 0)
+        os.write(fd, f"pid {os.getpid()}".encode())
+        yield
+    finally:
+        os.close(fd)
+
+
+def _lock(fd: int) -> None:
+    try:
+        import fcntl
+    except ImportError:  # Windows
+        import msvcrt
+
+        msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)
+        return
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+
+
+def _check_sweep_folder(out: Path, sweep: Sweep) -> None:
+    doc = _read_json(out / "sweep.json")
+    if isinstance(doc, dict) and doc.get("name") not in (None, sweep.name):
+        raise ValidationError(f"--out {out}: holds the results of sweep {files.brief(doc.get('name'))}, not "
+                              f"{sweep.name!r}; give another folder")
+
+
 def run_sweep(sweep: Sweep, out_dir: str | Path, *, workers: int = 2, ray: str | None = None,
               log: Callable[[str], None] | None = None) -> list[dict]:
     """Run every unfinished variant of ``sweep`` and gather the table (OUT/sweep.csv, OUT/sweep.json).
@@ -271,51 +161,52 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *, workers: int = 2, ray: str |
     if workers < 1:
         raise ValidationError(f"sweep: --workers must be >= 1, got {workers}")
     out = Path(out_dir)
-    try:
-        (out / "runs").mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise RecordingError(f"sweep: cannot create {out / 'runs'}: {exc}") from exc
-    rows: dict[str, dict] = {}
-    todo = []
-    for v in sweep.variants:
-        run_dir = out / "runs" / v.id
-        if is_finished(run_dir, v):
-            rows[v.id] = metrics_row(v.id, json.loads((run_dir / "summary.json").read_text()), None)
-            rows[v.id]["status"] = "done (earlier)"
-        else:
-            todo.append(v)
-    log(f"sweep {sweep.name}: {len(sweep.variants)} variants, {len(rows)} already finished, {len(todo)} to run "
-        f"on {'Ray (' + ray + ')' if ray else f'{workers} local process(es)'}")
-    args = [(v.raw, str(sweep.base.parent), str(out / "runs" / v.id), v.id, v.overrides) for v in todo]
-    runner = _run_ray if ray else _run_pool
-    for vid, row in runner(args, workers, ray):
-        rows[vid] = row
-        log(f"  {vid}: {row['status']}")
-    ordered = [rows[v.id] for v in sweep.variants if v.id in rows]
-    write_table(ordered, out, sweep)
+    if out.is_dir():
+        _check_sweep_folder(out, sweep)
+    prepare_output_folder(out, "sweep")
+    with sweep_lock(out), terminating_signals():
+        try:
+            (out / "runs").mkdir(exist_ok=True)
+        except OSError as exc:
+            raise RecordingError(f"sweep: cannot create {out / 'runs'}: {exc}") from exc
+        rows: dict[str, dict] = {}
+        todo = []
+        stale = 0
+        for v in sweep.variants:
+            run_dir = inside(out, out / "runs" / v.id)
+            if is_finished(run_dir, v):
+                rows[v.id] = metrics_row(v.id, _read_json(run_dir / "summary.json"), None)
+                rows[v.id]["status"] = "done (earlier)"
+            else:
+                stale += (run_dir / "summary.json").exists()
+                todo.append(v)
+        log(f"sweep {sweep.name}: {len(sweep.variants)} variants, {len(rows)} already finished, {len(todo)} to run"
+            + (f" ({stale} finished earlier from another base scenario or input files: rerun)" if stale else "")
+            + f" on {'Ray (' + ray + ')' if ray else f'{workers} local process(es)'}")
+        tasks = [(v.id, (v.raw, str(sweep.base.parent), str(out / "runs" / v.id), v.id, v.overrides, v.digest,
+                         f"{sweep.base} with {sweep.file} (variant {v.id})")) for v in todo]
+        outcomes = _run_ray(tasks, workers, ray) if ray else run_tasks(run_variant, tasks, workers)
+        for o in outcomes:
+            rows[o.key] = o.value if o.ok else _failed(o.key, o.value, out / "runs" / o.key)
+            log(f"  {o.key}: {rows[o.key]['status']}")
+        ordered = [rows[v.id] for v in sweep.variants if v.id in rows]
+        write_table(ordered, out, sweep)
     return ordered
 
 
-def _failed(vid: str, exc: BaseException) -> dict:
-    return {"variant": vid, "status": f"failed: {type(exc).__name__}: {exc}"[:300]}
+def _failed(vid: str, failure: TaskFailure, run_dir: Path) -> dict:
+    """The row of a failed variant; a failure that is not a palpate error (a bug) leaves its traceback in the
+    variant's folder."""
+    status = f"failed: {failure.type}: {failure.message}"
+    if not failure.palpate_error and failure.traceback:
+        with contextlib.suppress(OSError):
+            run_dir.mkdir(parents=True, exist_ok=True)
+            (run_dir / "traceback.txt").write_text(failure.traceback)
+            status += f" (traceback in {run_dir / 'traceback.txt'})"
+    return {"variant": vid, "status": " ".join(status.split())[:300]}
 
 
-def _run_pool(args: list[tuple], workers: int, _ray):
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    if not args:
-        return
-    with ProcessPoolExecutor(max_workers=min(workers, len(args))) as pool:
-        futures = {pool.submit(run_variant, *a): a[3] for a in args}
-        for fut in as_completed(futures):
-            vid = futures[fut]
-            try:
-                yield vid, fut.result()
-            except (PalpateError, OSError) as exc:
-                yield vid, _failed(vid, exc)
-
-
-def _run_ray(args: list[tuple], workers: int, address: str):
+def _run_ray(tasks: list[tuple], workers: int, address: str):
     try:
         import ray
     except ImportError as exc:
@@ -329,18 +220,25 @@ def _run_ray(args: list[tuple], workers: int, address: str):
                 ray.init(num_cpus=workers, include_dashboard=False)
         else:
             ray.init(address=address)
-    if not args:
+    if not tasks:
         return
     remote = ray.remote(num_cpus=1, max_retries=0)(run_variant)
-    refs = {remote.remote(*a): a[3] for a in args}
+    refs = {remote.remote(*args): key for key, args in tasks}
     pending = list(refs)
-    while pending:
-        done, pending = ray.wait(pending, num_returns=1)
-        vid = refs[done[0]]
-        try:
-            yield vid, ray.get(done[0])
-        except ray.exceptions.RayTaskError as exc:
-            yield vid, _failed(vid, exc.cause if getattr(exc, "cause", None) else exc)
+    try:
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            vid = refs[done[0]]
+            try:
+                yield Outcome(vid, True, ray.get(done[0]))
+            except ray.exceptions.RayTaskError as exc:
+                cause = exc.cause if getattr(exc, "cause", None) else exc
+                yield Outcome(vid, False, TaskFailure(type(cause).__name__, str(cause), "",
+                                                      isinstance(cause, PalpateError)))
+    finally:
+        for ref in pending:  # the sweep is ending early: do not leave its tasks running on the cluster
+            with contextlib.suppress(Exception):
+                ray.cancel(ref, force=True)
 
 
 def write_table(rows: list[dict], out: Path, sweep: Sweep) -> None:
@@ -355,7 +253,8 @@ def write_table(rows: list[dict], out: Path, sweep: Sweep) -> None:
         w.writerow({k: "" if r.get(k) is None else r.get(k) for k in columns})
     doc = {"format": SWEEP_FORMAT, "version": 1, "name": sweep.name, "file": str(sweep.file),
            "base": str(sweep.base), "columns": columns,
-           "variants": {v.id: v.overrides for v in sweep.variants}, "rows": rows}
+           "variants": {v.id: v.overrides for v in sweep.variants},
+           "digests": {v.id: v.digest for v in sweep.variants}, "rows": rows}
     try:
         (out / "sweep.csv").write_text(buf.getvalue())
         (out / "sweep.json").write_text(json.dumps(doc, indent=1, allow_nan=False))

@@ -32,12 +32,18 @@ unmeasured cells are never decoded into numbers that look measured.
 from __future__ import annotations
 
 import json
+import math
+import os
+import struct
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from palpate.core import files, limits
 from palpate.core.errors import ValidationError
+from palpate.core.names import file_stem, unique_stems
 
 FORMAT_NAME = "palpate-haptic-material"
 FORMAT_VERSION = 1
@@ -122,14 +128,7 @@ ABSENT_FEATURES = {
 
 def probability_spec(material: str) -> FeatureSpec:
     """The custom 8-bit spec of a material-probability map (0-1 in steps of 1/255)."""
-    return FeatureSpec(f"material_probability_{_safe_stem(material)}", f"P({material})", "1", 0.0, 1.0, 1.0 / 255.0)
-
-
-def _safe_stem(name: str) -> str:
-    stem = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
-    if not stem:
-        raise ValidationError(f"material name {name!r} gives an empty file name")
-    return stem
+    return FeatureSpec(f"material_probability_{file_stem(material)}", f"P({material})", "1", 0.0, 1.0, 1.0 / 255.0)
 
 
 @dataclass
@@ -155,6 +154,8 @@ class HapticMaterialMap:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if len(self.origin) != 2 or not all(np.isfinite(v) for v in self.origin):
+            raise ValidationError(f"haptic material: origin must be two finite numbers (m), got {self.origin}")
         if not (np.isfinite(self.cell_size) and self.cell_size > 0):
             raise ValidationError(f"haptic material: cell_size must be > 0 m, got {self.cell_size}")
         shape = None
@@ -250,51 +251,61 @@ class HapticMaterialMap:
     def read(cls, folder: str | Path) -> HapticMaterialMap:
         """Read a haptic material folder written by :meth:`write` (or by hand following the manifest).
 
-        Every file is validated: the manifest's format and version, each map's size and spec; errors name the file
-        and key.
+        Everything is validated before it is decoded: the manifest (bounded JSON, format, version, integer shape,
+        finite origin, positive cell, distinct material names), each map's file name (a plain name inside the
+        folder, also after symlinks) and each PNG's size from its header (the limit ``png_pixels``, the manifest's
+        shape); an undecodable or truncated PNG is an error naming it. Errors name the file and key.
         """
-        from PIL import Image
-
         root = Path(folder)
         mpath = root / "manifest.json"
-        if not mpath.is_file():
+        if not root.is_dir():
+            raise ValidationError(f"{root}: not a folder (a haptic material is a folder with manifest.json)")
+        if not mpath.exists():
             raise ValidationError(f"{root}: no manifest.json (not a haptic material folder)")
-        try:
-            manifest = json.loads(mpath.read_text())
-        except json.JSONDecodeError as exc:
-            raise ValidationError(f"{mpath}:{exc.lineno}: invalid JSON: {exc.msg}") from None
+        manifest = files.read_json(mpath, "haptic-material manifest")
         if not isinstance(manifest, dict):
             raise ValidationError(f"{mpath}: expected a JSON object")
         if manifest.get("format") != FORMAT_NAME:
-            raise ValidationError(f"{mpath}: key 'format' must be {FORMAT_NAME!r}, got {manifest.get('format')!r}")
+            raise ValidationError(f"{mpath}: key 'format' must be {FORMAT_NAME!r}, got "
+                                  f"{files.brief(manifest.get('format'))}")
         if manifest.get("version") != FORMAT_VERSION:
-            raise ValidationError(f"{mpath}: key 'version' {manifest.get('version')!r} is not supported "
+            raise ValidationError(f"{mpath}: key 'version' {files.brief(manifest.get('version'))} is not supported "
                                   f"(this palpate reads version {FORMAT_VERSION})")
-        try:
-            shape = tuple(int(v) for v in manifest["shape"])
-            origin = tuple(float(v) for v in manifest["origin_m"])
-            cell = float(manifest["cell_size_m"])
-            materials = [str(m) for m in manifest["materials"]]
-            maps = dict(manifest["maps"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValidationError(f"{mpath}: missing or malformed key {exc}") from None
-        if len(shape) != 2 or min(shape) < 1 or len(origin) != 2:
-            raise ValidationError(f"{mpath}: 'shape' must be [ny, nx] and 'origin_m' [x0, y0]")
+        for key in ("shape", "origin_m", "cell_size_m", "materials", "maps"):
+            if key not in manifest:
+                raise ValidationError(f"{mpath}: missing key {key!r}")
+        shape = manifest["shape"]
+        if not (isinstance(shape, list) and len(shape) == 2
+                and all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in shape)):
+            raise ValidationError(f"{mpath}: key 'shape' must be [ny, nx], two integers >= 1, got "
+                                  f"{files.brief(shape)}")
+        limits.check("png_pixels", f"{mpath}: key 'shape' {shape}: pixels per map", shape[0] * shape[1])
+        origin = manifest["origin_m"]
+        if not (isinstance(origin, list) and len(origin) == 2 and all(_finite_number(v) for v in origin)):
+            raise ValidationError(f"{mpath}: key 'origin_m' must be [x0, y0], two finite numbers (m), got "
+                                  f"{files.brief(origin)}")
+        cell = manifest["cell_size_m"]
+        if not (_finite_number(cell) and cell > 0):
+            raise ValidationError(f"{mpath}: key 'cell_size_m' must be a finite number > 0 (m), got "
+                                  f"{files.brief(cell)}")
+        materials = manifest["materials"]
+        if not (isinstance(materials, list) and all(isinstance(m, str) and m for m in materials)
+                and len(set(materials)) == len(materials)):
+            raise ValidationError(f"{mpath}: key 'materials' must list distinct material names, got "
+                                  f"{files.brief(materials)}")
+        limits.check("materials", f"{mpath}: key 'materials'", len(materials))
+        unique_stems(materials, f"{mpath}: key 'materials'")
+        maps = manifest["maps"]
+        if not isinstance(maps, dict) or not all(isinstance(e, dict) for e in maps.values()):
+            raise ValidationError(f"{mpath}: key 'maps' must map each map's name to an object (file, range, ...)")
+        meta = manifest.get("meta", {})
+        if not isinstance(meta, dict):
+            raise ValidationError(f"{mpath}: key 'meta' must be an object, got {files.brief(meta)}")
 
-        def load(stem: str, entry: dict | None) -> np.ndarray:
-            fname = (entry or {}).get("file", f"{stem}.png")
-            path = root / fname
-            if not path.is_file():
-                raise ValidationError(f"{mpath}: map {stem!r} refers to missing file {fname!r}")
-            with Image.open(path) as img:
-                if img.mode != "L":
-                    raise ValidationError(f"{path}: expected an 8-bit grayscale PNG, got mode {img.mode!r}")
-                arr = np.asarray(img, dtype=np.uint8)[::-1]
-            if arr.shape != shape:
-                raise ValidationError(f"{path}: size {arr.shape} does not match manifest shape {shape}")
-            return arr
+        def load(stem: str, fname) -> np.ndarray:
+            return read_png(root, fname, (shape[0], shape[1]), f"{mpath}: map {stem!r}")
 
-        measured = load("measured", {"file": manifest.get("measured_mask", "measured.png")}) > 127
+        measured = load("measured", manifest.get("measured_mask", "measured.png")) > 127
         probs = None
         if materials:
             layers = []
@@ -302,7 +313,7 @@ class HapticMaterialMap:
                 spec = probability_spec(name)
                 if spec.name not in maps:
                     raise ValidationError(f"{mpath}: 'maps' has no entry {spec.name!r} for material {name!r}")
-                layers.append(spec.decode(load(spec.name, maps[spec.name])))
+                layers.append(spec.decode(load(spec.name, maps[spec.name].get("file", f"{spec.name}.png"))))
             probs = np.stack(layers, axis=-1)
             total = probs.sum(axis=-1, keepdims=True)
             # 8-bit rounding leaves sums slightly off 1; renormalise, and keep a zero-sum cell uniform.
@@ -311,13 +322,64 @@ class HapticMaterialMap:
         for name, spec in MEASURED_FEATURES.items():
             if name in maps:
                 entry = maps[name]
-                if float(entry.get("resolution", spec.resolution)) != spec.resolution or \
-                        [float(v) for v in entry.get("range", [spec.lo, spec.hi])] != [spec.lo, spec.hi]:
+                try:
+                    known = (float(entry.get("resolution", spec.resolution)) == spec.resolution
+                             and [float(v) for v in entry.get("range", [spec.lo, spec.hi])] == [spec.lo, spec.hi])
+                except (TypeError, ValueError):
+                    known = False
+                if not known:
                     raise ValidationError(f"{mpath}: map {name!r} uses a range/resolution palpate does not know "
                                           f"(expected {[spec.lo, spec.hi]} / {spec.resolution})")
-                features[name] = spec.decode(load(name, entry))
-        return cls(origin=(origin[0], origin[1]), cell_size=cell, materials=materials, probabilities=probs,
-                   features=features, measured=measured, meta=dict(manifest.get("meta", {})))
+                features[name] = spec.decode(load(name, entry.get("file", f"{name}.png")))
+        return cls(origin=(float(origin[0]), float(origin[1])), cell_size=float(cell), materials=materials,
+                   probabilities=probs, features=features, measured=measured, meta=dict(meta))
+
+
+def _finite_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def read_png(root: Path, fname, shape: tuple[int, int], where: str) -> np.ndarray:
+    """An 8-bit grayscale PNG of the folder ``root`` as a (ny, nx) uint8 array, row 0 at the smallest y.
+
+    ``fname`` must be a plain file name inside ``root`` (no folder part, not absolute, and not a symlink leading
+    out); its size is read from the PNG header and checked against the limit ``png_pixels`` and ``shape`` before
+    any pixel is decoded.
+    """
+    from PIL import Image
+
+    if not isinstance(fname, str) or not fname or Path(fname).name != fname or fname in (".", ".."):
+        raise ValidationError(f"{where}: file {files.brief(fname)} must be a file name inside {root}")
+    path = root / fname
+    real_root = Path(os.path.realpath(root))
+    if real_root not in Path(os.path.realpath(path)).parents:
+        raise ValidationError(f"{where}: {path} leads outside the material folder {root} (a symlink?)")
+    head = files.read_bytes_head(path, f"haptic-material map ({where})", 33)
+    if len(head) < 24 or head[:8] != PNG_SIGNATURE or head[12:16] != b"IHDR":
+        raise ValidationError(f"{path}: not a PNG file")
+    width, height = struct.unpack(">II", head[16:24])
+    limits.check("png_pixels", f"{path}: {width} x {height} image: pixels", width * height)
+    if (height, width) != shape:
+        raise ValidationError(f"{path}: size {(height, width)} does not match manifest shape {shape}")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(path, formats=["PNG"]) as img:
+                if img.mode != "L":
+                    raise ValidationError(f"{path}: expected an 8-bit grayscale PNG, got mode {img.mode!r}")
+                img.load()
+                arr = np.asarray(img, dtype=np.uint8)[::-1]
+    except ValidationError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - whatever a broken PNG makes the decoder raise is the file's fault
+        raise ValidationError(f"{path}: not a readable PNG ({type(exc).__name__}: "
+                              f"{files.brief(str(exc), 100)})") from None
+    if arr.shape != shape:
+        raise ValidationError(f"{path}: size {arr.shape} does not match manifest shape {shape}")
+    return arr
 
 
 def _write_png(image_module, path: Path, codes: np.ndarray) -> None:

@@ -11,12 +11,14 @@ See ``scenarios/README.md`` for the full schema with an example of every table.
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
+from palpate.core import limits
 from palpate.core.errors import ValidationError
+from palpate.core.files import read_toml
 from palpate.core.mapping.calibration import DEFAULT_CALIBRATION, MapCalibration
 from palpate.core.mapping.geometry import MAP_KINDS
+from palpate.core.names import check_name, unique_stems
 from palpate.core.planning.info_gain import OBJECTIVES
 from palpate.core.planning.registry import POLICY_NAMES
 from palpate.core.world.actuator_kinds import SIM, actuator_names, load_actuator_kind, owner_of
@@ -28,25 +30,46 @@ from palpate.core.world.scenario import (
     Scenario,
     TrainingSpec,
 )
-from palpate.core.world.scenario_tables import extrapolation_passes, object_entry, optional_force, training_source
+from palpate.core.world.scenario_tables import (
+    MAX_SIZE_MM,
+    extrapolation_passes,
+    object_entry,
+    optional_force,
+    training_source,
+)
 from palpate.core.world.scene import FingertipSpec, Material, PoseSensorSpec, TaxelSensorSpec
 from palpate.core.world.table_reader import REQUIRED, TableReader, resolve_path
+from palpate.core.world.workspace import object_geometry
 
 FIDELITIES = ("analytic", "rigid", "flex", "auto")
 VARIABILITY = ("human", "robot")
+
+# Physically plausible ranges, checked at load so that an absurd value is named here and not met later as a
+# simulation that cannot be resolved (young_kpa = 1e300 asked for "a timestep of at most 0 s").
+#: Young's modulus, kPa: from the softest gels (1 Pa) to 1 GPa, far stiffer than anything a fingertip can indent.
+MIN_YOUNG_KPA, MAX_YOUNG_KPA = 1e-3, 1e6
+#: Fingertip, sensel, depth and noise lengths, mm.
+MAX_TOOL_MM = 100.0
+#: Smallest map cell, mm.
+MIN_CELL_MM = 0.1
+#: Sensor rates, Hz.
+MIN_RATE_HZ, MAX_RATE_HZ = 1.0, 1e5
+#: Sensor clock offsets, s.
+MAX_OFFSET_S = 3600.0
+#: Press speed, mm/s.
+MAX_SPEED_MM_S = 1000.0
+#: Presses per material, per region, per object.
+MAX_PRESSES = 100_000
+#: Sensels along one side of the pad (the product is bounded by the limit ``taxels``).
+MAX_PAD_SIDE = 1024
+#: Largest seed (numpy's SeedSequence takes any integer; 128 bits are plenty).
+MAX_SEED = 2**128 - 1
 
 
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file. Raises ValidationError naming the file and key on any problem."""
     p = Path(path)
-    if not p.is_file():
-        raise ValidationError(f"{p}: scenario file not found")
-    try:
-        raw = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ValidationError(f"{p}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError:
-        raise ValidationError(f"{p}: not a UTF-8 text file") from None
+    raw = read_toml(p, "scenario file")
     return parse_scenario(raw, str(p), base_dir=p.parent)
 
 
@@ -55,22 +78,22 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     base = base_dir or Path.cwd()
     top = TableReader(file, raw, "")
     head = top.sub("scenario", required=True)
-    name = head.get("name", str)
+    name = check_name(head.get("name", str), f"{file}: scenario.name")
     description = head.get("description", str, "")
-    seed = head.integer("seed", 0, lo=0)
+    seed = head.integer("seed", 0, lo=0, hi=MAX_SEED)
     fidelity = head.choice("fidelity", FIDELITIES, "auto")
     head.finish()
 
     materials: dict[str, MaterialEntry] = {}
     for r in top.subs("materials"):
-        mname = r.get("name", str)
+        mname = check_name(r.get("name", str), f"{file}: {r.path}.name")
         if mname in materials:
             raise r.err("name", f"duplicate material name {mname!r}")
         mat = Material(
             name=mname,
-            young=r.number("young_kpa", lo=0.0, lo_open=True) * 1e3,
+            young=r.number("young_kpa", lo=MIN_YOUNG_KPA, hi=MAX_YOUNG_KPA) * 1e3,
             poisson=r.number("poisson", 0.3, lo=0.0, hi=0.4999),
-            damping=r.number("damping_s", 0.0, lo=0.0),
+            damping=r.number("damping_s", 0.0, lo=0.0, hi=10.0),
         )
         reference = r.get("reference", bool, True)
         like = r.get("like", str, mname if reference else REQUIRED)
@@ -89,31 +112,32 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     ft = top.sub("fingertip")
     d_ft = FingertipSpec()
     fingertip = FingertipSpec(
-        radius=ft.number("radius_mm", d_ft.radius * 1e3, lo=0.0, lo_open=True) * 1e-3,
-        rows=ft.integer("rows", d_ft.rows, lo=1),
-        cols=ft.integer("cols", d_ft.cols, lo=1),
-        pitch=ft.number("pitch_mm", d_ft.pitch * 1e3, lo=0.0, lo_open=True) * 1e-3,
-        sensel_size=ft.number("sensel_mm", d_ft.sensel_size * 1e3, lo=0.0, lo_open=True) * 1e-3,
+        radius=ft.number("radius_mm", d_ft.radius * 1e3, lo=0.0, lo_open=True, hi=MAX_TOOL_MM) * 1e-3,
+        rows=ft.integer("rows", d_ft.rows, lo=1, hi=MAX_PAD_SIDE),
+        cols=ft.integer("cols", d_ft.cols, lo=1, hi=MAX_PAD_SIDE),
+        pitch=ft.number("pitch_mm", d_ft.pitch * 1e3, lo=0.0, lo_open=True, hi=MAX_TOOL_MM) * 1e-3,
+        sensel_size=ft.number("sensel_mm", d_ft.sensel_size * 1e3, lo=0.0, lo_open=True, hi=MAX_TOOL_MM) * 1e-3,
     )
+    limits.check("taxels", f"{file}: fingertip.rows x fingertip.cols", fingertip.rows * fingertip.cols)
     ft.finish()
     sensors = top.sub("sensors")
     tx = sensors.sub("taxels")
     d_tx = TaxelSensorSpec()
     taxels = TaxelSensorSpec(
-        rate=tx.number("rate_hz", d_tx.rate, lo=0.0, lo_open=True),
-        gain=tx.number("gain_counts_per_kpa", d_tx.gain * 1e3, lo=0.0, lo_open=True) * 1e-3,
-        noise_std=tx.number("noise_counts", d_tx.noise_std, lo=0.0),
-        threshold=tx.integer("threshold_counts", d_tx.threshold, lo=0),
-        clock_offset=tx.number("clock_offset_s", d_tx.clock_offset),
+        rate=tx.number("rate_hz", d_tx.rate, lo=MIN_RATE_HZ, hi=MAX_RATE_HZ),
+        gain=tx.number("gain_counts_per_kpa", d_tx.gain * 1e3, lo=0.0, lo_open=True, hi=1e4) * 1e-3,
+        noise_std=tx.number("noise_counts", d_tx.noise_std, lo=0.0, hi=255.0),
+        threshold=tx.integer("threshold_counts", d_tx.threshold, lo=0, hi=255),
+        clock_offset=tx.number("clock_offset_s", d_tx.clock_offset, lo=-MAX_OFFSET_S, hi=MAX_OFFSET_S),
     )
     tx.finish()
     po = sensors.sub("pose")
     d_po = PoseSensorSpec()
     pose = PoseSensorSpec(
-        rate=po.number("rate_hz", d_po.rate, lo=0.0, lo_open=True),
-        noise_std=po.number("noise_mm", d_po.noise_std * 1e3, lo=0.0) * 1e-3,
-        clock_offset=po.number("clock_offset_s", d_po.clock_offset),
-        jitter=po.number("jitter_ms", d_po.jitter * 1e3, lo=0.0) * 1e-3,
+        rate=po.number("rate_hz", d_po.rate, lo=MIN_RATE_HZ, hi=MAX_RATE_HZ),
+        noise_std=po.number("noise_mm", d_po.noise_std * 1e3, lo=0.0, hi=MAX_TOOL_MM) * 1e-3,
+        clock_offset=po.number("clock_offset_s", d_po.clock_offset, lo=-MAX_OFFSET_S, hi=MAX_OFFSET_S),
+        jitter=po.number("jitter_ms", d_po.jitter * 1e3, lo=0.0, hi=1000.0) * 1e-3,
     )
     po.finish()
     sensors.finish()
@@ -121,10 +145,10 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     tr = top.sub("training")
     memory = tr.get("memory", str, "")
     training = TrainingSpec(
-        presses_per_material=tr.integer("presses_per_material", 10, lo=3),
-        depth=tr.number("depth_mm", 4.0, lo=0.0, lo_open=True) * 1e-3,
+        presses_per_material=tr.integer("presses_per_material", 10, lo=3, hi=MAX_PRESSES),
+        depth=tr.number("depth_mm", 4.0, lo=0.0, lo_open=True, hi=MAX_TOOL_MM) * 1e-3,
         max_force=optional_force(tr),
-        speed=tr.number("speed_mm_s", 10.0, lo=0.0, lo_open=True) * 1e-3,
+        speed=tr.number("speed_mm_s", 10.0, lo=0.0, lo_open=True, hi=MAX_SPEED_MM_S) * 1e-3,
         variability=tr.choice("variability", VARIABILITY, "human"),
         memory=resolve_path(base, memory) if memory else None,
         source=training_source(tr),
@@ -135,24 +159,24 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     stop = ex.number("stop_mean_entropy", None, lo=0.0)
     exploration = ExplorationSpec(
         map=ex.choice("map", MAP_KINDS, "grid2d"),
-        cell_size=ex.number("cell_mm", 10.0, lo=0.0, lo_open=True) * 1e-3,
-        voxel_depth=ex.number("voxel_depth_mm", 15.0, lo=0.0, lo_open=True) * 1e-3,
+        cell_size=ex.number("cell_mm", 10.0, lo=MIN_CELL_MM, hi=MAX_SIZE_MM) * 1e-3,
+        voxel_depth=ex.number("voxel_depth_mm", 15.0, lo=0.0, lo_open=True, hi=MAX_SIZE_MM) * 1e-3,
         policy=ex.choice("policy", POLICY_NAMES, "predefined"),
-        budget=ex.integer("budget", 10, lo=1),
-        presses_per_region=ex.integer("presses_per_region", 2, lo=1),
-        depth=ex.number("depth_mm", 4.0, lo=0.0, lo_open=True) * 1e-3,
+        budget=ex.integer("budget", 10, lo=1, hi=MAX_PRESSES),
+        presses_per_region=ex.integer("presses_per_region", 2, lo=1, hi=MAX_PRESSES),
+        depth=ex.number("depth_mm", 4.0, lo=0.0, lo_open=True, hi=MAX_TOOL_MM) * 1e-3,
         max_force=optional_force(ex),
-        speed=ex.number("speed_mm_s", 10.0, lo=0.0, lo_open=True) * 1e-3,
+        speed=ex.number("speed_mm_s", 10.0, lo=0.0, lo_open=True, hi=MAX_SPEED_MM_S) * 1e-3,
         variability=ex.choice("variability", VARIABILITY, "human"),
-        entropy_base=ex.number("entropy_base", 10.0, lo=1.0, lo_open=True),
+        entropy_base=ex.number("entropy_base", 10.0, lo=1.0, lo_open=True, hi=1e6),
         stop_mean_entropy=stop,
         stop_max_entropy=ex.number("stop_max_entropy", None, lo=0.0),
         stop_min_gain=ex.number("stop_min_gain", None, lo=0.0),
-        travel_cost_per_mm=ex.number("travel_cost_per_mm", 0.0, lo=0.0),
+        travel_cost_per_mm=ex.number("travel_cost_per_mm", 0.0, lo=0.0, hi=1e6),
         extrapolation_passes=extrapolation_passes(ex),
         objective=ex.choice("objective", OBJECTIVES, "accuracy"),
-        feature_size=None if "feature_size_mm" not in ex.table else ex.number("feature_size_mm", lo=0.0,
-                                                                               lo_open=True) * 1e-3,
+        feature_size=None if "feature_size_mm" not in ex.table else ex.number(
+            "feature_size_mm", lo=0.0, lo_open=True, hi=MAX_SIZE_MM) * 1e-3,
         calibration=MapCalibration(**{key: ex.number(key, getattr(DEFAULT_CALIBRATION, key), lo=0.0, lo_open=True,
                                                      hi=1.0) for key in DEFAULT_CALIBRATION.to_dict()}),
     )
@@ -189,8 +213,17 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     out.finish()
     actuator = _actuator(top.sub("actuator"), base)
     top.finish()
-    return Scenario(name, Path(file) if file != "<scenario>" else None, description, seed, fidelity, materials,
-                    fingertip, taxels, pose, training, exploration, tuple(objects), outputs, raw, actuator)
+    unique_stems(materials, f"{file}: materials")
+    unique_stems((o.spec.name for o in objects), f"{file}: objects")
+    scenario = Scenario(name, Path(file) if file != "<scenario>" else None, description, seed, fidelity, materials,
+                        fingertip, taxels, pose, training, exploration, tuple(objects), outputs, raw, actuator)
+    for i, entry in enumerate(objects):
+        try:
+            object_geometry(scenario, entry)
+        except ValidationError as exc:
+            raise ValidationError(f"{file}: objects[{i}] ({entry.spec.name}): its map (size_mm or grid_cells over "
+                                  f"exploration.cell_mm): {exc}") from None
+    return scenario
 
 
 def parse_actuator(table: dict, file: str = "<scenario>", base: Path | None = None) -> ActuatorSpec:

@@ -6,11 +6,21 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from palpate.core import files, limits
 from palpate.core.errors import ValidationError
+from palpate.core.files import brief
+from palpate.core.names import check_name
 from palpate.core.world.haptic_material import HapticMaterialMap
 from palpate.core.world.scenario import MaterialEntry, ObjectEntry
 from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec
 from palpate.core.world.table_reader import REQUIRED, TableReader, resolve_path
+
+#: Largest press force, N.
+MAX_FORCE_N = 1e4
+#: Object sizes, mm (10 m), and positions (100 m from the origin).
+MAX_SIZE_MM, MAX_POSITION_MM = 1e4, 1e5
+#: Cells along one side of a map (the product is bounded by the limit ``map_cells``).
+MAX_CELLS_SIDE = 1_000_000
 
 
 def training_source(r: TableReader) -> str:
@@ -25,7 +35,7 @@ def training_source(r: TableReader) -> str:
 
 
 def optional_force(r: TableReader) -> float | None:
-    value = r.number("max_force_n", 5.0, lo=0.0)
+    value = r.number("max_force_n", 5.0, lo=0.0, hi=MAX_FORCE_N)
     return None if value == 0 else value
 
 
@@ -50,26 +60,27 @@ def material_named(r: TableReader, key: str, materials: dict[str, MaterialEntry]
 
 
 def object_entry(r: TableReader, materials: dict[str, MaterialEntry], base: Path) -> ObjectEntry:
-    name = r.get("name", str)
+    name = check_name(r.get("name", str), f"{r.file}: {r.path}.name")
     shape = r.choice("shape", ("box", "cylinder", "mesh"), "box")
     count = {"box": 3, "cylinder": 2, "mesh": 3}[shape]
-    size = tuple(v * 1e-3 for v in r.numbers("size_mm", count, positive=True))
-    position = tuple(v * 1e-3 for v in r.numbers("position_mm", 2, (0.0, 0.0)))
+    size = tuple(v * 1e-3 for v in r.numbers("size_mm", count, positive=True, limit=MAX_SIZE_MM))
+    position = tuple(v * 1e-3 for v in r.numbers("position_mm", 2, (0.0, 0.0), limit=MAX_POSITION_MM))
     bulk = material_named(r, "material", materials)
     mesh = r.get("mesh", str, "")
     layers = []
     for lr in r.subs("layers"):
-        thickness = lr.number("thickness_mm", lo=0.0, lo_open=True) * 1e-3
+        thickness = lr.number("thickness_mm", lo=0.0, lo_open=True, hi=MAX_SIZE_MM) * 1e-3
         layers.append(Layer(material_named(lr, "material", materials), thickness))
         lr.finish()
     inclusions = []
     for ir in r.subs("inclusions"):
         ishape = ir.choice("shape", ("sphere", "box", "column"))
         icount = {"sphere": 1, "box": 3, "column": 2}[ishape]
-        centre = ir.numbers("center_mm", (2, 3))
+        centre = ir.numbers("center_mm", (2, 3), limit=MAX_POSITION_MM)
         centre3 = (centre[0] * 1e-3, centre[1] * 1e-3, (centre[2] if len(centre) == 3 else 0.0) * 1e-3)
         inclusions.append(Inclusion(material_named(ir, "material", materials), ishape, centre3,
-                                    tuple(v * 1e-3 for v in ir.numbers("size_mm", icount, positive=True))))
+                                    tuple(v * 1e-3 for v in ir.numbers("size_mm", icount, positive=True,
+                                                                        limit=MAX_SIZE_MM))))
         ir.finish()
     material_map = None
     map_path = r.get("material_map", str, "")
@@ -82,18 +93,25 @@ def object_entry(r: TableReader, materials: dict[str, MaterialEntry], base: Path
         material_map = hm
     regions = []
     for i, cell in enumerate(r.get("regions", list, [])):
-        if not (isinstance(cell, list) and len(cell) == 2 and all(isinstance(c, int) and c >= 1 for c in cell)):
-            raise r.err(f"regions[{i}]", f"expected a 1-based [column, row] pair of integers, got {cell!r}")
+        if not (isinstance(cell, list) and len(cell) == 2
+                and all(isinstance(c, int) and not isinstance(c, bool) and 1 <= c <= MAX_CELLS_SIDE for c in cell)):
+            raise r.err(f"regions[{i}]", f"expected a 1-based [column, row] pair of integers, got {brief(cell)}")
         regions.append((cell[0], cell[1]))
-    grid_origin = r.numbers("grid_origin_mm", 2, None)
+    grid_origin = r.numbers("grid_origin_mm", 2, None, limit=MAX_POSITION_MM)
     grid_shape = r.get("grid_cells", list, None)
-    if grid_shape is not None and not (len(grid_shape) == 2 and all(isinstance(v, int) and v > 0 for v in grid_shape)):
-        raise r.err("grid_cells", f"expected [columns, rows] positive integers, got {grid_shape!r}")
+    if grid_shape is not None and not (len(grid_shape) == 2 and all(
+            isinstance(v, int) and not isinstance(v, bool) and 0 < v <= MAX_CELLS_SIDE for v in grid_shape)):
+        raise r.err("grid_cells", f"expected [columns, rows] positive integers (at most {MAX_CELLS_SIDE}), got "
+                    f"{brief(grid_shape)}")
+    mesh_path = None
+    if mesh:
+        mesh_path = files.regular_file(resolve_path(base, mesh), f"{r.file}: {r.path}.mesh")
+        limits.check("mesh_mb", f"{r.file}: {r.path}.mesh: {mesh_path}: file size", mesh_path.stat().st_size)
     r.finish()
     try:
         map_materials = tuple(materials[n].material for n in material_map.materials) if material_map else ()
         spec = ObjectSpec(name, shape, size, position, bulk, tuple(layers), tuple(inclusions),
-                          mesh_path=str(resolve_path(base, mesh)) if mesh else None, material_map=material_map,
+                          mesh_path=str(mesh_path) if mesh_path else None, material_map=material_map,
                           map_materials=map_materials)
     except ValidationError as exc:
         raise ValidationError(f"{r.file}: {r.path}: {exc}") from None

@@ -3,10 +3,12 @@ key path and what was expected."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
 from palpate.core.errors import ValidationError
+from palpate.core.files import brief
 
 #: Default meaning "this key is required".
 REQUIRED = object()
@@ -36,11 +38,14 @@ class TableReader:
         value = self.table[key]
         kinds = kind if isinstance(kind, tuple) else (kind,)
         if float in kinds and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
+            try:
+                value = float(value)
+            except OverflowError:
+                raise self.err(key, f"{brief(value)} is too large for a number") from None
         if isinstance(value, bool) and bool not in kinds:
             raise self.err(key, f"expected {_kind_name(kinds)}, got a boolean")
         if not isinstance(value, kinds):
-            raise self.err(key, f"expected {_kind_name(kinds)}, got {type(value).__name__} {value!r}")
+            raise self.err(key, f"expected {_kind_name(kinds)}, got {type(value).__name__} {brief(value)}")
         return value
 
     def number(self, key: str, default: Any = REQUIRED, *, lo: float | None = None, hi: float | None = None,
@@ -48,38 +53,49 @@ class TableReader:
         value = self.get(key, float, default)
         if value is None or value is default and default is not REQUIRED:
             return value
-        if value != value or value in (float("inf"), float("-inf")):
-            raise self.err(key, "must be a finite number")
+        if not math.isfinite(value):
+            raise self.err(key, f"must be a finite number, got {value}")
         if lo is not None and (value < lo or (lo_open and value == lo)):
             raise self.err(key, f"must be {'>' if lo_open else '>='} {lo}, got {value}")
         if hi is not None and value > hi:
             raise self.err(key, f"must be <= {hi}, got {value}")
         return value
 
-    def integer(self, key: str, default: Any = REQUIRED, *, lo: int | None = None) -> int:
+    def integer(self, key: str, default: Any = REQUIRED, *, lo: int | None = None, hi: int | None = None) -> int:
         value = self.get(key, int, default)
         if lo is not None and value < lo:
-            raise self.err(key, f"must be >= {lo}, got {value}")
+            raise self.err(key, f"must be >= {lo}, got {brief(value)}")
+        if hi is not None and value > hi:
+            raise self.err(key, f"must be <= {hi}, got {brief(value)}")
         return value
 
     def choice(self, key: str, choices: tuple[str, ...], default: Any = REQUIRED) -> str:
         value = self.get(key, str, default)
         if value not in choices:
-            raise self.err(key, f"must be one of {', '.join(choices)}; got {value!r}")
+            raise self.err(key, f"must be one of {', '.join(choices)}; got {brief(value)}")
         return value
 
     def numbers(self, key: str, count: int | tuple[int, ...], default: Any = REQUIRED, *,
-                positive: bool = False) -> tuple[float, ...]:
+                positive: bool = False, limit: float | None = None) -> tuple[float, ...]:
+        """``count`` finite numbers (or one of several counts); ``positive``: each > 0; ``limit``: each of
+        magnitude at most ``limit``."""
         value = self.get(key, list, default)
         if value is default and default is not REQUIRED:
             return value
         counts = count if isinstance(count, tuple) else (count,)
         if len(value) not in counts or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                                for v in value):
-            raise self.err(key, f"expected {' or '.join(map(str, counts))} numbers, got {value!r}")
-        out = tuple(float(v) for v in value)
+            raise self.err(key, f"expected {' or '.join(map(str, counts))} numbers, got {brief(value)}")
+        try:
+            out = tuple(float(v) for v in value)
+        except OverflowError:
+            raise self.err(key, f"numbers must be finite, got {brief(value)}") from None
+        if not all(math.isfinite(v) for v in out):
+            raise self.err(key, f"numbers must be finite, got {brief(value)}")
         if positive and any(v <= 0 for v in out):
-            raise self.err(key, f"values must be > 0, got {value!r}")
+            raise self.err(key, f"values must be > 0, got {brief(value)}")
+        if limit is not None and any(abs(v) > limit for v in out):
+            raise self.err(key, f"values must be at most {limit:g} in magnitude, got {brief(value)}")
         return out
 
     def sub(self, key: str, required: bool = False) -> TableReader:
@@ -92,7 +108,7 @@ class TableReader:
         for i, item in enumerate(value):
             where = f"{self.path}.{key}[{i}]" if self.path else f"{key}[{i}]"
             if not isinstance(item, dict):
-                raise ValidationError(f"{self.file}: {where}: expected a table, got {item!r}")
+                raise ValidationError(f"{self.file}: {where}: expected a table, got {brief(item)}")
             out.append(TableReader(self.file, item, where))
         return out
 

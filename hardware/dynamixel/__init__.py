@@ -44,6 +44,7 @@ def register_cli(groups: dict) -> None:
     r.add_argument("--finger", required=True, help="finger description TOML (models/fingers/*.toml)")
     r.add_argument("--seconds", type=float, required=True, help="how long to record, s")
     r.add_argument("--out", required=True, help="output recording (.mcap)")
+    r.add_argument("--force", action="store_true", help="overwrite an existing --out (never the finger file)")
     r.add_argument("--rate", type=float, default=100.0, help="sample rate while idle, Hz (default 100)")
     r.add_argument("--press", type=float, metavar="X", help="also press and release at x = X m (torque on)")
     r.add_argument("--surface-z", type=float, default=0.03, help="height of the surface pressed, m (default 0.03)")
@@ -94,11 +95,14 @@ def _cmd_record(args) -> int:
 
     from palpate.core.errors import ValidationError
     from palpate.core.io.mcap_writer import RecordingWriter
+    from palpate.core.session.output_guard import check_output_file
     from palpate.core.session.sources import PressTarget
     from palpate.hardware.dynamixel.driver import DynamixelFinger
     from palpate.hardware.dynamixel.emulator import ServoBusEmulator
     from palpate.hardware.dynamixel.finger import inverse_kinematics, joints_to_ticks, load_finger, surface_load_model
     from palpate.hardware.dynamixel.press import plan_press
+
+    check_output_file(args.out, inputs=[args.finger], force=args.force)
 
     _need_port(args)
     if not args.seconds > 0:

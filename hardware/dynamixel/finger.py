@@ -13,7 +13,6 @@ the key and what was expected.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.files import read_toml
 from palpate.core.perception.streams import PoseSample
 from palpate.hardware.dynamixel import control_table as ct
 
@@ -212,15 +212,7 @@ def finger_from_dict(data: dict, source: str = "<dict>") -> FingerDescription:
 def load_finger(path: str | Path) -> FingerDescription:
     """Load and validate a finger description TOML file (see ``models/fingers/``)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ValidationError(f"cannot read finger description {str(path)!r}: {exc.strerror}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValidationError(f"{path}: not valid TOML: {exc}") from None
-    return finger_from_dict(data, str(path))
+    return finger_from_dict(read_toml(path, "finger description"), str(path))
 
 
 # ---- joints and ticks --------------------------------------------------------------------------------------

@@ -7,6 +7,7 @@ import sys
 import time
 
 from palpate.core.errors import DeviceError, ValidationError
+from palpate.core.session.output_guard import check_output_file
 from palpate.hardware.polhemus.driver import station_sensor_id
 from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, MAX_STATIONS
 
@@ -26,6 +27,7 @@ def add_record_command(record: argparse._SubParsersAction) -> None:
     p.add_argument("--stations", default="1", help="comma-separated 1-based stations to record (default 1)")
     p.add_argument("--seconds", type=float, required=True, help="how long to record, s")
     p.add_argument("--out", required=True, help="output recording (.mcap)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --out")
     p.add_argument("--units", choices=("cm", "in"), default="cm", help="units on the wire (poses are stored in m)")
     p.add_argument("--ascii", action="store_true", help="use ASCII output (F0) instead of binary (F1)")
     p.add_argument("--timeout", type=float, default=0.5,
@@ -58,6 +60,8 @@ def run_record(args: argparse.Namespace) -> int:
     from palpate.hardware.polhemus.driver import LibertyDriver
     from palpate.hardware.polhemus.emulator import LibertyEmulator, press_motion
     from palpate.hardware.polhemus.transport import SerialTransport
+
+    check_output_file(args.out, force=args.force)
 
     stations = parse_stations(args.stations)
     if not args.seconds > 0:

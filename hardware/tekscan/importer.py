@@ -13,6 +13,7 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.perception.streams import TaxelFrame
+from palpate.core.session.output_guard import check_output_file
 from palpate.hardware.tekscan.header import NUMBER_UNIT, PRESSURE, unit_key
 from palpate.hardware.tekscan.reader import read_tekscan, select_region
 
@@ -134,6 +135,7 @@ def add_import_command(imports: argparse._SubParsersAction) -> None:
         description="Convert a Tekscan ASCII/CSV movie export into an MCAP recording (topic /taxels/SENSOR_ID).")
     p.add_argument("file", type=Path, help="the Tekscan export (.csv/.asf)")
     p.add_argument("--out", type=Path, required=True, help="the MCAP recording to write")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --out (never the export itself)")
     p.add_argument("--region", help="R0:R1,C0:C1: keep only this block of the map (0-based, half-open), "
                                     "e.g. 1:5,1:5 for a 4x4 pad")
     p.add_argument("--start-time", help="ISO 8601 date-time of the first frame (default: times from 0 s)")
@@ -144,6 +146,7 @@ def add_import_command(imports: argparse._SubParsersAction) -> None:
 
 
 def _run_import(args: argparse.Namespace) -> int:
+    check_output_file(args.out, inputs=[args.file], force=args.force)
     summary = import_tekscan(args.file, args.out, region=args.region, start_time=parse_start_time(args.start_time),
                              sensor_id=args.sensor_id, full_scale_pa=args.full_scale)
     print(summary.text())

@@ -1,0 +1,179 @@
+"""Bounded reading of the files a user gives palpate: regular files only, sizes checked before reading, and every
+problem a ValidationError of one line naming the file (and line or key).
+
+A path that names a folder, a device (``/dev/zero``), a pipe or a socket is refused before a byte is read: a
+symlink to ``/dev/zero`` given as a memory would otherwise be read until memory runs out. JSON documents are
+checked for nesting depth and duplicate keys (which Python's json module silently resolves as "last wins"), and
+never echoed whole into an error.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import math
+import os
+import stat
+import tomllib
+from pathlib import Path
+
+from palpate.core import limits
+from palpate.core.errors import ValidationError
+
+#: Characters of a value shown in an error message; a file's value may be megabytes long.
+BRIEF = 60
+
+
+def brief(value, n: int = BRIEF) -> str:
+    """``repr(value)`` cut to ``n`` characters, for error messages about values read from files."""
+    text = repr(value)
+    return text if len(text) <= n else f"{text[: n - 3]}..."
+
+
+def _os_error(path: Path, what: str, exc: OSError) -> ValidationError:
+    reason = {errno.ENOENT: "not found", errno.EACCES: "permission denied", errno.EISDIR: "it is a folder",
+              errno.ELOOP: "a symlink loop", errno.ENOTDIR: "a part of the path is not a folder"}
+    return ValidationError(f"{path}: cannot read {what}: {reason.get(exc.errno, exc.strerror or str(exc))}")
+
+
+def regular_file(path: str | Path, what: str) -> Path:
+    """``path`` if it names a regular file (after symlinks); ValidationError otherwise (missing, a folder, a
+    device, a pipe)."""
+    p = Path(path)
+    try:
+        st = os.stat(p)
+    except OSError as exc:
+        raise _os_error(p, what, exc) from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a device, pipe or socket"
+        raise ValidationError(f"{p}: {what}: is {kind}, not a regular file")
+    return p
+
+
+def _open_regular(p: Path, what: str):
+    """A binary file object on ``p``, opened without blocking (a pipe cannot stall it) and checked with ``fstat``
+    on the open descriptor (a file swapped for a device after a check is still refused)."""
+    try:
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except OSError as exc:
+        raise _os_error(p, what, exc) from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a device, pipe or socket"
+        raise ValidationError(f"{p}: {what}: is {kind}, not a regular file")
+    return os.fdopen(fd, "rb"), st.st_size
+
+
+def read_bytes(path: str | Path, what: str, limit: str = "text_mb") -> bytes:
+    """The whole content of a regular file no larger than the limit ``limit`` (an ``MB`` limit); at most the limit
+    plus one byte is read, so a file that grows while being read cannot exceed it either."""
+    p = Path(path)
+    f, size = _open_regular(p, what)
+    with f:
+        limits.check(limit, f"{p}: {what}: file size", size)
+        try:
+            data = f.read(int(limits.limit(limit) * 1e6) + 1)
+        except OSError as exc:
+            raise _os_error(p, what, exc) from None
+    limits.check(limit, f"{p}: {what}: file size", len(data))
+    return data
+
+
+def read_bytes_head(path: str | Path, what: str, n: int) -> bytes:
+    """The first ``n`` bytes (fewer if the file is shorter) of a regular file."""
+    p = Path(path)
+    f, _ = _open_regular(p, what)
+    with f:
+        try:
+            return f.read(n)
+        except OSError as exc:
+            raise _os_error(p, what, exc) from None
+
+
+def read_text(path: str | Path, what: str, limit: str = "text_mb", encoding: str = "utf-8") -> str:
+    """A bounded regular text file decoded as ``encoding``; an undecodable byte is an error naming its offset."""
+    data = read_bytes(path, what, limit)
+    try:
+        return data.decode(encoding)
+    except UnicodeDecodeError as exc:
+        raise ValidationError(f"{path}: not UTF-8 text ({what}; byte {exc.start}: {exc.reason}); save it as "
+                              "UTF-8") from None
+
+
+class _DuplicateKey(ValueError):
+    def __init__(self, key: str):
+        super().__init__(key)
+        self.key = key
+
+
+def _pairs(pairs: list[tuple[str, object]]) -> dict:
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        seen: set[str] = set()
+        for k, _ in pairs:
+            if k in seen:
+                raise _DuplicateKey(k)
+            seen.add(k)
+    return out
+
+
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows (expected finite numbers only)")
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text[:40]} is too large for a number (expected finite numbers only)")
+    return value
+
+
+def parse_json(text: str, source: str, what: str) -> object:
+    """Decode a JSON document; ValidationError naming ``source`` (and the line) for anything a file can do wrong:
+    invalid JSON, duplicate keys, NaN/Infinity, numbers of more than 4300 digits, nesting over ``json_depth``."""
+    try:
+        doc = json.loads(text, object_pairs_hook=_pairs, parse_constant=_no_constant, parse_float=_finite_float)
+    except json.JSONDecodeError as exc:
+        raise ValidationError(f"{source}:{exc.lineno}: not valid JSON ({what}): {exc.msg}") from None
+    except _DuplicateKey as exc:
+        raise ValidationError(f"{source}: {what}: key {brief(exc.key)} appears twice in one object (which one "
+                              "is meant?)") from None
+    except RecursionError:
+        raise limits.exceeded("json_depth", f"{source}: {what}: nesting depth", float("inf")) from None
+    except ValueError as exc:  # Python's limit on integer digits, or parse_constant
+        raise ValidationError(f"{source}: {what}: {str(exc)[:120]}") from None
+    depth = json_depth(doc)
+    limits.check("json_depth", f"{source}: {what}: nesting depth", depth)
+    return doc
+
+
+def json_depth(doc: object) -> int:
+    """Nesting depth of a decoded JSON value (a scalar is 0), computed without recursion."""
+    deepest, stack = 0, [(doc, 0)]
+    while stack:
+        node, depth = stack.pop()
+        children = node.values() if isinstance(node, dict) else node if isinstance(node, list) else None
+        if children is None:
+            continue
+        deepest = max(deepest, depth + 1)
+        stack.extend((c, depth + 1) for c in children if isinstance(c, (dict, list)))
+    return deepest
+
+
+def read_json(path: str | Path, what: str) -> object:
+    """A bounded JSON file, decoded with :func:`parse_json`."""
+    return parse_json(read_text(path, what), str(path), what)
+
+
+def read_toml(path: str | Path, what: str) -> dict:
+    """A bounded TOML file (UTF-8, as TOML requires); ValidationError naming the file for anything wrong."""
+    text = read_text(path, what)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValidationError(f"{path}: not valid TOML ({what}): {exc}") from None
+    except RecursionError:
+        raise ValidationError(f"{path}: {what}: nesting too deep to read") from None
+    except ValueError as exc:  # Python's limit on integer digits
+        raise ValidationError(f"{path}: {what}: {str(exc)[:120]}") from None
