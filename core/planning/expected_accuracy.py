@@ -100,6 +100,8 @@ def label_belief(grid, *, reach: int = 4, correlation_cells: float = 4.0, temper
         correlation_cells: L of rho(d) = exp(-d / L), cells: about the size of the features expected.
         temperature: exponent of each vote's likelihood, (0, 1].
         freq: prior share of each material, (M,) (default: :func:`material_frequencies` of the map).
+        surprise: chance that an unexplored cell is none of what its neighbours say: the belief is mixed with
+            ``freq`` by this much, [0, 1).
     """
     _check(reach, correlation_cells, temperature, surprise)
     p = np.asarray(grid.probabilities, dtype=float)
@@ -171,7 +173,9 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
         post: its post-processed version (one eq. 6.15 pass: a press changes only its 8-neighbours).
         table: (outcomes (U, M), likelihood (M, U)) of a press, from
             :func:`palpate.core.planning.outcomes.outcome_table`.
-        reach, correlation_cells, temperature: of :func:`label_belief`.
+        reach, correlation_cells, temperature, surprise: of :func:`label_belief`.
+        freq: the belief's prior share of each material (default: :func:`material_frequencies` of the map; the
+            incremental scoring keeps it fixed between full rescorings).
 
     Can be negative where a press is expected to tip a correct extrapolation over to a wrong one.
     """
