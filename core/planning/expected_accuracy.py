@@ -192,6 +192,8 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
     explored = np.asarray(grid.explored, dtype=bool)
     labels = np.argmax(p, axis=-1)
     freq = material_frequencies(labels, explored, m) if freq is None else np.asarray(freq, dtype=float)
+    if freq.shape != (m,) or not np.all(np.isfinite(freq)) or (freq <= 0).any():
+        raise ValidationError(f"freq must be {m} finite shares > 0, got {freq!r}")
     logits = belief_logits(labels, explored, freq, reach=reach, correlation_cells=correlation_cells,
                            temperature=temperature)
     belief = np.where(explored[..., None], p, _normalise_logits(logits, freq, surprise))
