@@ -9,7 +9,11 @@ part of the top, a box buried 4-8 mm down, and a column through the whole height
 voxel map reaches 95% of the ceiling (one more than the columns when never), median and worst ratio to raster, on
 tuning seeds (0, ...) and report-only seeds (100000, ...). Every policy explores the same scenes with the same memory.
 
-Run: .venv/bin/python benchmarks/exploration_voxels.py [--scenes N] [--split tuning|report|both]
+Seed 001's post-processing is vertical only, so every column must be pressed to be known and no policy can do much
+better than raster; --lateral also fills unexplored voxels from their layer's explored neighbours (eq. 6.15 per
+layer, ``lateral_extrapolation = true``), where the accuracy objective counts those neighbours too.
+
+Run: .venv/bin/python benchmarks/exploration_voxels.py [--scenes N] [--split tuning|report|both] [--lateral]
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ CELL_MM, DEPTH_MM, HEIGHT_MM, FORCE_N = 5.0, 10.0, 40.0, 40.0
 OF_CEILING = 0.95
 
 
-def voxel_scene(seed: int, policy: str = "raster", objective: str | None = None) -> dict:
+def voxel_scene(seed: int, policy: str = "raster", objective: str | None = None, lateral: bool = False) -> dict:
     """A seeded layered block as a scenario dictionary (voxel map)."""
     rng = np.random.default_rng([seed, 3])
     nx, ny = int(rng.integers(8, 13)), int(rng.integers(6, 10))
@@ -65,6 +69,8 @@ def voxel_scene(seed: int, policy: str = "raster", objective: str | None = None)
           "depth_mm": DEPTH_MM, "max_force_n": FORCE_N, "variability": "human"}
     if objective is not None:
         ex["objective"] = objective
+    if lateral:
+        ex["lateral_extrapolation"] = True
     return {"scenario": {"name": f"voxels{seed}", "seed": seed, "fidelity": "analytic"}, "materials": MATERIALS,
             "training": {"presses_per_material": 10, "depth_mm": DEPTH_MM, "max_force_n": FORCE_N},
             "exploration": ex, "objects": [obj], "outputs": {"figures": False, "haptic_material": False}}
@@ -81,6 +87,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", type=int, default=12, help="scenes per split (default 12)")
     parser.add_argument("--split", default="both", choices=("tuning", "report", "both"))
+    parser.add_argument("--lateral", action="store_true",
+                        help="post-process with lateral filling within layers (exploration.lateral_extrapolation)")
     args = parser.parse_args()
     t0 = time.perf_counter()
     base = parse_scenario(voxel_scene(0), "voxels")
@@ -93,7 +101,7 @@ def main() -> None:
         for s in seeds:
             counts = {}
             for row, (kind, objective) in ROWS.items():
-                sc = parse_scenario(voxel_scene(s, kind, objective), f"voxels{s}")
+                sc = parse_scenario(voxel_scene(s, kind, objective, args.lateral), f"voxels{s}")
                 res = explore_object(sc, sc.objects[0], training.memory, make_source_for(sc), 9000 + s,
                                      Progress(enabled=False), layers=layers)
                 acc = [st.accuracy_postprocessed for st in res.steps]
@@ -107,7 +115,8 @@ def main() -> None:
                 ratios[row].append(counts[row] / counts["raster"])
             print(f"{name} {s}: ceiling {ceiling:.3f}, presses to {OF_CEILING:.0%} of it: "
                   + ", ".join(f"{k} {v}" for k, v in counts.items()), flush=True)
-        print(f"\n{name} seeds {seeds[0]}-{seeds[-1]}, voxel maps ({CELL_MM:.0f} mm, {DEPTH_MM / CELL_MM:.0f} layers), "
+        print(f"\n{name} seeds {seeds[0]}-{seeds[-1]}, voxel maps ({CELL_MM:.0f} mm, {DEPTH_MM / CELL_MM:.0f} layers"
+              f"{', lateral filling' if args.lateral else ''}), "
               f"physics (analytic): ceiling median {np.median(ceilings):.3f}, raster median {np.median(raster_n):.0f} "
               "presses; ratio to raster of presses to 95% of the ceiling")
         for row, q in ratios.items():

@@ -458,3 +458,17 @@ def test_attainable_accuracy_reuses_a_full_raster_and_presses_every_column_other
     acc = [st.accuracy_postprocessed for st in short.steps]
     assert s["ceiling"] == c.accuracy and s["ceiling_presses"] == 12
     assert s["presses_to_level"] == next((k + 1 for k, a in enumerate(acc) if a >= 0.95), None)
+
+
+def test_map_postprocessing_round_trips_and_names_bad_metadata():
+    from palpate.core.session.explore import MapPostprocessing
+
+    for settings in (MapPostprocessing(), MapPostprocessing(None, True), MapPostprocessing(3, False)):
+        assert MapPostprocessing.from_dict(settings.to_dict(), "rec.mcap") == settings
+    assert MapPostprocessing.from_dict({}, "rec.mcap") == MapPostprocessing(1, False)  # an older recording
+    with pytest.raises(ValidationError, match="rec.mcap: extrapolation_passes must be an integer >= 1"):
+        MapPostprocessing.from_dict({"extrapolation_passes": 0}, "rec.mcap")
+    with pytest.raises(ValidationError, match="rec.mcap: voxel_lateral must be true or false"):
+        MapPostprocessing.from_dict({"voxel_lateral": "yes"}, "rec.mcap")
+    with pytest.raises(ValidationError, match="rec.mcap: unknown key"):
+        MapPostprocessing.from_dict({"passes": 2}, "rec.mcap")

@@ -10,7 +10,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import decided_labels
 from palpate.core.mapping.grids import Grid2D, VoxelGrid
 from palpate.core.mapping.probability import update
-from palpate.core.planning.expected_accuracy import confusion_outcomes, label_belief
+from palpate.core.planning.expected_accuracy import confusion_outcomes, expected_accuracy_gain, label_belief
 from palpate.core.planning.info_gain import InfoGain
 from palpate.core.planning.outcomes import outcome_posteriors, outcome_table
 from palpate.core.planning.voxel_accuracy import voxel_accuracy_gain
@@ -80,3 +80,34 @@ def test_a_2d_map_is_refused(memory):
     g = Grid2D(MATS, (3, 3))
     with pytest.raises(ValidationError, match="needs a voxel map"):
         voxel_accuracy_gain(g, g, table)
+
+
+def test_with_lateral_filling_a_layer_is_scored_as_a_2d_map(memory):
+    table = outcome_table(outcome_posteriors(memory, 30, seed=2))
+    rng = np.random.default_rng(5)
+    v = VoxelGrid(MATS, (6, 5, 1), cell_size=0.005)
+    g = Grid2D(MATS, (6, 5), cell_size=0.005)
+    for _ in range(8):
+        ix, iy, p = int(rng.integers(6)), int(rng.integers(5)), rng.dirichlet([0.4, 0.4, 0.4])
+        v.update_voxel(ix, iy, 0, p)
+        g.update_cell(ix, iy, p)
+    lateral = voxel_accuracy_gain(v, v.postprocessed(lateral=True), table, lateral=True)
+    # one layer: the same expected gain as the same cells on a 2-D map (brute-force checked in
+    # test_expected_accuracy), and a press also helps its unexplored neighbours, so it is worth more than alone
+    assert lateral == pytest.approx(expected_accuracy_gain(g, g.postprocessed(), table, reach=2, correlation_cells=1.0))
+    alone = voxel_accuracy_gain(v, v.postprocessed(), table)
+    free = ~np.asarray(g.explored)
+    assert lateral[free].sum() > alone[free].sum()
+
+
+def test_scenario_lateral_extrapolation_is_for_voxel_maps_only():
+    from palpate.core.world.scenario_file import parse_scenario
+
+    raw = {"scenario": {"name": "v", "seed": 1, "fidelity": "analytic"},
+           "materials": [{"name": "soft", "young_kpa": 20.0}, {"name": "hard", "young_kpa": 450.0}],
+           "exploration": {"policy": "raster", "budget": 2, "map": "voxel", "lateral_extrapolation": True},
+           "objects": [{"name": "o", "size_mm": [30.0, 20.0, 30.0], "position_mm": [15.0, 10.0], "material": "soft"}]}
+    assert parse_scenario(raw, "v.toml").exploration.voxel_lateral
+    raw["exploration"]["map"] = "grid2d"
+    with pytest.raises(ValidationError, match="v.toml: exploration.lateral_extrapolation: fills voxels"):
+        parse_scenario(raw, "v.toml")

@@ -73,8 +73,9 @@ class InfoGain:
         max_depth: voxel maps: deepest press, m (None = the whole column).
         samples_per_material: parameter vectors drawn per material to predict outcomes.
         seed: seed of those draws.
-        passes, certainty: of the post-processing computed when ``post`` is not given (2-D maps; see
-            ``Grid2D.postprocessed``).
+        passes, certainty, lateral: of the post-processing computed when ``post`` is not given (see
+            ``Grid2D.postprocessed`` and ``VoxelGrid.postprocessed``); ``lateral`` also tells the voxel accuracy
+            objective that a press spreads to its layer's neighbours.
         spread_stride: press every ``spread_stride``-th cell first (an even lattice; < 2 = no lattice).
         objective: "accuracy" (default) = the expected number of cells of the post-processed map whose most
             probable material becomes the true one (2-D:
@@ -108,6 +109,7 @@ class InfoGain:
     seed: int = 0
     passes: int | None = 1
     certainty: float = 1.0
+    lateral: bool = False
     spread_stride: int = 3
     boundary_weight: float = 1.0
     coverage_weight: float | None = None
@@ -151,12 +153,12 @@ class InfoGain:
     def gains(self, grid, post=None) -> np.ndarray:
         """Expected gain of every column, (ny, nx): cells set right (accuracy objective) or entropy units (entropy
         objective), computed afresh for every cell."""
-        post = postprocess(grid, self.passes, self.certainty) if post is None else post
+        post = postprocess(grid, self.passes, self.certainty, self.lateral) if post is None else post
         if is_voxel(grid):
             if self.objective == "accuracy":
                 return voxel_accuracy_gain(grid, post, self.table(), self.max_depth, reach=self.belief_reach,
                                            correlation_cells=self.correlation_cells(grid),
-                                           temperature=self.belief_temperature)
+                                           temperature=self.belief_temperature, lateral=self.lateral)
             return expected_gain(grid, post, self.table(), self.max_depth)
         if self._accuracy_mode(grid):
             return expected_accuracy_gain(grid, post, self.table(), reach=self.belief_reach,
@@ -237,7 +239,7 @@ class InfoGain:
         """The column with the best value less travel cost, or the next lattice cell. Its ``score`` is the best
         expected gain in cells (hole bonus included, travel and the entropy term aside): what the
         ``stop_min_gain`` rule compares. None when every column is explored and certain."""
-        post = postprocess(grid, self.passes, self.certainty) if post is None else post
+        post = postprocess(grid, self.passes, self.certainty, self.lateral) if post is None else post
         value, cells, allowed = self._value(grid, post)
         best = float(np.max(np.where(allowed, cells, -np.inf))) if allowed.any() else None
         seed_cell = self._spread_cell(grid, last)

@@ -6,7 +6,10 @@ voxel, the truth is believed as on a 2-D map (:func:`~palpate.core.planning.expe
 voxel's layer: explored voxels of the same layer vote for their material); the press's reading of it is predicted
 from the memory's confusion (:func:`~palpate.core.planning.expected_accuracy.confusion_outcomes`), and the gain is the
 chance the voxel's most probable material is the true one after the press less that chance now (an undecided voxel
-counts as wrong, as the accuracy rule says).
+counts as wrong, as the accuracy rule says). When the map's post-processing also fills unexplored voxels from their
+explored neighbours in the same layer (``lateral``), each layer is scored as a 2-D map
+(:func:`~palpate.core.planning.expected_accuracy.expected_accuracy_gain`: the pressed voxel and the neighbours eq. 6.15
+fills from it).
 """
 
 from __future__ import annotations
@@ -18,18 +21,28 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import decided_labels
 from palpate.core.mapping.probability import update
-from palpate.core.planning.expected_accuracy import confusion_outcomes, label_belief
+from palpate.core.planning.expected_accuracy import confusion_outcomes, expected_accuracy_gain, label_belief
 from palpate.core.planning.map_views import is_voxel, layers_reached
 
 
 @dataclass(frozen=True)
 class _Layer:
+    """One layer of a voxel map as a 2-D map, (ny, nx, M)."""
+
     probabilities: np.ndarray
     explored: np.ndarray
+    base: float = 10.0
+    p_min: float = 1e-6
+
+
+def _layer(p: np.ndarray, explored: np.ndarray, z: int, base: float, p_min: float) -> _Layer:
+    return _Layer(np.ascontiguousarray(np.swapaxes(p[:, :, z], 0, 1)), np.ascontiguousarray(explored[:, :, z].T),
+                  base, p_min)
 
 
 def voxel_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], max_depth: float | None = None, *,
-                        reach: int = 2, correlation_cells: float = 1.0, temperature: float = 0.5) -> np.ndarray:
+                        reach: int = 2, correlation_cells: float = 1.0, temperature: float = 0.5,
+                        lateral: bool = False) -> np.ndarray:
     """Expected voxels of the post-processed map set right by one press on each column, (ny, nx).
 
     Args:
@@ -38,6 +51,8 @@ def voxel_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], max_de
             :func:`palpate.core.planning.outcomes.outcome_table`.
         max_depth: deepest press, m (None = the whole column).
         reach, correlation_cells, temperature: the in-layer belief's (see ``label_belief``).
+        lateral: the post-processing fills each layer's unexplored voxels from their explored neighbours
+            (``VoxelGrid.postprocessed(lateral=True)``): a press then also sets its layer neighbours right.
     """
     if not is_voxel(grid):
         raise ValidationError(f"voxel_accuracy_gain needs a voxel map (nx, ny, nz, M), got probabilities of shape "
@@ -54,11 +69,13 @@ def voxel_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], max_de
     k = layers_reached(grid, max_depth)
     gain = np.zeros((ny, nx))
     for z in range(k):
-        # one layer as a 2-D plane, (ny, nx, M) like Grid2D
-        pz = np.ascontiguousarray(np.swapaxes(p[:, :, z], 0, 1))
-        ez = np.ascontiguousarray(explored[:, :, z].T)
-        belief = label_belief(_Layer(pz, ez), reach=reach, correlation_cells=correlation_cells,
-                              temperature=temperature)
+        layer = _layer(p, explored, z, grid.base, grid.p_min)
+        if lateral:
+            gain += expected_accuracy_gain(layer, _layer(pp, explored, z, grid.base, grid.p_min), table, reach=reach,
+                                           correlation_cells=correlation_cells, temperature=temperature)
+            continue
+        pz = layer.probabilities
+        belief = label_belief(layer, reach=reach, correlation_cells=correlation_cells, temperature=temperature)
         label, decided = decided_labels(np.swapaxes(pp[:, :, z], 0, 1))
         p_named = belief @ conf  # chance the press names each material
         for o in range(m):

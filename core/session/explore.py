@@ -93,6 +93,50 @@ class ObjectResult:
         return [s.result for s in self.steps]
 
 
+@dataclass(frozen=True)
+class MapPostprocessing:
+    """How a run post-processes its maps besides the calibration (recordings carry it, so replay rebuilds the same
+    maps): eq. 6.15 ``passes`` on 2-D maps (None = until every cell is filled) and, on voxel maps, whether layers
+    are also filled laterally."""
+
+    passes: int | None = 1
+    voxel_lateral: bool = False
+
+    @classmethod
+    def of(cls, ex) -> MapPostprocessing:
+        return cls(ex.extrapolation_passes, ex.voxel_lateral)
+
+    def to_dict(self) -> dict:
+        return {"extrapolation_passes": "all" if self.passes is None else self.passes,
+                "voxel_lateral": self.voxel_lateral}
+
+    @classmethod
+    def from_dict(cls, doc, source: str) -> MapPostprocessing:
+        """Read :meth:`to_dict`'s document (missing keys: the seeds' one pass, no lateral filling); anything else
+        wrong is a ValidationError naming ``source`` and the key."""
+        if not isinstance(doc, dict):
+            raise ValidationError(f"{source}: expected an object, got {type(doc).__name__}")
+        unknown = sorted(set(doc) - {"extrapolation_passes", "voxel_lateral"})
+        if unknown:
+            raise ValidationError(f"{source}: unknown key(s) {unknown}")
+        passes = doc.get("extrapolation_passes", 1)
+        if passes != "all" and (isinstance(passes, bool) or not isinstance(passes, int) or passes < 1):
+            raise ValidationError(f"{source}: extrapolation_passes must be an integer >= 1 or \"all\", got "
+                                  f"{passes!r}")
+        lateral = doc.get("voxel_lateral", False)
+        if not isinstance(lateral, bool):
+            raise ValidationError(f"{source}: voxel_lateral must be true or false, got {lateral!r}")
+        return cls(None if passes == "all" else passes, lateral)
+
+    def apply(self, grid, calibration: MapCalibration):
+        """The post-processed copy of ``grid`` (2-D or voxel) with these settings and ``calibration``'s
+        extrapolation certainty."""
+        c = calibration.extrapolation_certainty
+        if isinstance(grid, VoxelGrid):
+            return grid.postprocessed(lateral=self.voxel_lateral, certainty=c)
+        return grid.postprocessed(passes=self.passes, certainty=c)
+
+
 def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory,
                 layers: LayeredMemory | None, fallback_xy: tuple[float, float],
                 calibration: MapCalibration = SEED_CALIBRATION) -> np.ndarray | None:
@@ -174,10 +218,12 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
     policy = make_policy(ex.policy, cells=list(regions0), repeats=ex.presses_per_region, seed=seed, memory=memory,
                          travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None,
                          passes=ex.extrapolation_passes, objective=ex.objective, feature_size=ex.feature_size,
-                         certainty=ex.calibration.extrapolation_certainty)
+                         certainty=ex.calibration.extrapolation_certainty, lateral=ex.voxel_lateral)
     # The one post-processing the policies plan on, the run reports and the map files hold.
-    postprocess = grid.postprocessed if voxel else (lambda: grid.postprocessed(
-        passes=ex.extrapolation_passes, certainty=ex.calibration.extrapolation_certainty))
+    post_settings = MapPostprocessing.of(ex)
+
+    def postprocess():
+        return post_settings.apply(grid, ex.calibration)
     source = make_source((entry.spec,), seed, ex.variability)
     if not callable(getattr(source, "press", None)):
         raise ValidationError(f"exploring {entry.spec.name}: the source/actuator {type(source).__name__} has no "

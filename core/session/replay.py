@@ -35,7 +35,7 @@ from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.pipeline import presses_from_recording
 from palpate.core.perception.press import PressResult, perceive_press, press_result
 from palpate.core.perception.streams import GroundTruth, PressRecording
-from palpate.core.session.explore import apply_press
+from palpate.core.session.explore import MapPostprocessing, apply_press
 from palpate.core.session.output_guard import prepare_output_folder
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import assert_finite, fit_summary, versions
@@ -149,6 +149,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
     # The run's map calibration (a recording made before it was recorded used the seeds' maps).
     calibration = MapCalibration.from_dict(rec.metadata.get("map_calibration") or {},
                                            f"{path}: metadata map_calibration")
+    postprocessing = MapPostprocessing.from_dict(rec.metadata.get("map_postprocessing") or {},
+                                                 f"{path}: metadata map_postprocessing")
     windows = [(i, a) for i, a in enumerate(rec.annotations) if a.kind == "press"]
     presses = [press_window(a.data, f"{path}: annotation {i} (press)") for i, a in windows]
     explore = [w for w in presses if w.phase == "exploration"]
@@ -193,8 +195,7 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
     (out / "maps").mkdir(exist_ok=True)
     for name, state in objects.items():
         grid = state.grid
-        post = grid.postprocessed() if state.geometry.voxel else grid.postprocessed(
-            certainty=calibration.extrapolation_certainty)
+        post = postprocessing.apply(grid, calibration)
         grid.save(inside(out, out / "maps" / f"{stems[name]}.npz"))
         post.save(inside(out, out / "maps" / f"{stems[name]}_postprocessed.npz"))
         g = state.geometry

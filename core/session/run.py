@@ -31,7 +31,7 @@ from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.session.actuators import open_actuators
 from palpate.core.session.ceiling import Ceiling, attainable_accuracy, ceiling_summary
-from palpate.core.session.explore import ObjectResult, explore_object
+from palpate.core.session.explore import MapPostprocessing, ObjectResult, explore_object
 from palpate.core.session.output_guard import check_output_file, prepare_output_folder
 from palpate.core.session.outputs import write_figures, write_maps
 from palpate.core.session.press_log import PressLog
@@ -80,7 +80,8 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                                      "seed": scenario.seed, "fidelity": scenario.fidelity},
                         "sources": [source] if kind == "sim" else [source, kind],
                         "maps": {name: g.to_dict() for name, g in geometries.items()},
-                        "map_calibration": scenario.exploration.calibration.to_dict()})
+                        "map_calibration": scenario.exploration.calibration.to_dict(),
+                        "map_postprocessing": MapPostprocessing.of(scenario.exploration).to_dict()})
         try:
             return _run(scenario, out, progress, *makers, seeds, log)
         finally:
@@ -169,6 +170,7 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
         },
         "training": {name: [fit_summary(r.fit) for r in rs] for name, rs in presses.items()},
         "map_calibration": ex.calibration.to_dict(),
+        "map_postprocessing": MapPostprocessing.of(ex).to_dict(),
         "objects": [object_summary(o) | {"attainable_accuracy": ceiling_summary(o, c)}
                     for o, c in zip(objects, ceilings, strict=True)],
         "calibration": run_calibration(objects),

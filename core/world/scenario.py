@@ -58,6 +58,8 @@ class ExplorationSpec:
     objective: str = "accuracy"
     feature_size: float | None = None
     calibration: MapCalibration = DEFAULT_CALIBRATION
+    #: voxel maps: also fill unexplored voxels from their explored neighbours in the same layer (eq. 6.15)
+    voxel_lateral: bool = False
 
 
 @dataclass(frozen=True)

@@ -179,7 +179,11 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
             "feature_size_mm", lo=0.0, lo_open=True, hi=MAX_SIZE_MM) * 1e-3,
         calibration=MapCalibration(**{key: ex.number(key, getattr(DEFAULT_CALIBRATION, key), lo=0.0, lo_open=True,
                                                      hi=1.0) for key in DEFAULT_CALIBRATION.to_dict()}),
+        voxel_lateral=ex.get("lateral_extrapolation", bool, False),
     )
+    if exploration.voxel_lateral and exploration.map != "voxel":
+        raise ex.err("lateral_extrapolation", "fills voxels from their neighbours in a layer; map is "
+                     f"{exploration.map!r} (grid2d maps always extrapolate laterally: extrapolation_passes)")
     if exploration.stop_min_gain is not None and exploration.policy != "info_gain":
         raise ex.err("stop_min_gain", f"only the info_gain policy predicts a gain; policy is {exploration.policy!r}")
     for key in ("objective", "feature_size_mm"):
