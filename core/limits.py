@@ -39,6 +39,8 @@ LIMITS = {lim.name: lim for lim in (
     Limit("taxels", 4096, "taxels", "taxels of a scenario's fingertip pad (rows x cols)"),
     Limit("materials", 1000, "materials", "materials in a memory, a map or a haptic-material folder"),
     Limit("sweep_variants", 10000, "variants", "variants of one sweep (the product of its axes)"),
+    Limit("mcap_mb", 64, "MB", "an MCAP record read into memory, and an MCAP chunk once decompressed"),
+    Limit("mcap_messages", 4e6, "messages", "messages in one MCAP recording"),
 )}
 
 

@@ -43,11 +43,21 @@ def run_bench(args: argparse.Namespace) -> int:
     settings = tradeoff.quick_settings() if args.quick else tradeoff.full_settings()
     seeds = (0, 1, 2, 3) if args.quick else (0, 1, 2, 3, 4, 5)
 
-    def progress(r) -> None:
-        state = "failed" if r.failed else f"{1e3 * r.wall_per_press:.1f} ms/press"
-        print(f"  {r.setting.label}: {state}", file=sys.stderr, flush=True)
+    # One row per setting, its label printed as the setting starts and its result added when it ends: a long
+    # setting (flex) shows what is running instead of nothing.
+    count = iter(range(1, len(settings) + 2))
+    row_open = []
 
-    report = tradeoff.run_tradeoff(settings, seeds=seeds, progress=progress)
+    def started(setting) -> None:
+        print(f"  [{next(count)}/{len(settings) + 1}] {setting.label}: ", end="", file=sys.stderr, flush=True)
+        row_open.append(True)
+
+    def progress(r) -> None:
+        state = f"failed ({r.failed})" if r.failed else f"{1e3 * r.wall_per_press:.1f} ms/press"
+        head = "" if row_open and row_open.pop() else f"  {r.setting.label} (the reference, measured above): "
+        print(head + state, file=sys.stderr, flush=True)
+
+    report = tradeoff.run_tradeoff(settings, seeds=seeds, progress=progress, on_start=started)
     validity = tradeoff.analytic_validity(seeds=(0, 1))
     doc = tradeoff_report.report_to_dict(report)
     doc["analytic_validity"] = validity

@@ -20,9 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.world.resources import models_dir
 
 #: The shipped table.
-CALIBRATION_PATH = Path(__file__).resolve().parent.parent / "models" / "flex_calibration.json"
+CALIBRATION_PATH = models_dir() / "flex_calibration.json"
 #: Indentation range over which force is matched to Hertz, m ("small indentation").
 CAL_RANGE = (0.0003, 0.0015)
 #: Thickness of the calibration block, m (several contact radii at the top of CAL_RANGE).

@@ -15,10 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.world.resources import models_dir
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.fingertip import sensel_sites
 
-MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+MODELS_DIR = models_dir()  # the shipped models/ (palpate.models), also from a wheel
 
 
 @dataclass(frozen=True)

@@ -88,6 +88,9 @@ class SimSource:
         timestep: physics step, s (rigid default 2 ms, flex default 5 ms; analytic samples at the taxel rate).
     """
 
+    #: modules every fidelity imports when it presses (checked by the run before any work starts)
+    requires = ("mujoco",)
+
     def __init__(self, scene: Scene, fidelity: str = "auto", seed: int = 0,
                  variability: str | Variability = "robot", timestep: float | None = None):
         if fidelity not in FIDELITIES:

@@ -325,18 +325,25 @@ def cheapest_within(results: list[SettingResult], tolerance: float) -> SettingRe
 
 
 def run_tradeoff(settings: list[Setting], *, reference: Setting | None = None, seeds: tuple[int, ...] = (0, 1, 2, 3),
-                 materials=BENCH_MATERIALS, depth: float = 0.003, progress=None) -> dict:
+                 materials=BENCH_MATERIALS, depth: float = 0.003, progress=None, on_start=None) -> dict:
     """Measure every setting and the reference; return {"reference", "results", "pareto", "within_5", "within_1"}.
 
-    ``progress`` (optional) is called with each finished SettingResult.
+    ``on_start`` (optional) is called with each Setting (the reference first) before it is measured, ``progress``
+    (optional) with each finished SettingResult.
     """
     reference = reference or reference_setting()
+    if on_start is not None:
+        on_start(reference)
     ref = measure_setting(reference, seeds=seeds, materials=materials, depth=depth)
+    if on_start is not None and progress is not None:
+        progress(ref)  # the reference's row was opened: close it
     if ref.failed:
         raise ValidationError(f"the reference setting {reference.label} failed: {ref.failed}; choose a finer one")
     compare_to_reference(ref, ref)
     results = []
     for s in settings:
+        if on_start is not None and s != reference:
+            on_start(s)
         r = ref if s == reference else measure_setting(s, seeds=seeds, materials=materials, depth=depth)
         compare_to_reference(r, ref)
         results.append(r)

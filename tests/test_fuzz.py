@@ -36,10 +36,9 @@ TRY_SECONDS = 30.0
 #: Address space a try may add to what the test process maps: a bounded read needs far less.
 MEMORY_HEADROOM = 1.5e9
 BAD = ("unclear", "traceback", "hang", "memory", "outside", "nan")
-#: Kinds whose bounded reads belong to other work in progress (MCAP: issue 17's recording part; Tekscan: its
-#: device part): their bad outcomes are reported as known findings (xfail) until those land.
-PENDING = {"mcap": "MCAP chunk/message limits and salvage (issue 17, recording part)",
-           "tekscan": "Tekscan bounded and streaming reads (issue 17, device part)"}
+#: Kinds whose bounded reads belong to other work in progress (Tekscan: issue 17's device part): their bad outcomes
+#: are reported as known findings (xfail) until that lands.
+PENDING = {"tekscan": "Tekscan bounded and streaming reads (issue 17, device part)"}
 
 
 def _snapshot(root: Path, skip: Path | None) -> dict[str, tuple]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import base64
 import json
 import os
 import signal
@@ -77,12 +78,25 @@ def test_versions_and_foxglove_readable_channels(tmp_path, rng):
     channels = {r.topic: r for r in recs if type(r).__name__ == "Channel"}
     schemas = {r.id: r for r in recs if type(r).__name__ == "Schema"}
     assert set(channels) == {"/taxels/index", "/taxels/thumb", "/pose/tip", "/joints", "/truth", "/annotations"}
-    for ch in channels.values():
+    # Foxglove's well-known schemas where one exists, so its panels know what to draw
+    expected = {"/taxels/index": "foxglove.RawImage", "/pose/tip": "foxglove.FrameTransform",
+                "/annotations": "foxglove.Log", "/truth": "palpate.GroundTruthSeries", "/joints": "palpate.JointState"}
+    for topic, ch in channels.items():
         assert ch.message_encoding == "json"
-        assert schemas[ch.schema_id].encoding == "jsonschema"
-        assert json.loads(schemas[ch.schema_id].data)["type"] == "object"
-    msgs = [r for r in recs if type(r).__name__ == "Message"]
-    assert all(m.log_time == round(json.loads(m.data)["t"] * 1e9) for m in msgs)
+        schema = schemas[ch.schema_id]
+        assert schema.encoding == "jsonschema" and json.loads(schema.data)["type"] == "object"
+        assert schema.name == expected.get(topic, expected["/taxels/index"])
+    msgs = [(r, json.loads(r.data)) for r in recs if type(r).__name__ == "Message"]
+    for m, body in msgs:
+        t = body["t"][0] if isinstance(body["t"], list) else body["t"]
+        assert m.log_time == round(t * 1e9)
+        if "timestamp" in body:
+            assert body["timestamp"]["sec"] * 10**9 + body["timestamp"]["nsec"] == m.log_time
+    image = next(b for m, b in msgs if "width" in b)
+    assert image["encoding"] == "mono8" and len(base64.b64decode(image["data"])) == image["width"] * image["height"]
+    assert list(base64.b64decode(image["data"])) == image["counts"]
+    tf = next(b for m, b in msgs if "child_frame_id" in b)
+    assert tf["parent_frame_id"] == "world" and tf["child_frame_id"] == "tip"
 
 
 def test_press_recording_picks_one_pad(tmp_path, rng):

@@ -18,6 +18,7 @@ from importlib.metadata import entry_points
 
 from palpate.core import __version__
 from palpate.core.errors import PalpateError, Terminated
+from palpate.core.extras import EXTRA_OF_MODULE, missing_extra
 from palpate.core.limits import ENV as LIMITS_ENV
 from palpate.core.limits import LIMITS, set_limit
 
@@ -42,17 +43,16 @@ def build_parser() -> argparse.ArgumentParser:
         try:
             register = ep.load()
         except ImportError as exc:  # an optional extra is missing: say so instead of hiding the command
-            p = sub.add_parser(ep.name, help=f"(unavailable: {exc})")
+            p = sub.add_parser(ep.name, help=f"(unavailable: {missing_extra(exc, 'it')})")
             p.set_defaults(func=_unavailable(ep.name, exc))
             continue
         register(sub)
     return parser
 
 
-def _unavailable(name: str, exc: Exception):
+def _unavailable(name: str, exc: ImportError):
     def handler(args: argparse.Namespace) -> int:
-        print(f"palpate {name}: unavailable because an optional dependency is missing: {exc}. "
-              "Install it with: pip install 'palpate[all]'", file=sys.stderr)
+        print(f"palpate: error: {missing_extra(exc, f'palpate {name}')}", file=sys.stderr)
         return 2
 
     return handler
@@ -95,6 +95,8 @@ def error_line(exc: BaseException) -> tuple[int, str]:
     """The exit code and the one line a user sees for an exception (module docstring)."""
     if isinstance(exc, PalpateError):
         return 2, f"palpate: error: {_one_line(str(exc))}"
+    if isinstance(exc, ModuleNotFoundError) and (exc.name or "").split(".")[0] in EXTRA_OF_MODULE:
+        return 2, f"palpate: error: {missing_extra(exc, 'this command')}"
     if isinstance(exc, OSError) and exc.strerror:
         where = f"{exc.filename}: " if exc.filename else ""
         return 2, f"palpate: error: {where}{exc.strerror}"

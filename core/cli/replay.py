@@ -8,6 +8,8 @@ import math
 import sys
 from pathlib import Path
 
+from palpate.core.cli.live import add_live_options, hold_live, open_live
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``replay`` command."""
@@ -30,7 +32,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cell-mm", type=float, default=10.0,
                    help="grid cell for recordings without map geometry (default 10 mm)")
     p.add_argument("--no-figures", action="store_true", help="skip PNG figures")
+    p.add_argument("--salvage", action="store_true",
+                   help="replay a truncated or damaged recording (e.g. of a killed run) from its complete chunks")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    add_live_options(p)
+    p.add_argument("--live-speed", type=float, default=1.0, metavar="X",
+                   help="with --live: play the presses at X times real time (0: as fast as possible; default 1)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=_replay)
 
@@ -49,16 +56,29 @@ def _replay(args: argparse.Namespace) -> int:
     layers = None
     if args.memory_layers is not None or layers_file.is_file():
         layers = LayeredMemory.load(memory, layers_file)
-    summary = replay_recording(args.recording, memory, args.out, layers=layers, cell_size=args.cell_mm * 1e-3,
-                               progress=Progress(enabled=not (args.quiet or args.json)),
-                               figures=not args.no_figures, force=args.force,
-                               inputs=[args.memory, layers_file if layers is not None else None])
+    if not args.live_speed >= 0:
+        raise ValidationError(f"--live-speed must be >= 0, got {args.live_speed}")
+    live = open_live(args)
+    try:
+        summary = replay_recording(args.recording, memory, args.out, layers=layers, cell_size=args.cell_mm * 1e-3,
+                                   progress=Progress(enabled=not (args.quiet or args.json)),
+                                   figures=not args.no_figures, force=args.force,
+                                   inputs=[args.memory, layers_file if layers is not None else None],
+                                   salvage=args.salvage, live=live, live_speed=args.live_speed)
+    except BaseException:
+        if live is not None:
+            live.close()
+        raise
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
     elif not args.quiet:
+        if summary["salvaged"]:
+            print(f"{args.recording}: damaged or truncated; replayed what its complete chunks hold")
         for obj in summary["objects"]:
             print(f"{obj['name']}: {obj['presses']} presses replayed, mean entropy "
                   f"{obj['mean_entropy_after_postprocessing']:.3f} after post-processing")
         print(f"outputs in {args.out}/")
+    sys.stdout.flush()
+    hold_live(live, args.live_hold)
     return 0

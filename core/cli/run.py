@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from palpate.core.cli.live import add_live_options, hold_live, open_live
 from palpate.core.names import file_stem
 from palpate.core.world.actuator_kinds import actuator_names
 
@@ -19,7 +20,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Run a scenario file end to end. Writes into DIR: summary.json, memory.json, maps/ (NPZ + JSON), "
         "figures/ (PNG) and haptic_materials/ (seed 002 export). Progress goes to stderr.",
     )
-    p.add_argument("scenario", type=Path, help="scenario file (TOML), e.g. scenarios/thesis_ch6.toml")
+    p.add_argument("scenario", help="scenario file (TOML), or the name of a shipped one (palpate scenarios list), "
+                   "e.g. thesis_ch6")
     p.add_argument("--out", type=Path, default=None,
                    help="output folder, new or empty, or an earlier run's with --force (default: runs/<scenario name>)")
     p.add_argument("--force", action="store_true",
@@ -42,26 +44,36 @@ def register(sub: argparse._SubParsersAction) -> None:
     a.add_argument("--finger", type=Path, default=None, help="dynamixel: finger description (models/fingers/*.toml)")
     p.add_argument("--record", type=Path, default=None,
                    help="also record every press's raw streams to this MCAP file (palpate replay reproduces the maps)")
+    add_live_options(p)
     p.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
     from palpate.core.session.progress import Progress
     from palpate.core.session.run import run_scenario
+    from palpate.core.world.resources import find_scenario
     from palpate.core.world.scenario_file import load_scenario
 
-    scenario = with_actuator_options(load_scenario(args.scenario), args)
+    scenario = with_actuator_options(load_scenario(find_scenario(args.scenario)), args)
     out = args.out or Path("runs") / file_stem(scenario.name)
     progress = Progress(enabled=not (args.quiet or args.json))
     progress.message(f"palpate run {scenario.name}: fidelity {scenario.fidelity}, seed {scenario.seed}, "
                      f"actuator {scenario.actuator.kind} -> {out}")
-    summary = run_scenario(scenario, out, progress=progress, source=args.source, record=args.record,
-                           force=args.force)
+    live = open_live(args)
+    try:
+        summary = run_scenario(scenario, out, progress=progress, source=args.source, record=args.record,
+                               force=args.force, live=live)
+    except BaseException:
+        if live is not None:
+            live.close()
+        raise
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
     elif not args.quiet:
         print(format_report(summary, out))
+    sys.stdout.flush()
+    hold_live(live, args.live_hold)
     return 0
 
 

@@ -1,8 +1,12 @@
-"""Reading recordings: :func:`read_recording` validates every message of a palpate MCAP file, and reports a
-truncated or damaged file (or salvages its complete chunks)."""
+"""Reading recordings back: :func:`read_recording` validates every message and never trusts a size the file
+declares (see :mod:`~palpate.core.io.mcap_records`). Both recording layouts are read: format 2 (Foxglove's
+well-known schemas) and format 1 (``palpate.*`` schemas); each channel's decoder is picked by its topic and schema
+name, and channels of other tools are skipped."""
 
 from __future__ import annotations
 
+import base64
+import binascii
 import json
 import math
 from pathlib import Path
@@ -10,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import PalpateError, RecordingError
-from palpate.core.io.mcap_schemas import FORMAT_VERSION, METADATA_NAME, VERSIONS_NAME
+from palpate.core.io.mcap_records import Channel, Damaged, Message, Metadata, ReadLimits, Schema, read_records
+from palpate.core.io.mcap_schemas import METADATA_NAME, READABLE_VERSIONS, VERSIONS_NAME
 from palpate.core.io.recording import Annotation, JointState, Recording
 from palpate.core.perception.streams import GroundTruth, PoseSample, TaxelFrame
 
@@ -19,18 +24,21 @@ class _BadMessage(Exception):
     """A field of one message is missing or of the wrong type (turned into a RecordingError with topic/index)."""
 
 
-def _field(msg: dict, key: str, kind):
-    if key not in msg:
-        raise _BadMessage(f"missing field {key!r}")
-    value = msg[key]
-    ok = {
-        "number": isinstance(value, (int, float)) and not isinstance(value, bool),
-        "str": isinstance(value, str),
-        "list": isinstance(value, list),
-        "dict": isinstance(value, dict),
-        "int": isinstance(value, int) and not isinstance(value, bool),
-    }[kind]
-    if not ok:
+_KINDS = {
+    "number": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
+    "str": lambda v: isinstance(v, str),
+    "list": lambda v: isinstance(v, list),
+    "dict": lambda v: isinstance(v, dict),
+    "int": lambda v: isinstance(v, int) and not isinstance(v, bool),
+}
+
+
+def _field(msg: dict, key: str, kind: str):
+    try:
+        value = msg[key]
+    except KeyError:
+        raise _BadMessage(f"missing field {key!r}") from None
+    if not _KINDS[kind](value):
         raise _BadMessage(f"field {key!r} must be a {kind}, got {type(value).__name__}")
     if kind == "number" and not math.isfinite(value):
         raise _BadMessage(f"field {key!r} must be finite, got {value!r}")
@@ -39,15 +47,65 @@ def _field(msg: dict, key: str, kind):
 
 def _numbers(msg: dict, key: str) -> np.ndarray:
     values = _field(msg, key, "list")
-    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-        raise _BadMessage(f"field {key!r} must be a list of numbers")
-    arr = np.asarray(values, dtype=float)
-    if not np.all(np.isfinite(arr)):
-        raise _BadMessage(f"field {key!r} must hold finite numbers")
+    try:  # one conversion for the whole list: strings, nulls, objects and nested lists fail it
+        arr = np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise _BadMessage(f"field {key!r} must be a list of numbers") from None
+    if arr.ndim != 1 or not np.all(np.isfinite(arr)):
+        raise _BadMessage(f"field {key!r} must be a list of finite numbers")
     return arr
 
 
-def _decode_taxel(msg: dict) -> TaxelFrame:
+def _exact_quaternion(sample: PoseSample, quat: np.ndarray) -> PoseSample:
+    # The writer stored an already-normalised quaternion; normalising it again can change its last bit, and a
+    # recording must read back exactly what was written.
+    if abs(float(np.linalg.norm(quat)) - 1.0) < 1e-12:
+        object.__setattr__(sample, "quaternion", quat)
+    return sample
+
+
+# ---- format 2: Foxglove's well-known schemas plus palpate's fields ----
+
+def _taxel_image(msg: dict) -> TaxelFrame:
+    rows, cols = _field(msg, "height", "int"), _field(msg, "width", "int")
+    if msg.get("encoding") != "mono8":
+        raise _BadMessage(f"'encoding' must be 'mono8' (one byte per sensel), got {msg.get('encoding')!r}")
+    try:
+        raw = base64.b64decode(_field(msg, "data", "str"), validate=True)
+    except (binascii.Error, ValueError):
+        raise _BadMessage("'data' is not base64") from None
+    if rows < 1 or cols < 1 or len(raw) != rows * cols:
+        raise _BadMessage(f"'data' has {len(raw)} bytes, expected height*width = {rows}*{cols}")
+    counts = np.frombuffer(raw, dtype=np.uint8).reshape(rows, cols)
+    return TaxelFrame(t=_field(msg, "t", "number"), counts=counts, sensel_area=_field(msg, "sensel_area", "number"),
+                      sensor_id=_field(msg, "frame_id", "str"))
+
+
+def _frame_transform(msg: dict) -> PoseSample:
+    p, q = _field(msg, "translation", "dict"), _field(msg, "rotation", "dict")
+    quat = np.array([_field(q, k, "number") for k in "wxyz"])
+    sample = PoseSample(t=_field(msg, "t", "number"), position=np.array([_field(p, k, "number") for k in "xyz"]),
+                        quaternion=quat, sensor_id=_field(msg, "child_frame_id", "str"))
+    return _exact_quaternion(sample, quat)
+
+
+def _log(msg: dict) -> Annotation:
+    return Annotation(_field(msg, "t", "number"), _field(msg, "kind", "str"), _field(msg, "data", "dict"))
+
+
+def _truth_series(msg: dict) -> tuple:
+    material = msg.get("material")
+    if material is not None and not isinstance(material, str):
+        raise _BadMessage("'material' must be a string or null")
+    t, force, ind = _numbers(msg, "t"), _numbers(msg, "force"), _numbers(msg, "indentation")
+    if not (t.shape == force.shape == ind.shape):
+        raise _BadMessage(f"'t', 'force' and 'indentation' differ in length ({t.size}, {force.size}, {ind.size})")
+    return t, force, ind, material
+
+
+# ---- format 1: palpate.* schemas, one message per sample ----
+
+def _taxel_v1(msg: dict) -> TaxelFrame:
     rows, cols = _field(msg, "rows", "int"), _field(msg, "cols", "int")
     counts = _field(msg, "counts", "list")
     if rows < 1 or cols < 1 or len(counts) != rows * cols:
@@ -58,20 +116,27 @@ def _decode_taxel(msg: dict) -> TaxelFrame:
                       sensel_area=_field(msg, "sensel_area", "number"), sensor_id=_field(msg, "sensor_id", "str"))
 
 
-def _decode_pose(msg: dict) -> PoseSample:
+def _pose_v1(msg: dict) -> PoseSample:
     p, q = _field(msg, "position", "dict"), _field(msg, "orientation", "dict")
-    pos = [_field(p, k, "number") for k in "xyz"]
     quat = np.array([_field(q, k, "number") for k in "wxyz"])
-    sample = PoseSample(t=_field(msg, "t", "number"), position=np.array(pos), quaternion=quat,
-                        sensor_id=_field(msg, "sensor_id", "str"))
-    # The writer stored an already-normalised quaternion; normalising it again can change its last bit, and a
-    # recording must read back exactly what was written.
-    if abs(float(np.linalg.norm(quat)) - 1.0) < 1e-12:
-        object.__setattr__(sample, "quaternion", quat)
-    return sample
+    sample = PoseSample(t=_field(msg, "t", "number"), position=np.array([_field(p, k, "number") for k in "xyz"]),
+                        quaternion=quat, sensor_id=_field(msg, "sensor_id", "str"))
+    return _exact_quaternion(sample, quat)
 
 
-def _decode_joints(msg: dict) -> JointState:
+def _annotation_v1(msg: dict) -> Annotation:
+    return Annotation(_field(msg, "t", "number"), _field(msg, "kind", "str"), _field(msg, "data", "dict"))
+
+
+def _truth_v1(msg: dict) -> tuple:
+    material = msg.get("material")
+    if material is not None and not isinstance(material, str):
+        raise _BadMessage("'material' must be a string or null")
+    return (np.array([_field(msg, "t", "number")]), np.array([_field(msg, "force", "number")]),
+            np.array([_field(msg, "indentation", "number")]), material)
+
+
+def _joints(msg: dict) -> JointState:
     names = _field(msg, "names", "list")
     if not all(isinstance(n, str) for n in names):
         raise _BadMessage("'names' must be a list of strings")
@@ -79,101 +144,118 @@ def _decode_joints(msg: dict) -> JointState:
                       _numbers(msg, "velocity"), _numbers(msg, "current"))
 
 
-def _decode_annotation(msg: dict) -> Annotation:
-    return Annotation(_field(msg, "t", "number"), _field(msg, "kind", "str"), _field(msg, "data", "dict"))
+# (topic prefix or exact topic, schema name) -> (Recording list, decoder)
+_DECODERS = {
+    ("/taxels/", "foxglove.RawImage"): ("frames", _taxel_image),
+    ("/pose/", "foxglove.FrameTransform"): ("poses", _frame_transform),
+    ("/annotations", "foxglove.Log"): ("annotations", _log),
+    ("/truth", "palpate.GroundTruthSeries"): ("truth", _truth_series),
+    ("/joints", "palpate.JointState"): ("joints", _joints),
+    ("/taxels/", "palpate.TaxelFrame"): ("frames", _taxel_v1),
+    ("/pose/", "palpate.PoseSample"): ("poses", _pose_v1),
+    ("/annotations", "palpate.Annotation"): ("annotations", _annotation_v1),
+    ("/truth", "palpate.GroundTruth"): ("truth", _truth_v1),
+}
 
 
-def _decode_truth(msg: dict) -> tuple[float, float, float, str | None]:
-    material = msg.get("material")
-    if material is not None and not isinstance(material, str):
-        raise _BadMessage("'material' must be a string or null")
-    return (_field(msg, "t", "number"), _field(msg, "force", "number"), _field(msg, "indentation", "number"),
-            material)
+def _decoder_for(topic: str, schema_name: str | None):
+    prefix = next((p for p in ("/taxels/", "/pose/") if topic.startswith(p)), topic)
+    return _DECODERS.get((prefix, schema_name), (None, None))
 
 
-def _decoder_for(topic: str):
-    if topic.startswith("/taxels/"):
-        return "frames", _decode_taxel
-    if topic.startswith("/pose/"):
-        return "poses", _decode_pose
-    return {
-        "/joints": ("joints", _decode_joints),
-        "/annotations": ("annotations", _decode_annotation),
-        "/truth": ("truth", _decode_truth),
-    }.get(topic, (None, None))
-
-
-def read_recording(path, *, salvage: bool = False) -> Recording:
-    """Read a palpate MCAP recording and validate every message.
+def read_recording(path, *, salvage: bool = False, limits: ReadLimits | None = None, progress=None) -> Recording:
+    """Read a palpate MCAP recording (format 1 or 2) and validate every message.
 
     Args:
         path: the .mcap file.
         salvage: accept a truncated or damaged file and return what its complete chunks hold
             (``Recording.salvaged`` is then True).
+        limits: sizes the file may make the reader allocate (default: :meth:`ReadLimits.in_force`).
+        progress: a :class:`~palpate.core.session.progress.Progress` to show the bytes read (optional).
 
     Raises:
-        RecordingError: the file is missing, not MCAP, not a palpate recording, truncated or corrupt (without
-            ``salvage``; ``exc.salvaged`` says how many messages could be kept), or a message lacks a field
-            (the message names the topic and the message's index on it).
+        RecordingError: the file is missing, not MCAP, not a palpate recording, breaks a size limit, is
+            truncated or corrupt (without ``salvage``; ``exc.salvaged`` says how many messages could be kept;
+            ``palpate replay --salvage`` reads it), or a message lacks a field (the message names the topic and
+            the message's index on it).
     """
-    from mcap.records import Channel, Footer, Message, Metadata
-    from mcap.stream_reader import StreamReader
-
     path = Path(path)
+    limits = limits or ReadLimits.in_force()
+    f, size = _open_regular(path)
+    with f:
+        return _read(f, path, size, salvage, limits, progress)
+
+
+def _open_regular(path: Path):
+    """The open file and its size; opened without blocking (a FIFO does not wait for a writer) and refused unless
+    the open descriptor is a regular file (a device, pipe or folder cannot be a recording)."""
+    import os
+    import stat
+
     try:
-        f = open(path, "rb")
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
         raise RecordingError(f"{path}: cannot open recording: {exc.strerror}") from None
-    size = path.stat().st_size
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        raise RecordingError(f"{path}: not a regular file (a device, pipe or folder cannot be a recording)")
+    return os.fdopen(fd, "rb"), st.st_size
+
+
+def _read(f, path: Path, size: int, salvage: bool, limits: ReadLimits, progress) -> Recording:
     out = {"frames": [], "poses": [], "joints": [], "annotations": [], "truth": []}
     metadata: dict | None = None
     versions: dict = {}
-    channels: dict[int, tuple[str, str | None, object]] = {}
-    per_topic: dict[str, int] = {}
+    schemas: dict[int, str] = {}
+    channels: dict[int, tuple] = {}
+    per_topic: dict[int, int] = {}
     n_messages = 0
     damage: str | None = None
-    with f:
-        # A record can never be larger than the file; this keeps a corrupt length field from allocating gigabytes.
-        records = StreamReader(f, validate_crcs=True, record_size_limit=max(size, 1)).records
-        while True:
-            offset = f.tell()
-            try:
-                record = next(records)
-            except StopIteration:
-                break
-            except Exception as exc:  # noqa: BLE001 - damaged bytes make the mcap parser fail in many ways
-                damage = _describe_damage(path, exc, offset, size)
-                break
-            if isinstance(record, Footer):
-                break
-            if isinstance(record, Metadata):
-                if record.name == METADATA_NAME:
-                    metadata = _decode_metadata(path, record.metadata)
-                elif record.name == VERSIONS_NAME:
-                    versions = dict(record.metadata)
-            elif isinstance(record, Channel):
-                if record.message_encoding != "json":
-                    raise RecordingError(f"{path}: channel {record.topic!r} has message encoding "
-                                         f"{record.message_encoding!r}, expected 'json'")
-                key, decode = _decoder_for(record.topic)
-                channels[record.id] = (record.topic, key, decode)
-            elif isinstance(record, Message):
-                if record.channel_id not in channels:
-                    damage = f"message on unknown channel {record.channel_id}"
+    if progress is not None:
+        progress.start(f"reading {path.name}", size, unit="B")
+    loads = json.loads
+    try:
+        for record in read_records(f, path, size, limits):
+            if type(record) is Message:
+                entry = channels.get(record.channel_id)
+                if entry is None:
+                    damage = f"corrupt (message on unknown channel {record.channel_id})"
                     break
-                topic, key, decode = channels[record.channel_id]
-                index = per_topic.get(topic, 0)
-                per_topic[topic] = index + 1
                 n_messages += 1
+                index = per_topic[record.channel_id]
+                per_topic[record.channel_id] = index + 1
+                key, decode, topic = entry
                 if key is None:
-                    continue  # a topic another tool added: not ours to interpret
+                    continue  # a topic another tool added, or a view palpate recomputes: not ours to interpret
                 try:
-                    msg = json.loads(record.data)
-                    if not isinstance(msg, dict):
+                    msg = loads(record.data)
+                    if type(msg) is not dict:
                         raise _BadMessage("is not a JSON object")
                     out[key].append(decode(msg))
-                except (_BadMessage, ValueError, PalpateError) as exc:
-                    raise RecordingError(f"{path}: {topic} message {index}: {exc}", salvaged=n_messages - 1) from None
+                except (_BadMessage, ValueError, TypeError, PalpateError) as exc:
+                    raise RecordingError(f"{path}: {topic} message {index}: {exc}",
+                                         salvaged=n_messages - 1) from None
+                if progress is not None and not n_messages % 4096:
+                    progress.update(f.tell())
+            elif type(record) is Channel:
+                key, decode = _decoder_for(record.topic, schemas.get(record.schema_id))
+                if key is not None and record.message_encoding != "json":
+                    raise RecordingError(f"{path}: channel {record.topic!r} has message encoding "
+                                         f"{record.message_encoding!r}, expected 'json'")
+                channels[record.id] = (key, decode, record.topic)
+                per_topic.setdefault(record.id, 0)
+            elif type(record) is Schema:
+                schemas[record.id] = record.name
+            elif type(record) is Metadata:
+                if record.name == METADATA_NAME:
+                    metadata = _decode_metadata(path, record.entries)
+                elif record.name == VERSIONS_NAME:
+                    versions = dict(record.entries)
+    except Damaged as exc:
+        damage = str(exc)
+    if progress is not None:
+        progress.update(size)
     if metadata is None:
         if damage is not None:
             raise RecordingError(f"{path}: not a readable palpate recording ({damage})")
@@ -181,33 +263,17 @@ def read_recording(path, *, salvage: bool = False) -> Recording:
     if damage is not None and not salvage:
         raise RecordingError(
             f"{path}: recording is {damage}; {n_messages} messages in complete chunks could be salvaged "
-            "(read it with salvage=True)", salvaged=n_messages)
+            "(palpate replay --salvage, or read_recording(..., salvage=True))", salvaged=n_messages)
     return Recording(frames=out["frames"], poses=out["poses"], joints=out["joints"],
                      annotations=out["annotations"], truth=_assemble_truth(out["truth"]), metadata=metadata,
                      salvaged=damage is not None, versions=versions)
 
 
-def _describe_damage(path: Path, exc: Exception, offset: int, size: int) -> str:
-    """'truncated ...' when the record that failed runs past the end of the file (what a killed writer leaves),
-    else 'corrupt ...'. Every record starts with a 1-byte opcode and a uint64 length."""
-    from mcap.exceptions import InvalidMagic
-
-    if isinstance(exc, InvalidMagic):
-        if size < 8:
-            return f"truncated at byte {size} (shorter than the 8-byte MCAP magic)"
-        return "not an MCAP file (its first bytes are not the MCAP magic)"
-    with open(path, "rb") as f:
-        f.seek(offset)
-        head = f.read(9)
-    if len(head) < 9 or offset + 9 + int.from_bytes(head[1:], "little") > size:
-        return f"truncated at byte {size} (last complete record ends at byte {offset})"
-    return f"corrupt at byte {offset} of {size} ({type(exc).__name__}: {exc})"
-
-
 def _decode_metadata(path: Path, entries: dict[str, str]) -> dict:
     version = entries.get("format_version")
-    if version != FORMAT_VERSION:
-        raise RecordingError(f"{path}: palpate recording format version {version!r}, expected {FORMAT_VERSION!r}")
+    if version not in READABLE_VERSIONS:
+        raise RecordingError(f"{path}: palpate recording format version {version!r}; this palpate reads "
+                             f"{', '.join(READABLE_VERSIONS)} (a newer palpate wrote it?)")
     out = {}
     for key, value in entries.items():
         if key == "format_version":
@@ -219,10 +285,10 @@ def _decode_metadata(path: Path, entries: dict[str, str]) -> dict:
     return out
 
 
-def _assemble_truth(rows: list) -> GroundTruth | None:
-    if not rows:
+def _assemble_truth(parts: list) -> GroundTruth | None:
+    if not parts:
         return None
-    t, force, indentation, material = zip(*rows, strict=True)
+    t, force, indentation, material = zip(*parts, strict=True)
     names = {m for m in material if m is not None}
-    return GroundTruth(t=np.array(t), force=np.array(force), indentation=np.array(indentation),
+    return GroundTruth(t=np.concatenate(t), force=np.concatenate(force), indentation=np.concatenate(indentation),
                        material=names.pop() if len(names) == 1 else None)

@@ -1,22 +1,33 @@
-"""Writing recordings: :class:`RecordingWriter` appends palpation streams to an MCAP file, crash-safe (see
-:mod:`~palpate.core.io.mcap_schemas` for topics and schemas)."""
+"""Writing recordings: :class:`RecordingWriter` appends palpation streams to an MCAP file, crash-safe, and can send
+the same messages to a live view (see :mod:`~palpate.core.io.mcap_schemas` for topics and schemas)."""
 
 from __future__ import annotations
 
 import json
-import math
 import platform
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
 from palpate.core import __version__
 from palpate.core.errors import RecordingError, ValidationError
+from palpate.core.io import foxglove_messages as fm
 from palpate.core.io.mcap_schemas import FORMAT_VERSION, METADATA_NAME, PROFILE, SCHEMAS, SENSOR_ID, VERSIONS_NAME
 from palpate.core.io.recording import JointState
+from palpate.core.mapping.geometry import MapGeometry
+from palpate.core.names import file_stem
 from palpate.core.perception.streams import PoseSample, TaxelFrame
+from palpate.core.world.scene import ObjectSpec
+
+
+class LiveSink(Protocol):
+    """Where a live view takes messages (e.g. :class:`palpate.core.io.live.LiveServer`)."""
+
+    def publish(self, topic: str, schema_name: str, schema: bytes, log_time: int, data: bytes) -> None: ...
 
 
 def _versions() -> dict[str, str]:
@@ -33,12 +44,6 @@ def _versions() -> dict[str, str]:
     if mujoco is not None:
         versions["mujoco"] = str(getattr(mujoco, "__version__", "unknown"))
     return versions
-
-
-def _time_ns(t: float, what: str) -> int:
-    if not (isinstance(t, (int, float, np.floating, np.integer)) and math.isfinite(t) and t >= 0):
-        raise ValidationError(f"{what}: t must be a finite time >= 0 s (log_time is unsigned ns), got {t!r}")
-    return int(round(float(t) * 1e9))
 
 
 class _FlushingStream:
@@ -69,23 +74,23 @@ class _FlushingStream:
 
 
 class RecordingWriter:
-    """Append palpation streams to an MCAP file (see the module docstring for topics and crash safety).
+    """Append palpation streams to an MCAP file and/or a live view (see the module docstring for topics and crash
+    safety).
 
     Use as a context manager; leaving the ``with`` block (also through an exception) finishes the file.
 
     Args:
-        path: output file (.mcap); overwritten.
-        metadata: JSON-serialisable dict with string keys (conventionally ``scenario`` and ``sources``).
+        path: output file (.mcap), overwritten; None to write no file (only ``live``).
+        metadata: JSON-serialisable dict with string keys (conventionally ``scenario``, ``sources`` and ``maps``).
         chunk_size: finish a chunk once it holds this many bytes; smaller loses less on a crash, compresses worse.
         flush_interval: also finish the chunk in progress when this much wall time, s, has passed since the
             last one, so a slow stream (annotations, 1 Hz poses) is not held in memory for long.
         fsync: also fsync after each chunk (survives power loss, not just a process crash; slower).
+        live: also send every message to this live view.
     """
 
     def __init__(self, path, metadata: dict, *, chunk_size: int = 8192, flush_interval: float = 1.0,
-                 fsync: bool = False):
-        from mcap.writer import CompressionType, Writer
-
+                 fsync: bool = False, live: LiveSink | None = None):
         if not isinstance(metadata, dict):
             raise ValidationError(f"recording metadata must be a dict, got {type(metadata).__name__}")
         entries = {}
@@ -102,19 +107,25 @@ class RecordingWriter:
             raise ValidationError(f"chunk_size must be a positive number of bytes, got {chunk_size!r}")
         if not (flush_interval > 0):
             raise ValidationError(f"flush_interval must be > 0 s, got {flush_interval!r}")
-        self.path = Path(path)
-        try:
-            f = open(self.path, "wb")
-        except OSError as exc:
-            raise RecordingError(f"{self.path}: cannot open for writing: {exc.strerror}") from None
-        self._stream = _FlushingStream(f, fsync)
-        self._writer = Writer(self._stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        self._writer.start(profile=PROFILE, library=f"palpate {__version__}")
-        self._writer.add_metadata(METADATA_NAME, {"format_version": FORMAT_VERSION, **entries})
-        self._writer.add_metadata(VERSIONS_NAME, _versions())
+        self.path = None if path is None else Path(path)
+        self.live = live
+        self._writer = self._stream = None
+        if self.path is not None:
+            from mcap.writer import CompressionType, Writer
+
+            try:
+                f = open(self.path, "wb")
+            except OSError as exc:
+                raise RecordingError(f"{self.path}: cannot open for writing: {exc.strerror}") from None
+            self._stream = _FlushingStream(f, fsync)
+            self._writer = Writer(self._stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+            self._writer.start(profile=PROFILE, library=f"palpate {__version__}")
+            self._writer.add_metadata(METADATA_NAME, {"format_version": FORMAT_VERSION, **entries})
+            self._writer.add_metadata(VERSIONS_NAME, _versions())
         self._schema_ids: dict[str, int] = {}
+        self._schema_data: dict[str, bytes] = {}
         self._channels: dict[str, int] = {}
-        self._sequence: dict[int, int] = {}
+        self._sequence: dict[str, int] = {}
         self._flush_interval = float(flush_interval)
         self._last_flush = time.monotonic()
         self._closed = False
@@ -126,91 +137,120 @@ class RecordingWriter:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def _schema(self, name: str) -> bytes:
+        data = self._schema_data.get(name)
+        if data is None:
+            data = self._schema_data[name] = json.dumps({"title": name, **SCHEMAS[name]}).encode()
+        return data
+
     def _channel(self, topic: str, schema_name: str) -> int:
         cid = self._channels.get(topic)
         if cid is None:
             sid = self._schema_ids.get(schema_name)
             if sid is None:
-                data = json.dumps({"title": schema_name, **SCHEMAS[schema_name]}).encode()
-                sid = self._writer.register_schema(schema_name, "jsonschema", data)
+                sid = self._writer.register_schema(schema_name, "jsonschema", self._schema(schema_name))
                 self._schema_ids[schema_name] = sid
             cid = self._writer.register_channel(topic, "json", sid)
             self._channels[topic] = cid
-            self._sequence[cid] = 0
         return cid
 
-    def _write(self, topic: str, schema_name: str, t: float, msg: dict) -> None:
+    def _write(self, topic: str, schema_name: str, ns: int, msg: dict) -> None:
         if self._closed:
-            raise RecordingError(f"{self.path}: write to {topic} after the recording was closed")
-        ns = _time_ns(t, topic)
+            raise RecordingError(f"{self.path or 'live view'}: write to {topic} after the recording was closed")
         try:
             data = json.dumps(msg, allow_nan=False, separators=(",", ":")).encode()
         except (TypeError, ValueError) as exc:
             raise ValidationError(f"{topic}: message is not JSON-serialisable (NaN or infinity?): {exc}") from None
-        cid = self._channel(topic, schema_name)
-        seq = self._sequence[cid]
-        self._sequence[cid] = seq + 1
-        self._writer.add_message(cid, log_time=ns, data=data, publish_time=ns, sequence=seq)
+        seq = self._sequence.get(topic, 0)
+        self._sequence[topic] = seq + 1
         self.message_count += 1
+        if self.live is not None:
+            self.live.publish(topic, schema_name, self._schema(schema_name), ns, data)
+        if self._writer is None:
+            return
+        self._writer.add_message(self._channel(topic, schema_name), log_time=ns, data=data, publish_time=ns,
+                                 sequence=seq)
         now = time.monotonic()
         if now - self._last_flush >= self._flush_interval:
             self._writer.flush()
             self._last_flush = now
 
     def write_taxel(self, frame: TaxelFrame) -> None:
-        """Append one taxel frame on ``/taxels/<frame.sensor_id>``."""
+        """Append one taxel frame on ``/taxels/<frame.sensor_id>`` (an image, with its counts and sensel area)."""
         if not isinstance(frame, TaxelFrame):
             raise ValidationError(f"write_taxel expects a TaxelFrame, got {type(frame).__name__}")
         sid = _check_sensor_id(frame.sensor_id)
-        rows, cols = frame.counts.shape
-        self._write(f"/taxels/{sid}", "palpate.TaxelFrame", frame.t, {
-            "t": float(frame.t), "sensor_id": sid, "rows": rows, "cols": cols,
-            "sensel_area": float(frame.sensel_area), "counts": frame.counts.reshape(-1).tolist(),
-        })
+        topic = f"/taxels/{sid}"
+        ns = fm.time_ns(frame.t, topic)
+        self._write(topic, "foxglove.RawImage", ns, fm.taxel_message(frame, ns, sid))
 
     def write_pose(self, sample: PoseSample) -> None:
-        """Append one pose sample on ``/pose/<sample.sensor_id>``."""
+        """Append one pose sample on ``/pose/<sample.sensor_id>`` (the sensor's frame in ``world``)."""
         if not isinstance(sample, PoseSample):
             raise ValidationError(f"write_pose expects a PoseSample, got {type(sample).__name__}")
         sid = _check_sensor_id(sample.sensor_id)
-        x, y, z = (float(v) for v in sample.position)
-        qw, qx, qy, qz = (float(v) for v in sample.quaternion)
-        self._write(f"/pose/{sid}", "palpate.PoseSample", sample.t, {
-            "t": float(sample.t), "sensor_id": sid, "position": {"x": x, "y": y, "z": z},
-            "orientation": {"x": qx, "y": qy, "z": qz, "w": qw},
-        })
+        topic = f"/pose/{sid}"
+        ns = fm.time_ns(sample.t, topic)
+        self._write(topic, "foxglove.FrameTransform", ns, fm.pose_message(sample, ns, sid))
 
     def write_joint_state(self, t, names, position, velocity, current) -> None:
         """Append joint readings on ``/joints``: positions rad, velocities rad/s, currents A (one per name)."""
         js = JointState(float(t), tuple(names), position, velocity, current)
-        self._write("/joints", "palpate.JointState", js.t, {
+        self._write("/joints", "palpate.JointState", fm.time_ns(js.t, "/joints"), {
             "t": js.t, "names": list(js.names), "position": js.position.tolist(),
             "velocity": js.velocity.tolist(), "current": js.current.tolist(),
         })
 
     def write_annotation(self, t, kind: str, data: dict) -> None:
-        """Append an event on ``/annotations`` (e.g. kind ``press_start`` with ``{"label": ...}``)."""
+        """Append an event on ``/annotations`` (e.g. kind ``press_start`` with ``{"label": ...}``), shown in
+        Foxglove's Log panel."""
         if not isinstance(kind, str) or not kind:
             raise ValidationError(f"annotation kind must be a non-empty string, got {kind!r}")
         if not isinstance(data, dict):
             raise ValidationError(f"annotation {kind!r}: data must be a dict, got {type(data).__name__}")
-        self._write("/annotations", "palpate.Annotation", t, {"t": float(t), "kind": kind, "data": data})
+        ns = fm.time_ns(t, "/annotations")
+        self._write("/annotations", "foxglove.Log", ns, fm.log_message(float(t), ns, kind, data))
 
     def write_truth(self, t, force, indentation, material: str | None = None) -> None:
-        """Append one ground-truth sample on ``/truth``: force N, indentation m, material name (optional)."""
-        force, indentation = float(force), float(indentation)
-        if not (math.isfinite(force) and math.isfinite(indentation)):
-            raise ValidationError(f"/truth at t={t}: force and indentation must be finite, got {force}, {indentation}")
+        """Append ground truth on ``/truth``: times s, forces N, indentations m (scalars or equal-length arrays,
+        one message for all of them), material name (optional)."""
+        t, force, indentation = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (t, force, indentation))
+        if not (t.ndim == 1 and t.shape == force.shape == indentation.shape and t.size):
+            raise ValidationError(f"/truth: t, force and indentation must be equal-length 1-D arrays, got shapes "
+                                  f"{t.shape}, {force.shape}, {indentation.shape}")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(force)) and np.all(np.isfinite(indentation))):
+            raise ValidationError(f"/truth at t={t[0]}: t, force and indentation must be finite")
         if material is not None and not isinstance(material, str):
-            raise ValidationError(f"/truth at t={t}: material must be a string or None, got {material!r}")
-        self._write("/truth", "palpate.GroundTruth", t,
-                    {"t": float(t), "force": force, "indentation": indentation, "material": material})
+            raise ValidationError(f"/truth at t={t[0]}: material must be a string or None, got {material!r}")
+        ns = fm.time_ns(float(t[0]), "/truth")
+        self._write("/truth", "palpate.GroundTruthSeries", ns, fm.truth_message(t, force, indentation, material))
+
+    def write_map(self, t: float, name: str, probabilities: np.ndarray, explored: np.ndarray, geometry: MapGeometry,
+                  surface_z: float) -> None:
+        """Append an object's map on ``/map/<name>`` (a Grid on the surface at ``surface_z`` m, or a VoxelGrid)."""
+        topic = f"/map/{file_stem(name)}"  # a topic per object, whatever characters its name has
+        ns = fm.time_ns(t, topic)
+        schema, msg = fm.map_message(ns, name, probabilities, explored, geometry, surface_z)
+        self._write(topic, schema, ns, msg)
+
+    def write_scene(self, t: float, objects: Sequence[ObjectSpec]) -> None:
+        """Append the objects as scene entities on ``/scene``."""
+        ns = fm.time_ns(t, "/scene")
+        self._write("/scene", "foxglove.SceneUpdate", ns, fm.scene_message(ns, objects))
+
+    def flush(self) -> None:
+        """Finish the chunk in progress and push it to the operating system (nothing is lost if killed now)."""
+        if self._writer is not None and not self._closed:
+            self._writer.flush()
+            self._last_flush = time.monotonic()
 
     def close(self) -> None:
         """Finish the file (last chunk, indexes, summary, footer). Calling it twice is harmless."""
         if self._closed:
             return
         self._closed = True
+        if self._writer is None:
+            return
         try:
             self._writer.finish()
         finally:

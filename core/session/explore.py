@@ -263,6 +263,8 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
         res = perceive_press(rec).at_target((x, y))
         posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y), calibration=ex.calibration)
         post = postprocess()
+        if log is not None:
+            log.show_map(entry.spec.name, grid, geometry, entry.spec.height, scene=(entry.spec,) if k == 0 else ())
         last = cell
         steps.append(PressStep(k + 1, cell, (x, y), depth, target.score, res, posterior, float(grid.mean_entropy()),
                                float(post.mean_entropy()), map_accuracy(grid.probabilities, truth, grid.explored),

@@ -23,11 +23,11 @@ class PressLog:
 
     GAP = 1.0  # s of silence between presses
 
-    def __init__(self, path: Path | None = None, metadata: dict | None = None):
+    def __init__(self, path: Path | None = None, metadata: dict | None = None, live=None):
         self.clock = 0.0
         self.writer = None
-        if path is not None:
-            self.writer = RecordingWriter(path, metadata or {})
+        if path is not None or live is not None:
+            self.writer = RecordingWriter(path, metadata or {}, live=live)
 
     def add(self, rec, info: dict):
         """Shift ``rec`` to start at the current clock, record it with a ``press`` annotation, return it."""
@@ -40,13 +40,25 @@ class PressLog:
                 self.writer.write_taxel(f)
             for p in shifted.poses:
                 self.writer.write_pose(p)
-            if shifted.truth is not None:
-                for t, f, d in zip(shifted.truth.t, shifted.truth.force, shifted.truth.indentation, strict=True):
-                    self.writer.write_truth(float(t), float(f), float(d), shifted.truth.material)
+            if shifted.truth is not None and len(shifted.truth.t):
+                self.writer.write_truth(shifted.truth.t, shifted.truth.force, shifted.truth.indentation,
+                                        shifted.truth.material)
         self.clock = float(np.ceil(t_end + self.GAP))
         return shifted
 
+    def show_map(self, name: str, grid, geometry, surface_z: float, scene=()) -> None:
+        """Record (and send live) an object's map as it stands after the last press, with the objects of
+        ``scene`` (ObjectSpecs) as scene entities."""
+        if self.writer is None:
+            return
+        t = max(self.clock - self.GAP, 0.0)
+        if scene:
+            self.writer.write_scene(t, scene)
+        self.writer.write_map(t, name, grid.probabilities, grid.explored, geometry, surface_z)
+
     def close(self) -> None:
+        """Finish the recording (idempotent): called when exploration ends, so the file is complete on disk
+        before figures are drawn."""
         if self.writer is not None:
             self.writer.close()
 

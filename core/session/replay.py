@@ -11,9 +11,9 @@ Two kinds of recordings:
 
 from __future__ import annotations
 
-import bisect
 import json
 import math
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,7 +24,8 @@ from palpate.core.errors import ValidationError
 from palpate.core.files import brief
 from palpate.core.io import figures as fig
 from palpate.core.io.mcap_reader import read_recording
-from palpate.core.io.recording import recording_to_press_recording
+from palpate.core.io.mcap_writer import RecordingWriter
+from palpate.core.io.recording import Annotation, recording_to_press_recording
 from palpate.core.mapping.calibration import MapCalibration
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
@@ -43,19 +44,30 @@ from palpate.core.session.report import assert_finite, fit_summary, versions
 REPLAY_FORMAT = "palpate-replay-summary"
 
 
-def _window(rec: PressRecording, t0: float, t1: float) -> PressRecording:
-    """The part of a recording with t0 <= t <= t1 (frames, poses and truth)."""
-    ft = [f.t for f in rec.frames]
-    pt = [p.t for p in rec.poses]
-    frames = rec.frames[bisect.bisect_left(ft, t0): bisect.bisect_right(ft, t1)]
-    poses = rec.poses[bisect.bisect_left(pt, t0): bisect.bisect_right(pt, t1)]
-    truth = None
-    if rec.truth is not None:
-        keep = (rec.truth.t >= t0) & (rec.truth.t <= t1)
-        if keep.any():
-            truth = GroundTruth(rec.truth.t[keep], rec.truth.force[keep], rec.truth.indentation[keep],
-                                rec.truth.material)
-    return PressRecording(frames, poses, truth, {})
+@dataclass(frozen=True)
+class _Timeline:
+    """A recording's frame and pose times, worked out once so each press window is two binary searches."""
+
+    stream: PressRecording
+    frame_t: np.ndarray
+    pose_t: np.ndarray
+
+    @classmethod
+    def of(cls, rec: PressRecording) -> _Timeline:
+        return cls(rec, np.array([f.t for f in rec.frames]), np.array([p.t for p in rec.poses]))
+
+    def window(self, t0: float, t1: float) -> PressRecording:
+        """The part of the recording with t0 <= t <= t1 (frames, poses and truth)."""
+        rec = self.stream
+        f0, f1 = np.searchsorted(self.frame_t, t0, "left"), np.searchsorted(self.frame_t, t1, "right")
+        p0, p1 = np.searchsorted(self.pose_t, t0, "left"), np.searchsorted(self.pose_t, t1, "right")
+        truth = None
+        if rec.truth is not None:
+            keep = (rec.truth.t >= t0) & (rec.truth.t <= t1)
+            if keep.any():
+                truth = GroundTruth(rec.truth.t[keep], rec.truth.force[keep], rec.truth.indentation[keep],
+                                    rec.truth.material)
+        return PressRecording(rec.frames[f0:f1], rec.poses[p0:p1], truth, {})
 
 
 @dataclass
@@ -65,6 +77,35 @@ class _Replayed:
     geometry: MapGeometry
     grid: object
     rows: list = field(default_factory=list)
+
+
+@dataclass
+class _Playback:
+    """Sends each replayed press's streams, and the map after it, to a live view at ``speed`` x real time."""
+
+    writer: RecordingWriter
+    speed: float
+    start: tuple[float, float] | None = None  # (recording time, wall clock) of the first press
+
+    def press(self, sub: PressRecording, annotation: Annotation | None, name: str, grid, geometry: MapGeometry,
+              res: PressResult) -> None:
+        times = [x.t for x in sub.frames[:1] + sub.poses[:1]]
+        t = min(times) if times else (annotation.t if annotation else 0.0)
+        if self.speed > 0:
+            if self.start is None:
+                self.start = (t, time.monotonic())
+            wait = (t - self.start[0]) / self.speed - (time.monotonic() - self.start[1])
+            if wait > 0:
+                time.sleep(wait)
+        if annotation is not None:
+            self.writer.write_annotation(annotation.t, annotation.kind, annotation.data)
+        for f in sub.frames:
+            self.writer.write_taxel(f)
+        for p in sub.poses:
+            self.writer.write_pose(p)
+        t_end = max([t] + [x.t for x in sub.frames[-1:] + sub.poses[-1:]])
+        surface = geometry.z_top if geometry.voxel else (res.press.h0 if res.press is not None else 0.0)
+        self.writer.write_map(t_end, name, grid.probabilities, grid.explored, geometry, float(surface))
 
 
 def _layers_for(geometry: MapGeometry, memory: HapticMemory, layers: LayeredMemory | None) -> LayeredMemory | None:
@@ -121,7 +162,8 @@ def press_window(data, where: str) -> PressWindow:
 
 def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path, *,
                      layers: LayeredMemory | None = None, cell_size: float = 0.01, progress: Progress | None = None,
-                     figures: bool = True, force: bool = False, inputs=()) -> dict:
+                     figures: bool = True, force: bool = False, inputs=(), salvage: bool = False, live=None,
+                     live_speed: float = 1.0) -> dict:
     """Run the perception stack on a recording and write maps, figures and summary.json into ``out_dir``.
 
     Args:
@@ -133,6 +175,10 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
         progress: progress bars (silent by default).
         figures: write PNG figures.
         force: replace an earlier replay in ``out_dir``; ``inputs``: further files read (never deleted).
+        salvage: replay what the complete chunks of a truncated or damaged recording hold (presses the damage cut
+            off are left out).
+        live: a live view (:class:`~palpate.core.io.live.LiveServer`) to send each press's streams and the map
+            after it to; ``live_speed``: play at this many times real time (0: as fast as perception goes).
 
     Names from the recording (objects in its metadata and annotations) are only names: each map is written as
     ``maps/<safe file stem>.npz`` inside ``out_dir``.
@@ -140,7 +186,7 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
     progress = progress or Progress(enabled=False)
     if not (isinstance(cell_size, (int, float)) and math.isfinite(cell_size) and cell_size > 0):
         raise ValidationError(f"replay: cell_size must be a finite number > 0 m, got {brief(cell_size)}")
-    rec = read_recording(path)
+    rec = read_recording(path, salvage=salvage, progress=progress)
     stream = recording_to_press_recording(rec)
     maps = rec.metadata.get("maps") or {}
     if not isinstance(maps, dict):
@@ -152,11 +198,21 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
     postprocessing = MapPostprocessing.from_dict(rec.metadata.get("map_postprocessing") or {},
                                                  f"{path}: metadata map_postprocessing")
     windows = [(i, a) for i, a in enumerate(rec.annotations) if a.kind == "press"]
-    presses = [press_window(a.data, f"{path}: annotation {i} (press)") for i, a in windows]
+    presses = presses_all = [press_window(a.data, f"{path}: annotation {i} (press)") for i, a in windows]
+    if rec.salvaged and presses:
+        # The damage cut the stream: a press whose window reaches past the last frame or pose is incomplete.
+        end = min(stream.frames[-1].t if stream.frames else -np.inf, stream.poses[-1].t if stream.poses else -np.inf)
+        complete = [w for w in presses if w.t_end <= end]
+        if len(complete) < len(presses):
+            progress.message(f"{path}: {len(presses) - len(complete)} press(es) cut off by the damage are left out")
+        presses = complete
     explore = [w for w in presses if w.phase == "exploration"]
     stems = unique_stems({w.object for w in explore} if windows else {"recording"}, f"{path}: object names")
     out = prepare_output_folder(out_dir, "replay", force=force, inputs=[path, *inputs])
     objects: dict[str, _Replayed] = {}
+    playback = None if live is None else _Playback(RecordingWriter(None, {}, live=live), float(live_speed))
+    timeline = _Timeline.of(stream)
+    annotations = {id(w): rec.annotations[i] for (i, _), w in zip(windows, presses_all, strict=True)}
     if windows:
         progress.start("replaying presses", len(explore))
         for i, w in enumerate(explore):
@@ -164,12 +220,14 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
                 raise ValidationError(f"{path}: press annotation names object {brief(w.object)}, which has no map "
                                       "geometry in the recording's metadata")
             state = objects.setdefault(w.object, _Replayed(geoms[w.object], new_map(geoms[w.object])))
-            sub = _window(stream, w.t_start, w.t_end)
+            sub = timeline.window(w.t_start, w.t_end)
             res = perceive_press(sub).at_target(w.target)
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
                                     fallback_xy=w.target, calibration=calibration)
             state.rows.append(_row(w.k if w.k is not None else len(state.rows) + 1, w.cell, res, posterior,
                                    state.grid))
+            if playback is not None:
+                playback.press(sub, annotations[id(w)], w.object, state.grid, state.geometry, res)
             progress.update(i + 1)
     else:
         seg = presses_from_recording(stream)
@@ -189,6 +247,9 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             posterior = apply_press(state.grid, res, memory, None, fallback_xy=press.location,
                                     calibration=calibration)
             state.rows.append(_row(k + 1, None, res, posterior, state.grid))
+            if playback is not None:
+                playback.press(timeline.window(press.t_onset, press.t_release), None, "recording", state.grid,
+                               geometry, res)
             progress.update(k + 1)
 
     summary_objects = []
@@ -210,7 +271,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             (out / "figures").mkdir(exist_ok=True)
             fig.plot_map_snapshots(inside(out, out / "figures" / f"{stems[name]}_map.png"), name,
                                    [MapSnapshot.of(grid, "replayed"), MapSnapshot.of(post, "post-processed")], g)
-    summary = {"format": REPLAY_FORMAT, "version": 1, "recording": str(path), "materials": list(memory.materials),
+    summary = {"format": REPLAY_FORMAT, "version": 1, "recording": str(path), "salvaged": rec.salvaged,
+               "materials": list(memory.materials),
                "source_metadata": rec.metadata, "objects": summary_objects, "versions": versions(),
                "palpate": __version__}
     assert_finite(summary)

@@ -32,8 +32,9 @@ from palpate.core.perception.memory import HapticMemory
 from palpate.core.session.actuators import open_actuators
 from palpate.core.session.ceiling import Ceiling, attainable_accuracy, ceiling_summary
 from palpate.core.session.explore import MapPostprocessing, ObjectResult, explore_object
+from palpate.core.session.figure_jobs import FigureDrawer, object_jobs, progress_job, training_jobs
 from palpate.core.session.output_guard import check_output_file, prepare_output_folder
-from palpate.core.session.outputs import write_figures, write_maps
+from palpate.core.session.outputs import write_maps
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import (
@@ -52,13 +53,15 @@ from palpate.core.world.workspace import map_geometries
 
 
 def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress | None = None,
-                 source: str | None = None, record: str | Path | None = None, force: bool = False) -> dict:
+                 source: str | None = None, record: str | Path | None = None, force: bool = False,
+                 live=None) -> dict:
     """Run a scenario end to end and write its outputs into ``out_dir``. Returns the summary (also summary.json).
 
     ``source`` names the registered simulated source that trains the memory and, with ``[actuator] kind = "sim"``,
     explores (default: ``training.source``); another actuator kind explores through
     :func:`palpate.core.session.actuators.open_actuators`. With ``record``, every press's raw streams (and ground
-    truth) go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps.
+    truth) go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps; with ``live`` (a
+    :class:`~palpate.core.io.live.LiveServer`) the same messages, and the map after every press, are served live.
 
     ``out_dir`` must be new, empty or an earlier run's folder; an earlier run (and an existing ``record`` file) is
     replaced only with ``force`` (:mod:`palpate.core.session.output_guard`). No input is ever overwritten.
@@ -81,7 +84,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                         "sources": [source] if kind == "sim" else [source, kind],
                         "maps": {name: g.to_dict() for name, g in geometries.items()},
                         "map_calibration": scenario.exploration.calibration.to_dict(),
-                        "map_postprocessing": MapPostprocessing.of(scenario.exploration).to_dict()})
+                        "map_postprocessing": MapPostprocessing.of(scenario.exploration).to_dict()}, live=live)
         try:
             return _run(scenario, out, progress, *makers, seeds, log)
         finally:
@@ -113,7 +116,16 @@ def _memory(scenario: Scenario, make_source, seeds, progress: Progress,
 
 def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds,
          log: PressLog) -> dict:
+    out_cfg = scenario.outputs
+    preload = ("pyvista",) if out_cfg.render_3d and scenario.exploration.map == "voxel" else ()
+    with FigureDrawer(out / "figures", background=out_cfg.figures, preload=preload) as drawer:
+        return _stages(scenario, out, progress, make_source, make_actuator, seeds, log, drawer)
+
+
+def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds, log: PressLog,
+            drawer: FigureDrawer) -> dict:
     timing: dict[str, float] = {}
+    draw = scenario.outputs.figures
     t0 = time.perf_counter()
     memory, training = _memory(scenario, make_source, seeds, progress, log)
     memory.save(out / "memory.json")
@@ -123,6 +135,9 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
         nz = max(1, int(round(ex.voxel_depth / ex.cell_size)))
         layers = train_layered_memory(memory, training.presses, ex.cell_size, nz)
         layers.save(out / "memory_layers.json")
+    presses = {} if training is None else training.presses
+    if draw:
+        drawer.submit(training_jobs(presses))
     timing["training_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -133,6 +148,11 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
         objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers))
+        if draw:
+            drawer.submit(object_jobs(objects[-1], scenario.outputs.render_3d))
+    if draw:
+        drawer.submit([progress_job(objects)])
+    log.close()  # the recording is complete on disk before maps and figures are written
     timing["exploration_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -147,10 +167,9 @@ def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_ac
     write_maps(out, objects, scenario)
     timing["maps_s"] = time.perf_counter() - t0
 
+    # Most figures were drawn in the background while the run went on: this is the wait for the rest.
     t0 = time.perf_counter()
-    presses = {} if training is None else training.presses
-    figures = (write_figures(out / "figures", presses, objects, render_3d=scenario.outputs.render_3d)
-               if scenario.outputs.figures else [])
+    figures = drawer.finish(progress) if draw else []
     timing["figures_s"] = time.perf_counter() - t0
 
     crossval = None if training is None else training.crossval

@@ -13,6 +13,7 @@ from importlib.metadata import entry_points
 from typing import Protocol, runtime_checkable
 
 from palpate.core.errors import ValidationError
+from palpate.core.extras import missing_extra, require_extra
 from palpate.core.perception.streams import PressRecording
 from palpate.core.world.scenario import Scenario
 from palpate.core.world.scene import ObjectSpec, Scene
@@ -70,11 +71,18 @@ def available_sources() -> dict[str, str]:
 def load_source(name: str):
     """Return the factory registered as ``name`` in ``palpate.sources``.
 
-    Raises ValidationError naming the known sources if ``name`` is not registered.
+    Raises ValidationError naming the known sources if ``name`` is not registered, and MissingExtraError naming the
+    extra to install if the source, or a module its ``requires`` attribute lists (imported only when it presses),
+    is missing.
     """
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         if ep.name == name:
-            return ep.load()
+            try:
+                factory = ep.load()
+            except ImportError as exc:
+                raise missing_extra(exc, f"the {name!r} source") from None
+            require_extra(f"the {name!r} source", *getattr(factory, "requires", ()))
+            return factory
     known = ", ".join(sorted(available_sources())) or "none (is palpate installed?)"
     raise ValidationError(f"unknown source {name!r}; registered sources: {known}")
 

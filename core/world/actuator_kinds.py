@@ -15,6 +15,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from palpate.core.errors import ValidationError
+from palpate.core.extras import missing_extra
 from palpate.core.world.table_reader import TableReader
 
 ACTUATOR_GROUP = "palpate.actuators"
@@ -56,8 +57,7 @@ def load_actuator_kind(name: str) -> ActuatorKind:
     try:
         kind = found[name].load()
     except ImportError as exc:
-        raise ValidationError(f"actuator kind {name!r} needs an optional dependency that is missing ({exc.name or exc})"
-                              ": install it with pip install 'palpate[hardware]'") from None
+        raise missing_extra(exc, f"actuator kind {name!r}") from None
     if not isinstance(kind, ActuatorKind):
         raise ValidationError(f"entry point {name!r} in {ACTUATOR_GROUP} is {type(kind).__name__}, not an "
                               "ActuatorKind")

@@ -1,0 +1,80 @@
+"""``palpate scenarios list|show|copy``: the scenario files shipped with palpate, to run by name or start from."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``scenarios`` command group."""
+    p = sub.add_parser("scenarios", help="list, show or copy the scenarios shipped with palpate",
+                       description="The scenario files shipped inside the package. Run one by name from any folder "
+                       "(palpate run thesis_ch6), or copy it to start your own (relative paths in a copy are "
+                       "rewritten to the shipped models).")
+    cmds = p.add_subparsers(dest="scenarios_command", metavar="SUBCOMMAND")
+    p.set_defaults(func=lambda a: p.print_help() or 2)
+    ls = cmds.add_parser("list", help="names and descriptions of the shipped scenarios")
+    ls.add_argument("--json", action="store_true", help="print a JSON list of {name, path, description}")
+    ls.set_defaults(func=_list)
+    show = cmds.add_parser("show", help="print a shipped scenario file")
+    show.add_argument("name", help="scenario name, e.g. thesis_ch6 or sweeps/tiny")
+    show.set_defaults(func=_show)
+    cp = cmds.add_parser("copy", help="copy a shipped scenario file to edit it")
+    cp.add_argument("name", help="scenario name, e.g. heterogeneous")
+    cp.add_argument("dest", type=Path, help="file or folder to copy it to")
+    cp.set_defaults(func=_copy)
+
+
+def _list(args: argparse.Namespace) -> int:
+    from palpate.core.world.resources import scenarios_dir, shipped_scenarios
+
+    infos = shipped_scenarios()
+    if args.json:
+        json.dump([{"name": i.name, "path": str(i.path), "description": i.description} for i in infos], sys.stdout,
+                  indent=1)
+        sys.stdout.write("\n")
+        return 0
+    width = max(len(i.name) for i in infos)
+    for i in infos:
+        print(f"{i.name:<{width}}  {i.description}")
+    print(f"\n(files in {scenarios_dir()}; run one with: palpate run NAME)")
+    return 0
+
+
+def _shipped(name: str) -> Path:
+    from palpate.core.errors import ValidationError
+    from palpate.core.world.resources import shipped_scenarios
+
+    wanted = name.removesuffix(".toml")
+    for info in shipped_scenarios():
+        if info.name == wanted:
+            return info.path
+    raise ValidationError(f"no shipped scenario {name!r}; see palpate scenarios list")
+
+
+def _show(args: argparse.Namespace) -> int:
+    sys.stdout.write(_shipped(args.name).read_text(encoding="utf-8"))
+    return 0
+
+
+def _copy(args: argparse.Namespace) -> int:
+    from palpate.core.errors import ValidationError
+    from palpate.core.world.resources import models_dir
+
+    src = _shipped(args.name)
+    dest = args.dest / src.name if args.dest.is_dir() else args.dest
+    if dest.exists():
+        raise ValidationError(f"{dest}: exists; not overwriting it")
+    text = src.read_text(encoding="utf-8")
+    # The shipped files reach the shipped models through paths relative to the scenarios folder; a copy elsewhere
+    # points at the installed models instead.
+    for rel in ("../models/", "models/"):
+        text = text.replace(f'"{rel}', f'"{models_dir().as_posix()}/')
+    dest.write_text(text, encoding="utf-8")
+    shutil.copymode(src, dest)
+    print(f"copied {args.name} to {dest}")
+    return 0

@@ -1,0 +1,158 @@
+"""Messages of the recording format (:mod:`~palpate.core.io.mcap_schemas`) built from palpate's types: JSON-ready
+dicts in Foxglove's well-known schemas, plus palpate's own fields. The MCAP writer and the live view send the same
+dicts."""
+
+from __future__ import annotations
+
+import base64
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.io.figures import rgb_image
+from palpate.core.io.mcap_schemas import FLOAT32, LOG_INFO, UINT8, WORLD_FRAME
+from palpate.core.mapping.geometry import MapGeometry
+from palpate.core.mapping.probability import entropy
+from palpate.core.perception.streams import PoseSample, TaxelFrame
+from palpate.core.world.scene import ObjectSpec
+
+
+def time_ns(t: float, what: str) -> int:
+    """``t`` seconds as the unsigned nanoseconds MCAP and Foxglove use; ValidationError unless finite and >= 0."""
+    if not (isinstance(t, (int, float, np.floating, np.integer)) and math.isfinite(t) and t >= 0):
+        raise ValidationError(f"{what}: t must be a finite time >= 0 s (log_time is unsigned ns), got {t!r}")
+    return int(round(float(t) * 1e9))
+
+
+def stamp(ns: int) -> dict:
+    """Foxglove's ``{sec, nsec}`` time."""
+    return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+
+
+def _b64(data: bytes) -> str:
+    return base64.b64encode(data).decode("ascii")
+
+
+def taxel_message(frame: TaxelFrame, ns: int, sensor_id: str) -> dict:
+    """``foxglove.RawImage`` of a taxel frame (mono8, one byte per sensel) with ``t``, ``sensel_area``, ``counts``."""
+    rows, cols = frame.counts.shape
+    raw = np.ascontiguousarray(frame.counts, dtype=np.uint8)
+    return {"timestamp": stamp(ns), "frame_id": sensor_id, "width": cols, "height": rows, "encoding": "mono8",
+            "step": cols, "data": _b64(raw.tobytes()), "t": float(frame.t), "sensel_area": float(frame.sensel_area),
+            "counts": raw.reshape(-1).tolist()}
+
+
+def pose_message(sample: PoseSample, ns: int, sensor_id: str) -> dict:
+    """``foxglove.FrameTransform``: the sensor's frame ``sensor_id`` in ``world``, with ``t``."""
+    x, y, z = (float(v) for v in sample.position)
+    qw, qx, qy, qz = (float(v) for v in sample.quaternion)
+    return {"timestamp": stamp(ns), "parent_frame_id": WORLD_FRAME, "child_frame_id": sensor_id,
+            "translation": {"x": x, "y": y, "z": z}, "rotation": {"x": qx, "y": qy, "z": qz, "w": qw},
+            "t": float(sample.t)}
+
+
+def _describe(kind: str, data: dict) -> str:
+    """A one-line, readable form of an event for Foxglove's Log panel."""
+    parts = []
+    for key, value in data.items():
+        if isinstance(value, float):
+            value = f"{value:.4g}"
+        elif isinstance(value, list) and all(isinstance(v, float) for v in value):
+            value = "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
+        parts.append(f"{key}={value}")
+    line = f"{kind}: " + " ".join(parts)
+    return line if len(line) <= 240 else line[:237] + "..."
+
+
+def log_message(t: float, ns: int, kind: str, data: dict) -> dict:
+    """``foxglove.Log`` line of an annotation, with ``t``, ``kind`` and ``data``."""
+    return {"timestamp": stamp(ns), "level": LOG_INFO, "message": _describe(kind, data), "name": "palpate",
+            "file": "", "line": 0, "t": float(t), "kind": kind, "data": data}
+
+
+def truth_message(t: np.ndarray, force: np.ndarray, indentation: np.ndarray, material: str | None) -> dict:
+    """``palpate.GroundTruthSeries``: a stretch of ground truth as arrays."""
+    return {"t": t.tolist(), "force": force.tolist(), "indentation": indentation.tolist(), "material": material}
+
+
+def _cells(probabilities: np.ndarray, explored: np.ndarray, materials: Sequence[str], base: float,
+           alpha_unexplored: int) -> tuple[np.ndarray, list[dict]]:
+    """Packed cells (red, green, blue, alpha, P_<material>..., entropy, explored) and their field list."""
+    names = ["red", "green", "blue", "alpha"] + [f"P_{m}" for m in materials] + ["entropy", "explored"]
+    types = ["u1"] * 4 + ["<f4"] * (len(materials) + 1) + ["u1"]
+    cells = np.zeros(explored.shape, dtype=np.dtype(list(zip(names, types, strict=True))))
+    rgb = np.round(rgb_image(probabilities) * 255).astype(np.uint8)
+    for i, c in enumerate(("red", "green", "blue")):
+        cells[c] = rgb[..., i]
+    cells["alpha"] = np.where(explored, 255, alpha_unexplored)
+    for j, m in enumerate(materials):
+        cells[f"P_{m}"] = probabilities[..., j]
+    cells["entropy"] = entropy(probabilities, base=base)
+    cells["explored"] = explored
+    fields = [{"name": n, "offset": cells.dtype.fields[n][1], "type": UINT8 if t == "u1" else FLOAT32}
+              for n, t in zip(names, types, strict=True)]
+    return cells, fields
+
+
+def map_message(ns: int, name: str, probabilities: np.ndarray, explored: np.ndarray, geometry: MapGeometry,
+                surface_z: float) -> tuple[str, dict]:
+    """(schema name, message) of a map: ``foxglove.Grid`` on the object's surface at ``surface_z`` m, or
+    ``foxglove.VoxelGrid`` below it. Unexplored cells are half transparent (2-D) or nearly invisible (voxels)."""
+    p = np.asarray(probabilities, dtype=float)
+    ex = np.asarray(explored, dtype=bool)
+    materials = list(geometry.materials)
+    x0, y0 = geometry.origin
+    c = geometry.cell_size
+    if not geometry.voxel:  # arrays are [iy, ix]: rows along y, as Grid lays out its data
+        cells, fields = _cells(p, ex, materials, geometry.entropy_base, 150)
+        ny, nx = ex.shape
+        stride = cells.dtype.itemsize
+        return "foxglove.Grid", {
+            "timestamp": stamp(ns), "frame_id": WORLD_FRAME,
+            "pose": {"position": {"x": x0, "y": y0, "z": surface_z + 1e-4},
+                     "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+            "column_count": nx, "cell_size": {"x": c, "y": c}, "row_stride": nx * stride, "cell_stride": stride,
+            "fields": fields, "data": _b64(cells.tobytes())}
+    # voxels are [ix, iy, iz] with iz = 0 at the surface; VoxelGrid wants slices from the bottom, rows along y
+    nx, ny, nz = ex.shape
+    cells, fields = _cells(p.transpose(2, 1, 0, 3)[::-1], ex.transpose(2, 1, 0)[::-1], materials,
+                           geometry.entropy_base, 25)
+    stride = cells.dtype.itemsize
+    return "foxglove.VoxelGrid", {
+        "timestamp": stamp(ns), "frame_id": WORLD_FRAME,
+        "pose": {"position": {"x": x0, "y": y0, "z": geometry.z_top - nz * c},
+                 "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+        "row_count": ny, "column_count": nx, "cell_size": {"x": c, "y": c, "z": c},
+        "slice_stride": nx * ny * stride, "row_stride": nx * stride, "cell_stride": stride, "fields": fields,
+        "data": _b64(cells.tobytes())}
+
+
+def _identity_pose(x: float, y: float, z: float) -> dict:
+    return {"position": {"x": x, "y": y, "z": z}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
+
+
+def scene_message(ns: int, objects: Sequence[ObjectSpec]) -> dict:
+    """``foxglove.SceneUpdate`` with one entity per object: its box or cylinder (translucent grey) and its name."""
+    grey = {"r": 0.6, "g": 0.6, "b": 0.6, "a": 0.25}
+    entities = []
+    for spec in objects:
+        x, y = spec.position
+        h = spec.height
+        cubes, cylinders = [], []
+        if spec.shape == "cylinder":
+            r = spec.size[0]
+            cylinders.append({"pose": _identity_pose(x, y, h / 2), "size": {"x": 2 * r, "y": 2 * r, "z": h},
+                              "bottom_scale": 1.0, "top_scale": 1.0, "color": grey})
+        elif spec.shape == "box":
+            sx, sy, sz = spec.size
+            cubes.append({"pose": _identity_pose(x, y, sz / 2), "size": {"x": sx, "y": sy, "z": sz}, "color": grey})
+        text = {"pose": _identity_pose(x, y, h + 0.01), "billboard": True, "font_size": 14.0,
+                "scale_invariant": True, "color": {"r": 0.1, "g": 0.1, "b": 0.1, "a": 1.0}, "text": spec.name}
+        entities.append({"timestamp": stamp(ns), "frame_id": WORLD_FRAME, "id": f"object/{spec.name}",
+                         "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
+                         "metadata": [{"key": "material", "value": spec.material.name}, {"key": "shape",
+                                                                                       "value": spec.shape}],
+                         "cubes": cubes, "cylinders": cylinders, "texts": [text]})
+    return {"deletions": [], "entities": entities}

@@ -1,0 +1,104 @@
+"""The live view: the recording's channels served over Foxglove's WebSocket protocol while a run (or a replay) goes.
+
+Open Foxglove, "Open connection", ``ws://127.0.0.1:8765`` (the default port) and import the layout
+``models/foxglove_layout.json`` (shipped in the package; see ``docs/recordings.md``) to see the fingertip, the
+taxel image, the map after every press and the press log as they happen. The server is the Foxglove SDK's
+(``pip install 'palpate[live]'``); messages are the same JSON as in a recording (:mod:`~palpate.core.io.mcap_schemas`).
+
+The maps and the scene are state, not events: a client that subscribes after they were sent gets the latest one at
+once, so a view opened late (or after the run) still shows the current map.
+"""
+
+from __future__ import annotations
+
+import threading
+
+from palpate.core.extras import missing_extra
+
+DEFAULT_PORT = 8765
+_STATE_TOPICS = ("/map/", "/scene")
+
+
+class LiveServer:
+    """A Foxglove WebSocket server publishing palpate's channels (a :class:`~palpate.core.io.mcap_writer.LiveSink`).
+
+    Args:
+        host: address to listen on (default: this machine only).
+        port: TCP port; 0 picks a free one (see :attr:`port`).
+        name: server name shown by Foxglove.
+
+    Raises:
+        MissingExtraError: the Foxglove SDK (the ``live`` extra) is not installed.
+        OSError-like errors from the SDK when the port is taken.
+    """
+
+    def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, name: str = "palpate"):
+        try:
+            import foxglove
+        except ImportError as exc:
+            raise missing_extra(exc, "the live view") from None
+        self._foxglove = foxglove
+        self._context = foxglove.Context()
+        self._channels: dict[str, object] = {}
+        self._latest: dict[str, tuple[object, bytes, int]] = {}
+        self._subscribed = threading.Condition()
+        self._subscribers: dict[str, int] = {}
+        latest, subscribed, subscribers = self._latest, self._subscribed, self._subscribers
+
+        class _Listener(foxglove.ServerListener):
+            def on_subscribe(self, client, channel) -> None:  # a late subscriber gets the current map at once
+                state = latest.get(channel.topic)
+                if state is not None:
+                    ch, data, log_time = state
+                    ch.log(data, log_time=log_time, sink_id=client.id)
+                with subscribed:
+                    subscribers[channel.topic] = subscribers.get(channel.topic, 0) + 1
+                    subscribed.notify_all()
+
+            def on_unsubscribe(self, client, channel) -> None:
+                with subscribed:
+                    subscribers[channel.topic] = max(subscribers.get(channel.topic, 0) - 1, 0)
+
+        self._server = foxglove.start_server(name=name, host=host, port=port, context=self._context,
+                                             server_listener=_Listener())
+        self.host = host
+
+    @property
+    def port(self) -> int:
+        """The TCP port the server listens on."""
+        return int(self._server.port)
+
+    @property
+    def url(self) -> str:
+        """The address to open in Foxglove."""
+        return f"ws://{self.host}:{self.port}"
+
+    def wait_for_subscriber(self, topic: str, timeout: float) -> bool:
+        """Block until a client subscribes to ``topic`` (True), or ``timeout`` s pass (False). A subscriber has
+        been sent the topic's latest map or scene by the time this returns."""
+        with self._subscribed:
+            return self._subscribed.wait_for(lambda: self._subscribers.get(topic, 0) > 0, timeout)
+
+    def publish(self, topic: str, schema_name: str, schema: bytes, log_time: int, data: bytes) -> None:
+        """Send one JSON message on ``topic`` (a channel is advertised on first use)."""
+        ch = self._channels.get(topic)
+        if ch is None:
+            fg = self._foxglove
+            ch = fg.Channel(topic, schema=fg.Schema(name=schema_name, encoding="jsonschema", data=schema),
+                            message_encoding="json", context=self._context)
+            self._channels[topic] = ch
+        if topic.startswith(_STATE_TOPICS):
+            self._latest[topic] = (ch, data, log_time)
+        ch.log(data, log_time=log_time)
+
+    def close(self) -> None:
+        """Stop serving (idempotent)."""
+        if self._server is not None:
+            self._server.stop()
+            self._server = None
+
+    def __enter__(self) -> LiveServer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
