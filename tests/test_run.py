@@ -104,6 +104,7 @@ def test_summary_reports_calibration_and_attainable_accuracy(small_run):
 
     scenario, summary, out = small_run
     assert summary["map_calibration"] == DEFAULT_CALIBRATION.to_dict() == scenario.exploration.calibration.to_dict()
+    assert summary["map_postprocessing"] == {"extrapolation_passes": 1, "voxel_lateral": False}
     (obj,) = summary["objects"]
     cal = obj["calibration"]
     # every cell of the 6 x 4 map has a truth: counted, or left out because its top two materials tie
