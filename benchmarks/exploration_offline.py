@@ -25,6 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from exploration import ACCURACY, ROWS, chosen_rows, make_source_for, scene_dict  # noqa: E402
 
 from palpate.core.mapping.accuracy import map_accuracy
+from palpate.core.mapping.calibration import MapCalibration
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
 from palpate.core.planning.outcomes import outcome_posteriors
@@ -35,14 +36,15 @@ from palpate.core.world.scenario_file import parse_scenario
 from palpate.core.world.workspace import ground_truth_map, map_geometries
 
 
-def presses_to_accuracy(policy, geom: MapGeometry, truth: np.ndarray, answers: np.ndarray, seed: int) -> int | None:
+def presses_to_accuracy(policy, geom: MapGeometry, truth: np.ndarray, answers: np.ndarray, seed: int,
+                        calibration: MapCalibration) -> int | None:
     """Presses until the post-processed map reaches ACCURACY (None if the policy stops or the budget, one press
-    per cell, runs out first)."""
+    per cell, runs out first); the map is calibrated as the scenario says, like a run's."""
     grid = new_map(geom)
     rng = np.random.default_rng(seed)
     last = None
     for k in range(truth.size + 1):
-        post = grid.postprocessed()
+        post = grid.postprocessed(certainty=calibration.extrapolation_certainty)
         if (map_accuracy(post.probabilities, truth) or 0.0) >= ACCURACY:
             return k
         if k == truth.size:
@@ -50,7 +52,7 @@ def presses_to_accuracy(policy, geom: MapGeometry, truth: np.ndarray, answers: n
         t = policy.next_target(grid, post, last)
         if t is None:
             return None
-        grid.update_cell(t.ix, t.iy, answers[truth[t.iy, t.ix], rng.integers(answers.shape[1])])
+        grid.update_cell(t.ix, t.iy, calibration.evidence(answers[truth[t.iy, t.ix], rng.integers(answers.shape[1])]))
         last = (t.ix, t.iy)
     return None
 
@@ -81,8 +83,8 @@ def main() -> None:
             truth = ground_truth_map(sc.objects[0], sc, geom)
             regions = [(c - 1, r - 1) for c, r in sc.objects[0].regions]
             policy = make_policy(kind, cells=regions, seed=s, memory=memory, objective=ex.objective,
-                                 feature_size=ex.feature_size)
-            needed[row].append(presses_to_accuracy(policy, geom, truth, answers, s))
+                                 feature_size=ex.feature_size, certainty=ex.calibration.extrapolation_certainty)
+            needed[row].append(presses_to_accuracy(policy, geom, truth, answers, s, ex.calibration))
         cells.append(int(truth.size))
     print(f"{args.scenes} scenes (seeds {seeds.start}-{seeds.stop - 1}), presses answered from the memory's predicted "
           f"outcomes; presses to {ACCURACY:.0%} accuracy of the post-processed map")

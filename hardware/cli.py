@@ -10,7 +10,8 @@ from __future__ import annotations
 import argparse
 import importlib
 
-DEVICE_MODULES = ("palpate.hardware.tekscan", "palpate.hardware.polhemus", "palpate.hardware.dynamixel")
+DEVICE_MODULES = ("palpate.hardware.tekscan", "palpate.hardware.polhemus", "palpate.hardware.dynamixel",
+                  "palpate.hardware.rig")
 
 
 def register(sub: argparse._SubParsersAction) -> None:

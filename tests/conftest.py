@@ -28,3 +28,16 @@ def data_dir() -> Path:
 @pytest.fixture
 def repo_dir() -> Path:
     return REPO
+
+
+@pytest.fixture(scope="session")
+def three_material_memory():
+    """A haptic memory over materials m0, m1, m2 fitted on synthetic presses (12 each, 15% spread) whose m0 and
+    m1 overlap a little, so a press's predicted outcomes are not all certain (planning tests)."""
+    from palpate.core.perception.memory import HapticMemory
+
+    rng = np.random.default_rng(11)
+    mus = np.array([[100.0, 1.0, 20.0, 0.5], [160.0, 1.4, 26.0, 0.7], [900.0, 3.0, 60.0, 1.5]])
+    x = np.vstack([mu * (1 + 0.15 * rng.standard_normal((12, 4))) for mu in mus])
+    names = ["m0", "m1", "m2"]
+    return HapticMemory(names).fit(x, [m for m in names for _ in range(12)])

@@ -237,9 +237,9 @@ def test_a_recording_that_arrives_during_the_session_is_waited_for(tmp_path):
     person = Person()
     take = folder_streams(folder, person, out)
     rec = take(PressTarget(0.005, 0.005), 0)
-    assert person.calls == 1 and "no recording for press 1" in out.getvalue()
+    assert person.calls == 1 and "no recording for press 1 in" in out.getvalue()
     assert len(rec.frames) > 10 and rec.meta["file"].endswith("press_001.mcap")
-    with pytest.raises(RecordingError, match="press 2 needs its recording .* holds 1"):
+    with pytest.raises(RecordingError, match=r"press 2 needs its recording, but .* hold 1 press\(es\)"):
         folder_streams(folder, io.StringIO(""), out)(PressTarget(0.005, 0.005), 1)
     with pytest.raises(PalpateError, match="operator stopped"):
         folder_streams(folder, io.StringIO("q\n"), out)(PressTarget(0.005, 0.005), 1)
@@ -284,20 +284,23 @@ def test_a_grid_the_finger_cannot_press_is_refused_before_anything_moves(repo_di
     assert not (tmp_path / "memory.json").exists()  # refused before training
 
 
-def test_a_real_bus_is_refused_until_a_live_taxel_reader_exists(repo_dir, tmp_path, monkeypatch):
+def test_a_real_bus_without_a_tactile_array_is_refused_before_anything_moves(repo_dir, tmp_path, monkeypatch):
     _forbid_motion(monkeypatch)
     sc = _dynamixel_scenario(repo_dir)
     from dataclasses import replace
 
     sc = replace(sc, actuator=replace(sc.actuator, options=replace(sc.actuator.options, emulate=False,
-                                                                   port="/dev/ttyUSB0")))
-    with pytest.raises(ValidationError, match=r"actuator.port = '/dev/ttyUSB0': a real Dynamixel finger has no "
-                       r"tactile pad.*Use emulate = true"):
+                                                                   port="/dev/ttyUSB0", taxels=None)))
+    with pytest.raises(ValidationError, match=r"actuator.taxels: missing: the finger on '/dev/ttyUSB0' needs the "
+                       r"tactile array's serial port"):
         run_scenario(sc, tmp_path)
+    assert not (tmp_path / "memory.json").exists()
 
 
 def test_the_emulated_finger_explores_through_the_wire_and_closes_the_bus(repo_dir, tmp_path):
-    """dynamixel-sdk -> pty -> servo emulator -> MuJoCo physics, driven by run_scenario: two presses."""
+    """The live Dynamixel + taxel loop to a map: dynamixel-sdk -> pty -> servo emulator -> MuJoCo physics, and
+    pyserial -> a second pty -> tactile array emulator -> the same physics' pad, driven by run_scenario: two
+    presses."""
     sc = _dynamixel_scenario(repo_dir, exploration={"policy": "predefined", "presses_per_region": 1},
                              objects={"regions": [[1, 1], [5, 1]]},
                              actuator={"approach_mm": 3.0}, outputs={"figures": False, "haptic_material": False})
@@ -317,6 +320,16 @@ def test_the_emulated_finger_explores_through_the_wire_and_closes_the_bus(repo_d
     assert 0.0033 < rows[0]["depth_m"] < 0.0055 and rows[1]["depth_m"] < 0.003
     assert rows[0]["posterior"][0] > 0.99 and rows[1]["posterior"][1] > 0.99
     assert obj["accuracy"]["explored_before_postprocessing"] == 1.0
+    # the presses' taxel frames came from the tactile array's wire (50 Hz frames, timed by their counters)
+    from palpate.core.io.mcap_reader import read_recording
+
+    run = read_recording(tmp_path / "run.mcap")
+    windows = [(a.data["t_start"], a.data["t_end"]) for a in run.annotations
+               if a.kind == "press" and a.data["phase"] == "exploration"]
+    explored = [f for f in run.frames if any(t0 <= f.t <= t1 for t0, t1 in windows)]
+    assert len(windows) == 2 and len(explored) > 40 and max(int(f.counts.max()) for f in explored) > 20
+    steps = np.diff([f.t for f in explored if windows[0][0] <= f.t <= windows[0][1]]) * 50.0
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)  # on the array's 50 Hz counter grid
     # the recorded run (simulated training, finger exploration: one pose stream) replays to the same map
     from palpate.core.cli import main
     from palpate.core.mapping.grids import Grid2D
@@ -327,8 +340,8 @@ def test_the_emulated_finger_explores_through_the_wire_and_closes_the_bus(repo_d
     np.testing.assert_array_equal(replayed.probabilities, ran.probabilities)
 
 
-def test_the_command_line_switches_the_finger_to_a_real_port_and_is_refused(repo_dir, tmp_path, monkeypatch,
-                                                                            capsys):
+def test_the_command_line_switches_the_finger_to_a_real_port_and_needs_its_tactile_array(repo_dir, tmp_path,
+                                                                                        monkeypatch, capsys):
     from palpate.core.cli import main
 
     _forbid_motion(monkeypatch)
@@ -336,8 +349,11 @@ def test_the_command_line_switches_the_finger_to_a_real_port_and_is_refused(repo
                  "--out", str(tmp_path), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2
-    assert "explore_dynamixel.toml: actuator.port = '/dev/ttyUSB7': a real Dynamixel finger" in err
+    assert "explore_dynamixel.toml: actuator.taxels: missing: the finger on '/dev/ttyUSB7'" in err
     assert not (tmp_path / "memory.json").exists()
+    code = main(["run", str(repo_dir / "scenarios" / "explore_dynamixel.toml"), "--emulate", "--taxels", "/dev/x",
+                 "--out", str(tmp_path), "--quiet"])
+    assert code == 2 and "actuator.taxels: not used with emulate = true" in capsys.readouterr().err
 
 
 def test_travel_between_cells_stays_above_the_object(repo_dir):

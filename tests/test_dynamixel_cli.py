@@ -45,7 +45,8 @@ def test_record_with_a_press_writes_joints_poses_and_annotations(tmp_path, repo_
     rec = recording.read_recording(out)
     assert len(rec.joints) == len(rec.poses) > 10
     assert rec.joints[0].names == ("mcp", "pip")
-    assert [a.kind for a in rec.annotations] == ["press_start", "press_end"]
+    assert [a.kind for a in rec.annotations] == ["press_start", "press_end", "recording_end"]
+    assert rec.annotations[-1].data == {"stop_reason": "duration", "samples": len(rec.joints)}
     z = np.array([p.position[2] for p in rec.poses])
     assert z.min() == pytest.approx(0.03 - 0.002, abs=2e-4)  # pressed 2 mm into the surface at z = 0.03 m
     assert np.max(np.abs(np.stack([j.current for j in rec.joints]))) > 0  # the surface loaded the joints

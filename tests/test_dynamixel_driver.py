@@ -1,4 +1,7 @@
-"""The finger driver through dynamixel-sdk against the Protocol 2.0 servo emulator on a pty."""
+"""The finger driver through dynamixel-sdk against the Protocol 2.0 servo emulator on a pty.
+
+The emulator and the driver share a StepClock: the servos move one control cycle per state read, so every
+outcome is set by the packets exchanged, not by how busy the machine is."""
 
 from __future__ import annotations
 
@@ -7,8 +10,9 @@ import pytest
 
 from palpate.core.errors import DeviceError, ValidationError
 from palpate.core.session.sources import PressTarget
+from palpate.hardware.clock import StepClock
 from palpate.hardware.dynamixel import control_table as ct
-from palpate.hardware.dynamixel.driver import DynamixelFinger, LostServo, scan
+from palpate.hardware.dynamixel.driver import DynamixelFinger, LostServo
 from palpate.hardware.dynamixel.emulator import ServoBusEmulator
 from palpate.hardware.dynamixel.finger import (
     forward_kinematics,
@@ -18,6 +22,7 @@ from palpate.hardware.dynamixel.finger import (
     surface_load_model,
 )
 from palpate.hardware.dynamixel.protocol import INST_SYNC_WRITE, INST_WRITE
+from palpate.hardware.dynamixel.scan import scan
 
 BAUD = 1_000_000
 SURFACE_Z = 0.03
@@ -37,7 +42,8 @@ def planar2(repo_dir):
 def _bus(finger, x=0.07, load=True):
     q0 = inverse_kinematics(finger, x, SURFACE_Z + finger.approach_height)
     model = surface_load_model(finger, SURFACE_Z, STIFFNESS) if load else None
-    return ServoBusEmulator(finger.ids, finger.model.number, BAUD, model, joints_to_ticks(finger, q0))
+    return ServoBusEmulator(finger.ids, finger.model.number, BAUD, model, joints_to_ticks(finger, q0),
+                            clock=StepClock())
 
 
 def test_scan_finds_the_configured_ids():
@@ -49,7 +55,7 @@ def test_scan_finds_the_configured_ids():
 
 
 def test_open_configures_limits_with_torque_off(planar2):
-    with _bus(planar2) as emu, DynamixelFinger(emu.port, BAUD, planar2):
+    with _bus(planar2) as emu, DynamixelFinger(emu.port, BAUD, planar2, clock=emu.clock):
         for k, sid in enumerate(planar2.ids):
             assert emu.register(sid, ct.OPERATING_MODE) == ct.MODE_CURRENT_POSITION
             assert emu.register(sid, ct.TORQUE_ENABLE) == 0
@@ -61,7 +67,7 @@ def test_open_configures_limits_with_torque_off(planar2):
 
 
 def test_sync_read_returns_the_emulated_positions(finger):
-    with _bus(finger, load=False) as emu, DynamixelFinger(emu.port, BAUD, finger) as drv:
+    with _bus(finger, load=False) as emu, DynamixelFinger(emu.port, BAUD, finger, clock=emu.clock) as drv:
         ticks = np.array([2100, 2300, 2500][: len(finger.ids)])
         for sid, tk in zip(finger.ids, ticks, strict=True):
             emu.set_register(sid, ct.PRESENT_POSITION, int(tk))
@@ -72,7 +78,7 @@ def test_sync_read_returns_the_emulated_positions(finger):
 
 
 def test_sync_write_moves_the_emulated_servos(finger):
-    with _bus(finger, load=False) as emu, DynamixelFinger(emu.port, BAUD, finger) as drv:
+    with _bus(finger, load=False) as emu, DynamixelFinger(emu.port, BAUD, finger, clock=emu.clock) as drv:
         drv.enable_torque()
         q = inverse_kinematics(finger, 0.06, 0.05)
         state = drv.move_to(q, tolerance=2e-3, timeout=5.0)
@@ -84,7 +90,7 @@ def test_sync_write_moves_the_emulated_servos(finger):
 
 
 def test_press_to_depth_and_to_force_follow_the_surface_law(finger):
-    with _bus(finger) as emu, DynamixelFinger(emu.port, BAUD, finger) as drv:
+    with _bus(finger) as emu, DynamixelFinger(emu.port, BAUD, finger, clock=emu.clock) as drv:
         deep = drv.press(PressTarget(0.07, 0.0, depth=0.003, speed=0.05), SURFACE_Z)
         assert deep.stopped_by == "depth"
         assert deep.depth == pytest.approx(0.003, abs=2e-4)
@@ -103,8 +109,19 @@ def test_press_to_depth_and_to_force_follow_the_surface_law(finger):
         assert poses_z.min() == pytest.approx(SURFACE_Z - soft.depth, abs=2e-4)
 
 
+def test_a_press_on_the_stepped_clock_is_the_same_every_time(planar2):
+    runs = []
+    for _ in range(2):
+        with _bus(planar2) as emu, DynamixelFinger(emu.port, BAUD, planar2, clock=emu.clock) as drv:
+            press = drv.press(PressTarget(0.07, 0.0, depth=0.003, speed=0.05), SURFACE_Z)
+        runs.append(np.array([np.concatenate([[s.t], s.position, s.current]) for s in press.joints]))
+    # bit for bit: the servos moved one control cycle per state read, whatever the scheduler did meanwhile
+    assert runs[0].shape == runs[1].shape and len(runs[0]) > 20
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
 def test_limits_are_refused_before_any_write(planar2):
-    with _bus(planar2) as emu, DynamixelFinger(emu.port, BAUD, planar2) as drv:
+    with _bus(planar2) as emu, DynamixelFinger(emu.port, BAUD, planar2, clock=emu.clock) as drv:
         drv.enable_torque()
         writes, syncs = len(emu.writes), emu.instruction_counts[INST_SYNC_WRITE]
         q = 0.5 * (planar2.lower + planar2.upper)
@@ -130,7 +147,7 @@ def test_servo_lost_mid_press_stops_cleanly(finger):
         if len(seen) == 40:
             emu.silence(lost)
 
-    with _bus(finger) as emu, DynamixelFinger(emu.port, BAUD, finger) as drv:
+    with _bus(finger) as emu, DynamixelFinger(emu.port, BAUD, finger, clock=emu.clock) as drv:
         with pytest.raises(LostServo, match=f"servo {lost} .*stopped answering") as info:
             drv.press(PressTarget(0.07, 0.0, depth=0.003, speed=0.01), SURFACE_Z, on_state=cut_cable)
         assert info.value.servo_id == lost
@@ -145,7 +162,7 @@ def test_ctrl_c_switches_torque_off(planar2):
     def interrupt(state, pose):
         raise KeyboardInterrupt
 
-    with _bus(planar2) as emu, DynamixelFinger(emu.port, BAUD, planar2) as drv:
+    with _bus(planar2) as emu, DynamixelFinger(emu.port, BAUD, planar2, clock=emu.clock) as drv:
         with pytest.raises(KeyboardInterrupt):
             drv.press(PressTarget(0.07, 0.0, depth=0.003), SURFACE_Z, on_state=interrupt)
         assert all(emu.register(sid, ct.TORQUE_ENABLE) == 0 for sid in planar2.ids)
@@ -153,7 +170,7 @@ def test_ctrl_c_switches_torque_off(planar2):
 
 
 def test_corrupt_status_is_retried(planar2):
-    with _bus(planar2, load=False) as emu, DynamixelFinger(emu.port, BAUD, planar2) as drv:
+    with _bus(planar2, load=False) as emu, DynamixelFinger(emu.port, BAUD, planar2, clock=emu.clock) as drv:
         emu.set_register(1, ct.PRESENT_POSITION, 2222)
         emu.corrupt_next_status(1)
         state = drv.read_state()
@@ -165,14 +182,14 @@ def test_corrupt_status_is_retried(planar2):
 
 
 def test_hardware_alert_is_reported(planar2):
-    with _bus(planar2, load=False) as emu, DynamixelFinger(emu.port, BAUD, planar2) as drv:
+    with _bus(planar2, load=False) as emu, DynamixelFinger(emu.port, BAUD, planar2, clock=emu.clock) as drv:
         emu.set_hardware_error(2, 0x20)
         with pytest.raises(DeviceError, match="servo 2: hardware error status 0x20"):
             drv.read_state()
 
 
 def test_stuffed_status_and_unstuffed_sdk_writes_survive_the_wire(planar2):
-    with _bus(planar2, load=False) as emu, DynamixelFinger(emu.port, BAUD, planar2) as drv:
+    with _bus(planar2, load=False) as emu, DynamixelFinger(emu.port, BAUD, planar2, clock=emu.clock) as drv:
         # FF FF FD inside data: the emulator stuffs it, the SDK unstuffs it
         value = 0x01FDFFFF
         emu.set_register(1, ct.PROFILE_VELOCITY, value)
@@ -185,7 +202,7 @@ def test_stuffed_status_and_unstuffed_sdk_writes_survive_the_wire(planar2):
 
 
 def test_eeprom_write_with_torque_on_is_refused_by_the_servo(planar2):
-    with _bus(planar2, load=False) as emu, DynamixelFinger(emu.port, BAUD, planar2) as drv:
+    with _bus(planar2, load=False) as emu, DynamixelFinger(emu.port, BAUD, planar2, clock=emu.clock) as drv:
         drv.enable_torque()
         with pytest.raises(DeviceError, match="servo 1: write of 3 to address 11 refused"):
             drv._write(1, ct.OPERATING_MODE, 3)
@@ -213,3 +230,11 @@ def test_wrong_servo_model_is_refused(planar2):
     with ServoBusEmulator(planar2.ids, model_number=1120, baud=BAUD) as emu:
         with pytest.raises(DeviceError, match="XM540-W270"):
             DynamixelFinger(emu.port, BAUD, planar2).open()
+
+
+def test_corrupt_answers_at_open_are_named_as_such_not_as_a_wrong_baud_rate(planar2):
+    with ServoBusEmulator(planar2.ids, baud=BAUD) as emu:
+        emu.corrupt_next_status(20)
+        with pytest.raises(DeviceError, match=r"servo id\(s\) \[1, 2\] .* only with corrupt packets") as info:
+            DynamixelFinger(emu.port, BAUD, planar2).open()
+    assert "baud" not in str(info.value) and "cable" in str(info.value)

@@ -19,6 +19,7 @@ from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.pipeline import PipelineConfig, presses_from_recording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, Scene
+from palpate.hardware.clock import StepClock
 from palpate.hardware.dynamixel import control_table as ct
 from palpate.hardware.dynamixel.driver import DynamixelFinger, LostServo
 from palpate.hardware.dynamixel.emulator import ServoBusEmulator
@@ -152,14 +153,14 @@ def test_bad_setups_are_clear_errors(finger):
 # ---- through the wire ----------------------------------------------------------------------------------------
 
 def _bus(finger, young, name="block"):
-    return physics_bus(finger, _scene(young, name=name), inverse_kinematics(finger, X, TOP + 0.003))
+    return physics_bus(finger, _scene(young, name=name), inverse_kinematics(finger, X, TOP + 0.003), clock=StepClock())
 
 
 def test_presses_through_the_wire_fit_the_three_halves_law_and_match_a_memory_trained_in_simulation(finger):
     n1, stopped, peaks, wire_params = {}, {}, {}, []
     for k, (name, young) in enumerate(MATERIALS.items()):
         emu, physics = _bus(finger, young, name)
-        with emu, DynamixelFinger(emu.port, BAUD, finger) as drv:
+        with emu, DynamixelFinger(emu.port, BAUD, finger, clock=emu.clock) as drv:
             act = FingerActuator(drv, TOP, streams=physics.actuator_streams(seed=k), pose_noise=5e-5, seed=k)
             rec = act.press(PressTarget(X, 0.0, **TARGET))
         stopped[name] = act.last.stopped_by
@@ -205,7 +206,7 @@ def test_currents_read_back_are_the_physics_force_within_the_current_resolution(
     emu, physics = _bus(finger, 2e5)
     unit = finger.model.current_unit
     kt = finger.model.torque_constant
-    with emu, DynamixelFinger(emu.port, BAUD, finger) as drv:
+    with emu, DynamixelFinger(emu.port, BAUD, finger, clock=emu.clock) as drv:
         drv.enable_torque()
         for depth in (0.0005, 0.0015, 0.003):
             drv.move_to(inverse_kinematics(finger, X, TOP - depth), tolerance=1e-3, timeout=5.0)
@@ -237,7 +238,7 @@ def test_a_servo_going_silent_mid_press_stops_cleanly_and_keeps_the_streams(fing
         if pose.position[2] < TOP - 0.0015:  # 1.5 mm into the block
             emu.silence(lost)
 
-    with emu, DynamixelFinger(emu.port, BAUD, finger) as drv:
+    with emu, DynamixelFinger(emu.port, BAUD, finger, clock=emu.clock) as drv:
         act = FingerActuator(drv, TOP, on_state=cut_cable, streams=physics.actuator_streams())
         with pytest.raises(LostServo, match=f"servo {lost} .*stopped answering") as info:
             act.press(PressTarget(X, 0.0, depth=0.004, speed=0.01))

@@ -10,7 +10,6 @@ import pytest
 
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.grids import Grid2D
-from palpate.core.perception.memory import HapticMemory
 from palpate.core.planning.expected_accuracy import (
     confusion_outcomes,
     expected_accuracy_gain,
@@ -23,13 +22,9 @@ MATS = ["m0", "m1", "m2"]
 
 
 @pytest.fixture(scope="module")
-def table():
+def table(three_material_memory):
     """Outcome table of a memory whose materials overlap a little (so the confusion is not the identity)."""
-    rng = np.random.default_rng(11)
-    mus = np.array([[100.0, 1.0, 20.0, 0.5], [160.0, 1.4, 26.0, 0.7], [900.0, 3.0, 60.0, 1.5]])
-    x = np.vstack([mu * (1 + 0.15 * rng.standard_normal((12, 4))) for mu in mus])
-    memory = HapticMemory(MATS).fit(x, [m for m in MATS for _ in range(12)])
-    return outcome_table(outcome_posteriors(memory, 40, seed=2))
+    return outcome_table(outcome_posteriors(three_material_memory, 40, seed=2))
 
 
 def _random_map(rng, shape=(7, 6), pressed=12) -> Grid2D:

@@ -369,7 +369,9 @@ def test_loop_reports_and_returns_the_iterated_post_processing(trained):
     sc = _scenario(policy="raster", budget=2, extrapolation_passes="all")
     result = explore_object(sc, sc.objects[0], trained, scenario_source_maker(sc), 21, Progress(enabled=False))
     summary, grid, post = object_summary(result), result.grid, result.post
-    assert np.array_equal(post.probabilities, grid.postprocessed(passes=None).probabilities)
+    certainty = sc.exploration.calibration.extrapolation_certainty
+    assert certainty < 1  # the calibrated default: an extrapolated cell is less certain than its sources
+    assert np.array_equal(post.probabilities, grid.postprocessed(passes=None, certainty=certainty).probabilities)
     # Two presses in one corner fill the whole 4x3 map: no cell is left at the uniform prior.
     assert not np.isclose(post.probabilities, 0.5).all(axis=-1).any()
     assert summary["per_press"][-1]["mean_entropy_postprocessed"] == pytest.approx(float(post.mean_entropy()))
@@ -433,3 +435,40 @@ def test_the_shipped_info_gain_scenario_maps_the_block_with_fewer_presses_than_c
     # a hard cell was found: the lump is not averaged away
     named = {sc.references[int(np.argmax(r["posterior"]))] for r in obj["per_press"] if r["posterior"]}
     assert "Material_3" in named
+
+
+def test_attainable_accuracy_reuses_a_full_raster_and_presses_every_column_otherwise(trained):
+    from palpate.core.session.ceiling import attainable_accuracy, ceiling_summary
+    from palpate.core.session.explore import explore_object
+    from palpate.core.session.progress import Progress
+    from palpate.core.session.sources import scenario_source_maker
+
+    def run(**exploration):
+        sc = _scenario(**exploration)
+        make = scenario_source_maker(sc)
+        return sc, make, explore_object(sc, sc.objects[0], trained, make, 21, Progress(enabled=False))
+
+    sc, make, full = run(policy="raster", budget=12)  # 4 x 3 cells: the run is its own ceiling
+    c = attainable_accuracy(sc, sc.objects[0], trained, make, 5, Progress(enabled=False), full)
+    assert (c.reused_run, c.presses, c.accuracy) == (True, 12, full.steps[-1].accuracy_postprocessed)
+    sc, make, short = run(policy="info_gain", budget=3)
+    c = attainable_accuracy(sc, sc.objects[0], trained, make, 5, Progress(enabled=False), short)
+    assert not c.reused_run and c.presses == 12 and 0.5 <= c.accuracy <= 1.0
+    s = ceiling_summary(short, c)
+    acc = [st.accuracy_postprocessed for st in short.steps]
+    assert s["ceiling"] == c.accuracy and s["ceiling_presses"] == 12
+    assert s["presses_to_level"] == next((k + 1 for k, a in enumerate(acc) if a >= 0.95), None)
+
+
+def test_map_postprocessing_round_trips_and_names_bad_metadata():
+    from palpate.core.session.explore import MapPostprocessing
+
+    for settings in (MapPostprocessing(), MapPostprocessing(None, True), MapPostprocessing(3, False)):
+        assert MapPostprocessing.from_dict(settings.to_dict(), "rec.mcap") == settings
+    assert MapPostprocessing.from_dict({}, "rec.mcap") == MapPostprocessing(1, False)  # an older recording
+    with pytest.raises(ValidationError, match="rec.mcap: extrapolation_passes must be an integer >= 1"):
+        MapPostprocessing.from_dict({"extrapolation_passes": 0}, "rec.mcap")
+    with pytest.raises(ValidationError, match="rec.mcap: voxel_lateral must be true or false"):
+        MapPostprocessing.from_dict({"voxel_lateral": "yes"}, "rec.mcap")
+    with pytest.raises(ValidationError, match="rec.mcap: unknown key"):
+        MapPostprocessing.from_dict({"passes": 2}, "rec.mcap")

@@ -36,9 +36,6 @@ TRY_SECONDS = 30.0
 #: Address space a try may add to what the test process maps: a bounded read needs far less.
 MEMORY_HEADROOM = 1.5e9
 BAD = ("unclear", "traceback", "hang", "memory", "outside", "nan")
-#: Kinds whose bounded reads belong to other work in progress (Tekscan: issue 17's device part): their bad outcomes
-#: are reported as known findings (xfail) until that lands.
-PENDING = {"tekscan": "Tekscan bounded and streaming reads (issue 17, device part)"}
 
 
 def _snapshot(root: Path, skip: Path | None) -> dict[str, tuple]:
@@ -232,6 +229,4 @@ def test_fuzz_every_file_kind(kind, fuzz_root, bases, table):
     table[kind] = {"label": all_tries[0].kind, "tries": len(results), "ok": counts.get("ok", 0),
                    "clear": counts.get("clear", 0), "bad": bad}
     failures = [f"{t.label}: {o}: {d}" for t, (o, d) in zip(all_tries, results, strict=True) if o in BAD]
-    if failures and kind in PENDING:
-        pytest.xfail(f"known finding, pending {PENDING[kind]}: " + " | ".join(failures[:5]))
     assert not failures, "\n".join(failures)

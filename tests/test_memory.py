@@ -388,7 +388,7 @@ def _corrupt(doc, key_path, value):
 @pytest.mark.parametrize(
     "key_path, value, message",
     [
-        (("version",), 2, "key 'version' is 2"),
+        (("version",), 3, "key 'version' is 3"),
         (("format",), "something", "key 'format'"),
         (("materials",), KeyError, "missing key 'materials'"),
         (("covs_N",), KeyError, "missing key 'covs_N'"),

@@ -96,7 +96,36 @@ def test_summary_follows_the_documented_schema(small_run):
                 "accuracy_explored", "rejected"} <= set(row)
     assert set(obj["accuracy"]) == {"explored_before_postprocessing", "all_cells_before_postprocessing",
                                     "all_cells_after_postprocessing"}
-    assert set(summary["timing"]) == {"training_s", "exploration_s", "maps_s", "figures_s"}
+    assert set(summary["timing"]) == {"training_s", "exploration_s", "attainable_accuracy_s", "maps_s", "figures_s"}
+
+
+def test_summary_reports_calibration_and_attainable_accuracy(small_run):
+    from palpate.core.mapping.calibration import DEFAULT_CALIBRATION
+
+    scenario, summary, out = small_run
+    assert summary["map_calibration"] == DEFAULT_CALIBRATION.to_dict() == scenario.exploration.calibration.to_dict()
+    assert summary["map_postprocessing"] == {"extrapolation_passes": 1, "voxel_lateral": False}
+    (obj,) = summary["objects"]
+    cal = obj["calibration"]
+    # every cell of the 6 x 4 map has a truth: counted, or left out because its top two materials tie
+    assert cal["cells"] + cal["undecided_cells_left_out"] == 24 and cal["cells"] == sum(cal["count"])
+    # the ECE recomputed from the reported bins
+    count, conf, acc = (np.asarray(cal[k]) for k in ("count", "mean_confidence", "accuracy"))
+    assert cal["ece"] == pytest.approx(float(np.sum(count * np.abs(acc - conf)) / count.sum()))
+    assert summary["calibration"] == cal  # one object: the pooled table is its own
+    ceiling = obj["attainable_accuracy"]
+    # the predefined run pressed 4 cells; the ceiling pressed all 24 again and scored like the run
+    assert ceiling["ceiling_presses"] == 24 and not ceiling["ceiling_is_this_run"]
+    assert 0.5 < ceiling["ceiling"] <= 1.0
+    acc_run = [r["accuracy_all_cells_postprocessed"] for r in obj["per_press"]]
+    level = ceiling["level"] * ceiling["ceiling"]
+    expected = next((k + 1 for k, a in enumerate(acc_run) if a >= level - 1e-12), None)
+    assert ceiling["presses_to_level_of_ceiling"] == expected
+    from palpate.core.cli.run import format_report
+
+    text = format_report(summary, out)
+    assert f"attainable accuracy (every column pressed once, same physics) {100 * ceiling['ceiling']:.0f}%" in text
+    assert f"calibration error (ECE) of the post-processed map {cal['ece']:.3f} over {cal['cells']} cells" in text
 
 
 def test_run_writes_every_output(small_run):

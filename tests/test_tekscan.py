@@ -182,6 +182,9 @@ def test_cli_import_to_mcap_and_back(data_dir, tmp_path, capsys):
     src = rec.metadata["sources"][0]
     assert src["kind"] == "tekscan_ascii" and src["region"] == [1, 5, 1, 5] and len(src["sha256"]) == 64
     assert rec.metadata["tekscan"]["noise_threshold_counts"] == 3
+    end = rec.annotations[-1]
+    assert end.kind == "tekscan_import" and end.data["frames"] == 9 and end.data["frame_numbers"] == [1, 9]
+    assert end.data["sensor_mask"] == [[1] * 4] * 4  # the B cells of the 6x6 map are outside the pad
 
 
 def test_cli_bad_file_prints_error_and_exits_2(tmp_path, capsys):

@@ -42,6 +42,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     a.add_argument("--emulate", action="store_true",
                    help="dynamixel: press through the servo emulator on a pty, backed by MuJoCo physics of the object")
     a.add_argument("--finger", type=Path, default=None, help="dynamixel: finger description (models/fingers/*.toml)")
+    a.add_argument("--taxels", default=None, metavar="PORT",
+                   help="dynamixel: serial port of the tactile array on the fingertip (docs/tactile_array.md)")
     p.add_argument("--record", type=Path, default=None,
                    help="also record every press's raw streams to this MCAP file (palpate replay reproduces the maps)")
     add_live_options(p)
@@ -78,8 +80,8 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def with_actuator_options(scenario, args: argparse.Namespace):
-    """The scenario with its ``[actuator]`` changed by ``--actuator``, ``--recordings``, ``--port``, ``--emulate``
-    and ``--finger``, validated like the file (an error names the option's key).
+    """The scenario with its ``[actuator]`` changed by ``--actuator``, ``--recordings``, ``--port``, ``--emulate``,
+    ``--finger`` and ``--taxels``, validated like the file (an error names the option's key).
 
     The scenario's own keys stay when the kind does not change; paths given on the command line are relative to
     the working directory; ``--port`` replaces ``emulate`` and ``--emulate`` replaces ``port``.
@@ -89,7 +91,7 @@ def with_actuator_options(scenario, args: argparse.Namespace):
     from palpate.core.world.scenario_file import parse_actuator
 
     options = {"recordings_dir": args.recordings, "port": args.port, "finger": args.finger,
-               "emulate": True if args.emulate else None}
+               "emulate": True if args.emulate else None, "taxels": getattr(args, "taxels", None)}
     given = {k: v for k, v in options.items() if v is not None}
     if args.actuator is None and not given:
         return scenario
@@ -104,6 +106,8 @@ def with_actuator_options(scenario, args: argparse.Namespace):
         table.pop("emulate", None)
     if "emulate" in given:
         table.pop("port", None)
+        if "taxels" not in given:
+            table.pop("taxels", None)
     where = f"{scenario.path or 'scenario'} with the command line's actuator options"
     return dataclasses.replace(scenario, actuator=parse_actuator(table, where, base))
 
@@ -127,6 +131,15 @@ def format_report(summary: dict, out: Path) -> str:
             f"after post-processing; mean entropy {obj['mean_entropy_after_each_press'][-1]:.3f} -> "
             f"{obj['mean_entropy_after_postprocessing']:.3f}"
         )
+        ceiling = obj.get("attainable_accuracy") or {}
+        if ceiling.get("ceiling") is not None:
+            lines.append(f"    attainable accuracy (every column pressed once, same physics) "
+                         f"{_pct(ceiling['ceiling'])}; presses to 95%: {ceiling['presses_to_level'] or 'not reached'}, "
+                         f"to 95% of the attainable: {ceiling['presses_to_level_of_ceiling'] or 'not reached'}")
+        cal = obj.get("calibration")
+        if cal:
+            lines.append(f"    calibration error (ECE) of the post-processed map {cal['ece']:.3f} over {cal['cells']} "
+                         "cells")
         if obj.get("posterior_per_cycle"):
             final = obj["posterior_per_cycle"][-1]
             for (c, r), p in zip(obj["regions"], final, strict=True):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.mapping.calibration import check_unit_interval
 from palpate.core.mapping.neighbourhood import box3_sum
 from palpate.core.mapping.probability import (
     check_base,
@@ -33,7 +34,7 @@ def _inverse_entropy_weights(p: np.ndarray, h, base: float, h_min: float) -> np.
 
 
 def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12, h=None,
-                           passes: int | None = 1) -> np.ndarray:
+                           passes: int | None = 1, certainty: float = 1.0) -> np.ndarray:
     """Estimate unexplored cells from their explored 8-neighbours, weighted by 1/H (seed 000 eq. 6.15).
 
     Seed 000 writes the sum over "the eight grid cells surrounding" v, and motivates it as estimating unexplored
@@ -58,6 +59,10 @@ def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12
             single step; k > 1 lets each pass treat the cells filled by the previous passes as sources, so an
             estimate reaches k cells from the explored ones; None repeats until no unexplored cell that can be
             reached is left.
+        certainty: share of each pass's estimate kept, (0, 1]; the rest is spread uniformly over the materials
+            (1 = the seed). A neighbour's material continues into a cell only with some probability (a wall or a
+            one-cell feature may lie between), so a calibrated estimate is less certain than its sources, and a
+            cell filled k passes away is filled with certainty**k.
 
     Returns:
         A new array: unexplored cells within ``passes`` cells (8-connected, in-grid) of an explored cell get the
@@ -68,7 +73,12 @@ def extrapolate_unexplored(p, explored, base: float = 10.0, h_min: float = 1e-12
     mask = check_mask(explored, arr.shape[:-1], "explored")
     n = check_passes(passes)
     h_min = check_h_min(h_min)
-    return extrapolate_passes(arr, mask, _given_weights(arr, h, h_min), n, check_base(base), h_min)
+    return extrapolate_passes(arr, mask, _given_weights(arr, h, h_min), n, check_base(base), h_min,
+                              check_certainty(certainty))
+
+
+def check_certainty(certainty: float) -> float:
+    return check_unit_interval(certainty, "extrapolation certainty")
 
 
 def check_passes(passes) -> int | None:
@@ -81,11 +91,12 @@ def check_passes(passes) -> int | None:
 
 
 def extrapolate_passes(arr: np.ndarray, mask: np.ndarray, w: np.ndarray | None, passes: int | None, base: float,
-                        h_min: float) -> np.ndarray:
+                        h_min: float, certainty: float = 1.0) -> np.ndarray:
     """Eq. 6.15 repeated: pass k fills the unfilled cells next to a cell known after pass k - 1 (explored or
     filled), each weighted by 1/H of its current values; stops after ``passes`` passes or when a pass fills
-    nothing. One pass is exactly :func:`extrapolate_plane` (weights ``w``, or None: 1/H of ``arr``)."""
-    out = extrapolate_plane(arr, mask, w, base=base, h_min=h_min)
+    nothing. One pass is exactly :func:`extrapolate_plane` (weights ``w``, or None: 1/H of ``arr``), each keeping
+    ``certainty`` of its estimates."""
+    out = extrapolate_plane(arr, mask, w, base=base, h_min=h_min, certainty=certainty)
     if passes == 1:
         return out
     known = mask | (box3_sum(mask.astype(float), axes=(0, 1)) > 0)
@@ -96,7 +107,7 @@ def extrapolate_passes(arr: np.ndarray, mask: np.ndarray, w: np.ndarray | None, 
         grown = known | (box3_sum(known.astype(float), axes=(0, 1)) > 0)
         if not (grown & ~known).any():
             break  # the remaining cells have no known cell anywhere in their plane
-        out, known = extrapolate_plane(out, known, base=base, h_min=h_min), grown
+        out, known = extrapolate_plane(out, known, base=base, h_min=h_min, certainty=certainty), grown
         k += 1
     return out
 
@@ -109,9 +120,10 @@ def inverse_entropy(p: np.ndarray, base: float, h_min: float) -> np.ndarray:
 
 
 def extrapolate_plane(arr: np.ndarray, mask: np.ndarray, w: np.ndarray | None = None, *, base: float = 10.0,
-                      h_min: float = 1e-12) -> np.ndarray:
+                      h_min: float = 1e-12, certainty: float = 1.0) -> np.ndarray:
     """Kernel of :func:`extrapolate_unexplored` on validated arrays: one pass of eq. 6.15 over the plane axes
-    (0, 1); ``w`` = 1/H per cell, or None to weight by :func:`inverse_entropy` of ``arr`` (``base``, ``h_min``).
+    (0, 1); ``w`` = 1/H per cell, or None to weight by :func:`inverse_entropy` of ``arr`` (``base``, ``h_min``);
+    each estimate keeps ``certainty`` of itself and spreads the rest uniformly over the materials.
 
     The plane is worked through in blocks of rows small enough to stay in the CPU cache, each cell's values (its
     depth layers and materials) side by side in one row, so nothing loops over the short materials axis. Sums
@@ -145,6 +157,9 @@ def extrapolate_plane(arr: np.ndarray, mask: np.ndarray, w: np.ndarray | None = 
         den = _box_rows(w_pad, w_cols, kw, rows, r0 - lo, r1 - lo)
         target = ~cells[r0:r1] & (den > 0)
         num /= np.repeat(np.where(target, den, 1.0), m, axis=1)
+        if certainty != 1.0:
+            num *= certainty
+            num += (1.0 - certainty) / m
         block = dst[r0:r1]
         np.copyto(block, src[r0:r1])
         np.copyto(block, num, where=np.repeat(target, m, axis=1))

@@ -15,6 +15,7 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.categorical_map import CategoricalMap, cell_indices
 from palpate.core.mapping.extrapolation import (
+    check_certainty,
     check_passes,
     extrapolate_passes,
     extrapolate_plane,
@@ -139,15 +140,16 @@ class Grid2D(CategoricalMap):
             raise ValidationError(f"p_meas must have shape ({len(self.materials)},) (one value per material "
                                   f"{self.materials}), got {shape}")
 
-    def postprocessed(self, h_min: float = 1e-12, passes: int | None = 1) -> Grid2D:
+    def postprocessed(self, h_min: float = 1e-12, passes: int | None = 1, certainty: float = 1.0) -> Grid2D:
         """A new grid with unexplored cells extrapolated by :func:`extrapolate_unexplored`; self is untouched.
 
         ``passes`` repeats eq. 6.15 from the cells filled by the previous pass (1 = the seed; None = until every
-        cell is filled). The explored mask is copied unchanged: extrapolated cells are estimates, not
-        measurements.
+        cell is filled); each pass keeps ``certainty`` of its estimate and spreads the rest uniformly (1 = the
+        seed). The explored mask is copied unchanged: extrapolated cells are estimates, not measurements.
         """
         h_min = check_h_min(h_min)
-        p = extrapolate_passes(self._p, self._explored, None, check_passes(passes), self.base, h_min)
+        p = extrapolate_passes(self._p, self._explored, None, check_passes(passes), self.base, h_min,
+                               check_certainty(certainty))
         return self._like(p)
 
     def _empty_like(self) -> Grid2D:
@@ -284,7 +286,7 @@ class VoxelGrid(CategoricalMap):
         self._update_at((ix, iy, slice(0, k)), p_meas)
         return ix, iy, k
 
-    def postprocessed(self, lateral: bool = False, h_min: float = 1e-12) -> VoxelGrid:
+    def postprocessed(self, lateral: bool = False, h_min: float = 1e-12, certainty: float = 1.0) -> VoxelGrid:
         """A new grid after seed 001's local-context stages; self is untouched.
 
         Order: (1) vertical extrapolation (eq. 3) from the measured values, then (2) continuity verification
@@ -292,8 +294,8 @@ class VoxelGrid(CategoricalMap):
         (Table 3 is reproduced from Table 2's 100% column, not its continuity column); running continuity first
         would feed the lower neighbour into a gap twice. Continuity touches only explored voxels, so it does not
         change the filled gaps. (3) If ``lateral``, unexplored voxels still not filled get the 8-neighbour
-        estimate of seed 000 eq. 6.15 within their layer, from explored voxels only.
-        The explored mask is copied unchanged.
+        estimate of seed 000 eq. 6.15 within their layer, from explored voxels only, keeping ``certainty`` of it
+        (see ``Grid2D.postprocessed``). The explored mask is copied unchanged.
         """
         h_min = check_h_min(h_min)
         # One set of weights serves both vertical stages: stage (1) changes only unexplored voxels and stage (2)
@@ -303,7 +305,8 @@ class VoxelGrid(CategoricalMap):
         p = verify_continuity_kernel(p, self._explored, w)
         if lateral:
             filled = self._explored | vertical_gaps(self._explored)
-            side = extrapolate_plane(p, self._explored, base=self.base, h_min=h_min)
+            side = extrapolate_plane(p, self._explored, base=self.base, h_min=h_min,
+                                     certainty=check_certainty(certainty))
             p = np.where(filled[..., None], p, side)
         return self._like(p)
 

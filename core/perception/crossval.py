@@ -68,7 +68,7 @@ def leave_one_out(params, labels: Sequence[str], **memory_kwargs) -> CrossValida
     Args:
         params: (n, 4) [n1, n2, a1, a2].
         labels: n material names.
-        **memory_kwargs: passed to :class:`HapticMemory` (materials, prior, min_eig, ddof).
+        **memory_kwargs: passed to :class:`HapticMemory` (materials, prior, min_eig, ddof, features).
 
     Needs at least MIN_SAMPLES + 1 presses per material.
     """
@@ -90,7 +90,7 @@ def leave_one_out(params, labels: Sequence[str], **memory_kwargs) -> CrossValida
     for i in range(len(x)):
         keep[i] = False
         mem = HapticMemory(**kwargs).fit(x[keep], [lab for lab, k in zip(labs, keep, strict=True) if k])
-        post[i] = mem.predict_proba(x[i])[0]
+        post[i] = mem.predict_proba(x[i], features=mem.features)[0]
         keep[i] = True
     m = len(materials)
     counts = np.zeros((m, m))

@@ -158,6 +158,8 @@ class PressFit:
         press_index: :attr:`Press.index` of the press.
         location: (x, y) of the press, m.
         calibrated: True when c_P (hence n1, n2, a1, a2, phi) is in N rather than counts.
+        features: "both", or "kinesthetic" when only the kinesthetic law was fitted (no contact area: c_P from a
+            force, :mod:`~palpate.core.perception.force_channel`); a1, a2, phi_a and their errors are then 0.
     """
 
     n1: float
@@ -174,6 +176,7 @@ class PressFit:
     press_index: int = -1
     location: tuple[float, float] = (0.0, 0.0)
     calibrated: bool = False
+    features: str = "both"
 
     @property
     def params(self) -> np.ndarray:
@@ -213,13 +216,16 @@ def fit_samples(c_P, c_A, c_D, *, where: str = "press", press_index: int = -1,
     return _press_fit(fn, fa, press_index, location, calibrated)
 
 
-def _fit_laws(c_P, c_A, c_D) -> tuple[PowerLawFit, PowerLawFit]:
-    """The kinesthetic and the cutaneous fit; FitError names the law that failed."""
+def _fit_laws(c_P, c_A, c_D, features: str = "both") -> tuple[PowerLawFit, PowerLawFit | None]:
+    """The kinesthetic and the cutaneous fit (None with ``features="kinesthetic"``); FitError names the law that
+    failed."""
     with np.errstate(over="ignore", invalid="ignore"):  # bad samples are named, not warned about
         try:
             fn = _power_law(*_samples(np.asarray(c_D) * _M_TO_MM, c_P, 1.5), 1.5)
         except FitError as exc:
             raise FitError(f"kinesthetic fit (c_P vs c_D) failed: {exc}") from exc
+        if features == "kinesthetic":
+            return fn, None
         try:
             fa = _power_law(*_samples(np.asarray(c_A) * _M2_TO_MM2, c_P, 1.5), 1.5)
         except FitError as exc:
@@ -227,8 +233,12 @@ def _fit_laws(c_P, c_A, c_D) -> tuple[PowerLawFit, PowerLawFit]:
     return fn, fa
 
 
-def _press_fit(fn: PowerLawFit, fa: PowerLawFit, press_index: int, location: tuple[float, float],
+def _press_fit(fn: PowerLawFit, fa: PowerLawFit | None, press_index: int, location: tuple[float, float],
                calibrated: bool) -> PressFit:
+    if fa is None:
+        return PressFit(n1=fn.k1, n2=fn.k2, phi_n=fn.phi, a1=0.0, a2=0.0, phi_a=0.0, se_n1=fn.se_k1,
+                        se_n2=fn.se_k2, se_a1=0.0, se_a2=0.0, n=fn.n, press_index=press_index, location=location,
+                        calibrated=calibrated, features="kinesthetic")
     return PressFit(
         n1=fn.k1, n2=fn.k2, phi_n=fn.phi, a1=fa.k1, a2=fa.k2, phi_a=fa.phi,
         se_n1=fn.se_k1, se_n2=fn.se_k2, se_a1=fa.se_k1, se_a2=fa.se_k2,
@@ -236,10 +246,11 @@ def _press_fit(fn: PowerLawFit, fa: PowerLawFit, press_index: int, location: tup
     )
 
 
-def fit_press(press: Press) -> PressFit:
-    """Fit both interaction laws to the press phase of a segmented press (see :func:`fit_samples`)."""
+def fit_press(press: Press, features: str = "both") -> PressFit:
+    """Fit both interaction laws (or, with ``features="kinesthetic"``, the kinesthetic one) to the press phase of a
+    segmented press (see :func:`fit_samples`)."""
     try:
-        fn, fa = _fit_laws(press.c_P, press.c_A, press.c_D)
+        fn, fa = _fit_laws(press.c_P, press.c_A, press.c_D, features)
     except FitError as exc:
         raise FitError(f"press {press.index} at t={press.t_onset:.3f} s: {exc}") from exc
     return _press_fit(fn, fa, press.index, press.location, press.calibrated)

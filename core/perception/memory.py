@@ -24,7 +24,7 @@ import numpy as np
 from palpate.core import __version__
 from palpate.core.errors import NotFittedError, ValidationError
 from palpate.core.perception.gaussian import GaussianFactors, regularise_covariance
-from palpate.core.perception.memory_file import FORMAT_NAME, FORMAT_VERSION, parse_memory, read_json
+from palpate.core.perception.memory_file import FEATURES_VERSION, FORMAT_NAME, FORMAT_VERSION, parse_memory, read_json
 from palpate.core.perception.params import PARAM_COLUMNS, as_labels, as_params, unique_in_order
 from palpate.core.perception.params_table import read_params_csv, rows_to_params
 
@@ -71,11 +71,13 @@ class HapticMemory:
     """
 
     def __init__(self, materials: Sequence[str] | None = None, prior=None, min_eig: float = DEFAULT_MIN_EIG,
-                 ddof: int = 0):
+                 ddof: int = 0, features: str = "both"):
         self.materials_arg = materials
         self.prior_arg = prior
         self.min_eig = min_eig
         self.ddof = ddof
+        # "both", or "kinesthetic": no cutaneous model (presses measured as a force, with no contact area)
+        self.features = features
         self.materials: list[str] = []
         self.prior: np.ndarray | None = None
         self.means_N = self.covs_N = self.means_A = self.covs_A = None
@@ -124,12 +126,17 @@ class HapticMemory:
             d = xm - mu
             cov4 = d.T @ d / (len(xm) - ddof)
             cN, lamN = regularise_covariance(cov4[:2, :2], min_eig, fallback[:2])
-            cA, lamA = regularise_covariance(cov4[2:, 2:], min_eig, fallback[2:])
+            if self.features == "kinesthetic":  # no cutaneous model: a placeholder never used to judge
+                cA, lamA = np.eye(2), 0.0
+            else:
+                cA, lamA = regularise_covariance(cov4[2:, 2:], min_eig, fallback[2:])
             means_N.append(mu[:2])
             means_A.append(mu[2:])
             covs_N.append(cN)
             covs_A.append(cA)
             reg[m] = {"N": lamN, "A": lamA}
+        if self.features not in ("both", "kinesthetic"):
+            raise ValidationError(f"features must be 'both' or 'kinesthetic', got {self.features!r}")
         self.min_eig, self.ddof = min_eig, ddof
         self._install(materials, prior, np.array(means_N), np.array(covs_N), np.array(means_A), np.array(covs_A),
                       reg, x.copy(), labs)
@@ -184,15 +191,24 @@ class HapticMemory:
         if not self.fitted:
             raise NotFittedError("this HapticMemory is not trained yet (not fitted); call fit() or load() first")
 
-    def log_likelihood(self, params) -> np.ndarray:
-        """log P(n | M) + log P(a | M) for every press and material (eq. 6.13, 6.14), shape (n, M)."""
+    def log_likelihood(self, params, features: str = "both") -> np.ndarray:
+        """log P(n | M) + log P(a | M) for every press and material (eq. 6.13, 6.14), shape (n, M); with
+        ``features="kinesthetic"`` log P(n | M) alone (a press with no contact area: c_P from a force)."""
         self._check_fitted()
         x = as_params(params)
+        if features == "kinesthetic":
+            return self._factors_N.log_pdf(x[:, :2])
+        if features != "both":
+            raise ValidationError(f"features must be 'both' or 'kinesthetic', got {features!r}")
+        if self.features == "kinesthetic":
+            raise ValidationError("this haptic memory has a kinesthetic model only (trained on presses measured as a "
+                                  "force); it cannot judge a press by its contact area too")
         return self._factors_N.log_pdf(x[:, :2]) + self._factors_A.log_pdf(x[:, 2:])
 
-    def predict_log_proba(self, params) -> np.ndarray:
-        """Log posterior log P(M | n, a) (eq. 6.11), shape (n, M), normalised with log-sum-exp."""
-        ll = self.log_likelihood(params)
+    def predict_log_proba(self, params, features: str = "both") -> np.ndarray:
+        """Log posterior log P(M | n, a) (eq. 6.11), shape (n, M), normalised with log-sum-exp (``features``: see
+        :meth:`log_likelihood`)."""
+        ll = self.log_likelihood(params, features)
         joint = ll + self._log_prior
         out = joint - _logsumexp_rows(joint)
         if math.isnan(float(out.sum())):  # unreachable for validated input; never hand NaN onwards
@@ -200,13 +216,16 @@ class HapticMemory:
             raise ValidationError(f"params[{row}]: posterior is not finite; log-likelihoods {ll[row].tolist()}")
         return out
 
-    def predict_proba(self, params) -> np.ndarray:
+    def predict_proba(self, params, features: str = "both") -> np.ndarray:
         """Posterior P(M | n, a) (eq. 6.11), shape (n, M); each row sums to 1."""
-        return np.exp(self.predict_log_proba(params))
+        p = np.exp(self.predict_log_proba(params, features))
+        # far from every mean the log-sum-exp's last bits make exp() sum to 1 only within ~1e-10; the rows are
+        # probabilities, so they are made to sum to 1
+        return p / p.sum(axis=1, keepdims=True)
 
-    def predict(self, params) -> list[str]:
+    def predict(self, params, features: str = "both") -> list[str]:
         """MAP material name per press (eq. 6.12)."""
-        idx = np.argmax(self.predict_log_proba(params), axis=1)
+        idx = np.argmax(self.predict_log_proba(params, features), axis=1)
         return [self.materials[i] for i in idx]
 
     def index_of(self, labels: Sequence[str]) -> np.ndarray:
@@ -230,7 +249,7 @@ class HapticMemory:
         """A new memory trained on the stored training data with the same settings (for auditing)."""
         self._check_fitted()
         prior = dict(zip(self.materials, self.prior.tolist(), strict=True))
-        return HapticMemory(self.materials, prior, self.min_eig, self.ddof).fit(
+        return HapticMemory(self.materials, prior, self.min_eig, self.ddof, self.features).fit(
             self.training_params, self.training_labels
         )
 
@@ -240,7 +259,7 @@ class HapticMemory:
         """The JSON-ready description (format, version, settings, learned parameters, training data)."""
         self._check_fitted()
 
-        return {
+        doc = {
             "format": FORMAT_NAME,
             "version": FORMAT_VERSION,
             "palpate_version": __version__,
@@ -256,6 +275,9 @@ class HapticMemory:
             "regularisation": {m: dict(v) for m, v in self.regularisation.items()},
             "training": {"params": self.training_params.tolist(), "labels": list(self.training_labels)},
         }
+        if self.features != "both":  # version 1 files (both models) stay exactly as they were
+            doc.update(version=FEATURES_VERSION, features=self.features)
+        return doc
 
     def to_json(self) -> str:
         """Serialise to JSON text (floats round-trip exactly)."""
@@ -278,7 +300,8 @@ class HapticMemory:
         """
         rec = parse_memory(doc, source)
         prior_map = dict(zip(rec.materials, rec.prior.tolist(), strict=True))
-        mem = cls(materials=list(rec.materials), prior=prior_map, min_eig=rec.min_eig, ddof=rec.ddof)
+        mem = cls(materials=list(rec.materials), prior=prior_map, min_eig=rec.min_eig, ddof=rec.ddof,
+                  features=rec.features)
         mem._install(rec.materials, rec.prior, rec.means_N, rec.covs_N, rec.means_A, rec.covs_A, rec.regularisation,
                      rec.training_params, rec.training_labels)
         if audit:
@@ -286,7 +309,8 @@ class HapticMemory:
                 ref = mem.refit()
             except ValidationError as exc:
                 raise ValidationError(f"{source}: key 'training' cannot be re-fitted: {exc} ({NO_AUDIT})") from None
-            for key in ("means_N", "covs_N", "means_A", "covs_A"):
+            for key in ("means_N", "covs_N") if rec.features == "kinesthetic" else ("means_N", "covs_N", "means_A",
+                                                                                      "covs_A"):
                 if not np.allclose(getattr(ref, key), getattr(rec, key), rtol=1e-9, atol=0.0):
                     raise ValidationError(
                         f"{source}: key '{key}' does not match a re-fit of key 'training' (ddof={rec.ddof}); the "

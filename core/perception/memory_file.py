@@ -20,6 +20,9 @@ from palpate.core.perception.gaussian import cholesky_checked
 
 FORMAT_NAME = "palpate.haptic_memory"
 FORMAT_VERSION = 1
+#: Version 2 adds key ``features`` ("kinesthetic": no cutaneous model); a memory with both models is written as
+#: version 1, and version 1 files read as "both".
+FEATURES_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -37,6 +40,7 @@ class MemoryRecord:
     regularisation: dict[str, dict[str, float]]
     training_params: np.ndarray
     training_labels: tuple[str, ...]
+    features: str = "both"
 
 
 def read_json(path: str | Path) -> dict:
@@ -87,9 +91,13 @@ def parse_memory(doc, source: str = "<memory>") -> MemoryRecord:
     if fmt != FORMAT_NAME:
         raise ValidationError(f"{source}: key 'format' is {files.brief(fmt)}, expected {FORMAT_NAME!r}")
     version = _get(doc, "version", source)
-    if version != FORMAT_VERSION:
-        raise ValidationError(f"{source}: key 'version' is {files.brief(version)}; this palpate reads version "
-                              f"{FORMAT_VERSION}")
+    if version not in (FORMAT_VERSION, FEATURES_VERSION):
+        raise ValidationError(f"{source}: key 'version' is {files.brief(version)}; this palpate reads versions "
+                              f"{FORMAT_VERSION} and {FEATURES_VERSION}")
+    features = _get(doc, "features", source) if version == FEATURES_VERSION else "both"
+    if features not in ("both", "kinesthetic"):
+        raise ValidationError(f"{source}: key 'features' is {files.brief(features)}, expected 'both' or "
+                              "'kinesthetic'")
     materials = _get(doc, "materials", source)
     if (not isinstance(materials, list) or not materials
             or not all(isinstance(m, str) and m.strip() for m in materials) or len(set(materials)) != len(materials)):
@@ -125,4 +133,4 @@ def parse_memory(doc, source: str = "<memory>") -> MemoryRecord:
     if unknown:
         raise ValidationError(f"{source}: key 'training.labels' names {files.brief(unknown)}, not in 'materials'")
     return MemoryRecord(tuple(materials), prior, int(ddof), float(min_eig), arrays["means_N"], arrays["covs_N"],
-                        arrays["means_A"], arrays["covs_A"], regularisation, t_params, tuple(t_labels))
+                        arrays["means_A"], arrays["covs_A"], regularisation, t_params, tuple(t_labels), features)

@@ -15,11 +15,16 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.perception.features import Calibration, ContactSeries, contact_features, press_axis_unit
 from palpate.core.perception.fit import FitFailure, PressFit, fit_presses_reporting
-from palpate.core.perception.segment import Press, Segmentation, segment_presses
+from palpate.core.perception.press_axis import heights_along_motion
+from palpate.core.perception.segment import Press, Segmentation, estimate_thresholds, segment_presses
 from palpate.core.perception.streams import PressRecording
 from palpate.core.perception.sync import synchronise
 
 log = logging.getLogger(__name__)
+
+
+#: What a press fit uses: both interaction laws, or the kinesthetic one alone (c_P from a force).
+FEATURES = ("both", "kinesthetic")
 
 
 @dataclass(frozen=True)
@@ -32,6 +37,10 @@ class PipelineConfig:
         noise_threshold: a sensel is active when its count exceeds this.
         calibration: None (c_P in counts), N per count, or a callable counts -> N per sensel.
         press_axis: pressing direction in the world frame.
+        press_axis_from_motion: measure each press's height and indentation along the direction the fingertip
+            moved during that contact instead of ``press_axis`` (a tracker whose frame is tilted, a person's press;
+            see :mod:`palpate.core.perception.press_axis`).
+        features: "both" (kinesthetic and cutaneous laws) or "kinesthetic" (c_P from a force: no contact area).
         on_threshold, off_threshold: hysteresis levels on c_P (None: from the data's noise).
         min_duration: shortest accepted contact, s.
         min_depth: shallowest accepted press, m.
@@ -43,6 +52,8 @@ class PipelineConfig:
     noise_threshold: int = 0
     calibration: Calibration = None
     press_axis: tuple[float, float, float] = (0.0, 0.0, -1.0)
+    press_axis_from_motion: bool = False
+    features: str = "both"
     on_threshold: float | None = None
     off_threshold: float | None = None
     min_duration: float = 0.1
@@ -50,6 +61,8 @@ class PipelineConfig:
     min_samples: int = 5
 
     def __post_init__(self) -> None:
+        if self.features not in FEATURES:
+            raise ValidationError(f"PipelineConfig.features must be one of {FEATURES}, got {self.features!r}")
         if not np.isfinite(self.clock_offset):
             raise ValidationError(f"PipelineConfig.clock_offset must be finite (s), got {self.clock_offset!r}")
         if not (np.isfinite(self.max_gap) and self.max_gap > 0):
@@ -67,8 +80,12 @@ def contact_series_from_recording(rec: PressRecording, config: PipelineConfig = 
     if stream.gaps:
         log.info("pose stream has %d gap(s) longer than %g s; %d taxel frames marked invalid",
                  len(stream.gaps), config.max_gap, stream.n_invalid)
-    return contact_features(stream, noise_threshold=config.noise_threshold, calibration=config.calibration,
-                            press_axis=config.press_axis)
+    series = contact_features(stream, noise_threshold=config.noise_threshold, calibration=config.calibration,
+                              press_axis=config.press_axis)
+    if config.press_axis_from_motion:
+        th = estimate_thresholds(series.c_P, config.on_threshold, config.off_threshold)
+        series = heights_along_motion(series, stream.position, th)
+    return series
 
 
 def presses_from_recording(rec: PressRecording, config: PipelineConfig = DEFAULT_CONFIG) -> Segmentation:

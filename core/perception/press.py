@@ -60,10 +60,12 @@ class PressResult:
 
 
 def press_result(press: Press, *, target: tuple[float, float] | None = None, rejected: tuple[str, ...] = (),
-                 truth_force: np.ndarray | None = None, truth_indentation: np.ndarray | None = None) -> PressResult:
-    """Fit one segmented press; a fit that fails gives ``fit=None`` with the reason appended to ``rejected``."""
+                 truth_force: np.ndarray | None = None, truth_indentation: np.ndarray | None = None,
+                 features: str = "both") -> PressResult:
+    """Fit one segmented press (``features``: see :class:`PipelineConfig`); a fit that fails gives ``fit=None`` with
+    the reason appended to ``rejected``."""
     try:
-        fit = fit_press(press)
+        fit = fit_press(press, features)
     except FitError as exc:
         fit, rejected = None, (*rejected, f"fit failed: {exc}")
     location = (float(press.location[0]), float(press.location[1]))
@@ -77,7 +79,8 @@ def perceive_press(recording: PressRecording, pipeline_config: PipelineConfig | 
     Returns a PressResult whose ``fit`` is None (with reasons in ``rejected``) when no usable press was found.
     When noise splits the one press that was made, the deepest part is kept and that is said in ``rejected``.
     """
-    seg = presses_from_recording(recording, pipeline_config or DEFAULT_CONFIG)
+    config = pipeline_config or DEFAULT_CONFIG
+    seg = presses_from_recording(recording, config)
     planned = (recording.meta or {}).get("target")
     planned = planned if isinstance(planned, dict) else {}
     # The planned target, when the source says it (SimSource does); callers that know it replace it anyway.
@@ -92,5 +95,6 @@ def perceive_press(recording: PressRecording, pipeline_config: PipelineConfig | 
     press = max(seg.presses, key=lambda p: p.depth)
     if len(seg.presses) > 1:
         reasons = (*reasons, f"{len(seg.presses)} presses found where one was made; kept the deepest")
-    res = press_result(press, target=target, rejected=reasons, truth_force=tf, truth_indentation=ti)
+    res = press_result(press, target=target, rejected=reasons, truth_force=tf, truth_indentation=ti,
+                       features=config.features)
     return replace(res, **counted)

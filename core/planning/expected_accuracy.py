@@ -32,13 +32,15 @@ from palpate.core.planning.map_views import H_MIN
 _UNDECIDED = 1e-9
 
 
-def _check(reach: int, correlation_cells: float, temperature: float) -> None:
+def _check(reach: int, correlation_cells: float, temperature: float, surprise: float = 0.0) -> None:
     if isinstance(reach, bool) or not isinstance(reach, (int, np.integer)) or reach < 1:
         raise ValidationError(f"belief reach must be an integer >= 1 cell, got {reach!r}")
     if not (np.isfinite(correlation_cells) and correlation_cells > 0):
         raise ValidationError(f"correlation length must be a finite number > 0 cells, got {correlation_cells!r}")
     if not (np.isfinite(temperature) and 0 < temperature <= 1):
         raise ValidationError(f"belief temperature must be in (0, 1], got {temperature!r}")
+    if not (np.isfinite(surprise) and 0 <= surprise < 1):
+        raise ValidationError(f"belief surprise must be in [0, 1), got {surprise!r}")
 
 
 def material_frequencies(labels: np.ndarray, explored: np.ndarray, m: int) -> np.ndarray:
@@ -76,16 +78,18 @@ def belief_logits(labels: np.ndarray, explored: np.ndarray, freq: np.ndarray, *,
     return out
 
 
-def _normalise_logits(logits: np.ndarray, freq: np.ndarray) -> np.ndarray:
+def _normalise_logits(logits: np.ndarray, freq: np.ndarray, surprise: float = 0.0) -> np.ndarray:
     z = logits + np.log(freq)
     z -= z.max(axis=-1, keepdims=True)
     b = np.exp(z)
     b /= b.sum(axis=-1, keepdims=True)
+    if surprise:
+        b = (1.0 - surprise) * b + surprise * freq
     return b
 
 
 def label_belief(grid, *, reach: int = 4, correlation_cells: float = 4.0, temperature: float = 0.5,
-                 freq: np.ndarray | None = None) -> np.ndarray:
+                 freq: np.ndarray | None = None, surprise: float = 0.0) -> np.ndarray:
     """Probability of each true material per cell, (ny, nx, M): the measured distribution on explored cells, the
     tempered neighbour vote of the module docstring elsewhere (the map's material frequencies where no explored
     cell is within ``reach``).
@@ -96,8 +100,10 @@ def label_belief(grid, *, reach: int = 4, correlation_cells: float = 4.0, temper
         correlation_cells: L of rho(d) = exp(-d / L), cells: about the size of the features expected.
         temperature: exponent of each vote's likelihood, (0, 1].
         freq: prior share of each material, (M,) (default: :func:`material_frequencies` of the map).
+        surprise: chance that an unexplored cell is none of what its neighbours say: the belief is mixed with
+            ``freq`` by this much, [0, 1).
     """
-    _check(reach, correlation_cells, temperature)
+    _check(reach, correlation_cells, temperature, surprise)
     p = np.asarray(grid.probabilities, dtype=float)
     if p.ndim != 3:
         raise ValidationError(f"label_belief needs a 2-D map (ny, nx, M), got probabilities of shape {p.shape}")
@@ -109,7 +115,7 @@ def label_belief(grid, *, reach: int = 4, correlation_cells: float = 4.0, temper
     if freq.shape != (p.shape[-1],) or not np.all(np.isfinite(freq)) or (freq <= 0).any():
         raise ValidationError(f"freq must be {p.shape[-1]} finite shares > 0, got {freq!r}")
     b = _normalise_logits(belief_logits(labels, explored, freq, reach=reach, correlation_cells=correlation_cells,
-                                        temperature=temperature), freq)
+                                        temperature=temperature), freq, surprise)
     return np.where(explored[..., None], p, b)
 
 
@@ -158,7 +164,8 @@ def confusion_outcomes(table: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray
 
 
 def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, reach: int = 4,
-                           correlation_cells: float = 4.0, temperature: float = 0.5) -> np.ndarray:
+                           correlation_cells: float = 4.0, temperature: float = 0.5,
+                           surprise: float = 0.0, freq: np.ndarray | None = None) -> np.ndarray:
     """Expected number of cells of the post-processed map that one press on each cell sets right, (ny, nx).
 
     Args:
@@ -166,11 +173,13 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
         post: its post-processed version (one eq. 6.15 pass: a press changes only its 8-neighbours).
         table: (outcomes (U, M), likelihood (M, U)) of a press, from
             :func:`palpate.core.planning.outcomes.outcome_table`.
-        reach, correlation_cells, temperature: of :func:`label_belief`.
+        reach, correlation_cells, temperature, surprise: of :func:`label_belief`.
+        freq: the belief's prior share of each material (default: :func:`material_frequencies` of the map; the
+            incremental scoring keeps it fixed between full rescorings).
 
     Can be negative where a press is expected to tip a correct extrapolation over to a wrong one.
     """
-    _check(reach, correlation_cells, temperature)
+    _check(reach, correlation_cells, temperature, surprise)
     p = np.asarray(grid.probabilities, dtype=float)
     pp = np.asarray(post.probabilities, dtype=float)
     if p.ndim != 3 or pp.shape != p.shape:
@@ -182,10 +191,12 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
         raise ValidationError(f"outcome table is for {rep.shape[0]} materials, the map has {m}")
     explored = np.asarray(grid.explored, dtype=bool)
     labels = np.argmax(p, axis=-1)
-    freq = material_frequencies(labels, explored, m)
+    freq = material_frequencies(labels, explored, m) if freq is None else np.asarray(freq, dtype=float)
+    if freq.shape != (m,) or not np.all(np.isfinite(freq)) or (freq <= 0).any():
+        raise ValidationError(f"freq must be {m} finite shares > 0, got {freq!r}")
     logits = belief_logits(labels, explored, freq, reach=reach, correlation_cells=correlation_cells,
                            temperature=temperature)
-    belief = np.where(explored[..., None], p, _normalise_logits(logits, freq))
+    belief = np.where(explored[..., None], p, _normalise_logits(logits, freq, surprise))
 
     # Eq. 6.15 as the maps compute it: each explored cell's term w * p with w = 1 / max(H, H_MIN).
     h = entropy_unchecked(p, grid.base)
@@ -232,7 +243,10 @@ def expected_accuracy_gain(grid, post, table: tuple[np.ndarray, np.ndarray], *, 
             np.maximum(num, 0.0, out=num)
             # the neighbour's belief with the candidate now voting for what it was read as
             e = np.exp(log_b[:, ky, kx] + w * vote_change[:, cy, cx])
-            right = ((_decided_top(num) - pp_top[:, ky, kx]) * e).sum(axis=0)  # after - before, unnormalised
-            g[cy, cx] += right * free / e.sum(axis=0)
+            delta = _decided_top(num) - pp_top[:, ky, kx]
+            right = (delta * e).sum(axis=0) / e.sum(axis=0)  # after - before
+            if surprise:
+                right = (1.0 - surprise) * right + surprise * (delta * freq[:, None, None]).sum(axis=0)
+            g[cy, cx] += right * free
         gain += p_named[..., o] * g
     return gain

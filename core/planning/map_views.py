@@ -39,10 +39,12 @@ def layers_reached(grid, max_depth: float | None) -> int:
     return grid.layers_reached(max_depth)
 
 
-def postprocess(grid, passes: int | None = 1):
-    """The post-processed map the run reports: eq. 6.15 repeated ``passes`` times on a 2-D map; a voxel map's
-    own post-processing (``passes`` does not apply to it)."""
-    return grid.postprocessed() if is_voxel(grid) else grid.postprocessed(passes=passes)
+def postprocess(grid, passes: int | None = 1, certainty: float = 1.0, lateral: bool = False):
+    """The post-processed map the run reports: eq. 6.15 repeated ``passes`` times on a 2-D map, each pass keeping
+    ``certainty`` of its estimate; a voxel map's own post-processing (``lateral``: also eq. 6.15 within layers)."""
+    if is_voxel(grid):
+        return grid.postprocessed(lateral=lateral, certainty=certainty)
+    return grid.postprocessed(passes=passes, certainty=certainty)
 
 
 def column_entropy(grid, post=None, max_depth: float | None = None) -> np.ndarray:

@@ -138,15 +138,19 @@ class MaxEntropy:
         travel_cost_per_mm: entropy units subtracted per mm between a cell and the last press (0 = none).
         max_depth: voxel maps: deepest press, m (None = the whole column).
         passes: eq. 6.15 passes of the post-processing computed when ``post`` is not given (2-D maps).
+        certainty: that post-processing's extrapolation certainty (see ``Grid2D.postprocessed``).
+        lateral: voxel maps: that post-processing also fills voxels from their layer's neighbours.
     """
 
     travel_cost_per_mm: float = 0.0
     max_depth: float | None = None
     passes: int | None = 1
+    certainty: float = 1.0
+    lateral: bool = False
 
     def next_target(self, grid, post=None, last=None) -> Target | None:
         """The best column, or None when every column is explored and certain."""
-        post = postprocess(grid, self.passes) if post is None else post
+        post = postprocess(grid, self.passes, self.certainty, self.lateral) if post is None else post
         h = column_entropy(grid, post, self.max_depth)
         score = h - self.travel_cost_per_mm * distance_mm(h.shape, grid.cell_size, last)
         cell = argmax_cell(score, ~certain_columns(grid, post, self.max_depth))

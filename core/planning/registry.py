@@ -18,10 +18,12 @@ POLICY_NAMES = ("predefined", "raster", "random", "max_entropy", "info_gain")
 def make_policy(name: str, *, cells: list[tuple[int, int]] | None = None, repeats: int = 1, seed: int = 0,
                 stride: int = 1, memory=None, travel_cost_per_mm: float = 0.0, max_depth: float | None = None,
                 samples_per_material: int = 6, passes: int | None = 1, objective: str = "accuracy",
-                feature_size: float = 0.06):
+                feature_size: float | None = None, certainty: float = 1.0, lateral: bool = False):
     """Build a policy by name (one of :data:`POLICY_NAMES`); ``predefined`` needs ``cells``, ``info_gain`` a
-    trained ``memory``; ``passes`` is the post-processing's eq. 6.15 passes (see ``Grid2D.postprocessed``);
-    ``objective`` and ``feature_size`` (m, the belief's correlation length) are info_gain's (see :class:`InfoGain`)."""
+    trained ``memory``; ``passes``, ``certainty`` and ``lateral`` are the post-processing's (see
+    ``Grid2D.postprocessed`` and ``VoxelGrid.postprocessed``);
+    ``objective`` and ``feature_size`` (m, the belief's correlation length; None = one cell) are info_gain's (see
+    :class:`InfoGain`)."""
     if not (np.isfinite(travel_cost_per_mm) and travel_cost_per_mm >= 0):
         raise ValidationError(f"travel_cost_per_mm must be a finite number >= 0, got {travel_cost_per_mm!r}")
     if name == "predefined":
@@ -31,12 +33,13 @@ def make_policy(name: str, *, cells: list[tuple[int, int]] | None = None, repeat
     if name == "random":
         return RandomCells(seed)
     if name == "max_entropy":
-        return MaxEntropy(travel_cost_per_mm, max_depth, passes)
+        return MaxEntropy(travel_cost_per_mm, max_depth, passes, certainty, lateral)
     if name == "info_gain":
         if memory is None:
             raise ValidationError("the info_gain policy needs a trained haptic memory")
         return InfoGain(memory, travel_cost_per_mm, max_depth, samples_per_material, seed, passes,
-                        objective=objective, correlation_mm=feature_size * 1e3)
+                        objective=objective, correlation_mm=None if feature_size is None else feature_size * 1e3,
+                        certainty=certainty, lateral=lateral)
     raise ValidationError(f"unknown exploration policy {name!r}; known: {', '.join(POLICY_NAMES)}")
 
 

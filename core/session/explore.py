@@ -11,8 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from palpate.core.alignment.merge import perception_of, pipeline_for
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import map_accuracy
+from palpate.core.mapping.calibration import SEED_CALIBRATION, MapCalibration
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import Grid2D, VoxelGrid, new_map
 from palpate.core.mapping.snapshot import MapSnapshot
@@ -37,7 +39,8 @@ class PressStep:
         target: planned (x, y), m; planned_depth: m.
         score: the policy's score for the target (None for list-driven policies).
         result: what the press was perceived as.
-        posterior: the posterior the press fused into the map (the deepest layer's on a voxel map), or None.
+        posterior: the memory's posterior for the press (the deepest layer's on a voxel map), or None; the map
+            fused it tempered by the scenario's map calibration.
         mean_entropy, mean_entropy_postprocessed: of the map after the press (map's entropy base).
         accuracy_explored: of the explored cells before post-processing (None without truth).
         accuracy_postprocessed: of all cells after post-processing (None without truth).
@@ -91,9 +94,57 @@ class ObjectResult:
         return [s.result for s in self.steps]
 
 
+@dataclass(frozen=True)
+class MapPostprocessing:
+    """How a run post-processes its maps besides the calibration (recordings carry it, so replay rebuilds the same
+    maps): eq. 6.15 ``passes`` on 2-D maps (None = until every cell is filled) and, on voxel maps, whether layers
+    are also filled laterally."""
+
+    passes: int | None = 1
+    voxel_lateral: bool = False
+
+    @classmethod
+    def of(cls, ex) -> MapPostprocessing:
+        return cls(ex.extrapolation_passes, ex.voxel_lateral)
+
+    def to_dict(self) -> dict:
+        return {"extrapolation_passes": "all" if self.passes is None else self.passes,
+                "voxel_lateral": self.voxel_lateral}
+
+    @classmethod
+    def from_dict(cls, doc, source: str) -> MapPostprocessing:
+        """Read :meth:`to_dict`'s document (missing keys: the seeds' one pass, no lateral filling); anything else
+        wrong is a ValidationError naming ``source`` and the key."""
+        if not isinstance(doc, dict):
+            raise ValidationError(f"{source}: expected an object, got {type(doc).__name__}")
+        unknown = sorted(set(doc) - {"extrapolation_passes", "voxel_lateral"})
+        if unknown:
+            raise ValidationError(f"{source}: unknown key(s) {unknown}")
+        passes = doc.get("extrapolation_passes", 1)
+        if passes != "all" and (isinstance(passes, bool) or not isinstance(passes, int) or passes < 1):
+            raise ValidationError(f"{source}: extrapolation_passes must be an integer >= 1 or \"all\", got "
+                                  f"{passes!r}")
+        lateral = doc.get("voxel_lateral", False)
+        if not isinstance(lateral, bool):
+            raise ValidationError(f"{source}: voxel_lateral must be true or false, got {lateral!r}")
+        return cls(None if passes == "all" else passes, lateral)
+
+    def apply(self, grid, calibration: MapCalibration):
+        """The post-processed copy of ``grid`` (2-D or voxel) with these settings and ``calibration``'s
+        extrapolation certainty."""
+        c = calibration.extrapolation_certainty
+        if isinstance(grid, VoxelGrid):
+            return grid.postprocessed(lateral=self.voxel_lateral, certainty=c)
+        return grid.postprocessed(passes=self.passes, certainty=c)
+
+
 def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory,
-                layers: LayeredMemory | None, fallback_xy: tuple[float, float]) -> np.ndarray | None:
-    """Update a map with one perceived press (seed 001 eq. 2), in place; returns the posterior it fused.
+                layers: LayeredMemory | None, fallback_xy: tuple[float, float],
+                calibration: MapCalibration = SEED_CALIBRATION) -> np.ndarray | None:
+    """Update a map with one perceived press (seed 001 eq. 2), in place, and return the memory's posterior for it.
+
+    The map fuses that posterior tempered by ``calibration`` (:func:`palpate.core.mapping.calibration.press_evidence`;
+    the default, the seeds' setting, fuses it as it is).
 
     2-D: the press's posterior updates the cell under the measured press location (the planned cell if the
     finger slipped off the grid). Voxels: every layer the press reached gets the posterior of ``layers`` for a fit
@@ -114,14 +165,14 @@ def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory
             ix, iy = grid.column_of(*fallback_xy)
         for iz, p in enumerate(posts):
             if p is not None:
-                grid.update_voxel(ix, iy, iz, p)
+                grid.update_voxel(ix, iy, iz, calibration.evidence(p))
         done = [p for p in posts if p is not None]
         return done[-1] if done else None
-    p = memory.predict_proba(res.fit.params[None, :])[0]
+    p = memory.predict_proba(res.fit.params[None, :], features=res.fit.features)[0]
     try:
-        grid.update(*res.location, p)
+        grid.update(*res.location, calibration.evidence(p))
     except ValidationError:
-        grid.update(*fallback_xy, p)
+        grid.update(*fallback_xy, calibration.evidence(p))
     return p
 
 
@@ -167,9 +218,13 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
     budget = len(regions0) * ex.presses_per_region if ex.policy == "predefined" else ex.budget
     policy = make_policy(ex.policy, cells=list(regions0), repeats=ex.presses_per_region, seed=seed, memory=memory,
                          travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None,
-                         passes=ex.extrapolation_passes, objective=ex.objective, feature_size=ex.feature_size)
+                         passes=ex.extrapolation_passes, objective=ex.objective, feature_size=ex.feature_size,
+                         certainty=ex.calibration.extrapolation_certainty, lateral=ex.voxel_lateral)
     # The one post-processing the policies plan on, the run reports and the map files hold.
-    postprocess = grid.postprocessed if voxel else (lambda: grid.postprocessed(passes=ex.extrapolation_passes))
+    post_settings = MapPostprocessing.of(ex)
+
+    def postprocess():
+        return post_settings.apply(grid, ex.calibration)
     source = make_source((entry.spec,), seed, ex.variability)
     if not callable(getattr(source, "press", None)):
         raise ValidationError(f"exploring {entry.spec.name}: the source/actuator {type(source).__name__} has no "
@@ -203,11 +258,14 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
                                   f"[{cell[0] + 1}, {cell[1] + 1}] at ({x * 1e3:.1f}, {y * 1e3:.1f}) mm: {exc} "
                                   "(check the object's size_mm, grid_origin_mm, grid_cells and exploration.cell_mm)"
                                   ) from None
+        # a press from a session file says how it is perceived; the recording keeps that for replay
+        perception = perception_of(rec.meta)
         if log is not None:
-            rec = log.add(rec, {"phase": "exploration", "object": entry.spec.name, "k": k + 1,
-                                "cell": [cell[0] + 1, cell[1] + 1], "target_m": [x, y]})
-        res = perceive_press(rec).at_target((x, y))
-        posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y))
+            info = {"phase": "exploration", "object": entry.spec.name, "k": k + 1, "cell": [cell[0] + 1, cell[1] + 1],
+                    "target_m": [x, y]}
+            rec = log.add(rec, {**info, "perception": perception} if perception else info)
+        res = perceive_press(rec, pipeline_for(perception) if perception else None).at_target((x, y))
+        posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y), calibration=ex.calibration)
         post = postprocess()
         if log is not None:
             log.show_map(entry.spec.name, grid, geometry, entry.spec.height, scene=(entry.spec,) if k == 0 else ())

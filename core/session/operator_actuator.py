@@ -1,8 +1,10 @@
 """The ``operator`` actuator kind: a person shown each target cell, whose presses are read from recordings.
 
-``[actuator] kind = "operator"`` takes ``recordings_dir`` (a folder of MCAP recordings, one per press, taken in name
-order; with several objects one subfolder per object, named as the object) and ``figures`` (also write a PNG of
-the grid with the target before each press).
+``[actuator] kind = "operator"`` takes ``recordings_dir`` (a folder of palpate recordings holding the presses: one
+per file, or whole sessions made by ``palpate import session`` / ``palpate record session``, taken in name order;
+with several objects one subfolder per object, named as the object) and ``figures`` (also write a PNG of the grid
+with the target before each press). A press from a session file is perceived as the session asks (press axis from
+the press's motion).
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ from palpate.core.errors import PalpateError, RecordingError, ValidationError
 from palpate.core.names import file_stem, inside
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.actuators import ActuatorRequest
-from palpate.core.session.operator import ABORT, MAX_PROMPTS, HumanOperator, recordings_from_files
+from palpate.core.session.operator import ABORT, MAX_PROMPTS, HumanOperator
+from palpate.core.session.operator_sessions import SessionFolder
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.actuator_kinds import ActuatorKind
 from palpate.core.world.table_reader import TableReader, resolve_path
@@ -63,28 +66,32 @@ def recordings_folder(folder: Path | None, obj: str, n_objects: int) -> Path:
 
 
 def folder_streams(folder: Path, input: TextIO, output: TextIO) -> Callable[[PressTarget, int], PressRecording]:
-    """Streams for :class:`~palpate.core.session.operator.HumanOperator`: press k is the k-th ``*.mcap`` of
-    ``folder`` in name order (name them so they sort in press order: press_001.mcap, ...).
+    """Streams for :class:`~palpate.core.session.operator.HumanOperator`: press k is the k-th press held by the
+    ``*.mcap`` files of ``folder`` in name order (one press per file, or whole sessions: see
+    :mod:`palpate.core.session.operator_sessions`; name per-press files so they sort in press order).
 
     The folder is listed again at every press, so recordings may arrive while the session runs (the person
-    presses, the Tekscan/Liberty recording is imported); if press k's file is not there yet the person is asked
-    to add it and confirm again. RecordingError if it never comes.
+    presses, the session is recorded or imported); if press k is not there yet the person is asked to add it and
+    confirm again. RecordingError if it never comes.
     """
+    presses = SessionFolder(folder)
+
     def take(target: PressTarget, k: int) -> PressRecording:
+        held = 0
         for _ in range(MAX_PROMPTS):
-            files = sorted(Path(folder).glob("*.mcap"))
-            if k < len(files):
-                return recordings_from_files(files)(target, k)
-            output.write(f"   no recording for press {k + 1} in {folder} yet ({len(files)} file(s)); record or "
-                         "import it there, then Enter (q to stop): ")
+            rec, held = presses.press(k)
+            if rec is not None:
+                return rec
+            output.write(f"   no recording for press {k + 1} in {folder} yet ({held} press(es) in "
+                         f"{len(presses.files())} file(s)); record or import it there, then Enter (q to stop): ")
             output.flush()
             line = input.readline()
             if line == "":
                 break
             if line.strip().lower() in ABORT:
                 raise PalpateError("the operator stopped the exploration")
-        raise RecordingError(f"{folder}: press {k + 1} needs its recording (the {k + 1}-th *.mcap in name order), "
-                             f"but the folder holds {len(files)}")
+        raise RecordingError(f"{folder}: press {k + 1} needs its recording, but the folder's "
+                             f"{len(presses.files())} file(s) hold {held} press(es)")
 
     return take
 

@@ -20,12 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core import __version__
+from palpate.core.alignment.merge import pipeline_for, session_pipeline
 from palpate.core.errors import ValidationError
 from palpate.core.files import brief
 from palpate.core.io import figures as fig
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.io.recording import Annotation, recording_to_press_recording
+from palpate.core.mapping.calibration import MapCalibration
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
 from palpate.core.mapping.snapshot import MapSnapshot
@@ -35,7 +37,7 @@ from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.pipeline import presses_from_recording
 from palpate.core.perception.press import PressResult, perceive_press, press_result
 from palpate.core.perception.streams import GroundTruth, PressRecording
-from palpate.core.session.explore import apply_press
+from palpate.core.session.explore import MapPostprocessing, apply_press
 from palpate.core.session.output_guard import prepare_output_folder
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import assert_finite, fit_summary, versions
@@ -191,6 +193,11 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
     if not isinstance(maps, dict):
         raise ValidationError(f"{path}: metadata 'maps' must be an object of map geometries, got {brief(maps)}")
     geoms = {name: MapGeometry.from_dict(g, f"{path}: metadata maps.{name}") for name, g in maps.items()}
+    # The run's map calibration (a recording made before it was recorded used the seeds' maps).
+    calibration = MapCalibration.from_dict(rec.metadata.get("map_calibration") or {},
+                                           f"{path}: metadata map_calibration")
+    postprocessing = MapPostprocessing.from_dict(rec.metadata.get("map_postprocessing") or {},
+                                                 f"{path}: metadata map_postprocessing")
     windows = [(i, a) for i, a in enumerate(rec.annotations) if a.kind == "press"]
     presses = presses_all = [press_window(a.data, f"{path}: annotation {i} (press)") for i, a in windows]
     if rec.salvaged and presses:
@@ -215,16 +222,20 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
                                       "geometry in the recording's metadata")
             state = objects.setdefault(w.object, _Replayed(geoms[w.object], new_map(geoms[w.object])))
             sub = timeline.window(w.t_start, w.t_end)
-            res = perceive_press(sub).at_target(w.target)
+            # a press whose streams asked for their own perception (a session file's) is perceived so again
+            perception = annotations[id(w)].data.get("perception")
+            perception = perception if isinstance(perception, dict) else None
+            res = perceive_press(sub, pipeline_for(perception) if perception else None).at_target(w.target)
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
-                                    fallback_xy=w.target)
+                                    fallback_xy=w.target, calibration=calibration)
             state.rows.append(_row(w.k if w.k is not None else len(state.rows) + 1, w.cell, res, posterior,
                                    state.grid))
             if playback is not None:
                 playback.press(sub, annotations[id(w)], w.object, state.grid, state.geometry, res)
             progress.update(i + 1)
     else:
-        seg = presses_from_recording(stream)
+        # a session merged from separate devices says how it is perceived (press axis from each press's motion)
+        seg = presses_from_recording(stream, session_pipeline(rec.metadata))
         if not seg.presses:
             reasons = "; ".join(sorted({r.reason for r in seg.rejected})) or "no contact in the taxel stream"
             raise ValidationError(f"{path}: no press found to replay ({reasons})")
@@ -238,7 +249,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             res = press_result(press)
             if res.fit is None:
                 raise ValidationError(f"{path}: {res.rejected[-1]}")
-            posterior = apply_press(state.grid, res, memory, None, fallback_xy=press.location)
+            posterior = apply_press(state.grid, res, memory, None, fallback_xy=press.location,
+                                    calibration=calibration)
             state.rows.append(_row(k + 1, None, res, posterior, state.grid))
             if playback is not None:
                 playback.press(timeline.window(press.t_onset, press.t_release), None, "recording", state.grid,
@@ -249,7 +261,7 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
     (out / "maps").mkdir(exist_ok=True)
     for name, state in objects.items():
         grid = state.grid
-        post = grid.postprocessed()
+        post = postprocessing.apply(grid, calibration)
         grid.save(inside(out, out / "maps" / f"{stems[name]}.npz"))
         post.save(inside(out, out / "maps" / f"{stems[name]}_postprocessed.npz"))
         g = state.geometry

@@ -13,6 +13,7 @@ import numpy as np
 from palpate.core import __version__
 from palpate.core.errors import PalpateError
 from palpate.core.mapping.accuracy import map_accuracy
+from palpate.core.mapping.calibration import calibration_sample, reliability_table
 from palpate.core.perception.fit import PressFit
 from palpate.core.session.explore import ObjectResult, PressStep
 
@@ -24,7 +25,8 @@ def fit_summary(fit: PressFit | None) -> dict | None:
     """The per-press fit as reported: n1, n2, phi_n, a1, a2, phi_a (c_D in mm, c_A in mm^2); None without fit."""
     if fit is None:
         return None
-    return {k: float(getattr(fit, k)) for k in ("n1", "n2", "phi_n", "a1", "a2", "phi_a")}
+    return {**{k: float(getattr(fit, k)) for k in ("n1", "n2", "phi_n", "a1", "a2", "phi_a")},
+            "features": fit.features}
 
 
 def _posterior(p: np.ndarray | None) -> list[float] | None:
@@ -64,6 +66,25 @@ def saturation_warning(what: str, counted: dict) -> str | None:
             "lower the taxel gain (sensors.taxels.gain_counts_per_kpa) or the press force/depth")
 
 
+def calibration_of(obj: ObjectResult, bins: int = 10) -> dict | None:
+    """Calibration of the post-processed map's most probable material against ground truth (ECE and the
+    reliability table, see :func:`palpate.core.mapping.calibration.reliability_table`); None without truth."""
+    if not (np.asarray(obj.truth) >= 0).any():
+        return None
+    conf, right, undecided = calibration_sample(obj.post.probabilities, obj.truth)
+    return reliability_table(conf, right, bins=bins, undecided=undecided).to_dict()
+
+
+def run_calibration(objects: list[ObjectResult], bins: int = 10) -> dict | None:
+    """Calibration pooled over every object with ground truth (the run's ECE); None when none has truth."""
+    samples = [calibration_sample(o.post.probabilities, o.truth) for o in objects if (np.asarray(o.truth) >= 0).any()]
+    if not samples:
+        return None
+    conf, right, undecided = zip(*samples, strict=True)
+    return reliability_table(np.concatenate(conf), np.concatenate(right), bins=bins,
+                             undecided=int(sum(undecided))).to_dict()
+
+
 def object_summary(obj: ObjectResult) -> dict:
     """One explored object as summary.json reports it."""
     rows = [step_row(s) for s in obj.steps]
@@ -86,6 +107,10 @@ def object_summary(obj: ObjectResult) -> dict:
         "mean_entropy_after_postprocessing": float(obj.post.mean_entropy()),
         "true_materials": list(obj.true_materials),
         "saturation": saturation([s.result for s in obj.steps]),
+        # the map's posteriors came from the memory's kinesthetic and cutaneous models, or (a finger without a pad,
+        # c_P from its joint currents) from the kinesthetic one alone
+        "features": sorted({r["fit"]["features"] for r in rows if r["fit"] is not None}),
+        "calibration": calibration_of(obj),
     }
 
 

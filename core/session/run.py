@@ -32,7 +32,8 @@ from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.param_stats import table_from_csv, table_from_fits
 from palpate.core.session.actuators import open_actuators
-from palpate.core.session.explore import ObjectResult, explore_object
+from palpate.core.session.ceiling import Ceiling, attainable_accuracy, ceiling_summary
+from palpate.core.session.explore import MapPostprocessing, ObjectResult, explore_object
 from palpate.core.session.figure_jobs import FigureDrawer, FigureJob, object_jobs, progress_job, training_jobs
 from palpate.core.session.output_guard import check_output_file, prepare_output_folder
 from palpate.core.session.outputs import write_maps
@@ -44,6 +45,7 @@ from palpate.core.session.report import (
     assert_finite,
     fit_summary,
     object_summary,
+    run_calibration,
     saturation,
     saturation_warning,
 )
@@ -85,7 +87,9 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                        {"scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
                                      "seed": scenario.seed, "fidelity": scenario.fidelity},
                         "sources": [source] if kind == "sim" else [source, kind],
-                        "maps": {name: g.to_dict() for name, g in geometries.items()}}, live=live)
+                        "maps": {name: g.to_dict() for name, g in geometries.items()},
+                        "map_calibration": scenario.exploration.calibration.to_dict(),
+                        "map_postprocessing": MapPostprocessing.of(scenario.exploration).to_dict()}, live=live)
         try:
             return _run(scenario, out, progress, *makers, seeds, log)
         finally:
@@ -171,6 +175,14 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
     timing["exploration_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    ceilings: list[Ceiling | None] = [None] * len(objects)
+    if scenario.outputs.attainable_accuracy and scenario.actuator.kind == "sim":
+        for i, (entry, obj) in enumerate(zip(scenario.objects, objects, strict=True)):
+            ceilings[i] = attainable_accuracy(scenario, entry, memory, make_source, int(seeds[3]) + i, progress, obj,
+                                              layers)
+    timing["attainable_accuracy_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
     write_maps(out, objects, scenario)
     timing["maps_s"] = time.perf_counter() - t0
 
@@ -199,7 +211,11 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         "training_saturation": {name: saturation(rs) for name, rs in presses.items()},
         "realism": scenario.realism.profile,
         "sim_to_real": sim_to_real,
-        "objects": [object_summary(o) for o in objects],
+        "map_calibration": ex.calibration.to_dict(),
+        "map_postprocessing": MapPostprocessing.of(ex).to_dict(),
+        "objects": [object_summary(o) | {"attainable_accuracy": ceiling_summary(o, c)}
+                    for o, c in zip(objects, ceilings, strict=True)],
+        "calibration": run_calibration(objects),
         "figures": [str(Path(f).relative_to(out)) for f in figures],
         "timing": {k: round(v, 4) for k, v in timing.items()},
         "versions": _versions(),

@@ -7,8 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from palpate.core.alignment.merge import pipeline_for
 from palpate.core.errors import PalpateError
 from palpate.core.perception.crossval import CrossValidation, leave_one_out
+from palpate.core.perception.force_channel import with_force_channel
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.press import PressResult, perceive_press
 from palpate.core.session.press_log import PressLog
@@ -56,6 +58,10 @@ def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
         log: when given, every press is laid on the run's timeline (and recorded).
     """
     tr = scenario.training
+    # an actuator may perceive its presses its own way (options.perception); training perceives alike
+    perception = getattr(scenario.actuator.options, "perception", None)
+    force = bool(perception) and perception.get("channel") == "force"
+    config = pipeline_for(perception) if perception else None
     params, labels, by_material = [], [], {}
     for m, name in enumerate(scenario.references):
         mat = scenario.materials[name].material
@@ -66,9 +72,11 @@ def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
         for k in range(tr.presses_per_material):
             rec = source.press(PressTarget(0.0, 0.0, depth=tr.depth, force=tr.max_force, speed=tr.speed,
                                            label=f"{name}#{k + 1}"))
+            if force:  # the explorer measures a force, not taxels: train on the force it would have measured
+                rec = with_force_channel(rec)
             if log is not None:
                 rec = log.add(rec, {"phase": "training", "material": name, "k": k + 1})
-            res = perceive_press(rec)
+            res = perceive_press(rec, config)
             results.append(res)
             if res.fit is not None:
                 params.append(res.fit.params)
@@ -80,6 +88,7 @@ def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
             raise PalpateError(f"training: only {usable} of {tr.presses_per_material} presses on {name} could be "
                                "fitted; press deeper (training.depth_mm) or lower the taxel threshold")
     P = np.vstack(params)
-    memory = HapticMemory(materials=list(scenario.references)).fit(P, labels)
-    crossval = leave_one_out(P, labels, materials=list(scenario.references))
+    memory = HapticMemory(materials=list(scenario.references), features=config.features if config else "both").fit(
+        P, labels)
+    crossval = leave_one_out(P, labels, materials=list(scenario.references), features=memory.features)
     return TrainingResult(memory, crossval, by_material)

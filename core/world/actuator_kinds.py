@@ -31,6 +31,8 @@ class ActuatorKind:
         keys: the keys of its ``[actuator]`` table besides ``kind``.
         parse: ``parse(reader, base_dir) -> options``: validates those keys (through ``reader``, so errors name
             the file and key) into the kind's own frozen options; relative paths resolve against ``base_dir``.
+            The options may have ``perception``: a dict saying how the actuator's presses are perceived when not
+            as taxels (e.g. ``palpate.core.perception.force_channel.PERCEPTION``); the run trains its memory alike.
         make: ``make(request, *, check_only=False) -> actuator | None``: with ``check_only`` it only checks the
             request (before any training); otherwise it returns something with ``press(PressTarget)``.
         extra: the optional dependency group (``pip install 'palpate[extra]'``) the kind needs, if any.

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from palpate.core.mapping.calibration import DEFAULT_CALIBRATION, MapCalibration
 from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, PoseSensorSpec, TaxelSensorSpec
 
 
@@ -55,7 +56,10 @@ class ExplorationSpec:
     travel_cost_per_mm: float = 0.0
     extrapolation_passes: int | None = 1
     objective: str = "accuracy"
-    feature_size: float = 0.06
+    feature_size: float | None = None
+    calibration: MapCalibration = DEFAULT_CALIBRATION
+    #: voxel maps: also fill unexplored voxels from their explored neighbours in the same layer (eq. 6.15)
+    voxel_lateral: bool = False
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,8 @@ class OutputSpec:
     figures: bool = True
     haptic_material: bool = True
     render_3d: bool = True
+    #: Press every column once more with the simulated source to measure the ceiling (session/ceiling.py).
+    attainable_accuracy: bool = True
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from pathlib import Path
 from palpate.core import limits
 from palpate.core.errors import ValidationError
 from palpate.core.files import read_toml
+from palpate.core.mapping.calibration import DEFAULT_CALIBRATION, MapCalibration
 from palpate.core.mapping.geometry import MAP_KINDS
 from palpate.core.names import check_name, unique_stems
 from palpate.core.planning.info_gain import OBJECTIVES
@@ -176,8 +177,15 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         travel_cost_per_mm=ex.number("travel_cost_per_mm", 0.0, lo=0.0, hi=1e6),
         extrapolation_passes=extrapolation_passes(ex),
         objective=ex.choice("objective", OBJECTIVES, "accuracy"),
-        feature_size=ex.number("feature_size_mm", 60.0, lo=0.0, lo_open=True, hi=MAX_SIZE_MM) * 1e-3,
+        feature_size=None if "feature_size_mm" not in ex.table else ex.number(
+            "feature_size_mm", lo=0.0, lo_open=True, hi=MAX_SIZE_MM) * 1e-3,
+        calibration=MapCalibration(**{key: ex.number(key, getattr(DEFAULT_CALIBRATION, key), lo=0.0, lo_open=True,
+                                                     hi=1.0) for key in DEFAULT_CALIBRATION.to_dict()}),
+        voxel_lateral=ex.get("lateral_extrapolation", bool, False),
     )
+    if exploration.voxel_lateral and exploration.map != "voxel":
+        raise ex.err("lateral_extrapolation", "fills voxels from their neighbours in a layer; map is "
+                     f"{exploration.map!r} (grid2d maps always extrapolate laterally: extrapolation_passes)")
     if exploration.stop_min_gain is not None and exploration.policy != "info_gain":
         raise ex.err("stop_min_gain", f"only the info_gain policy predicts a gain; policy is {exploration.policy!r}")
     for key in ("objective", "feature_size_mm"):
@@ -206,6 +214,7 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         figures=out.get("figures", bool, True),
         haptic_material=out.get("haptic_material", bool, True),
         render_3d=out.get("render_3d", bool, True),
+        attainable_accuracy=out.get("attainable_accuracy", bool, True),
     )
     out.finish()
     actuator = _actuator(top.sub("actuator"), base)

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 
+# How long a scan of an emulated bus waits for each answer, ms (its thread shares this process's interpreter).
+EMULATED_TIMEOUT_MS = 500.0
+
 
 def _subparsers(parser: argparse.ArgumentParser, dest: str) -> argparse._SubParsersAction:
     # another device may have created the same sub-command ("devices scan"): share it instead of clashing
@@ -52,6 +55,8 @@ def register_cli(groups: dict) -> None:
     r.add_argument("--speed", type=float, default=0.02, help="press speed, m/s (default 0.02)")
     r.add_argument("--emulate", action="store_true",
                    help="start a servo emulator for the finger's ids, with an elastic surface at --surface-z")
+    r.add_argument("--retries", type=int, default=3,
+                   help="times a missing or corrupt answer is asked again before a servo counts as lost (default 3)")
     r.set_defaults(func=_cmd_record)
 
 
@@ -67,8 +72,8 @@ def _cmd_scan(args) -> int:
     import json
 
     from palpate.core.errors import ValidationError
-    from palpate.hardware.dynamixel.driver import scan
     from palpate.hardware.dynamixel.emulator import ServoBusEmulator
+    from palpate.hardware.dynamixel.scan import scan
 
     _need_port(args)
     if not 0 <= args.max_id <= 252:
@@ -77,7 +82,8 @@ def _cmd_scan(args) -> int:
         port = args.port
         if args.emulate:
             port = stack.enter_context(ServoBusEmulator(args.emulate, baud=args.baud)).port
-        found = scan(port, args.baud, range(0, args.max_id + 1))
+        found = scan(port, args.baud, range(0, args.max_id + 1), timeout_ms=EMULATED_TIMEOUT_MS if args.emulate
+                     else None)
     if args.json:
         print(json.dumps({"port": port, "baud": args.baud, "servos": found}, indent=2))
     else:
@@ -91,12 +97,13 @@ def _cmd_scan(args) -> int:
 
 def _cmd_record(args) -> int:
     import contextlib
-    import time
 
     from palpate.core.errors import ValidationError
     from palpate.core.io.mcap_writer import RecordingWriter
     from palpate.core.session.output_guard import check_output_file
     from palpate.core.session.sources import PressTarget
+    from palpate.hardware import exit_signals
+    from palpate.hardware.clock import WALL_CLOCK, StepClock
     from palpate.hardware.dynamixel.driver import DynamixelFinger
     from palpate.hardware.dynamixel.emulator import ServoBusEmulator
     from palpate.hardware.dynamixel.finger import inverse_kinematics, joints_to_ticks, load_finger, surface_load_model
@@ -114,7 +121,10 @@ def _cmd_record(args) -> int:
     if args.press is not None:
         target = PressTarget(args.press, float(finger.base[1]), depth=args.depth, speed=args.speed, label="cli")
         plan_press(finger, target, args.surface_z)  # refuse an impossible press before touching the port
-    with contextlib.ExitStack() as stack:
+    # an emulated bus runs on a stepped clock that keeps pace with the wall: the recording's times are the servos'
+    # own, however busy the machine (see palpate.hardware.clock)
+    clock = StepClock(wall_ratio=1.0) if args.emulate else WALL_CLOCK
+    with exit_signals.holding(), contextlib.ExitStack() as stack:
         port = args.port
         if args.emulate:
             x0 = args.press if args.press is not None else float(finger.base[0] + 0.5 * finger.lengths.sum())
@@ -122,33 +132,44 @@ def _cmd_record(args) -> int:
             # an elastic surface (about 2 N at 3 mm, Hertz-like) so that a press loads the joints
             load = surface_load_model(finger, args.surface_z, 2.0 / 0.003**1.5)
             emu = stack.enter_context(ServoBusEmulator(finger.ids, finger.model.number, args.baud, load,
-                                                       joints_to_ticks(finger, q0)))
+                                                       joints_to_ticks(finger, q0), clock=clock))
             port = emu.port
         metadata = {"scenario": None,
                     "sources": {"dynamixel": {"port": port, "baud": args.baud, "finger": finger.name,
                                               "finger_file": args.finger, "emulated": bool(args.emulate)}}}
         writer = stack.enter_context(RecordingWriter(args.out, metadata))
-        driver = stack.enter_context(DynamixelFinger(port, args.baud, finger))
-        t_start = time.monotonic()
+        driver = stack.enter_context(DynamixelFinger(port, args.baud, finger, clock=clock, retries=args.retries))
+        t_start = clock()
         count = 0
+        stop_reason = "duration"
 
         def write(state, pose) -> None:
             nonlocal count
-            writer.write_joint_state(state.t - t_start, finger.names, state.position, state.velocity, state.current)
-            writer.write_pose(type(pose)(pose.t - t_start, pose.position, pose.quaternion, pose.sensor_id))
-            count += 1
+            with exit_signals.deferring():  # a sample and its count go together
+                writer.write_joint_state(state.t - t_start, finger.names, state.position, state.velocity,
+                                         state.current)
+                writer.write_pose(type(pose)(pose.t - t_start, pose.position, pose.quaternion, pose.sensor_id))
+                count += 1
 
-        if target is not None:
-            writer.write_annotation(time.monotonic() - t_start, "press_start",
-                                    {"x": target.x, "depth": target.depth, "surface_z": args.surface_z})
-            result = driver.press(target, args.surface_z, on_state=write)
-            writer.write_annotation(time.monotonic() - t_start, "press_end",
-                                    {"stopped_by": result.stopped_by, "depth": result.depth, "force": result.force})
-        period = 1.0 / args.rate
-        with driver.safety():
-            while time.monotonic() - t_start < args.seconds:
-                state = driver.read_state()
-                write(state, driver.pose(state))
-                time.sleep(max(0.0, period - (time.monotonic() - state.t)))
+        try:
+            if target is not None:
+                writer.write_annotation(clock() - t_start, "press_start",
+                                        {"x": target.x, "depth": target.depth, "surface_z": args.surface_z})
+                result = driver.press(target, args.surface_z, on_state=write)
+                writer.write_annotation(clock() - t_start, "press_end", {
+                    "stopped_by": result.stopped_by, "depth": result.depth, "force": result.force})
+            period = 1.0 / args.rate
+            with driver.safety():
+                while clock() - t_start < args.seconds:
+                    state = driver.read_state()
+                    write(state, driver.pose(state))
+                    clock.sleep(max(0.0, period - (clock() - state.t)))
+        except BaseException as exc:
+            # torque is already off (the driver's safety context); the recording says why it ended, then closes
+            stop_reason = "interrupted" if isinstance(exc, KeyboardInterrupt) else str(exc) or type(exc).__name__
+            raise
+        finally:
+            writer.write_annotation(clock() - t_start, "recording_end",
+                                    {"stop_reason": stop_reason, "samples": count})
     print(f"recorded {count} joint states and fingertip poses to {args.out}")
     return 0

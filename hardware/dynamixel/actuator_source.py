@@ -5,28 +5,31 @@ Before anything is opened, every cell the policy may press is planned as a press
 finger's plane, inside its reach and joint limits along the whole vertical path, not deeper than its
 ``press.max_depth``), so a grid the finger cannot press is refused before any servo moves.
 
-With ``emulate = true`` the finger presses through dynamixel-sdk -> pty -> :class:`ServoBusEmulator` -> MuJoCo
-physics of the scenario's object (:func:`palpate.hardware.dynamixel.physics_bus.physics_bus`), which also gives
-the taxel frames of the simulated pad. A real bus (``port``) is refused for now: the finger has no tactile pad of its
-own and palpate has no live taxel reader (Tekscan's live API is Windows-only; see
-:mod:`palpate.hardware.tekscan` for the bridge contract), so its presses could not be perceived.
+The taxel frames of each press come from a live tactile array on its own serial port (``taxels``, see
+:mod:`palpate.hardware.tactile`), read through pyserial on the driver's clock. With ``emulate = true`` both devices
+are emulators on two pseudo-terminals backed by one physics: dynamixel-sdk -> pty -> :class:`ServoBusEmulator` ->
+MuJoCo physics of the scenario's object (:func:`palpate.hardware.dynamixel.physics_bus.physics_bus`), and the
+array's pty -> :class:`TactileArrayEmulator` -> that physics' pad (:func:`physics_taxels`), all on one stepped
+clock. A real bus with no ``taxels`` is refused: a finger without a pad gives no taxel frames.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.perception.force_channel import PERCEPTION as FORCE_PERCEPTION
 from palpate.core.perception.pipeline import PipelineConfig
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.actuator_kinds import ActuatorKind
 from palpate.core.world.table_reader import TableReader, resolve_path
+from palpate.hardware.clock import WALL_CLOCK, StepClock
 from palpate.hardware.dynamixel.driver import DynamixelFinger
 from palpate.hardware.dynamixel.finger import (
     FingerDescription,
@@ -34,8 +37,11 @@ from palpate.hardware.dynamixel.finger import (
     inverse_kinematics,
     load_finger,
 )
-from palpate.hardware.dynamixel.physics_bus import physics_bus
+from palpate.hardware.dynamixel.physics_bus import physics_bus, physics_taxels
 from palpate.hardware.dynamixel.press import PLANE_TOLERANCE, FingerActuator, plan_press
+from palpate.hardware.dynamixel.taxel_streams import TaxelPort, open_reader, reader_streams
+from palpate.hardware.tactile.emulator import TactileArrayEmulator
+from palpate.hardware.tactile.protocol import FORMATS
 
 # At most this many offending cells are named in an error (a whole row off the plane would be a wall of text).
 MAX_NAMED = 3
@@ -51,6 +57,9 @@ REPEATS = 2
 # The fingertip poses are the run's pose stream: named as the simulated sources name theirs, so that a recorded
 # run (training in simulation, exploration with the finger) holds one pose sensor and replays.
 POSE_SENSOR = "pose"
+# On the emulated rig's stepped clock, each control cycle also lets this fraction of it pass on the wall, so the
+# tactile array's thread keeps up with the servos (their motion does not depend on it).
+WALL_RATIO = 0.2
 
 
 @dataclass(frozen=True)
@@ -64,6 +73,9 @@ class DynamixelOptions:
         emulate: press through the servo emulator on a pty, backed by MuJoCo physics of the scene.
         pose_noise: standard deviation of noise added to each fingertip position, m per axis.
         approach_height: height above the surface where each press starts, m (None: the finger file's).
+        taxels: the tactile array's serial settings (port, format, rate, baud; None with ``emulate``).
+        pad: False for a finger with no tactile pad: each press's c_P is the fingertip force from its joint currents
+            and the memory judges it by its kinesthetic model alone (training too: :attr:`perception`).
     """
 
     port: str | None = None
@@ -72,6 +84,13 @@ class DynamixelOptions:
     emulate: bool = False
     pose_noise: float = 0.0
     approach_height: float | None = None
+    taxels: TaxelPort | None = None
+    pad: bool = True
+
+    @property
+    def perception(self) -> dict | None:
+        """How this actuator's presses are perceived, when not as taxels (the run trains its memory alike)."""
+        return None if self.pad else dict(FORCE_PERCEPTION)
 
 
 def parse_options(r: TableReader, base: Path) -> DynamixelOptions:
@@ -87,10 +106,23 @@ def parse_options(r: TableReader, base: Path) -> DynamixelOptions:
     if not finger:
         raise r.err("finger", "must name a finger description file (models/fingers/*.toml)")
     approach = r.number("approach_mm", None, lo=0.0, lo_open=True)
+    taxel_port = r.get("taxels", str, "") or None
+    pad = r.get("pad", bool, True)
+    if not pad and taxel_port:
+        raise r.err("taxels", "not used with pad = false (a finger without a pad measures its force by its currents)")
+    if emulate and taxel_port:
+        raise r.err("taxels", "not used with emulate = true (the emulated tactile array opens its own pseudo-terminal)")
+    fmt = r.get("taxel_format", str, "binary")
+    if fmt not in FORMATS:
+        raise r.err("taxel_format", f"must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    taxels = None
+    if pad and (emulate or taxel_port):
+        taxels = TaxelPort(taxel_port or "emulator", fmt, r.number("taxel_rate", 50.0, lo=0.0, lo_open=True),
+                           r.integer("taxel_baud", 115200, lo=1))
     return DynamixelOptions(port=port, baud=r.integer("baud", DynamixelOptions.baud, lo=1),
                             finger=resolve_path(base, finger), emulate=emulate,
                             pose_noise=r.number("pose_noise_mm", 0.0, lo=0.0) * 1e-3,
-                            approach_height=None if approach is None else approach * 1e-3)
+                            approach_height=None if approach is None else approach * 1e-3, taxels=taxels, pad=pad)
 
 
 class FingerSession:
@@ -195,20 +227,22 @@ def check_reach(finger: FingerDescription, request) -> None:
 def dynamixel_actuator(request, *, check_only: bool = False):
     """Factory of kind ``dynamixel`` (see :mod:`palpate.core.session.actuators` for the signature).
 
-    Checks the finger file and the reach of every cell; with ``check_only`` stops there. Otherwise starts the
-    physics-backed emulator over ``request.scene`` (``emulate``), opens the bus and returns a
-    :class:`FingerSession` whose presses carry the pad's taxel frames, the fingertip poses (plus
-    ``pose_noise``) and the physics' ground truth.
+    Checks the finger file and the reach of every cell; with ``check_only`` stops there. Otherwise opens the bus
+    and the tactile array (``emulate``: their emulators over ``request.scene``) and returns a :class:`FingerSession`
+    whose presses carry the array's taxel frames, the fingertip poses (plus ``pose_noise``) and, emulated, the
+    physics' ground truth.
     """
     spec: DynamixelOptions = request.spec.options
     finger = finger_for(request)
     check_reach(finger, request)
     if not spec.emulate:
-        raise ValidationError(
-            f"actuator.port = {spec.port!r}: a real Dynamixel finger has no tactile pad of its own and palpate has "
-            "no live taxel reader yet (Tekscan's live API is Windows-only; see palpate.hardware.tekscan for the "
-            "bridge contract), so its presses could not be perceived. Use emulate = true, or record the session "
-            "(palpate record dynamixel, the pad's bridge) and run palpate replay")
+        if spec.taxels is None and spec.pad:
+            raise ValidationError(f"actuator.taxels: missing: the finger on {spec.port!r} needs the tactile array's "
+                                  "serial port (taxels = \"/dev/ttyACM0\", or --taxels PORT) for its presses to be "
+                                  "perceived, or pad = false for a finger without one (c_P from its joint currents)")
+        if check_only:
+            return None
+        return _real_finger(spec, finger, request)
     if request.obj.shape not in ("box", "cylinder"):
         raise ValidationError(f"actuator dynamixel, object {request.obj.name!r}: the emulated finger presses boxes "
                               f"and cylinders (a flat top), not a {request.obj.shape}")
@@ -220,17 +254,54 @@ def dynamixel_actuator(request, *, check_only: bool = False):
     start = inverse_kinematics(finger, float(request.targets[0, 0]), surface_z + finger.approach_height)
     stack = contextlib.ExitStack()
     try:
-        emulator, physics = physics_bus(finger, request.scene, start, baud=spec.baud)
+        # the emulated finger runs on a stepped clock: one control cycle per state read, as fast as the machine
+        # allows, and the same exploration every time
+        clock = StepClock(wall_ratio=WALL_RATIO)
+        emulator, physics = physics_bus(finger, request.scene, start, baud=spec.baud, clock=clock)
         stack.enter_context(emulator)
-        driver = stack.enter_context(DynamixelFinger(emulator.port, spec.baud, finger))
-        actuator = FingerActuator(driver, surface_z, streams=physics.actuator_streams(request.seed),
-                                  pose_noise=spec.pose_noise, seed=request.seed)
+        if spec.pad:
+            source, ready = physics_taxels(physics, emulator, seed=request.seed)
+            taxels = spec.taxels or TaxelPort("emulator")
+            array = stack.enter_context(TactileArrayEmulator(
+                source, rows=request.scene.fingertip.rows, cols=request.scene.fingertip.cols,
+                rate=request.scene.taxels.rate, fmt=taxels.fmt, baud=taxels.baud, clock=clock, epoch=0.0, ready=ready))
+            reader = stack.enter_context(open_reader(replace(taxels, port=array.port, rate=request.scene.taxels.rate),
+                                                     request.scene, clock))
+            streams = reader_streams(reader, physics.truth)
+        else:
+            streams = _truth_only(physics)
+        driver = stack.enter_context(DynamixelFinger(emulator.port, spec.baud, finger, clock=clock))
+        actuator = FingerActuator(driver, surface_z, streams=streams, pose_noise=spec.pose_noise, seed=request.seed,
+                                  force_from_currents=not spec.pad)
     except BaseException:
         stack.close()
         raise
     return FingerSession(actuator, stack)
 
 
+def _real_finger(spec: DynamixelOptions, finger: FingerDescription, request) -> FingerSession:
+    """The finger on ``spec.port`` with the tactile array on ``spec.taxels``, both on the wall clock."""
+    surface_z = request.obj.height
+    stack = contextlib.ExitStack()
+    try:
+        streams = None
+        if spec.pad:
+            streams = reader_streams(stack.enter_context(open_reader(spec.taxels, request.scene, WALL_CLOCK)))
+        driver = stack.enter_context(DynamixelFinger(spec.port, spec.baud, finger, clock=WALL_CLOCK))
+        actuator = FingerActuator(driver, surface_z, streams=streams, pose_noise=spec.pose_noise, seed=request.seed,
+                                  force_from_currents=not spec.pad)
+    except BaseException:
+        stack.close()
+        raise
+    return FingerSession(actuator, stack)
+
+
+def _truth_only(physics):
+    """``streams`` giving the physics' ground truth and no taxel frames (a finger without a pad)."""
+    return lambda t0, t1: ([], physics.truth(t0, t1))
+
+
 #: The entry point ``dynamixel`` of ``palpate.actuators``.
-DYNAMIXEL = ActuatorKind(keys=("port", "baud", "finger", "emulate", "pose_noise_mm", "approach_mm"),
+DYNAMIXEL = ActuatorKind(keys=("port", "baud", "finger", "emulate", "pose_noise_mm", "approach_mm", "taxels",
+                               "taxel_format", "taxel_rate", "taxel_baud", "pad"),
                          parse=parse_options, make=dynamixel_actuator, extra="hardware")

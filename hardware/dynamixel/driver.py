@@ -1,21 +1,24 @@
 """Drive a Dynamixel finger through the official dynamixel-sdk (Protocol 2.0).
 
 Safety first: every command is checked against the joint limits (and the configured current limit against
-the servo model) before a byte is written; torque is switched off on any exception, on Ctrl-C, on exit of the
-context manager and at interpreter exit. A servo that stops answering ends what was running with a
-DeviceError naming its id, after torque has been switched off on the servos that still answer.
+the servo model) before a byte is written; torque is switched off on any exception, on Ctrl-C, on SIGTERM and
+SIGHUP (while a finger is open they raise :class:`~palpate.hardware.exit_signals.Terminated`, see
+:mod:`palpate.hardware.exit_signals`), on exit of the context manager and at interpreter exit. A servo that
+stops answering ends what was running with a DeviceError naming its id, after torque has been switched off on the
+servos that still answer.
 """
 
 from __future__ import annotations
 
 import atexit
-import time
+import math
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 
 import numpy as np
 
 from palpate.core.errors import DeviceError, ValidationError
+from palpate.hardware import exit_signals
+from palpate.hardware.clock import Clock, as_clock
 from palpate.hardware.dynamixel import control_table as ct
 from palpate.hardware.dynamixel.finger import (
     FingerDescription,
@@ -24,35 +27,23 @@ from palpate.hardware.dynamixel.finger import (
     joints_to_ticks,
     ticks_to_joints,
 )
+from palpate.hardware.dynamixel.joint_state import JointState, LostServo
 from palpate.hardware.dynamixel.press import press_and_release
 
 _STATE_START = ct.PRESENT_CURRENT[0]  # one sync read covers current (2), velocity (4), position (4)
 _STATE_LENGTH = 10
-
-
-@dataclass(frozen=True)
-class JointState:
-    """Joint state of the finger at one time.
-
-    Attributes:
-        t: time, s (the driver's monotonic clock).
-        position: joint angles, rad, shape (n,).
-        velocity: joint velocities, rad/s, shape (n,).
-        current: servo currents expressed on the joints (sign follows the joint angle), A, shape (n,).
-    """
-
-    t: float
-    position: np.ndarray
-    velocity: np.ndarray
-    current: np.ndarray
-
-
-class LostServo(DeviceError):
-    """A servo stopped answering; ``servo_id`` names it."""
-
-    def __init__(self, message: str, servo_id: int):
-        super().__init__(message)
-        self.servo_id = servo_id
+# 200 Hz, a usual servo control rate over USB (the adapter's latency, not the 1 Mbaud bus, bounds a cycle); the press
+# loop moves its goal at most press.MAX_STEP_TIME of motion per cycle, the same 5 ms.
+DEFAULT_CYCLE = 0.005
+SERIAL_POLL = 0.001  # s
+# Confirmed writes of torque off tried per servo (each with its retries) before giving up on it.
+TORQUE_OFF_TRIES = 5
+BROADCAST_ID = 0xFE
+# How long dynamixel-sdk waits for an answer on a virtual clock, ms of wall time. On the wall clock it waits what the
+# bus needs (~34 ms at 1 Mbaud); an emulator whose thread a loaded machine leaves unscheduled for longer is not a
+# lost servo, and waiting costs the emulated servos no time. A servo silenced on purpose is still declared lost,
+# after retries + 1 such waits.
+VIRTUAL_ANSWER_TIMEOUT_MS = 1000.0
 
 
 def _comm_text(packet_handler, result: int) -> str:
@@ -66,19 +57,27 @@ class DynamixelFinger:
         port: serial device (e.g. /dev/ttyUSB0, or an emulator's pty).
         baud: bus bit rate (one the SDK supports, e.g. 57600, 1000000).
         finger: its description (ids, limits, current limit).
-        retries: times a corrupt status (bad CRC) is retried before giving up.
-        clock: time source, s.
+        retries: times a corrupt or missing status is retried before giving up.
+        clock: time source (see :mod:`palpate.hardware.clock`; default the wall clock). Give the emulator and the
+            driver one :class:`~palpate.hardware.clock.StepClock` and the emulated finger moves exactly one
+            ``cycle`` per state read, however loaded the machine is.
+        cycle: shortest control cycle, s: :meth:`read_state` sleeps out the rest of the cycle on ``clock`` (a real
+            bus usually takes about this long anyway; on a stepped clock this is what moves time on).
 
     Use as a context manager: ``with DynamixelFinger(port, 1_000_000, finger) as f: f.press(...)``.
     """
 
     def __init__(self, port: str, baud: int, finger: FingerDescription, *, retries: int = 3,
-                 clock: Callable[[], float] = time.monotonic):
+                 clock: Clock | Callable[[], float] | None = None, cycle: float = DEFAULT_CYCLE):
+        if not (math.isfinite(cycle) and 0 < cycle <= 0.1):
+            raise ValidationError(f"control cycle must be in (0, 0.1] s, got {cycle!r}")
         self.port_name = str(port)
         self.baud = int(baud)
         self.finger = finger
+        self.clock = as_clock(clock)
         self.retries = int(retries)
-        self.clock = clock
+        self.cycle = float(cycle)
+        self._next_cycle: float | None = None
         self.model = finger.model
         self._port = None
         self._ph = None
@@ -86,6 +85,7 @@ class DynamixelFinger:
         self._sync_write = None
         self._sdk = None
         self._torque_on = False
+        self._signals_held = False
         self.lost: set[int] = set()
         # Answers retried because they were corrupt (bad CRC) or late (an emulator on a loaded machine, noise).
         self.corrupt_retries = 0
@@ -114,6 +114,12 @@ class DynamixelFinger:
             port.closePort()
             raise DeviceError(f"baud {self.baud} is not supported by dynamixel-sdk on {self.port_name!r}")
         self._port, self._ph = port, sdk.PacketHandler(2.0)
+        # dynamixel-sdk polls its port with reads that return at once, a busy loop holding the interpreter: an
+        # emulator thread in this process then waits for a turn (seen: a second on a loaded machine), and a real bus
+        # burns a core. Reads that wait up to 1 ms for the bytes asked for release it meanwhile.
+        port.ser.timeout = SERIAL_POLL
+        if self.clock.virtual:
+            port.setPacketTimeout = lambda _length: port.setPacketTimeoutMillis(VIRTUAL_ANSWER_TIMEOUT_MS)
         try:
             self._find_servos()
             self._configure()
@@ -125,16 +131,22 @@ class DynamixelFinger:
         for sid in self.finger.ids:
             self._sync_read.addParam(sid)
         atexit.register(self.close)
+        self._signals_held = exit_signals.hold()
         return self
 
     def _find_servos(self) -> None:
-        missing, wrong = [], []
+        missing, garbled, wrong = [], [], []
         for sid in self.finger.ids:
-            number = self._ping(sid)
+            number, corrupt = self._ping(sid)
             if number is None:
-                missing.append(sid)
+                (garbled if corrupt else missing).append(sid)
             elif number != self.model.number:
                 wrong.append(f"id {sid} is a {ct.model_name(number)}")
+        if garbled:
+            # something answered, so port and baud rate are right: the packets are damaged on the way
+            raise DeviceError(f"servo id(s) {garbled} on {self.port_name!r} answered only with corrupt packets (bad "
+                              f"CRC) in {self.retries + 1} tries each; check the cable, its connectors and "
+                              "termination, the supply voltage, and for another device talking on the bus")
         if len(missing) == len(self.finger.ids):
             raise DeviceError(f"no servo answered on {self.port_name!r} at {self.baud} baud (ids {self.finger.ids}); "
                               "check the port, the baud rate and the servo power")
@@ -143,14 +155,17 @@ class DynamixelFinger:
         if wrong:
             raise DeviceError(f"finger {self.finger.name!r} expects {self.model.name} servos but {', '.join(wrong)}")
 
-    def _ping(self, sid: int) -> int | None:
+    def _ping(self, sid: int) -> tuple[int | None, bool]:
+        """(model number or None, whether any answer came back corrupt)."""
+        corrupt = False
         for _ in range(self.retries + 1):
             number, result, _ = self._ph.ping(self._port, sid)
             if result == self._sdk.COMM_SUCCESS:
-                return int(number)
+                return int(number), corrupt
+            corrupt |= result == self._sdk.COMM_RX_CORRUPT
             if not self._retryable(result):
-                return None
-        return None
+                break
+        return None, corrupt
 
     def _configure(self) -> None:
         # every value is checked above or at load time; EEPROM writes need torque off
@@ -174,6 +189,9 @@ class DynamixelFinger:
             self.disable_torque()
         finally:
             self._close_port()
+            if self._signals_held:
+                self._signals_held = False
+                exit_signals.release()
 
     def _close_port(self) -> None:
         try:
@@ -251,14 +269,23 @@ class DynamixelFinger:
             return []
         done = []
         self._port.is_using = False  # an exception may have left a transfer half done
+        try:
+            # first to every servo at once (a broadcast needs no answer: it works even when answers are lost) ...
+            self._ph.write1ByteTxOnly(self._port, BROADCAST_ID, ct.TORQUE_ENABLE[0], 0)
+            self._port.is_using = False
+        except Exception:
+            pass
+        # ... then servo by servo, until each confirms or TORQUE_OFF_TRIES are spent
         for sid in self.finger.ids:
             if sid in self.lost:
                 continue
-            try:
-                self._write(sid, ct.TORQUE_ENABLE, 0)
-                done.append(sid)
-            except Exception:
-                pass
+            for _ in range(TORQUE_OFF_TRIES):
+                try:
+                    self._write(sid, ct.TORQUE_ENABLE, 0)
+                    done.append(sid)
+                    break
+                except Exception:
+                    self._port.is_using = False
         self._torque_on = False
         return done
 
@@ -298,15 +325,16 @@ class DynamixelFinger:
         alert raises DeviceError with the servo's hardware error status.
         """
         self._require_open()
+        self._pace()
         sdk, ph, port = self._sdk, self._ph, self._port
         ids = self.finger.ids
         raw = np.zeros((len(ids), _STATE_LENGTH), dtype=np.uint8)
         failure = None
+        t = self.clock()
         for _ in range(self.retries + 1):
             result = self._sync_read.txPacket()
             if result != sdk.COMM_SUCCESS:
                 raise DeviceError(f"sync read on {self.port_name!r} could not be sent: {_comm_text(ph, result)}")
-            t = self.clock()
             failure = None
             alerts = []
             for k, sid in enumerate(ids):
@@ -339,6 +367,14 @@ class DynamixelFinger:
         ticks = raw[:, 6:10].copy().view("<i4").reshape(-1).astype(float)
         d = self.finger.directions
         return JointState(t, ticks_to_joints(self.finger, ticks), d * velocity, d * current)
+
+    def _pace(self) -> None:
+        """Sleep out the rest of the control cycle, so states are read at most once per ``cycle`` s."""
+        now = self.clock()
+        if self._next_cycle is not None and now < self._next_cycle:
+            self.clock.sleep(self._next_cycle - now)
+            now = self.clock()
+        self._next_cycle = now + self.cycle
 
     def _joint_name(self, sid: int) -> str:
         return next(j.name for j in self.finger.joints if j.servo_id == sid)
@@ -392,35 +428,3 @@ class DynamixelFinger:
         """Press and release at ``target`` (a PressTarget) on a surface at ``surface_z`` m; see press.py."""
 
         return press_and_release(self, target, surface_z, **kwargs)
-
-
-def scan(port: str, baud: int, ids: Iterable[int] = range(0, 253), timeout_ms: float | None = None) -> list[dict]:
-    """Ping ``ids`` on ``port``; returns ``[{"id", "model_number", "model", "firmware"}]`` for each that answers."""
-    import dynamixel_sdk as sdk
-
-    ph = sdk.PacketHandler(2.0)
-    p = sdk.PortHandler(str(port))
-    try:
-        opened = p.openPort()
-    except Exception as exc:
-        raise DeviceError(f"cannot open Dynamixel port {port!r}: {exc}") from None
-    if not opened:
-        raise DeviceError(f"cannot open Dynamixel port {port!r}")
-    try:
-        if not p.setBaudRate(int(baud)):
-            raise DeviceError(f"baud {baud} is not supported by dynamixel-sdk")
-        found = []
-        for sid in ids:
-            if not 0 <= sid <= 252:
-                raise ValidationError(f"servo ids are 0..252, got {sid}")
-            number, result, _ = ph.ping(p, sid)
-            if result == sdk.COMM_RX_CORRUPT:  # one retry: a single corrupt answer is not an absent servo
-                number, result, _ = ph.ping(p, sid)
-            if result == sdk.COMM_SUCCESS:
-                fw, r2, _ = ph.read1ByteTxRx(p, sid, ct.FIRMWARE_VERSION[0])
-                found.append({"id": sid, "model_number": int(number), "model": ct.model_name(int(number)),
-                              "firmware": int(fw) if r2 == sdk.COMM_SUCCESS else None})
-        return found
-    finally:
-        p.closePort()
-

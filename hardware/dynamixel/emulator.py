@@ -21,12 +21,12 @@ import collections
 import math
 import sys
 import threading
-import time
 from collections.abc import Callable, Iterable
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.hardware.clock import Clock, as_clock
 from palpate.hardware.dynamixel import control_table as ct
 from palpate.hardware.dynamixel.protocol import (
     BROADCAST_ID,
@@ -55,6 +55,8 @@ Observer = Callable[[float, np.ndarray], None]
 # Integration step of the servo dynamics; lazily integrated up to "now" before every answer.
 _MAX_SUBSTEP = 0.002
 _MAX_SUBSTEPS = 50
+# Instructions that observe the servos: the dynamics are brought up to the present before they are answered.
+_READS = (INST_PING, INST_READ, INST_SYNC_READ)
 # Registers the host may not write (read-only in the X-series table).
 _READ_ONLY = [ct.MODEL_NUMBER, ct.FIRMWARE_VERSION, ct.HARDWARE_ERROR_STATUS, ct.MOVING, ct.PRESENT_CURRENT,
               ct.PRESENT_VELOCITY, ct.PRESENT_POSITION, ct.PRESENT_INPUT_VOLTAGE, ct.PRESENT_TEMPERATURE]
@@ -79,7 +81,11 @@ class ServoBusEmulator(PtyDevice):
         load_model: external torque on each servo shaft (N*m) as a function of the shaft angles (rad, 0 at
             the centre tick), both in ``ids`` order. None means no load.
         initial_ticks: present positions at start (ticks, default the centre 2048).
-        clock: time source in s (monotonic by default).
+        clock: time source (:mod:`palpate.hardware.clock`; the wall clock by default). The servo dynamics are
+            integrated up to ``clock()`` whenever a servo is read (ping, read, sync read, or :meth:`register` /
+            :meth:`positions`). On the wall clock a write is applied at the time it arrives; on a virtual clock
+            (:class:`~palpate.hardware.clock.StepClock`) it takes effect from the last read, so the emulated motion
+            depends only on the host's packets and the clock's values, never on when this thread got to run.
         observer: called as ``observer(t, angles)`` after every integration substep with the time (s, on
             ``clock``) and the shaft angles reached (rad, 0 at the centre tick, ``ids`` order), so a physics
             backend can record what the servos actually did (the load model also sees trial positions).
@@ -92,7 +98,7 @@ class ServoBusEmulator(PtyDevice):
         baud: int = 1_000_000,
         load_model: LoadModel | None = None,
         initial_ticks: Iterable[float] | None = None,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Clock | Callable[[], float] | None = None,
         observer: Observer | None = None,
     ):
         self.ids = [int(i) for i in ids]
@@ -101,10 +107,9 @@ class ServoBusEmulator(PtyDevice):
         if model_number not in ct.MODELS:
             raise ValidationError(f"emulator model number {model_number} unknown; known: {sorted(ct.MODELS)}")
         self.model = ct.MODELS[model_number]
-        self.baud = int(baud)
+        PtyDevice.__init__(self, int(baud), f"dxl-emulator ids {self.ids}", clock=as_clock(clock))
         self.load_model = load_model
         self.observer = observer
-        self._clock = clock
         self._index = {sid: k for k, sid in enumerate(self.ids)}
         n = len(self.ids)
         self.memory = np.zeros((n, ct.TABLE_SIZE), dtype=np.uint8)
@@ -115,13 +120,14 @@ class ServoBusEmulator(PtyDevice):
         self._pos = ticks.copy()
         for k, sid in enumerate(self.ids):
             self._init_table(k, sid)
-        self._last = self._clock()
+        self._last = self.clock()
         self._lock = threading.RLock()
         self._parser = PacketParser()
-        PtyDevice.__init__(self, self.baud, f"dxl-emulator ids {self.ids}")
         # Observability for tests: instruction counts and a bounded log of applied writes (id, address, bytes).
         self.instruction_counts: collections.Counter[int] = collections.Counter()
         self.writes: collections.deque[tuple[int, int, bytes]] = collections.deque(maxlen=100_000)
+        # Called as on_write(servo id, address, bytes) after every applied write (e.g. to log torque changes).
+        self.on_write: Callable[[int, int, bytes], None] | None = None
         # Fault injection
         self.silent: set[int] = set()
         self._corrupt_next = 0
@@ -158,7 +164,7 @@ class ServoBusEmulator(PtyDevice):
     def register(self, servo_id: int, reg: tuple[int, int], signed: bool = False) -> int:
         """Value of a control-table register of one servo (for inspection; not over the wire)."""
         with self._lock:
-            self._advance(self._clock())
+            self._advance(self.clock())
             return self._get(self._index[servo_id], reg, signed)
 
     def set_register(self, servo_id: int, reg: tuple[int, int], value: int) -> None:
@@ -169,10 +175,20 @@ class ServoBusEmulator(PtyDevice):
             if reg == ct.PRESENT_POSITION:
                 self._pos[k] = float(value)
 
+    @property
+    def integrated_until(self) -> float:
+        """The clock time up to which the servo dynamics have been integrated, s."""
+        return self._last
+
+    def last_positions(self) -> np.ndarray:
+        """Positions at :attr:`integrated_until`, ticks (nothing is integrated: the motion stays the host's)."""
+        with self._lock:
+            return self._pos.copy()
+
     def positions(self) -> np.ndarray:
         """Present positions of every servo, ticks (float, in ``ids`` order)."""
         with self._lock:
-            self._advance(self._clock())
+            self._advance(self.clock())
             return self._pos.copy()
 
     # ---- faults --------------------------------------------------------------------------------------------
@@ -298,14 +314,17 @@ class ServoBusEmulator(PtyDevice):
             return ERR_RESULT_FAIL
         self.memory[k] = trial
         self.writes.append((self.ids[k], addr, bytes(data)))
+        if self.on_write is not None:
+            self.on_write(self.ids[k], addr, bytes(data))
         return 0
 
     def handle(self, packet: Packet) -> bytes:
         """Answer one instruction packet; returns the bytes the bus sends back (possibly none)."""
         with self._lock:
-            self._advance(self._clock())
-            self.instruction_counts[packet.instruction] += 1
             pid, inst, p = packet.id, packet.instruction, packet.params
+            if inst in _READS or not self.clock.virtual:
+                self._advance(self.clock())
+            self.instruction_counts[packet.instruction] += 1
             alive = [k for k, sid in enumerate(self.ids) if sid not in self.silent]
             if pid == BROADCAST_ID:
                 targets = alive
@@ -371,7 +390,7 @@ class ServoBusEmulator(PtyDevice):
     # ---- bytes from the pty ----------------------------------------------------------------------------
     def on_start(self) -> None:
         """The servo dynamics integrate from the moment the bus is served."""
-        self._last = self._clock()
+        self._last = self.clock()
 
     def respond(self, data: bytes) -> bytes:
         """Answer the bytes the host wrote: the status packets of every complete instruction packet in them."""
@@ -387,6 +406,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--ids", default="1,2", help="comma-separated servo ids")
     parser.add_argument("--baud", type=int, default=1_000_000)
     parser.add_argument("--model", type=int, default=1020, help="model number (1020 = XM430-W350)")
+    parser.add_argument("--log-torque", action="store_true",
+                        help="print 'torque ID VALUE' on stdout whenever a servo's torque enable is written")
     args = parser.parse_args(argv)
     try:
         ids = [int(s) for s in args.ids.split(",") if s.strip()]
@@ -394,13 +415,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f"--ids must be comma-separated integers, got {args.ids!r}", file=sys.stderr)
         return 2
     emu = ServoBusEmulator(ids, model_number=args.model, baud=args.baud)
-    with emu:
-        print(emu.port, flush=True)
-        try:
-            while emu.serving:
-                time.sleep(0.2)
-        except KeyboardInterrupt:
-            pass
+    if args.log_torque:
+        t_addr = ct.TORQUE_ENABLE[0]
+
+        def log(sid: int, addr: int, data: bytes) -> None:
+            if addr <= t_addr < addr + len(data):
+                print(f"torque {sid} {data[t_addr - addr]}", flush=True)
+
+        emu.on_write = log
+    emu.serve_until_interrupted()
     return 0
 
 

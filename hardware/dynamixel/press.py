@@ -15,8 +15,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.errors import DeviceError, ValidationError
+from palpate.core.perception.force_channel import PERCEPTION
 from palpate.core.perception.streams import PoseSample, PressRecording
 from palpate.core.session.sources import PressTarget
+from palpate.hardware.dynamixel.current_force import current_force_frames
 from palpate.hardware.dynamixel.finger import (
     fingertip_pose,
     forward_kinematics,
@@ -173,6 +175,8 @@ class FingerActuator:
         streams: where the taxel frames come from: ``streams(t0, t1) -> (frames, truth)`` for the press's
             time span on the driver's clock (a tactile pad's reader, or the simulated finger's
             :meth:`~palpate.sim.finger_physics.FingerPhysics.actuator_streams`); None for poses only.
+        force_from_currents: a finger with no pad: the press's c_P is the fingertip force from its joint currents
+            (:mod:`palpate.hardware.dynamixel.current_force`); ``streams`` then only gives the truth, if any.
         pose_noise: standard deviation of Polhemus-like noise added to each fingertip position, m per axis.
         seed: seed of the pose noise.
 
@@ -181,13 +185,15 @@ class FingerActuator:
     """
 
     def __init__(self, driver, surface_z: float, on_state: Callable | None = None, *,
-                 streams: Callable | None = None, pose_noise: float = 0.0, seed: int = 0):
+                 streams: Callable | None = None, pose_noise: float = 0.0, seed: int = 0,
+                 force_from_currents: bool = False):
         if not (np.isfinite(pose_noise) and pose_noise >= 0):
             raise ValidationError(f"FingerActuator: pose_noise must be >= 0 m, got {pose_noise!r}")
         self.driver = driver
         self.surface_z = float(surface_z)
         self.on_state = on_state
         self.streams = streams
+        self.force_from_currents = bool(force_from_currents)
         self.pose_noise = float(pose_noise)
         self._rng = np.random.default_rng(seed)
         self.last: FingerPress | None = None
@@ -196,9 +202,11 @@ class FingerActuator:
     def press(self, target: PressTarget) -> PressRecording:
         """Press and release at ``target``; returns its raw streams (poses, and taxels if ``streams`` is set)."""
         poses: list[PoseSample] = []
+        states: list = []
 
         def record(state, pose) -> None:
             poses.append(pose)
+            states.append(state)
             if self.on_state is not None:
                 self.on_state(state, pose)
 
@@ -209,11 +217,12 @@ class FingerActuator:
         except BaseException:
             meta = {"source": "dynamixel", "finger": self.driver.finger.name, "incomplete": True}
             try:
-                self.partial = self._recording(poses, t0, meta)
+                self.partial = self._recording(poses, t0, meta, states)
             except Exception:  # what was received is kept even if the pad has nothing for that span
                 self.partial = PressRecording(frames=[], poses=self._noisy(poses), meta=meta)
             raise
-        self.last.recording = self._recording(self.last.recording.poses, t0, self.last.recording.meta)
+        self.last.recording = self._recording(self.last.recording.poses, t0, self.last.recording.meta,
+                                              self.last.joints)
         return self.last.recording
 
     def _noisy(self, poses: list[PoseSample]) -> list[PoseSample]:
@@ -222,10 +231,13 @@ class FingerActuator:
         noise = self.pose_noise * self._rng.standard_normal((len(poses), 3))
         return [PoseSample(p.t, p.position + e, p.quaternion, p.sensor_id) for p, e in zip(poses, noise, strict=True)]
 
-    def _recording(self, poses: list[PoseSample], t0: float, meta: dict) -> PressRecording:
+    def _recording(self, poses: list[PoseSample], t0: float, meta: dict, states: list) -> PressRecording:
         frames, truth = [], None
         if self.streams is not None:
             # taxel frames only where there are poses to place them (the sync step rejects the others)
             t0, t1 = (poses[0].t, poses[-1].t) if len(poses) > 1 else (t0, self.driver.clock())
             frames, truth = self.streams(t0, t1)
+        if self.force_from_currents:
+            frames = current_force_frames(self.driver.finger, states, self.driver.joint_torques, self.surface_z)
+            meta = {**meta, "session": {"perception": dict(PERCEPTION)}}
         return PressRecording(frames=list(frames), poses=self._noisy(poses), truth=truth, meta=dict(meta))

@@ -19,8 +19,10 @@ def add_record_command(record: argparse._SubParsersAction) -> None:
         help="record poses from a Polhemus Liberty (one MCAP topic per station)",
         description="Configure a Polhemus Liberty (binary or ASCII, cm, output list position, quaternion, "
         "timestamp, frame count), stream its stations for S seconds and write them to an MCAP recording on "
-        "/pose/liberty_station<N>. Ctrl-C stops early and keeps what was recorded. Pose times are the device "
-        "clock (1 ms resolution).",
+        "/pose/liberty_station<N>. Ctrl-C, SIGTERM or SIGHUP stop early and keep what was recorded. Pose times are "
+        "the device clock (1 ms resolution). Records that cannot be true (broken frame or clock sequence, a jump no "
+        "hand makes) are dropped and counted. A device that goes silent ends the command with exit code 1 and a "
+        "finished file.",
     )
     p.add_argument("--port", help="serial port of the Liberty, e.g. /dev/ttyUSB0 (not needed with --emulate)")
     p.add_argument("--baud", type=int, default=115200, help="baud rate set on the device (default 115200)")
@@ -36,6 +38,8 @@ def add_record_command(record: argparse._SubParsersAction) -> None:
                    help="start a Liberty emulator on a pseudo-terminal (a station pressing 5 mm every 2 s) and "
                         "record from it")
     p.add_argument("--emulate-rate", type=float, default=240.0, help="emulator frame rate, Hz (default 240)")
+    p.add_argument("--emulate-silent-after", type=int, metavar="N",
+                   help="the emulator stops answering after N records (to see how a silent device ends a recording)")
     p.set_defaults(func=run_record)
 
 
@@ -57,8 +61,9 @@ def parse_stations(text: str) -> tuple[int, ...]:
 def run_record(args: argparse.Namespace) -> int:
     """Handler of ``palpate record liberty``; returns the exit code (130 after Ctrl-C, recording kept)."""
     from palpate.core.io.mcap_writer import RecordingWriter
+    from palpate.hardware import exit_signals
     from palpate.hardware.polhemus.driver import LibertyDriver
-    from palpate.hardware.polhemus.emulator import LibertyEmulator, press_motion
+    from palpate.hardware.polhemus.emulator import Faults, LibertyEmulator, press_motion
     from palpate.hardware.polhemus.transport import SerialTransport
 
     check_output_file(args.out, force=args.force)
@@ -71,13 +76,14 @@ def run_record(args: argparse.Namespace) -> int:
     emulator = None
     if args.emulate:
         emulator = LibertyEmulator(rate=args.emulate_rate, stations=stations, noise=1e-4, seed=0,
-                                   motion=press_motion(), baud=args.baud)
+                                   motion=press_motion(), baud=args.baud,
+                                   faults=Faults(silent_after=args.emulate_silent_after))
     port = emulator.port if emulator else args.port
-    interrupted = False
+    interrupted: BaseException | None = None
     written = 0
     span: dict[str, list[float]] = {}  # sensor id -> [first t, last t] on the pose clock
     try:
-        with SerialTransport(port, args.baud, timeout=0.02) as transport:
+        with exit_signals.holding(), SerialTransport(port, args.baud, timeout=0.02) as transport:
             driver = LibertyDriver(transport, stations=stations, units=args.units, binary=not args.ascii,
                                    timeout=args.timeout)
             driver.configure()
@@ -110,27 +116,34 @@ def run_record(args: argparse.Namespace) -> int:
                 try:
                     for pose in driver.stream(seconds=args.seconds):
                         keep(pose)
-                except KeyboardInterrupt:
-                    interrupted = True
-                    driver.stats.stop_reason = "interrupted"
+                except (KeyboardInterrupt, exit_signals.Terminated) as exc:
+                    interrupted = exc
+                    driver.stats.stop_reason = "interrupted" if isinstance(exc, KeyboardInterrupt) else str(exc)
                 for pose in driver.stop():
                     keep(pose)
                 stats = driver.stats
                 writer.write_annotation(t_last, "liberty_stream_end", {
                     "records": {str(k): v for k, v in stats.records.items()},
                     "errors": stats.error_counts(),
+                    "rejected": dict(stats.rejected),
                     "stop_reason": stats.stop_reason,
                 })
     finally:
         if emulator is not None:
             emulator.close()
     _print_summary(driver.stats, args.out, written, span)
-    if interrupted:
-        print("palpate: interrupted; the recording keeps everything received", file=sys.stderr)
-        return 130
+    if interrupted is not None:
+        print(f"palpate: {driver.stats.stop_reason}; the recording keeps everything received", file=sys.stderr)
+        return 130 if isinstance(interrupted, KeyboardInterrupt) else interrupted.code
     if written == 0:
         raise DeviceError(f"the Liberty on {port} sent no pose records ({driver.stats.stop_reason}); "
                           f"{args.out} holds metadata only")
+    reason = driver.stats.stop_reason
+    if reason == "silent" or reason.startswith("link lost"):
+        what = (f"went silent (nothing for {args.timeout:g} s)" if reason == "silent" else f"was lost ({reason})")
+        print(f"palpate: error: the Liberty on {port} {what} after {written} poses, before the {args.seconds:g} s "
+              f"asked; {args.out} is finished and keeps everything received", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -144,5 +157,6 @@ def _print_summary(stats, out: str, written: int, span: dict[str, list[float]]) 
         parts.append(f"station {station}: {n} at {rate}")
     errors = stats.error_counts()
     error_text = ", ".join(f"{k} {v}" for k, v in sorted(errors.items())) if errors else "none"
+    rejected = ", ".join(f"{k} {v}" for k, v in sorted(stats.rejected.items())) if stats.rejected else "none"
     print(f"liberty: {written} records in {elapsed:.2f} s of host time ({'; '.join(parts)})")
-    print(f"errors: {error_text}; stopped: {stats.stop_reason}; wrote {out}")
+    print(f"errors: {error_text}; rejected as implausible: {rejected}; stopped: {stats.stop_reason}; wrote {out}")

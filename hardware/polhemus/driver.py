@@ -1,15 +1,20 @@
 """Polhemus Liberty driver: configure the device, read single or continuous records, yield PoseSamples in SI.
 
 Time base: with the timestamp item (8) in the output list, which is the default, ``PoseSample.t`` is the
-device clock (ms since the device's timer was last reset, unwrapped past 2^32 ms) in s; it has 1 ms resolution.
-Without it, ``t`` is the host's monotonic clock when the bytes were read (``time_base`` says which); records
-that arrive in one read then share a time, so keep item 8 whenever poses feed the perception stack.
-Positions are converted to metres from the configured units; quaternions are (w, x, y, z) as the device sends.
+device clock (ms since the device's timer was last reset, continued past 2^32 ms by the stream's own steps) in s;
+it has 1 ms resolution. Without it, ``t`` is the host's monotonic clock when the bytes were read (``time_base``
+says which); records that arrive in one read then share a time, so keep item 8 whenever poses feed the perception
+stack. Positions are converted to metres from the configured units; quaternions are (w, x, y, z) as the device sends.
+
+Trust: a streamed record becomes a pose only if it could be true: frame counter and clock continuity, and a
+position and orientation a hand can reach from its neighbours (:mod:`palpate.hardware.polhemus.plausibility`);
+the others are counted in ``stats.rejected`` by reason.
 """
 
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -17,7 +22,9 @@ import numpy as np
 
 from palpate.core.errors import DeviceError, ValidationError
 from palpate.core.perception.streams import PoseSample
+from palpate.hardware.clock import DeviceTimeMap
 from palpate.hardware.polhemus.parser import RecordParser
+from palpate.hardware.polhemus.plausibility import Plausibility, RecordGate
 from palpate.hardware.polhemus.protocol import (
     CM_PER_INCH,
     DEFAULT_ITEMS,
@@ -48,6 +55,8 @@ class StreamStats:
     Attributes:
         records: good records per station.
         errors: error events (garbage, partial, implausible, device_error, bad_line), in arrival order.
+        rejected: records that parsed but could not be true, by reason (see
+            :mod:`palpate.hardware.polhemus.plausibility`).
         stop_reason: why the stream ended: 'duration', 'count', 'stopped', 'silent' (no record within the
             timeout) or 'link lost: ...'.
         started, ended: host monotonic clock, s.
@@ -55,6 +64,7 @@ class StreamStats:
 
     records: dict[int, int] = field(default_factory=dict)
     errors: list[ErrorEvent] = field(default_factory=list)
+    rejected: Counter = field(default_factory=Counter)
     stop_reason: str = ""
     started: float = 0.0
     ended: float = 0.0
@@ -80,10 +90,12 @@ class LibertyDriver:
         binary: F1 binary output (True) or F0 ASCII (False).
         items: output list; must contain position (2) and quaternion (7).
         timeout: how long to wait for an answer, s; also how long a silent stream is tolerated.
+        plausibility: the bounds a streamed record must meet to become a pose (see
+            :mod:`palpate.hardware.polhemus.plausibility`); records are delayed by one per station for it.
     """
 
     def __init__(self, transport, stations=(1,), units: str = "cm", binary: bool = True, items=DEFAULT_ITEMS,
-                 timeout: float = 0.5):
+                 timeout: float = 0.5, plausibility: Plausibility | None = None):
         if units not in UNIT_TO_M:
             raise ValidationError(f"Liberty units must be 'cm' or 'in', got {units!r}")
         self.stations = tuple(sorted({validate_station(s) for s in stations}))
@@ -102,9 +114,12 @@ class LibertyDriver:
         self.time_base = "device" if ITEM_TIMESTAMP in self.items else "host"
         self._scale = UNIT_TO_M[units]
         self._parser = self._new_parser()
-        self._last_ms: dict[int, int] = {}
-        self._wraps: dict[int, int] = {}
-        self.stats = StreamStats()
+        self.plausibility = plausibility or Plausibility()
+        # Set to a DeviceTimeMap to have streamed poses on the host clock (device time + least arrival delay).
+        self.host_time_map: DeviceTimeMap | None = None
+        self._last_host_t: dict[int, float] = {}
+        self._gate = RecordGate(self.plausibility)
+        self.stats = StreamStats(rejected=self._gate.rejected)
         self.streaming = False
 
     def _new_parser(self) -> RecordParser:
@@ -164,7 +179,8 @@ class LibertyDriver:
                     if item.record is not None and item.record.station in self.stations:
                         flagged[item.record.station] = item
                 elif item.station in self.stations:
-                    got[item.station] = self._pose(item, t_host)
+                    got[item.station] = self._pose(item, item.timestamp_ms / 1000.0 if item.timestamp_ms is not None
+                                                   else t_host)
         missing = [s for s in self.stations if s not in got]
         if not missing:
             return [got[s] for s in self.stations]
@@ -190,7 +206,9 @@ class LibertyDriver:
     def start_continuous(self) -> None:
         """Start continuous output (``C``)."""
         self._parser = self._new_parser()
-        self.stats = StreamStats(records={s: 0 for s in self.stations}, started=time.monotonic())
+        self._gate = RecordGate(self.plausibility)
+        self.stats = StreamStats(records={s: 0 for s in self.stations}, started=time.monotonic(),
+                                 rejected=self._gate.rejected)
         self.transport.write(format_command("C"))
         self.streaming = True
 
@@ -229,17 +247,18 @@ class LibertyDriver:
                 if item.station not in self.stations:
                     continue
                 last_good = t_host
-                self.stats.records[item.station] = self.stats.records.get(item.station, 0) + 1
-                count += 1
-                yield self._pose(item, t_host)
-                if max_records is not None and count >= max_records:
-                    self.stats.stop_reason = "count"
-                    self.stats.ended = time.monotonic()
-                    return
+                for pose in self._accept(item, t_host):
+                    count += 1
+                    yield pose
+                    if max_records is not None and count >= max_records:
+                        self.stats.stop_reason = "count"
+                        self.stats.ended = time.monotonic()
+                        return
         if self.stats.stop_reason != "duration":
-            # The device is gone: an incomplete tail will never complete. After a duration the stream is still
-            # running and stop() parses the rest of it.
+            # The device is gone: an incomplete tail will never complete, and the records held for checking have
+            # no successor. After a duration the stream is still running and stop() parses the rest of it.
             self.stats.errors.extend(self._parser.flush())
+            yield from self._flush_gate()
         self.stats.ended = time.monotonic()
 
     def stop(self) -> list[PoseSample]:
@@ -259,8 +278,8 @@ class LibertyDriver:
             if isinstance(item, ErrorEvent):
                 self.stats.errors.append(item)
             elif item.station in self.stations:
-                self.stats.records[item.station] = self.stats.records.get(item.station, 0) + 1
-                out.append(self._pose(item, t_host))
+                out += self._accept(item, t_host)
+        out += self._flush_gate()
         if not self.stats.stop_reason:
             self.stats.stop_reason = "stopped"
         self.stats.ended = time.monotonic()
@@ -271,21 +290,33 @@ class LibertyDriver:
     def _parse(self, chunk: bytes) -> list[Record | ErrorEvent]:
         return self._parser.feed(chunk) if chunk else []
 
-    def _pose(self, rec: Record, t_host: float) -> PoseSample:
-        if rec.timestamp_ms is not None:
-            t = self._device_seconds(rec.station, rec.timestamp_ms)
-        else:
-            t = t_host
+    def _accept(self, rec: Record, t_host: float) -> list[PoseSample]:
+        """The poses the plausibility gate accepts on seeing ``rec`` (counted in ``stats.records``)."""
+        accepted = self._gate.feed(rec.station, np.asarray(rec.position, dtype=float) * self._scale, rec.quaternion,
+                                   rec.timestamp_ms, rec.frame, t_host, (rec, t_host))
+        return [self._counted(self._pose(r, t, host)) for t, (r, host) in accepted]
+
+    def _flush_gate(self) -> list[PoseSample]:
+        return [self._counted(self._pose(r, t, host)) for t, (r, host) in self._gate.flush()]
+
+    def _counted(self, pose: PoseSample) -> PoseSample:
+        station = int(pose.sensor_id.removeprefix("liberty_station"))
+        self.stats.records[station] = self.stats.records.get(station, 0) + 1
+        return pose
+
+    def _pose(self, rec: Record, t: float, host: float | None = None) -> PoseSample:
+        """A record as a PoseSample at time ``t`` (s; the device clock unwrapped by the gate, or the host's); with a
+        ``host_time_map``, device times arriving at host time ``host`` are put on the host clock."""
+        if self.host_time_map is not None and host is not None and rec.timestamp_ms is not None:
+            self.host_time_map.observe(t, host)
+            t = self.host_time_map.host_time(t)
+            last = self._last_host_t.get(rec.station)
+            if last is not None and t <= last:  # the offset fell (a less delayed record): keep times increasing
+                t = last + 1e-6
+            self._last_host_t[rec.station] = t
         return PoseSample(
             t=t,
             position=np.asarray(rec.position, dtype=float) * self._scale,
             quaternion=np.asarray(rec.quaternion, dtype=float),
             sensor_id=station_sensor_id(rec.station),
         )
-
-    def _device_seconds(self, station: int, ms: int) -> float:
-        last = self._last_ms.get(station)
-        if last is not None and ms < last - (1 << 31):
-            self._wraps[station] = self._wraps.get(station, 0) + 1
-        self._last_ms[station] = ms
-        return (ms + (self._wraps.get(station, 0) << 32)) / 1000.0

@@ -10,18 +10,19 @@ Like the device after power-up it starts in ASCII, inches, output list 2,7,1 (th
 carries Euler angles, item 4, which palpate does not decode), so a client must configure it.
 
 Wrong baud: pyserial on a pty accepts any baud, so the emulator reads the speed the client set (the pty's
-termios, visible from the master side) and, when it differs from its own ``baud``, behaves as a UART at the
-wrong speed does: what it receives is garbage (no command is understood) and what it sends is garbled.
+termios) and, when it differs from its own ``baud``, behaves as a UART at the wrong speed does: what it receives is
+garbage (no command is understood) and what it sends is garbled (see :class:`~palpate.hardware.pty_device.PtyDevice`,
+which serves the pty).
+
+Faults (:class:`Faults`) are those of a real line: garbage bursts, records cut short, device error codes, a device
+going silent, and, byte by byte, truly random bytes (any value, 'L' and 'Y' included) and false record headers
+followed by random payload. Every record sent is kept in :attr:`LibertyEmulator.sent` with the pose it carried, so
+a test can count wrong poses a driver accepted.
 """
 
 from __future__ import annotations
 
-import os
-import select
-import termios
 import threading
-import time
-import tty
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -40,11 +41,13 @@ from palpate.hardware.polhemus.protocol import (
     validate_items,
     validate_station,
 )
+from palpate.hardware.pty_device import PtyDevice
 
 Motion = Callable[[float, int], tuple[np.ndarray, np.ndarray]]
-_SPEEDS = {getattr(termios, f"B{b}"): b for b in (2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400)}
 # The device queues at most this much output for a host that does not read; more is dropped (and counted).
 MAX_QUEUED_BYTES = 1 << 20
+# Records kept in LibertyEmulator.sent (the truth a test compares with); later ones are not logged.
+MAX_SENT_LOG = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -52,12 +55,15 @@ class Faults:
     """Error injection, counted over records sent (all stations), 1-based: ``every=N`` hits records N, 2N, ...
 
     Attributes:
-        corrupt_every: send ``corrupt_bytes`` random bytes before every Nth record (0 = never).
+        corrupt_every: send ``corrupt_bytes`` random bytes (never 'L') before every Nth record (0 = never).
         corrupt_bytes: how many garbage bytes to insert.
         partial_every: send only the first half of every Nth record (0 = never).
         error_every: set the error byte of every Nth record to ``error_code`` (0 = never).
         error_code: the nonzero error code sent.
         silent_after: after this many records, stop answering altogether (None = never).
+        byte_error_rate: each byte sent is replaced by a uniformly random byte (any value) with this probability.
+        false_header_every: before every Nth record, a well-formed header ('LY', a configured station, 'C', the
+            right size) followed by random payload bytes (0 = never).
     """
 
     corrupt_every: int = 0
@@ -66,15 +72,41 @@ class Faults:
     error_every: int = 0
     error_code: int = 0x45
     silent_after: int | None = None
+    byte_error_rate: float = 0.0
+    false_header_every: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("corrupt_every", "partial_every", "error_every", "corrupt_bytes"):
+        for name in ("corrupt_every", "partial_every", "error_every", "corrupt_bytes", "false_header_every"):
             if int(getattr(self, name)) < 0:
                 raise ValidationError(f"Faults.{name} must be >= 0, got {getattr(self, name)}")
         if self.error_code in (0, 0x20) or not 0 < self.error_code < 256:
             raise ValidationError(f"Faults.error_code must be a nonzero byte other than space, got {self.error_code}")
         if self.silent_after is not None and self.silent_after < 0:
             raise ValidationError(f"Faults.silent_after must be >= 0 records, got {self.silent_after}")
+        if not 0.0 <= self.byte_error_rate < 1.0:
+            raise ValidationError(f"Faults.byte_error_rate must be in [0, 1), got {self.byte_error_rate}")
+
+
+@dataclass(frozen=True)
+class SentRecord:
+    """What the emulator meant to send in one record (before any fault touched it).
+
+    Attributes:
+        station: station number.
+        frame: frame count sent.
+        timestamp_ms: device clock sent, ms (mod 2^32).
+        position: m, world.
+        quaternion: (w, x, y, z).
+        faults: the faults applied to it ("corrupt", "partial", "device_error", "false_header" before it;
+            "bytes" when a random byte error hit it).
+    """
+
+    station: int
+    frame: int
+    timestamp_ms: int
+    position: np.ndarray
+    quaternion: np.ndarray
+    faults: str
 
 
 def static_motion(t: float, station: int) -> tuple[np.ndarray, np.ndarray]:
@@ -103,20 +135,21 @@ def press_motion(
     return motion
 
 
-class LibertyEmulator:
-    """A Liberty speaking the real byte protocol on a pty.
+class LibertyEmulator(PtyDevice):
+    """A Liberty speaking the real byte protocol on a pty (serving starts at construction).
 
     Args:
         rate: continuous output rate, frames per second (each frame has one record per station).
         stations: the stations with a sensor plugged in (1-based).
         noise: standard deviation of the position noise added to every axis, m.
-        seed: seed of the noise and of the garbage bytes.
+        seed: seed of the noise, the garbage and the byte errors.
         motion: ``motion(t, station) -> (position m (3,), quaternion w,x,y,z (4,))``, t in s on the device clock.
         baud: the device's baud rate; a client at another speed gets garbage (see the module docstring).
         faults: error injection.
+        clock: the device's clock (:mod:`palpate.hardware.clock`); the device time starts at 0 at construction.
 
-    The device clock starts at construction; timestamps (item 8) are its ms, continuous frames are exactly
-    1/rate apart on it. Use as a context manager or call :meth:`close`.
+    Timestamps (item 8) are the device clock's ms; continuous frames are exactly 1/rate apart on it. Use as a
+    context manager or call :meth:`close`.
     """
 
     def __init__(
@@ -128,18 +161,20 @@ class LibertyEmulator:
         motion: Motion | None = None,
         baud: int = 115200,
         faults: Faults | None = None,
+        clock=None,
     ):
         if not (np.isfinite(rate) and 0 < rate <= 10000):
             raise ValidationError(f"emulator rate must be in (0, 10000] Hz, got {rate}")
         if not (np.isfinite(noise) and noise >= 0):
             raise ValidationError(f"emulator position noise must be >= 0 m, got {noise}")
+        super().__init__(baud, "liberty-emulator", clock=clock, garble_wrong_baud=True, max_queued=MAX_QUEUED_BYTES,
+                         seed=seed + 1)
         self.rate = float(rate)
         self.stations = tuple(validate_station(s) for s in stations)
         if not self.stations:
             raise ValidationError("emulator needs at least one station")
         self.noise = float(noise)
         self.motion = motion or static_motion
-        self.baud = int(baud)
         self.faults = faults or Faults()
         self._rng = np.random.default_rng(seed)
         # Device state (power-up defaults).
@@ -154,43 +189,21 @@ class LibertyEmulator:
         # One entry per record sent: (station, timestamp ms, faults applied such as "corrupt,partial", bytes sent
         # that belong to no good record: the garbage, or the whole of a cut record).
         self.log: list[tuple[int, int, str, int]] = []
+        self.sent: list[SentRecord] = []
         self.frames_sent = 0
-        self.faults_injected = {"corrupt": 0, "partial": 0, "device_error": 0}
-        self.garbled_bytes_in = 0
-        self.dropped_bytes = 0
+        self.faults_injected = {"corrupt": 0, "partial": 0, "device_error": 0, "false_header": 0, "bytes": 0}
         self._frame_count = 0
         self._line = b""
-        self._out = bytearray()
-        self._t0 = time.monotonic()
         self._next_frame_time = 0.0
-        self._stop = threading.Event()
         self._lock = threading.Lock()
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._slave)  # no echo, no CR/LF translation: a serial line carries bytes as they are
-        os.set_blocking(self._master, False)
-        self.port = os.ttyname(self._slave)
-        self._thread = threading.Thread(target=self._run, name="liberty-emulator", daemon=True)
-        self._thread.start()
+        self._t0 = self.clock()
+        self.start()
 
     # -- lifecycle ----------------------------------------------------------------------------------------
 
     def close(self) -> None:
-        """Stop the thread and release the pty."""
-        if self._stop.is_set():
-            return
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        for fd in (self._master, self._slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-
-    def __enter__(self) -> LibertyEmulator:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
+        """Stop serving and release the pty."""
+        self.stop()
 
     @property
     def silent(self) -> bool:
@@ -198,65 +211,43 @@ class LibertyEmulator:
         s = self.faults.silent_after
         return s is not None and self.records_sent >= s
 
+    @property
+    def epoch(self) -> float:
+        """The clock's reading at the device's time zero (another emulator can share it: one motion, two devices)."""
+        return self._t0
+
     def device_time(self) -> float:
         """Seconds on the device clock."""
-        return time.monotonic() - self._t0
+        return self.clock() - self._t0
 
     def start_continuous(self) -> None:
         """Put the device in continuous mode as if a previous session had left it streaming."""
         with self._lock:
             self._start_continuous()
 
-    # -- thread -------------------------------------------------------------------------------------------
+    # -- the pty (called by PtyDevice's thread) -----------------------------------------------------------
 
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            now = self.device_time()
-            wait = 0.05
+    def respond(self, data: bytes) -> bytes:
+        if self.silent:
+            return b""
+        with self._lock:
+            self._receive(data)
+        return b""  # records are queued as they are made
+
+    def emit(self, now: float) -> bytes:
+        with self._lock:
             if self.continuous and not self.silent:
-                wait = min(wait, max(0.0, self._next_frame_time - now))
-            try:
-                r, w, _ = select.select([self._master], [self._master] if self._out else [], [], wait)
-            except (OSError, ValueError):
-                return
-            if r:
-                try:
-                    data = os.read(self._master, 4096)
-                except BlockingIOError:
-                    data = b""
-                except OSError:
-                    return
-                with self._lock:
-                    self._receive(data)
-            with self._lock:
-                if self.continuous and not self.silent:
-                    self._emit_due_frames()
-            if self._out:
-                try:
-                    n = os.write(self._master, bytes(self._out[:65536]))
-                    del self._out[:n]
-                except BlockingIOError:
-                    pass
-                except OSError:
-                    return
+                self._emit_due_frames()
+        return b""
 
-    def _client_baud(self) -> int | None:
-        try:
-            return _SPEEDS.get(termios.tcgetattr(self._master)[5])
-        except termios.error:
+    def next_emit(self) -> float | None:
+        if not self.continuous or self.silent:
             return None
-
-    def _baud_matches(self) -> bool:
-        return self._client_baud() == self.baud
+        return self._t0 + self._next_frame_time
 
     # -- commands -----------------------------------------------------------------------------------------
 
     def _receive(self, data: bytes) -> None:
-        if self.silent:
-            return
-        if not self._baud_matches():
-            self.garbled_bytes_in += len(data)
-            return
         for byte in data:
             ch = bytes([byte])
             if not self._line and ch in (b"P", b"C"):
@@ -327,14 +318,15 @@ class LibertyEmulator:
                 return
             pos, quat = self.motion(t, station)
             pos = np.asarray(pos, dtype=float) + (self._rng.normal(0.0, self.noise, 3) if self.noise else 0.0)
-            self._send_record(command, station, pos * scale, np.asarray(quat, dtype=float), t)
+            self._send_record(command, station, pos, scale, np.asarray(quat, dtype=float), t)
 
-    def _send_record(self, command: str, station: int, pos, quat, t: float) -> None:
+    def _send_record(self, command: str, station: int, pos_m, scale: float, quat, t: float) -> None:
         f = self.faults
         k = self.records_sent + 1
         error = f.error_code if f.error_every and k % f.error_every == 0 else 0
         items = self.items[station]
         ts, frame = int(round(t * 1000.0)) & 0xFFFFFFFF, self._frame_count
+        pos = pos_m * scale
         if self.binary:
             data = encode_binary(items, station, command, pos, quat, ts, frame, error)
         else:
@@ -343,6 +335,7 @@ class LibertyEmulator:
         if error:
             self.faults_injected["device_error"] += 1
             applied.append("device_error")
+        wasted = 0
         if f.corrupt_every and k % f.corrupt_every == 0:
             # Garbage without 'L', so it cannot be taken for a header: the test knows exactly what was sent.
             junk = self._rng.integers(0, 255, f.corrupt_bytes, dtype=np.uint8)
@@ -350,25 +343,32 @@ class LibertyEmulator:
             data = junk.tobytes() + data
             self.faults_injected["corrupt"] += 1
             applied.append("corrupt")
-        wasted = f.corrupt_bytes if "corrupt" in applied else 0
+            wasted = f.corrupt_bytes
+        if f.false_header_every and k % f.false_header_every == 0:
+            fake = bytearray(encode_binary(items, station, "C"))
+            fake[8:] = self._rng.integers(0, 256, len(fake) - 8, dtype=np.uint8).tobytes()
+            data = bytes(fake) + data
+            self.faults_injected["false_header"] += 1
+            applied.append("false_header")
         if f.partial_every and k % f.partial_every == 0:
             data = data[: len(data) // 2]
             self.faults_injected["partial"] += 1
             applied.append("partial")
             wasted = len(data)
+        if f.byte_error_rate > 0:
+            raw = np.frombuffer(data, dtype=np.uint8).copy()
+            hit = self._rng.random(len(raw)) < f.byte_error_rate
+            if hit.any():
+                raw[hit] = self._rng.integers(0, 256, int(hit.sum()), dtype=np.uint8)
+                data = raw.tobytes()
+                self.faults_injected["bytes"] += int(hit.sum())
+                applied.append("bytes")
         self.records_sent += 1
         self.log.append((station, ts, ",".join(applied), wasted))
-        self._queue(data)
-
-    def _queue(self, data: bytes) -> None:
-        if not self._baud_matches():
-            # A UART at the wrong speed turns every byte into some other byte (and framing errors).
-            data = self._rng.integers(0, 256, len(data), dtype=np.uint8).tobytes()
-        if len(self._out) + len(data) > MAX_QUEUED_BYTES:
-            self.dropped_bytes += len(data)
-            return
-        self._out += data
-
+        if len(self.sent) < MAX_SENT_LOG:
+            self.sent.append(SentRecord(station, frame, ts, np.asarray(pos_m, dtype=float).copy(),
+                                        np.asarray(quat, dtype=float).copy(), ",".join(applied)))
+        self.queue(data)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -383,15 +383,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     stations = tuple(int(s) for s in args.stations.split(","))
-    with LibertyEmulator(rate=args.rate, stations=stations, noise=args.noise, seed=args.seed,
-                         motion=press_motion(), baud=args.baud) as emu:
-        print(f"Liberty emulator on {emu.port} ({args.baud} baud, stations {list(stations)}); Ctrl-C to stop",
-              flush=True)
-        try:
-            while True:
-                time.sleep(0.5)
-        except KeyboardInterrupt:
-            pass
+    emu = LibertyEmulator(rate=args.rate, stations=stations, noise=args.noise, seed=args.seed, motion=press_motion(),
+                          baud=args.baud)
+    emu.serve_until_interrupted(f"Liberty emulator on {emu.port} ({args.baud} baud, stations {list(stations)}); "
+                                "Ctrl-C to stop")
     return 0
 
 

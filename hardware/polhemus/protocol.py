@@ -314,7 +314,7 @@ def decode_ascii_line(line: bytes, items, station_ok: np.ndarray | None = None) 
     except UnicodeDecodeError:
         return bad("contains non-ASCII bytes")
     head, body = text[:4], text[4:]
-    if not head[:2].strip().isdigit():
+    if not re.fullmatch(r"[ 0-9][0-9]", head[:2]):
         return bad("does not start with a two-digit station number")
     station = int(head[:2])
     if station_ok is not None and not (0 <= station < len(station_ok) and station_ok[station]):

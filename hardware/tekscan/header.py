@@ -1,9 +1,11 @@
 """The header of a Tekscan ASCII/CSV movie export: key aliases, units, and the typed entries the reader needs
-(rows, columns, frame period, sensel spacing and area)."""
+(rows, columns, frame period, sensel spacing and area, the conversion of the values to counts), with limits on
+sizes that could not come from a real sensor (see :class:`ExportHeader`)."""
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -103,6 +105,8 @@ def int_entry(header, key: str, name: str, *, default: int | None = None, minimu
     value, line = header[key]
     if not re.fullmatch(r"[-+]?\d+", value):
         raise ValidationError(f"{name}:{line}: {key} must be a whole number, got {value!r}")
+    if len(value.lstrip("+-").lstrip("0")) > 16:
+        raise ValidationError(f"{name}:{line}: {key} {value[:20]}... is too large (more than 16 digits)")
     number = int(value)
     if number < minimum:
         raise ValidationError(f"{name}:{line}: {key} must be >= {minimum}, got {number}")
@@ -151,3 +155,98 @@ def area_entry(header, row_sp, col_sp, name: str) -> float:
         raise ValidationError(f"{name}:{header['SENSEL_AREA'][1]}: SENSEL_AREA must be a positive area with a unit "
                               f"(cm2, sq cm, mm2, in2, m2), got {header['SENSEL_AREA'][0]!r}")
     return number * scale
+
+
+# Limits on what a header may declare, checked before anything is allocated. Tekscan's largest maps have a few
+# thousand sensels (a 2288-sensel hand map, 44x52 mats); these bounds are far above any real sensor and stop a typo
+# or a hostile file from asking for gigabytes per frame.
+MAX_SIDE = 4096
+MAX_SENSELS = 1 << 20
+# Longest frame period accepted, s: a Tekscan movie samples at 1 Hz or faster; hours per frame is a unit mistake.
+MAX_FRAME_PERIOD = 3600.0
+# Frame numbers beyond this cannot be times on a float64 clock to the frame (2^53): a damaged or hostile file.
+MAX_FRAME_NUMBER = 1 << 53
+
+
+@dataclass(frozen=True)
+class ExportHeader:
+    """The typed header of an export.
+
+    Attributes:
+        rows, cols: sensels per frame.
+        seconds_per_frame: frame period, s.
+        sensel_area: m^2.
+        row_spacing, col_spacing: sensel pitch, m (None when not given).
+        units: UNITS as written (RAW when absent).
+        scale: counts per unit of the file's values (None for RAW).
+        noise: NOISE_THRESHOLD in the file's units (0 when absent).
+        entries: every header entry as (text, line), keyed by upper-case key (aliases resolved).
+    """
+
+    rows: int
+    cols: int
+    seconds_per_frame: float
+    sensel_area: float
+    row_spacing: float | None
+    col_spacing: float | None
+    units: str
+    scale: float | None
+    noise: float
+    entries: dict = field(default_factory=dict)
+
+    @property
+    def noise_counts(self) -> int:
+        """The noise threshold converted to counts (0..254)."""
+        scaled = self.noise if self.scale is None else self.noise * self.scale
+        return int(np.clip(round(scaled), 0, 254))
+
+
+def export_header(header: dict[str, tuple[str, int]], name: str, full_scale_pa: float | None = None) -> ExportHeader:
+    """The typed header from the entries :func:`parse_header` returns; ValidationError naming file and line."""
+    rows = int_entry(header, "ROWS", name, minimum=1)
+    cols = int_entry(header, "COLS", name, minimum=1)
+    if rows > MAX_SIDE or cols > MAX_SIDE or rows * cols > MAX_SENSELS:
+        raise ValidationError(f"{name}: a {rows} x {cols} map is larger than any Tekscan sensor (at most {MAX_SIDE} "
+                              f"rows or columns and {MAX_SENSELS} sensels are read); check ROWS and COLS")
+    spf = frame_period(header, name)
+    if spf > MAX_FRAME_PERIOD:
+        raise ValidationError(f"{name}: a frame period of {spf:g} s is longer than {MAX_FRAME_PERIOD:g} s; check "
+                              "SECONDS_PER_FRAME (in s) or FRAMES_PER_SECOND (in Hz)")
+    row_sp = length_entry(header, "ROW_SPACING", name)
+    col_sp = length_entry(header, "COL_SPACING", name)
+    area = area_entry(header, row_sp, col_sp, name)
+    units = header["UNITS"][0] if "UNITS" in header else "RAW"
+    scale = count_scale(header, units, area, full_scale_pa, name)
+    noise = number_unit(header, "NOISE_THRESHOLD", name)[0] if "NOISE_THRESHOLD" in header else 0.0
+    return ExportHeader(rows, cols, spf, area, row_sp, col_sp, units, scale, noise, dict(header))
+
+
+def count_scale(header, units_text: str, area: float, full_scale_pa, name: str) -> float | None:
+    """Counts per unit of the file's values: None for RAW, else 255 / p_sat scaled to the file's unit."""
+    unit = unit_key(units_text)
+    where = f"{name}:{header['UNITS'][1]}" if "UNITS" in header else name
+    if unit in ("raw", "", "counts", "count"):
+        return None
+    if unit in PRESSURE:
+        to_pa = PRESSURE[unit]
+    elif unit in FORCE:
+        to_pa = FORCE[unit] / area  # per-sensel force -> mean pressure over the sensel
+    else:
+        raise ValidationError(f"{where}: UNITS {units_text!r} not understood; expected RAW, a pressure "
+                              f"({', '.join(PRESSURE)}) or a per-sensel force ({', '.join(FORCE)})")
+    if "SATURATION_PRESSURE" in header:
+        number, sat_unit = number_unit(header, "SATURATION_PRESSURE", name)
+        sat_scale = PRESSURE.get(unit_key(sat_unit)) if sat_unit else to_pa
+        if sat_scale is None:
+            raise ValidationError(f"{name}:{header['SATURATION_PRESSURE'][1]}: SATURATION_PRESSURE unit {sat_unit!r}"
+                                  f" not understood; expected one of {', '.join(PRESSURE)}")
+        p_sat = number * sat_scale
+    elif full_scale_pa is not None:
+        p_sat = float(full_scale_pa)
+    else:
+        raise ValidationError(f"{where}: UNITS {units_text!r} is not RAW and the header has no SATURATION_PRESSURE; "
+                              "give the sensor's full-scale pressure (--full-scale, e.g. '862 kPa') to convert to "
+                              "8-bit counts")
+    if not (np.isfinite(p_sat) and p_sat > 0):
+        raise ValidationError(f"{name}: saturation pressure must be > 0 Pa, got {p_sat}")
+    return to_pa * 255.0 / p_sat

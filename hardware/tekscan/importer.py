@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import os
+import warnings
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -14,8 +16,10 @@ from palpate.core.errors import ValidationError
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.perception.streams import TaxelFrame
 from palpate.core.session.output_guard import check_output_file
+from palpate.hardware.tekscan.body import to_counts
 from palpate.hardware.tekscan.header import NUMBER_UNIT, PRESSURE, unit_key
-from palpate.hardware.tekscan.reader import read_tekscan, select_region
+from palpate.hardware.tekscan.reader import TekscanWarning, parse_region
+from palpate.hardware.tekscan.stream import MAX_EXPORT_BYTES, open_export
 
 
 @dataclass(frozen=True)
@@ -67,15 +71,31 @@ def parse_start_time(text: str | None) -> float:
             f"--start-time {text!r} is not an ISO 8601 date-time (e.g. 2024-05-02T14:30:00Z)") from None
     if when.tzinfo is None:
         when = when.replace(tzinfo=UTC)
-    t = when.timestamp()
+    try:
+        t = when.timestamp()
+    except (OverflowError, ValueError, OSError):
+        t = float("inf")
     if t < 0:
         raise ValidationError(f"--start-time {text!r} is before 1970-01-01, which MCAP log times cannot hold")
+    if not t < MAX_LOG_TIME:
+        raise ValidationError(f"--start-time {text!r} is after {_LAST_DATE}, which MCAP log times (unsigned 64-bit "
+                              "ns since 1970) cannot hold")
     return t
 
 
+#: Latest time a recording can hold, s since 1970 (MCAP log times are unsigned 64-bit nanoseconds).
+MAX_LOG_TIME = (2**64 - 1) / 1e9
+_LAST_DATE = datetime.fromtimestamp(int(MAX_LOG_TIME), UTC).strftime("%Y-%m-%d")
+
+
 def import_tekscan(path, out, *, region: str | None = None, start_time: float = 0.0, sensor_id: str = "tekscan",
-                   full_scale_pa: float | None = None) -> ImportSummary:
+                   full_scale_pa: float | None = None, max_bytes: int = MAX_EXPORT_BYTES) -> ImportSummary:
     """Convert a Tekscan ASCII/CSV movie export into an MCAP recording with one ``/taxels/<sensor_id>`` topic.
+
+    The export is streamed (memory does not grow with its length) into ``out`` + ``.partial``, which becomes
+    ``out`` only when every frame has been read and written: a bad file leaves nothing behind, and ``out`` may not
+    be the export itself. The metadata holds the header and the source file's name; the sensor mask (cells never
+    ``B``) and the frame number range, known only at the end, are in the last annotation, ``tekscan_import``.
 
     Args:
         path: the Tekscan export.
@@ -84,40 +104,96 @@ def import_tekscan(path, out, *, region: str | None = None, start_time: float = 
         start_time: time of the first frame, s (Unix time for absolute stamps; 0 keeps file-relative times).
         sensor_id: topic name of the pad.
         full_scale_pa: saturation pressure, Pa, for pressure exports without SATURATION_PRESSURE.
+        max_bytes: largest export read, bytes.
 
     Raises:
         ValidationError: bad file, region or arguments (the message names the file and line).
     """
-    path = Path(path)
-    movie = read_tekscan(path, full_scale_pa=full_scale_pa)
-    if region is not None:
-        movie = select_region(movie, region)
-    if not (np.isfinite(start_time) and start_time >= 0):
-        raise ValidationError(f"start_time must be a finite time >= 0 s, got {start_time!r}")
+    path, out = Path(path), Path(out)
+    if not (np.isfinite(start_time) and 0 <= start_time < MAX_LOG_TIME):
+        raise ValidationError(f"start_time must be a time in [0, {MAX_LOG_TIME:.4g}) s, got {start_time!r}")
+    if out.exists() and path.exists() and out.resolve() == path.resolve():
+        raise ValidationError(f"--out {out} is the Tekscan export being imported; write the recording elsewhere")
+    stream = open_export(path, full_scale_pa=full_scale_pa, max_bytes=max_bytes)
+    h = stream.header
+    r0, r1, c0, c1 = parse_region(region) if region is not None else (0, h.rows, 0, h.cols)
+    if not (0 <= r0 < r1 <= h.rows and 0 <= c0 < c1 <= h.cols):
+        raise ValidationError(f"{path.name}: region {r0}:{r1},{c0}:{c1} lies outside the {h.rows}x{h.cols} map "
+                              f"(rows 0..{h.rows}, cols 0..{h.cols}, half-open)")
     metadata = {
         "scenario": None,
-        "sources": [{
-            "kind": "tekscan_ascii", "file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
-            "sensor_id": sensor_id, "region": list(movie.region), "start_time": start_time,
-        }],
+        "sources": [{"kind": "tekscan_ascii", "file": path.name, "sha256": file_sha256(path), "sensor_id": sensor_id,
+                     "region": [r0, r1, c0, c1], "start_time": start_time}],
         "tekscan": {
-            "header": movie.header, "units": movie.units, "noise_threshold_counts": movie.noise_threshold,
-            "sensor_mask": movie.mask.astype(int).tolist(), "seconds_per_frame": movie.seconds_per_frame,
-            "row_spacing_m": movie.row_spacing, "col_spacing_m": movie.col_spacing,
-            "frame_numbers": [int(movie.frame_numbers[0]), int(movie.frame_numbers[-1])],
+            "header": {k: v for k, (v, _) in h.entries.items()}, "units": h.units,
+            "noise_threshold_counts": h.noise_counts, "seconds_per_frame": h.seconds_per_frame,
+            "row_spacing_m": h.row_spacing, "col_spacing_m": h.col_spacing,
         },
     }
-    t = start_time + movie.t
-    with RecordingWriter(out, metadata, chunk_size=64 * 1024) as w:
-        for ti, c in zip(t, movie.counts, strict=True):
-            w.write_taxel(TaxelFrame(float(ti), c, movie.sensel_area, sensor_id))
-    flat = movie.counts.reshape(len(movie.counts), -1)
+    partial = out.with_name(out.name + ".partial")
+    stats = _Stats(np.zeros((r1 - r0, c1 - c0), dtype=bool))
+    try:
+        with RecordingWriter(partial, metadata, chunk_size=64 * 1024) as w:
+            for block in stream.blocks():
+                counts, over = to_counts(block, h.scale, path.name)
+                counts = counts[:, r0:r1, c0:c1]
+                t = start_time + stream.times(block.numbers)
+                if not t[-1] < MAX_LOG_TIME:
+                    k = int(np.argmax(~(t < MAX_LOG_TIME)))
+                    raise ValidationError(f"{path.name}:{int(block.line_of_frame[k])}: Frame {block.numbers[k]} "
+                                          f"falls {t[k]:.4g} s after 1970, later than a recording can hold "
+                                          f"({_LAST_DATE}); check the frame numbers, SECONDS_PER_FRAME and "
+                                          "--start-time")
+                for ti, c in zip(t, counts, strict=True):
+                    w.write_taxel(TaxelFrame(float(ti), c, h.sensel_area, sensor_id))
+                stats.add(t, counts, block.is_b[:, r0:r1, c0:c1], over, h.noise_counts)
+            w.write_annotation(stats.t1, "tekscan_import", {
+                "frames": stats.frames, "frame_numbers":
+                [stream.first_number, stream.last_number], "sensor_mask": (~stats.b_any).astype(int).tolist()})
+        os.replace(partial, out)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
+    if stats.clipped:
+        warnings.warn(f"{path.name}: {stats.clipped} values above the saturation pressure were clipped to 255 "
+                      "counts", TekscanWarning, stacklevel=2)
     return ImportSummary(
-        out=Path(out), frames=len(movie.counts), shape=movie.shape, duration=float(movie.t[-1] - movie.t[0]),
-        start_time=float(t[0]), sensel_area=movie.sensel_area, b_cells=int((~movie.mask).sum()),
-        peak_c_P=int(flat.sum(axis=1, dtype=np.int64).max()),
-        peak_active=int((flat > movie.noise_threshold).sum(axis=1).max()), region=movie.region,
-    )
+        out=out, frames=stats.frames, shape=(r1 - r0, c1 - c0), duration=stats.t1 - stats.t0, start_time=stats.t0,
+        sensel_area=h.sensel_area, b_cells=int(stats.b_any.sum()), peak_c_P=stats.peak_c_p,
+        peak_active=stats.peak_active, region=(r0, r1, c0, c1))
+
+
+def file_sha256(path: Path) -> str:
+    """SHA-256 of a file, read in 1 MiB pieces."""
+    sha = hashlib.sha256()
+    with open(path, "rb") as f:
+        while chunk := f.read(1 << 20):
+            sha.update(chunk)
+    return sha.hexdigest()
+
+
+@dataclass
+class _Stats:
+    """What the import summary reports, gathered block by block."""
+
+    b_any: np.ndarray
+    frames: int = 0
+    t0: float = 0.0
+    t1: float = 0.0
+    peak_c_p: int = 0
+    peak_active: int = 0
+    clipped: int = 0
+
+    def add(self, t: np.ndarray, counts: np.ndarray, is_b: np.ndarray, clipped: int, noise: int) -> None:
+        flat = counts.reshape(len(counts), -1)
+        if self.frames == 0:
+            self.t0 = float(t[0])
+        self.t1 = float(t[-1])
+        self.frames += len(counts)
+        self.peak_c_p = max(self.peak_c_p, int(flat.sum(axis=1, dtype=np.int64).max()))
+        self.peak_active = max(self.peak_active, int((flat > noise).sum(axis=1).max()))
+        self.b_any |= is_b.any(axis=0)
+        self.clipped += clipped
 
 
 def _pressure_pa(text: str) -> float:
@@ -142,12 +218,15 @@ def add_import_command(imports: argparse._SubParsersAction) -> None:
     p.add_argument("--sensor-id", default="tekscan", help="sensor name, gives the topic /taxels/ID (default tekscan)")
     p.add_argument("--full-scale", type=_pressure_pa, metavar="PRESSURE",
                    help="saturation pressure, e.g. '862 kPa', for pressure exports without SATURATION_PRESSURE")
+    p.add_argument("--max-bytes", type=int, default=MAX_EXPORT_BYTES, metavar="N",
+                   help=f"largest export read, bytes (default {MAX_EXPORT_BYTES >> 30} GiB; the import streams, "
+                        "so memory does not grow with the file)")
     p.set_defaults(func=_run_import)
 
 
 def _run_import(args: argparse.Namespace) -> int:
     check_output_file(args.out, inputs=[args.file], force=args.force)
     summary = import_tekscan(args.file, args.out, region=args.region, start_time=parse_start_time(args.start_time),
-                             sensor_id=args.sensor_id, full_scale_pa=args.full_scale)
+                             sensor_id=args.sensor_id, full_scale_pa=args.full_scale, max_bytes=args.max_bytes)
     print(summary.text())
     return 0

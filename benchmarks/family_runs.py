@@ -1,0 +1,203 @@
+"""Runs of exploration policies on the shape-family scenes (benchmarks/scene_families.py), offline and with physics.
+
+Offline, a press is answered without simulating it: the cell's *felt* reference material is worked out once per
+cell from the physics model's contact law there (sim/contact: the modulus of the Hertz law through the force the
+press reaches; a press on a wall or on a one-cell feature feels a blend, which may read as a third material), and
+each press then draws one of the memory's predicted posteriors for that material (palpate.core.planning.outcomes).
+With physics, every press is simulated (analytic fidelity) and perceived through the run's own loop (explore_object).
+
+Both record the post-processed map's accuracy after every press; the *ceiling* of a scene is what a raster reaches
+with every cell pressed once (the attainable accuracy), and a run's presses are counted to 95% of the ceiling and to
+95% absolute.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import tempfile
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+from exploration import make_source_for
+from scene_families import GENERATOR_VERSION, REFERENCES, FamilyScene, scene
+
+from palpate.core.errors import ValidationError
+from palpate.core.mapping.accuracy import map_accuracy
+from palpate.core.mapping.calibration import calibration_sample
+from palpate.core.mapping.grids import new_map
+from palpate.core.planning.outcomes import outcome_posteriors
+from palpate.core.planning.registry import make_policy
+from palpate.core.session.explore import explore_object
+from palpate.core.session.progress import Progress
+from palpate.core.session.training import train_memory
+from palpate.core.world.scenario_file import parse_scenario
+from palpate.core.world.workspace import ground_truth_map, object_geometry
+from palpate.sim.contact.stack import object_law
+from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS
+
+#: Benchmark rows: name -> (scenario policy, info_gain objective).
+ROWS = {"raster": ("raster", None), "max_entropy": ("max_entropy", None),
+        "info_gain_entropy": ("info_gain", "entropy"), "info_gain": ("info_gain", "accuracy")}
+ACCURACY = 0.95
+OF_CEILING = 0.95
+#: Where felt materials are cached (recomputed when missing; delete to recompute after changing the generator).
+CACHE_DIR = Path(tempfile.gettempdir()) / f"palpate_families_v{GENERATOR_VERSION}_law"
+#: Fractions of a scene's cells pressed at which the map's calibration is sampled.
+CALIBRATION_AT = (0.2, 0.35, 0.5, 1.0)
+
+
+@dataclass(frozen=True)
+class Run:
+    """One policy on one scene: accuracy of the post-processed map before the first press and after each press,
+    and the post-processed maps' (confidence, right) per cell at :data:`CALIBRATION_AT`."""
+
+    accuracy: np.ndarray
+    confidence: np.ndarray
+    right: np.ndarray
+
+    def presses_to(self, level: float) -> int | None:
+        hit = np.flatnonzero(self.accuracy >= level - 1e-12)
+        return int(hit[0]) if hit.size else None
+
+
+@cache
+def memory_for(references: tuple[str, ...], moduli: tuple[float, ...]):
+    """The haptic memory of reference materials (names, Young's moduli kPa), trained once with physics presses
+    (10 per material)."""
+    mats = [{"name": n, "young_kpa": e, "poisson": next(r[2] for r in REFERENCES if r[0] == n)}
+            for n, e in zip(references, moduli, strict=True)]
+    raw = scene(0).scenario_dict()
+    raw["materials"] = mats
+    raw["objects"][0]["material"] = references[0]
+    sc = parse_scenario(raw, "training")
+    return train_memory(sc, make_source_for(sc), np.arange(len(references)) + 1000, Progress(enabled=False)).memory
+
+
+@cache
+def answers_for(references: tuple[str, ...], moduli: tuple[float, ...], samples: int = 40) -> np.ndarray:
+    """Predicted per-press posteriors (M, S, M) of the memory of ``references`` (offline presses draw from them)."""
+    return outcome_posteriors(memory_for(references, moduli), samples, seed=99)
+
+
+def felt_cells(fs: FamilyScene) -> np.ndarray:
+    """(ny, nx) reference index a press at each cell centre reads: the reference whose E* is nearest (in log) to
+    the effective modulus felt under a 4 mm / 10 N press there (the Hertz law's E* through the contact law's force at
+    the press's depth: layers, lumps and the table under a thin object)."""
+    sc = fs.scenario()
+    entry = sc.objects[0]
+    spec = entry.spec
+    geom = object_geometry(sc, entry)
+    refs = sc.references
+    e_ref = np.log([sc.materials[r].material.effective_modulus for r in refs])
+    radius = sc.fingertip.radius
+    top = spec.height
+    centres = geom.cell_centres()
+    out = np.empty(centres.shape[:2], dtype=int)
+    for iy in range(centres.shape[0]):
+        for ix in range(centres.shape[1]):
+            x, y = (float(v) for v in centres[iy, ix])
+            law = object_law(spec, x, y, top, radius, MAX_DEPTH_OVER_RADIUS * radius)
+            force = sc.exploration.max_force
+            reach = law.depth_for_force(force) if force < law.force[-1] else law.max_depth
+            d = min(sc.exploration.depth, reach)
+            e = 3.0 * float(law.force_at(d)) / (4.0 * math.sqrt(radius) * d**1.5)
+            out[iy, ix] = int(np.argmin(np.abs(e_ref - math.log(e))))
+    return out
+
+
+def _calibration_sample(post_p: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    conf, right, _ = calibration_sample(post_p, truth)
+    return conf, right
+
+
+def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memory=None, answers=None,
+                felt=None, policy_kwargs: dict | None = None) -> Run:
+    """One policy on one scene with presses answered offline (module docstring); stops once the accuracy reaches
+    ``stop_at`` (None: after one press per cell)."""
+    kind, objective = ROWS[row]
+    sc = fs.scenario(kind, objective=objective)
+    entry = sc.objects[0]
+    geom = object_geometry(sc, entry)
+    truth = ground_truth_map(entry, sc, geom)
+    felt = felt_cells_cached(fs) if felt is None else felt
+    memory = memory_for(fs.references, fs.moduli()) if memory is None else memory
+    answers = answers_for(fs.references, fs.moduli()) if answers is None else answers
+    ex = sc.exploration
+    regions = [(c - 1, r - 1) for c, r in entry.regions]
+    cal = ex.calibration
+    policy = make_policy(kind, cells=regions, seed=fs.seed, memory=memory, objective=ex.objective,
+                         feature_size=ex.feature_size, certainty=cal.extrapolation_certainty,
+                         **(policy_kwargs or {}))
+    grid = new_map(geom)
+    rng = np.random.default_rng(fs.seed + 7000)
+    n = truth.size
+    checkpoints = {max(1, int(round(f * n))) for f in CALIBRATION_AT}
+    acc, confs, rights = [], [], []
+    last = None
+    post = grid.postprocessed(certainty=cal.extrapolation_certainty)
+    for k in range(n + 1):
+        acc.append(map_accuracy(post.probabilities, truth) or 0.0)
+        if k in checkpoints:
+            c, r = _calibration_sample(np.asarray(post.probabilities), truth)
+            confs.append(c)
+            rights.append(r)
+        if k == n or (stop_at is not None and acc[-1] >= stop_at):
+            break
+        t = policy.next_target(grid, post, last)
+        if t is None:
+            break
+        grid.update_cell(t.ix, t.iy, cal.evidence(answers[felt[t.iy, t.ix], rng.integers(answers.shape[1])]))
+        last = (t.ix, t.iy)
+        post = grid.postprocessed(certainty=cal.extrapolation_certainty)
+    return Run(np.array(acc), np.concatenate(confs) if confs else np.zeros(0),
+               np.concatenate(rights) if rights else np.zeros(0, bool))
+
+
+def felt_cells_cached(fs: FamilyScene) -> np.ndarray:
+    """:func:`felt_cells` of a scene, kept in CACHE_DIR (a few ms per cell to compute)."""
+    # keyed on the materials too: a variant of the same layout (--confused) feels different
+    key = hashlib.sha1(repr(fs.materials).encode()).hexdigest()[:10]
+    path = CACHE_DIR / f"felt_{fs.seed}_{key}.npy"
+    if path.is_file():
+        got = np.load(path, allow_pickle=False)
+        if got.shape == fs.grid_cells[::-1]:
+            return got
+    out = felt_cells(fs)
+    CACHE_DIR.mkdir(parents=True, exist_ok=True)
+    np.save(path, out, allow_pickle=False)
+    return out
+
+
+def physics_run(fs: FamilyScene, row: str, seed: int = 0, budget: int | None = None) -> Run:
+    """One policy on one scene with simulated presses (analytic fidelity) through explore_object, one press per
+    cell at most (``budget`` presses when given)."""
+    kind, objective = ROWS[row]
+    sc = fs.scenario(kind, budget=budget, objective=objective)
+    entry = sc.objects[0]
+    memory = memory_for(fs.references, fs.moduli())
+    res = explore_object(sc, entry, memory, make_source_for(sc), 7000 + fs.seed + seed, Progress(enabled=False))
+    truth = res.truth
+    cal = sc.exploration.calibration
+    certainty = cal.extrapolation_certainty
+    acc = [map_accuracy(new_map(res.geometry).postprocessed().probabilities, truth) or 0.0]
+    acc += [s.accuracy_postprocessed or 0.0 for s in res.steps]
+    n = truth.size
+    checkpoints = {max(1, int(round(f * n))) for f in CALIBRATION_AT}
+    confs, rights = [], []
+    # the run's map after each press, rebuilt from what each press fused (the run keeps only the last one)
+    grid = new_map(res.geometry)
+    for s in res.steps:
+        if s.posterior is not None:
+            try:
+                grid.update(*s.result.location, cal.evidence(s.posterior))
+            except ValidationError:  # the finger slipped off the grid: the run updated the planned cell
+                grid.update(*s.target, cal.evidence(s.posterior))
+        if s.k in checkpoints:
+            c, r = _calibration_sample(np.asarray(grid.postprocessed(certainty=certainty).probabilities), truth)
+            confs.append(c)
+            rights.append(r)
+    return Run(np.array(acc), np.concatenate(confs) if confs else np.zeros(0),
+               np.concatenate(rights) if rights else np.zeros(0, bool))

@@ -1,0 +1,51 @@
+"""Wrong Liberty poses a faulty line lets through, and what the plausibility checks cost: a table.
+
+Run: ``.venv/bin/python benchmarks/liberty_faults.py [--quick]``. Each row streams from the Liberty emulator on a pty
+(240 Hz, one station pressing 1 cm once a second 30 cm from the source, sent 10x faster than real time) through
+pyserial and the real driver, with truly random bytes on the line at the given rate (and false record headers
+before every 5th record in the "+ headers" rows), and compares every accepted pose with what the emulator sent
+(:mod:`palpate.hardware.polhemus.fault_trial`: wrong = no such record, or > 2 mm or > 1 degree from it).
+The checks' bounds are the physical defaults of ``Plausibility`` (not tuned on these seeds: 10-14).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from palpate.hardware.polhemus.emulator import Faults
+from palpate.hardware.polhemus.fault_trial import run_trial
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="one seed per row, shorter streams")
+    args = ap.parse_args()
+    seeds = [10] if args.quick else [10, 11, 12, 13, 14]
+    seconds = 0.5 if args.quick else 1.0
+    rows = [("binary", 1e-4, 0), ("binary", 1e-3, 0), ("binary", 1e-3, 5), ("binary", 1e-2, 0),
+            ("ascii", 1e-3, 0), ("ascii", 1e-2, 0)]
+    print(f"{'format':<7} {'byte err':>8} {'headers':>7} {'sent':>7} {'damaged':>7} {'accepted':>8} {'wrong':>5} "
+          f"{'lost good':>9} {'rejected %':>10} {'max err mm':>10} {'max err deg':>11}")
+    for fmt, rate, headers in rows:
+        tot = dict(sent=0, damaged=0, accepted=0, wrong=0, lost=0, pos=0.0, ang=0.0)
+        for seed in seeds:
+            t = run_trial(Faults(byte_error_rate=rate, false_header_every=headers), binary=fmt == "binary",
+                          seconds=seconds, seed=seed)
+            tot["sent"] += t.sent
+            tot["damaged"] += t.damaged
+            tot["accepted"] += t.accepted
+            tot["wrong"] += t.wrong
+            tot["lost"] += t.lost_good
+            tot["pos"] = max(tot["pos"], t.max_position_error)
+            tot["ang"] = max(tot["ang"], t.max_angle_error)
+        print(f"{fmt:<7} {rate:>8.0e} {('1/' + str(headers)) if headers else '-':>7} {tot['sent']:>7} "
+              f"{tot['damaged']:>7} {tot['accepted']:>8} {tot['wrong']:>5} {tot['lost']:>9} "
+              f"{100 * (1 - tot['accepted'] / tot['sent']):>10.2f} {tot['pos'] * 1e3:>10.3f} "
+              f"{math.degrees(tot['ang']):>11.3f}")
+    print("damaged: records a fault touched; lost good: undamaged records not accepted (a neighbour of a damaged "
+          "one that cannot confirm it); max err: over accepted poses that have a sent record")
+
+
+if __name__ == "__main__":
+    main()

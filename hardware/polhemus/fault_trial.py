@@ -1,0 +1,90 @@
+"""How many wrong poses a faulty line lets through: the emulator sends records with injected faults over a pty,
+the real driver reads them through pyserial, and every pose it accepts is compared with what the emulator meant to
+send. Used by the tests and by ``benchmarks/liberty_faults.py``.
+
+A pose counts as **wrong** when no record with its station and timestamp was sent, or when it lies more than
+``WRONG_POSITION`` from that record's position or ``WRONG_ANGLE`` from its orientation: beyond the Liberty's own
+accuracy (0.76 mm and 0.15 degrees RMS), so a wrong pose is one that could mislead, not one within the noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from palpate.hardware.clock import FastClock
+from palpate.hardware.polhemus.driver import LibertyDriver
+from palpate.hardware.polhemus.emulator import Faults, LibertyEmulator, press_motion
+from palpate.hardware.polhemus.transport import SerialTransport
+
+WRONG_POSITION = 0.002  # m
+WRONG_ANGLE = math.radians(1.0)
+
+
+@dataclass(frozen=True)
+class FaultTrial:
+    """The outcome of one trial.
+
+    Attributes:
+        sent: records the emulator sent while streaming.
+        damaged: of those, records a fault touched (bytes, garbage, false header before it, cut, error code).
+        accepted: poses the driver accepted.
+        wrong: accepted poses that are wrong (see the module docstring).
+        lost_good: undamaged records the driver did not accept.
+        max_position_error: largest distance of an accepted pose from its record, m (wrong ones without a record
+            left out).
+        max_angle_error: largest angle, rad.
+        rejected: the driver's rejections by reason; events: its parser's error events by kind.
+    """
+
+    sent: int
+    damaged: int
+    accepted: int
+    wrong: int
+    lost_good: int
+    max_position_error: float
+    max_angle_error: float
+    rejected: dict
+    events: dict
+
+    @property
+    def rejection_rate(self) -> float:
+        """Fraction of the records sent that did not become poses."""
+        return 1.0 - self.accepted / max(self.sent, 1)
+
+
+def run_trial(faults: Faults, *, binary: bool = True, seconds: float = 1.0, speedup: float = 10.0, rate: float = 240.0,
+              noise: float = 1e-4, seed: int = 0) -> FaultTrial:
+    """Stream ``seconds`` of host time (``speedup`` times as much device time) from an emulator with ``faults``,
+    its sensor pressing 1 cm deep once a second, tilting by up to 0.5 rad, 30 cm from the source."""
+    motion = press_motion(depth=0.01, period=1.0, origin=(0.25, -0.1, 0.3), tilt=0.5)
+    with LibertyEmulator(rate=rate, stations=(1,), noise=noise, seed=seed, motion=motion, clock=FastClock(speedup)) \
+            as emu, SerialTransport(emu.port, 115200, timeout=0.02) as transport:
+        driver = LibertyDriver(transport, binary=binary, timeout=0.5)
+        driver.configure()
+        emu.faults = faults  # clean while configuring: the trial is about the stream
+        first = len(emu.sent)
+        poses = list(driver.stream(seconds=seconds))
+        poses += driver.stop()
+        sent = emu.sent[first:]
+    truth = {(r.station, r.timestamp_ms): r for r in sent}
+    wrong, used, d_pos, d_ang = 0, set(), [0.0], [0.0]
+    for p in poses:
+        key = (int(p.sensor_id.removeprefix("liberty_station")), round(p.t * 1000.0) % (1 << 32))
+        r = truth.get(key)
+        if r is None:
+            wrong += 1
+            continue
+        used.add(key)
+        q = r.quaternion / np.linalg.norm(r.quaternion)
+        dp = float(np.linalg.norm(p.position - r.position))
+        da = 2.0 * math.acos(min(1.0, abs(float(np.dot(q, p.quaternion)))))
+        d_pos.append(dp)
+        d_ang.append(da)
+        wrong += int(dp > WRONG_POSITION or da > WRONG_ANGLE)
+    damaged = [r for r in sent if r.faults]
+    lost_good = sum(1 for r in sent if not r.faults and (r.station, r.timestamp_ms) not in used)
+    return FaultTrial(len(sent), len(damaged), len(poses), wrong, lost_good, max(d_pos), max(d_ang),
+                      dict(driver.stats.rejected), driver.stats.error_counts())

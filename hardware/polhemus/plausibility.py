@@ -1,0 +1,256 @@
+"""Whether a Liberty record can be true: a record that parses is not yet a pose to trust.
+
+A binary record has no checksum, so a corrupted byte inside one (or random bytes that happen to start with a
+plausible header) still decodes to numbers. Each record is therefore checked against the station's own recent
+records before it becomes a pose:
+
+- **sequence**: the frame counter (item 9) moves forward by 1..``max_skip`` frames, and the device clock (item 8)
+  by as many frame periods (within ``time_slack``), both modulo 2^32, so a genuine wrap of the 32-bit clock is
+  simply a small step forward and a garbled top byte is a jump no device makes;
+- **motion**: a record is held until the next good one arrives, then its position must lie on the path between
+  its neighbours: the interpolation error of a hand's path with acceleration at most ``max_accel`` is at most
+  ``max_accel / 2 * (t - t0) * (t1 - t)``, plus the tracker's noise; its orientation likewise with
+  ``max_angular_accel``; its speed from the last good pose is at most ``max_speed``.
+
+A stream starts (and restarts after ``relock_after`` s of host time without a good record) by three consecutive
+records that agree with each other; until then nothing is trusted, and a record that disagrees with those held
+replaces them. Rejected records are counted by reason; nothing is repaired or invented. The cost is one
+record of delay per station (4 ms at 240 Hz).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: At lock-in the three records must be at most this many frames apart (a clean stream has them consecutive).
+LOCK_SKIP = 3
+#: Reasons a record is rejected (StreamStats.rejected keys).
+REASONS = ("frame counter", "timestamp", "position jump", "orientation jump", "speed", "no lock")
+
+
+@dataclass(frozen=True)
+class Plausibility:
+    """What a hand holding a Liberty sensor can do, and what the tracker's noise is.
+
+    Attributes:
+        max_speed: m/s (a fast hand: a few m/s).
+        max_accel: m/s^2 (quick hand movements stay under ~50).
+        max_angular_accel: rad/s^2.
+        position_noise: standard deviation of the tracker's position noise, m.
+        orientation_noise: of its orientation, rad.
+        sigmas: how many noise standard deviations a record may stray.
+        max_skip: most frames between two records of a station that are still one stream.
+        time_slack: how far the clock step may differ from the frame step times the period, s (1 ms ticks).
+        relock_after: a station without a good record for this long starts again from three agreeing records, s.
+    """
+
+    max_speed: float = 5.0
+    max_accel: float = 50.0
+    max_angular_accel: float = 500.0
+    position_noise: float = 2e-4
+    orientation_noise: float = math.radians(0.05)
+    sigmas: float = 5.0
+    max_skip: int = 1000
+    time_slack: float = 0.0015
+    relock_after: float = 0.5
+
+
+@dataclass
+class _Pose:
+    t: float  # s, unwrapped device time
+    ms: int | None
+    frame: int | None
+    position: np.ndarray
+    quaternion: np.ndarray
+    record: object
+    host: float  # host time it arrived, s
+
+
+@dataclass
+class _Station:
+    accepted: list = field(default_factory=list)  # the last accepted poses (at most 2)
+    pending: list = field(default_factory=list)  # sequence-checked, not yet motion-checked
+    period: float | None = None  # s per frame, from the first and the latest accepted record
+    period_error: float = 0.0  # its uncertainty, s per frame (1 ms ticks at both ends over the frames between)
+    first: _Pose | None = None  # the first accepted record since lock-in
+
+
+class RecordGate:
+    """Per-station plausibility checks (see the module docstring); ``feed`` returns the records now accepted.
+
+    Args:
+        limits: the bounds.
+    """
+
+    def __init__(self, limits: Plausibility | None = None):
+        self.limits = limits or Plausibility()
+        self.rejected: Counter[str] = Counter()
+        self._stations: dict[int, _Station] = {}
+
+    def feed(self, station: int, position: np.ndarray, quaternion: np.ndarray, timestamp_ms: int | None,
+             frame: int | None, t_host: float, record=None) -> list[tuple[float, object]]:
+        """Check one record (position m, quaternion w,x,y,z); returns ``(t, record)`` of every record accepted by
+        it, in order (none, or the one held before it, or two at lock-in). ``t`` is the unwrapped device time
+        in s (the host time ``t_host`` when the record has no timestamp)."""
+        st = self._stations.setdefault(station, _Station())
+        quat = np.asarray(quaternion, dtype=float)
+        pose = _Pose(0.0, timestamp_ms, frame, np.asarray(position, dtype=float), quat / np.linalg.norm(quat), record,
+                     t_host)
+        if st.accepted and t_host - st.accepted[-1].host > self.limits.relock_after:
+            # no good record for a while (a silent or restarted device): start again from agreeing records
+            self.rejected["no lock"] += len(st.pending)
+            st.accepted.clear()
+            st.pending.clear()
+            st.period, st.first = None, None
+        if st.accepted:
+            # the sequence is checked against the last record known good, never against one still held
+            pose.t, why = self._sequence(st, st.accepted[-1], timestamp_ms, frame, t_host)
+            if why is not None:
+                self.rejected[why] += 1
+                return []
+            st.pending.append(pose)
+            return self._decide(st)
+        ref = st.pending[-1] if st.pending else None
+        pose.t, why = self._sequence(st, ref, timestamp_ms, frame, t_host)
+        if why is not None:
+            # nothing is confirmed yet: the records held so far were the odd ones out as much as this one
+            self.rejected["no lock"] += len(st.pending)
+            st.pending.clear()
+            pose.t = timestamp_ms / 1000.0 if timestamp_ms is not None else t_host
+        st.pending.append(pose)
+        return self._lock_in(st)
+
+    def flush(self) -> list[tuple[float, object]]:
+        """End of stream: a record still held has no successor to be checked against; it is accepted when it
+        continues the last two good poses (extrapolated, with the acceleration bound), else rejected (counted)."""
+        out = []
+        for st in self._stations.values():
+            for c in st.pending:
+                if len(st.accepted) == 2 and self._continues(*st.accepted, c) is None:
+                    st.accepted = [st.accepted[1], c]
+                    out.append((c.t, c.record))
+                else:
+                    self.rejected["no lock"] += 1
+            st.pending.clear()
+        return sorted(out, key=lambda x: x[0])
+
+    # ---- sequence ------------------------------------------------------------------------------------------
+    def _sequence(self, st: _Station, ref: _Pose | None, ms, frame, t_host) -> tuple[float, str | None]:
+        lim = self.limits
+        if ref is None:
+            return (ms / 1000.0 if ms is not None else t_host), None
+        df = None
+        if frame is not None and ref.frame is not None:
+            df = (frame - ref.frame) % (1 << 32)
+            if not 1 <= df <= lim.max_skip:
+                return 0.0, "frame counter"
+        if ms is None or ref.ms is None:
+            return t_host, None
+        dt = ((ms - ref.ms) % (1 << 32)) / 1000.0
+        if not 0 < dt <= lim.relock_after:
+            return 0.0, "timestamp"
+        if df is not None and st.period is not None and \
+                abs(dt - df * st.period) > lim.time_slack + df * st.period_error:
+            return 0.0, "timestamp"
+        return ref.t + dt, None
+
+    def _learn_period(self, st: _Station, a: _Pose, b: _Pose) -> None:
+        """The frame period over the longest baseline known: first accepted record to ``b``."""
+        if a.frame is None or b.frame is None or a.ms is None or b.ms is None:
+            return
+        if st.first is None:
+            st.first = a
+        df = (b.frame - st.first.frame) % (1 << 32)
+        if df:
+            st.period = (b.t - st.first.t) / df
+            st.period_error = 0.002 / df
+
+
+    # ---- motion --------------------------------------------------------------------------------------------
+    def _fits_between(self, a: _Pose, c: _Pose, b: _Pose) -> str | None:
+        """Why ``c`` cannot lie between ``a`` and ``b`` (None when it can)."""
+        lim = self.limits
+        span = b.t - a.t
+        if span <= 0 or not a.t < c.t < b.t:
+            # host stamps (no timestamp item): records read together share a time; only their order is known
+            return None if c.ms is None else "timestamp"
+        w = (c.t - a.t) / span
+        bend = 0.5 * (c.t - a.t) * (b.t - c.t)
+        if np.linalg.norm(b.position - a.position) > lim.max_speed * span + lim.sigmas * lim.position_noise * 2:
+            return "speed"
+        off = np.linalg.norm(c.position - (a.position + w * (b.position - a.position)))
+        if off > lim.max_accel * bend + lim.sigmas * lim.position_noise * math.sqrt(2):
+            return "position jump"
+        q_mid = _slerp(a.quaternion, b.quaternion, w)
+        angle = 2.0 * math.acos(min(1.0, abs(float(np.dot(q_mid, c.quaternion)))))
+        if angle > lim.max_angular_accel * bend + lim.sigmas * lim.orientation_noise * math.sqrt(2):
+            return "orientation jump"
+        return None
+
+    def _continues(self, a: _Pose, b: _Pose, c: _Pose) -> str | None:
+        """Why ``c`` cannot follow ``a`` and ``b`` (extrapolated; None when it can)."""
+        lim = self.limits
+        if b.t <= a.t or c.t <= b.t:
+            return None if c.ms is None else "timestamp"
+        w = (c.t - a.t) / (b.t - a.t)
+        bend = 0.5 * (c.t - a.t) * (c.t - b.t)
+        off = np.linalg.norm(c.position - (a.position + w * (b.position - a.position)))
+        if off > lim.max_accel * bend + lim.sigmas * lim.position_noise * (1 + abs(w)):
+            return "position jump"
+        return None
+
+    def _lock_in(self, st: _Station) -> list[tuple[float, object]]:
+        while len(st.pending) >= 3:
+            a, c, b = st.pending[-3:]
+            if self._fits_between(a, c, b) is None and _same_rhythm(a, c, b, self.limits.time_slack):
+                st.accepted = [a, c]
+                st.pending = [b]
+                self._learn_period(st, a, c)
+                self._learn_period(st, c, b)
+                return [(a.t, a.record), (c.t, c.record)]
+            self.rejected["no lock"] += 1
+            st.pending.pop(0)
+        return []
+
+    def _decide(self, st: _Station) -> list[tuple[float, object]]:
+        out = []
+        while len(st.pending) >= 2:
+            a = st.accepted[-1]
+            c, b = st.pending[0], st.pending[1]
+            why = self._fits_between(a, c, b)
+            if why is None:
+                self._learn_period(st, a, c)
+                st.accepted = [a, c]
+                out.append((c.t, c.record))
+            else:
+                # c, or its successor, is not on a hand's path: drop c; a bad successor fails in its turn
+                self.rejected[why] += 1
+            st.pending.pop(0)
+        return out
+
+
+def _slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
+    dot = float(np.dot(q0, q1))
+    if dot < 0:
+        q1, dot = -q1, -dot
+    if dot > 0.9999995:
+        q = q0 + s * (q1 - q0)
+        return q / np.linalg.norm(q)
+    theta = math.acos(min(1.0, dot))
+    return (math.sin((1 - s) * theta) * q0 + math.sin(s * theta) * q1) / math.sin(theta)
+
+
+def _same_rhythm(a: _Pose, c: _Pose, b: _Pose, slack: float) -> bool:
+    """At lock-in, before any period is known: the three records are close frames (at most ``LOCK_SKIP`` apart)
+    whose clock steps fit one frame period."""
+    if a.frame is None or c.frame is None or b.frame is None or a.ms is None:
+        return True
+    d1, d2 = (c.frame - a.frame) % (1 << 32), (b.frame - c.frame) % (1 << 32)
+    if not (1 <= d1 <= LOCK_SKIP and 1 <= d2 <= LOCK_SKIP):
+        return False
+    p1, p2 = (c.t - a.t) / d1, (b.t - c.t) / d2
+    return abs(p1 - p2) <= slack

@@ -1,0 +1,102 @@
+"""Liberty records are checked before they become poses: frame counter and clock continuity (no wrap guessing),
+position and orientation a hand can reach from the neighbouring records. Through the emulator on a pty, truly
+random bytes on the line at a 1e-3 error rate and false record headers let no wrong pose through; a garbled top byte
+of one timestamp moves nothing; a fast hand loses no record; a silent device ends the recording command with a
+non-zero exit and a finished file."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from palpate.core.cli import main
+from palpate.core.io.mcap_reader import read_recording
+from palpate.hardware.polhemus.driver import LibertyDriver
+from palpate.hardware.polhemus.emulator import Faults
+from palpate.hardware.polhemus.fault_trial import run_trial
+from palpate.hardware.polhemus.plausibility import RecordGate
+from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, encode_binary
+
+
+@pytest.mark.parametrize("faults", [Faults(byte_error_rate=1e-3), Faults(byte_error_rate=1e-3, false_header_every=5)],
+                         ids=["random bytes 1e-3", "and false headers"])
+def test_random_bytes_and_false_headers_let_no_wrong_pose_through(faults):
+    trial = run_trial(faults, seconds=1.0, seed=3)
+    assert trial.sent > 1500 and trial.damaged > 50
+    assert trial.wrong == 0, trial
+    # what is lost is the damaged records and, now and then, a good neighbour that cannot confirm one
+    assert trial.accepted >= trial.sent - 3 * trial.damaged
+    assert trial.lost_good <= 2 * trial.damaged
+    assert sum(trial.rejected.values()) > 0 and trial.max_position_error < 0.002
+
+
+def test_ascii_records_with_random_bytes_are_checked_the_same_way():
+    trial = run_trial(Faults(byte_error_rate=1e-3), binary=False, seconds=1.0, seed=4)
+    assert trial.damaged > 50 and trial.wrong == 0, trial
+
+
+def test_a_clean_stream_of_a_fast_hand_loses_nothing():
+    trial = run_trial(Faults(), seconds=0.5, seed=1)
+    assert trial.accepted == trial.sent and trial.wrong == 0 and trial.rejected == {}
+    # a hand swinging 5 cm at 3 Hz (0.9 m/s, 18 m/s^2) with its sensor turning half a turn a second
+    gate = RecordGate()
+    t = np.arange(0, 2.0, 1 / 240)
+    pos = 0.05 * np.column_stack([np.cos(6 * np.pi * t), np.sin(6 * np.pi * t), 0 * t]) + [0.2, 0.0, 0.3]
+    angle = np.pi * t
+    quat = np.column_stack([np.cos(angle / 2), 0 * t, 0 * t, np.sin(angle / 2)])
+    ms = np.round(t * 1000).astype(int)
+    accepted = []
+    for k in range(len(t)):
+        accepted += gate.feed(1, pos[k], quat[k], int(ms[k]), k, 0.0, k)
+    accepted += gate.flush()
+    assert [r for _, r in accepted] == list(range(len(t))) and not gate.rejected
+
+
+def test_a_garbled_top_byte_of_one_timestamp_is_one_rejected_record_not_a_49_day_jump():
+    n = 40
+    ts = (np.arange(n) * 4 + 10_000).astype(np.uint32)
+    pos = np.column_stack([np.linspace(0, 1, n), np.zeros(n), np.full(n, 30.0)])  # cm, 1 cm in 160 ms
+    q = np.tile([1.0, 0, 0, 0], (n, 1))
+    data = bytearray(encode_binary(DEFAULT_ITEMS, np.ones(n, int), "C", pos, q, ts, np.arange(n) + 1))
+    size = len(data) // n
+    data[20 * size + 8 + 12 + 16 + 3] ^= 0x40  # record 20's timestamp, top byte: 2^30 ms later
+    drv = LibertyDriver(_Bytes(bytes(data)), timeout=0.05)
+    drv.streaming = True
+    poses = list(drv.stream())
+    times = np.array([p.t for p in poses])
+    assert len(poses) == n - 1 and drv.stats.rejected == {"timestamp": 1}
+    np.testing.assert_allclose(times, np.delete(ts, 20) / 1000.0)
+
+
+def test_a_device_that_goes_silent_ends_the_command_with_an_error_and_a_finished_file(tmp_path, capsys):
+    out = tmp_path / "rec.mcap"
+    code = main(["record", "liberty", "--emulate", "--seconds", "30", "--out", str(out), "--timeout", "0.3",
+                 "--emulate-silent-after", "200"])
+    err = capsys.readouterr().err
+    assert code == 1 and "went silent" in err and "Traceback" not in err
+    rec = read_recording(out)  # finished: readable without salvage
+    end = [a for a in rec.annotations if a.kind == "liberty_stream_end"]
+    assert end and end[0].data["stop_reason"] == "silent"
+    assert 150 < len(rec.poses) <= 200
+
+
+class _Bytes:
+    """A transport that delivers fixed bytes once, then nothing."""
+
+    description = "bytes"
+
+    def __init__(self, data: bytes):
+        self.data = data
+
+    def read(self, n: int) -> bytes:
+        out, self.data = self.data[:n], self.data[n:]
+        return out
+
+    def write(self, data: bytes) -> None:
+        pass
+
+    def reset_input(self) -> None:
+        self.data = b""
+
+    def close(self) -> None:
+        pass
