@@ -113,7 +113,8 @@ REACH_TOLERANCE = 0.02
 def check_depth(profile, radius: float, context: str = "") -> None:
     """Refuse (ValidationError) a press deeper than MAX_DEPTH_OVER_RADIUS tip radii of ``radius`` m."""
     depth = float(profile.meta.get("depth", 0.0))
-    if depth > MAX_DEPTH_OVER_RADIUS * radius:
+    # a press scaled to stop exactly at the limit may land a rounding error past it
+    if depth > MAX_DEPTH_OVER_RADIUS * radius * (1.0 + 1e-9):
         raise ValidationError(
             f"indentation {depth * 1e3:.2f} mm is over {MAX_DEPTH_OVER_RADIUS} tip radii ({radius * 1e3:.1f} mm "
             f"tip){context}: the contact would reach the sphere's equator; press at most "
