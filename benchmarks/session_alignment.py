@@ -75,7 +75,9 @@ def main() -> None:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in seeds:
-            r = one(seed, memory, Path(tmp))
+            folder = Path(tmp) / f"seed{seed}"  # one folder per seed: import session never overwrites its --out
+            folder.mkdir()
+            r = one(seed, memory, folder)
             rows.append(r)
             if "error" in r:
                 print(f"{seed:>4} {r['error']}")
@@ -88,6 +90,8 @@ def main() -> None:
         print(f"all seeds: clock error max {max(r['clock_ms'] for r in ok):.2f} ms (requirement 10 ms); c_D vs the "
               f"one-clock run max {max(r['cd_run_mm'] for r in ok):.3f} mm (0.2 mm); same classes in "
               f"{sum(r['same_class'] for r in ok)}/{len(ok)} sessions; true drift {DRIFT_PPM:.0f} ppm")
+    if len(ok) < len(rows):
+        sys.exit(f"{len(rows) - len(ok)} of {len(rows)} sessions failed")
 
 
 if __name__ == "__main__":
