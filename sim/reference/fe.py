@@ -1,0 +1,216 @@
+"""Axisymmetric finite-element solution of a rigid sphere pressed into an :class:`AxisymmetricSample`.
+
+Method (quasi-static, linear elasticity, frictionless contact, displacement control):
+- biquadratic (Q2, 9-node) elements on a graded tensor mesh of the (r, z) half-plane (:mod:`.mesh`), axisymmetric
+  strain (e_rr, e_zz, e_tt = u_r / r, g_rz) weighted by r; full integration: Q2 does not lock at nu = 0.49 (the
+  thick-block force stays within 1% of Sneddon's there as at nu = 0.3);
+- boundary conditions: u_r = 0 on the axis; the base bonded (u = 0) or frictionless (u_z = 0); the side at the
+  sample's radius free, or, for a wide sample, a roller (u_r = 0) at 12 thicknesses plus 60 contact radii;
+- contact: the surface pressure is piecewise linear in r (hats on the top vertices); the stiffness matrix is
+  factorised once and the surface compliance G (vertex settlement per unit hat pressure) condensed from it. At each
+  indentation d the active set is the contiguous disc of k hats whose settlement equals the sphere's gap
+  d - (R - sqrt(R^2 - r^2)) (exact sphere, not a paraboloid); k is the smallest disc with no penetration outside;
+- the force is 2 pi times the integral of the pressure; the contact radius is where p^2, extrapolated linearly
+  from the last two loaded hats, vanishes.
+
+Its accuracy is shown by mesh refinement (``refinement``; benchmarks/fe_reference.py) and against Hertz/Sneddon
+for a thick block and the bonded-layer correction (:mod:`.bonded_layer`) for thin layers (tests/test_fe_reference.py).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.sim.reference.mesh import sample_grids
+from palpate.sim.reference.sample import AxisymmetricSample
+
+#: Surface spacing h0 as a fraction of the smallest contact radius asked for, at refinement 1.
+H0_OVER_A = 1.0 / 12.0
+
+
+@dataclass(frozen=True)
+class FEPress:
+    """The reference's answer at each indentation.
+
+    Attributes:
+        depth: indentations, m, (n,).
+        force: normal force, N, (n,).
+        contact_radius: m, (n,).
+        r: radii of the surface pressure samples, m, (m,).
+        pressure: surface pressure at ``r`` for each indentation, Pa, (n, m).
+        dofs: degrees of freedom of the mesh; h0: its surface spacing, m.
+    """
+
+    depth: np.ndarray
+    force: np.ndarray
+    contact_radius: np.ndarray
+    r: np.ndarray
+    pressure: np.ndarray
+    dofs: int
+    h0: float
+
+
+def _assemble(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray, materials=None):
+    from skfem import Basis, BilinearForm, ElementQuad2, ElementVector, MeshQuad1, asm
+
+    top = float(z_nodes[-1])
+    # mesh coordinates: x = r, y = height above the base (depth = top - y)
+    mesh = MeshQuad1.init_tensor(r_nodes, np.sort(top - z_nodes))
+    basis = Basis(mesh, ElementVector(ElementQuad2()), intorder=4)
+    centroid = mesh.p[:, mesh.t].mean(axis=1)
+    young, poisson = (materials or sample.materials_at)(centroid[0], top - centroid[1])
+    lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
+    mu = young / (2 * (1 + poisson))
+    nqp = basis.X.shape[1]
+
+    @BilinearForm
+    def axisymmetric(u, v, w):
+        rr = w.x[0]
+        eu = (u.grad[0][0], u.grad[1][1], u[0] / rr)
+        ev = (v.grad[0][0], v.grad[1][1], v[0] / rr)
+        gu = u.grad[0][1] + u.grad[1][0]
+        gv = v.grad[0][1] + v.grad[1][0]
+        tr_u = eu[0] + eu[1] + eu[2]
+        tr_v = ev[0] + ev[1] + ev[2]
+        dev = eu[0] * ev[0] + eu[1] * ev[1] + eu[2] * ev[2]
+        return (w.lam * tr_u * tr_v + 2.0 * w.mu * dev + w.mu * gu * gv) * rr
+
+    stiffness = asm(axisymmetric, basis, lam=np.repeat(lam[:, None], nqp, axis=1),
+                    mu=np.repeat(mu[:, None], nqp, axis=1))
+    return basis, stiffness
+
+
+def _hat_loads(r_top: np.ndarray, dof_r: np.ndarray, dof_index: np.ndarray, n_dofs: int) -> np.ndarray:
+    """Consistent nodal loads (n_dofs, hats) of unit hat pressures on the top vertices r_top (downward, z up)."""
+    xg, wg = np.polynomial.legendre.leggauss(6)
+    s = 0.5 * (xg + 1.0)
+    shape = (2 * (s - 0.5) * (s - 1), 4 * s * (1 - s), 2 * s * (s - 0.5))  # Q2 trace: vertex, midside, vertex
+    hats = (1.0 - s, s)
+    lookup = {round(float(v), 13): int(i) for v, i in zip(dof_r, dof_index, strict=True)}
+    loads = np.zeros((n_dofs, len(r_top)))
+    for e in range(len(r_top) - 1):
+        r0, r1 = r_top[e], r_top[e + 1]
+        rq = r0 + (r1 - r0) * s
+        wq = wg * 0.5 * (r1 - r0) * rq
+        nodes = [lookup[round(float(r0), 13)], lookup[round(0.5 * float(r0 + r1), 13)], lookup[round(float(r1), 13)]]
+        for a, node in enumerate(nodes):
+            for b, hat in enumerate((e, e + 1)):
+                loads[node, hat] -= np.sum(shape[a] * hats[b] * wq)
+    return loads
+
+
+def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinement: float = 1.0,
+             growth: float = 1.15, materials=None, breaks_r=(), breaks_z=()) -> FEPress:
+    """Force, contact radius and surface pressure of a rigid sphere pressed ``depths`` (m) into ``sample``.
+
+    Args:
+        sample: the sample.
+        tip_radius: sphere radius, m.
+        depths: indentations, m, each in (0, 0.9 tip_radius).
+        refinement: mesh density: the surface spacing is (smallest contact radius / 12) / refinement.
+        growth: spacing growth per cell away from the contact (smaller is finer).
+        materials: optional fn(r m, depth m) -> (Young Pa, Poisson) replacing the sample's own material field
+            (the sample then only gives the thickness, base and width); breaks_r, breaks_z: extra mesh lines, m.
+    """
+    from scipy.sparse.linalg import splu
+
+    d = np.sort(np.atleast_1d(np.asarray(depths, dtype=float)))
+    if not (tip_radius > 0 and np.all(np.isfinite(d)) and d.size and d[0] > 0 and d[-1] < 0.9 * tip_radius):
+        raise ValidationError(f"fe_press: depths must lie in (0, {0.9 * tip_radius}) m, got {depths!r}")
+    if not refinement > 0:
+        raise ValidationError(f"fe_press: refinement must be > 0, got {refinement!r}")
+    a_min = math.sqrt(tip_radius * d[0])
+    a_max = math.sqrt(tip_radius * d[-1]) * 1.15  # a sphere's contact is a little wider than the paraboloid's
+    h0 = a_min * H0_OVER_A / refinement
+    wide = not math.isfinite(sample.radius)
+    width = 12.0 * sample.thickness + 60.0 * a_max if wide else sample.radius
+    breaks_r, breaks_z = list(breaks_r), list(breaks_z) + list(sample.interfaces())
+    if sample.inclusion is not None:
+        inc = sample.inclusion
+        breaks_r.append(inc.radius)
+        breaks_z += [inc.depth, inc.bottom]
+    r_nodes, z_nodes = sample_grids(sample.thickness, width, a_max, h0, breaks_r, breaks_z, growth=growth)
+    basis, stiffness = _assemble(sample, r_nodes, z_nodes, materials)
+    locs = basis.doflocs
+    dofs = basis.get_dofs()
+    ur, uz = dofs.all("u^1"), dofs.all("u^2")
+    top = float(z_nodes[-1])
+    n = basis.N
+    fixed = [ur[np.isclose(locs[0, ur], 0.0)]]
+    bottom = np.isclose(locs[1], 0.0)
+    fixed.append(uz[bottom[uz]])
+    if sample.base == "bonded":
+        fixed.append(ur[bottom[ur]])
+    if wide:
+        fixed.append(ur[np.isclose(locs[0, ur], width)])
+    fixed = np.unique(np.concatenate(fixed))
+    free = np.setdiff1d(np.arange(n), fixed)
+    at = -np.ones(n, dtype=int)
+    at[free] = np.arange(len(free))
+
+    on_top = uz[np.isclose(locs[1, uz], top)]
+    reach = 1.3 * a_max
+    r_top = r_nodes[r_nodes <= reach + 1e-12]
+    if len(r_top) < 4:
+        raise ValidationError("fe_press: fewer than 4 surface vertices under the contact; raise the refinement")
+    loads = _hat_loads(r_top, locs[0, on_top], on_top, n)
+    lu = splu(stiffness[free][:, free].tocsc())
+    settle = lu.solve(loads[free])  # (free, hats) displacement per unit hat pressure
+    vertex = np.array([at[on_top[np.argmin(np.abs(locs[0, on_top] - rv))]] for rv in r_top])
+    compliance = -settle[vertex]  # downward settlement of each top vertex per unit hat pressure
+    weights = -loads[free].sum(axis=0)  # integral of each hat times r dr
+
+    # beyond the sphere's equator the surface can never be touched
+    gap0 = np.where(r_top < tip_radius, tip_radius - np.sqrt(np.maximum(tip_radius**2 - r_top**2, 0.0)), np.inf)
+    forces, radii, pressures = [], [], []
+    for depth in d:
+        p, k = contact_disc(compliance, depth - gap0, depth)
+        forces.append(2.0 * math.pi * float(weights @ p))
+        radii.append(_edge(r_top, p, k))
+        pressures.append(p)
+    return FEPress(depth=d, force=np.array(forces), contact_radius=np.array(radii), r=r_top,
+                   pressure=np.array(pressures), dofs=int(n), h0=float(h0))
+
+
+def contact_disc(compliance: np.ndarray, gap: np.ndarray, depth: float) -> tuple[np.ndarray, int]:
+    """Hat pressures (Pa) and the number k of loaded hats: the smallest disc of hats whose settlement equals the
+    sphere's ``gap`` (m) with no penetration outside it."""
+    n = len(gap)
+
+    def solve(k: int) -> np.ndarray:
+        p = np.zeros(n)
+        p[:k] = np.linalg.solve(compliance[:k, :k], gap[:k])
+        return p
+
+    def penetrates(p: np.ndarray, k: int) -> bool:
+        return bool(np.any(compliance[k:] @ p < gap[k:] - 1e-12 * depth))
+
+    k = max(int(np.sum(gap > 0)), 1)
+    p = solve(k)
+    while penetrates(p, k) and k < n - 1:
+        k += 1
+        p = solve(k)
+    while k > 1:
+        q = solve(k - 1)
+        if penetrates(q, k - 1):
+            break
+        k, p = k - 1, q
+    if k >= n - 1:
+        raise ValidationError("fe_press: the contact reached the edge of the refined region; this is a bug in the "
+                              "mesh sizing")
+    return p, k
+
+
+def _edge(r: np.ndarray, p: np.ndarray, k: int) -> float:
+    """Contact radius: where p^2, linear through the last two loaded hats, reaches 0 (at most one spacing out)."""
+    if k < 2 or p[k - 1] <= 0:
+        return float(r[k - 1])
+    y0, y1 = p[k - 2] ** 2, p[k - 1] ** 2
+    h = r[k] - r[k - 1]
+    if y0 <= y1:
+        return float(r[k - 1] + h)
+    return float(min(r[k - 1] + y1 / (y0 - y1) * (r[k - 1] - r[k - 2]), r[k - 1] + h))
