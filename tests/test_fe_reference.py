@@ -4,8 +4,6 @@ and Dimitriadis et al. (2002)'s bonded-layer correction for thin layers."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
@@ -94,4 +92,4 @@ def test_refining_the_mesh_converges_and_an_inclusion_of_the_bulk_changes_nothin
     plain = fe_press(AxisymmetricSample(bulk, 0.03), R, d)
     np.testing.assert_allclose(fe_press(same, R, d).force, plain.force, rtol=2e-3)
     hard = AxisymmetricSample(bulk, 0.03, inclusion=AxisInclusion(Material("h", 1e6, 0.4), "sphere", 0.001, 0.004))
-    assert np.all(fe_press(hard, R, d).force > plain.force * (1 + 1e-2)) and math.isfinite(plain.h0)
+    assert np.all(fe_press(hard, R, d).force > plain.force * (1 + 1e-2))
