@@ -12,6 +12,7 @@ import threading
 import time
 
 import pytest
+from child_process import interruptible
 
 from palpate.core.io.mcap_reader import read_recording
 from palpate.hardware import exit_signals
@@ -105,10 +106,15 @@ def bus():
 
 
 def _kill_when_holding(bus: Bus, client: subprocess.Popen, sig: int) -> list[str]:
-    log = bus.wait_for(f"torque {IDS[-1]} 1")  # torque is on (enable writes id 1 then id 2)
-    time.sleep(0.3)
-    client.send_signal(sig)
-    client.wait(timeout=START_TIMEOUT)
+    try:
+        log = bus.wait_for(f"torque {IDS[-1]} 1")  # torque is on (enable writes id 1 then id 2)
+        time.sleep(0.3)
+        client.send_signal(sig)
+        client.wait(timeout=START_TIMEOUT)
+    finally:
+        if client.poll() is None:  # a client left holding the bus would fail every later test on it
+            client.kill()
+            client.wait()
     time.sleep(0.2)  # the last log lines cross the pipe
     return log + bus.drain()
 
@@ -123,7 +129,7 @@ def test_the_record_command_killed_mid_press_leaves_torque_off_and_a_finished_re
         [sys.executable, "-c", PALPATE, "record", "dynamixel", "--port", bus.port, "--finger",
          str(repo_dir / "models" / "fingers" / "planar2.toml"), "--seconds", "120", "--out", str(out),
          "--press", "0.07", "--speed", "0.002", "--retries", "10"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True)
+        text=True, preexec_fn=interruptible)
     log = _kill_when_holding(bus, client, sig)
     assert client.returncode == (130 if sig == signal.SIGINT else 128 + sig), client.stderr.read()
     assert bus.torque() == {sid: 0 for sid in IDS}
@@ -144,7 +150,7 @@ def test_a_python_api_client_killed_while_holding_torque_switches_it_off(bus, si
     bus.drain()
     client = subprocess.Popen([sys.executable, "-c", API_CLIENT, bus.port,
                                str(repo_dir / "models" / "fingers" / "planar2.toml")],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)
     _kill_when_holding(bus, client, sig)
     assert bus.torque() == {sid: 0 for sid in IDS}
     # SIGTERM/SIGHUP end with the shell's code for the signal; SIGINT as an uncaught KeyboardInterrupt does

@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 import pytest
+from child_process import interruptible
 
 from palpate.core.errors import DeviceError, ValidationError
 from palpate.hardware.polhemus.driver import LibertyDriver, station_sensor_id
@@ -457,7 +458,7 @@ def test_cli_ctrl_c_keeps_what_was_recorded(tmp_path):
     proc = subprocess.Popen(
         [sys.executable, "-c", "import sys; from palpate.core.cli import main; sys.exit(main())",
          "record", "liberty", "--emulate", "--emulate-rate", "300", "--seconds", "60", "--out", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
     )
     try:
         deadline = time.monotonic() + 20

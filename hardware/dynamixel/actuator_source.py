@@ -252,8 +252,8 @@ def dynamixel_actuator(request, *, check_only: bool = False):
     surface_z = request.obj.height
     # power on above the first cell the exploration may press: the first move is then short
     start = inverse_kinematics(finger, float(request.targets[0, 0]), surface_z + finger.approach_height)
-    stack = contextlib.ExitStack()
-    try:
+    # on an error the with-block closes what was opened; on success pop_all hands it to the session
+    with contextlib.ExitStack() as stack:
         # the emulated finger runs on a stepped clock: one control cycle per state read, as fast as the machine
         # allows, and the same exploration every time
         clock = StepClock(wall_ratio=WALL_RATIO)
@@ -270,30 +270,25 @@ def dynamixel_actuator(request, *, check_only: bool = False):
             streams = reader_streams(reader, physics.truth)
         else:
             streams = _truth_only(physics)
-        driver = stack.enter_context(DynamixelFinger(emulator.port, spec.baud, finger, clock=clock))
-        actuator = FingerActuator(driver, surface_z, streams=streams, pose_noise=spec.pose_noise, seed=request.seed,
-                                  force_from_currents=not spec.pad)
-    except BaseException:
-        stack.close()
-        raise
-    return FingerSession(actuator, stack)
+        return _finger_session(stack, emulator.port, clock, streams, spec, finger, request)
 
 
 def _real_finger(spec: DynamixelOptions, finger: FingerDescription, request) -> FingerSession:
     """The finger on ``spec.port`` with the tactile array on ``spec.taxels``, both on the wall clock."""
-    surface_z = request.obj.height
-    stack = contextlib.ExitStack()
-    try:
+    with contextlib.ExitStack() as stack:
         streams = None
         if spec.pad:
             streams = reader_streams(stack.enter_context(open_reader(spec.taxels, request.scene, WALL_CLOCK)))
-        driver = stack.enter_context(DynamixelFinger(spec.port, spec.baud, finger, clock=WALL_CLOCK))
-        actuator = FingerActuator(driver, surface_z, streams=streams, pose_noise=spec.pose_noise, seed=request.seed,
-                                  force_from_currents=not spec.pad)
-    except BaseException:
-        stack.close()
-        raise
-    return FingerSession(actuator, stack)
+        return _finger_session(stack, spec.port, WALL_CLOCK, streams, spec, finger, request)
+
+
+def _finger_session(stack: contextlib.ExitStack, port: str, clock, streams, spec: DynamixelOptions,
+                    finger: FingerDescription, request) -> FingerSession:
+    """Open the finger's driver on ``port`` into ``stack`` and hand everything the stack holds to the session."""
+    driver = stack.enter_context(DynamixelFinger(port, spec.baud, finger, clock=clock))
+    actuator = FingerActuator(driver, request.obj.height, streams=streams, pose_noise=spec.pose_noise,
+                              seed=request.seed, force_from_currents=not spec.pad)
+    return FingerSession(actuator, stack.pop_all())
 
 
 def _truth_only(physics):
