@@ -15,7 +15,13 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Layer, Material, ObjectSpec, material_index_at
-from palpate.sim.contact.axisymmetric import axisymmetric_law
+from palpate.sim.contact.axisymmetric import (
+    FIRST_ORDER_LIMIT,
+    axisymmetric_law,
+    column_energy,
+    first_order_law,
+    lateral_effect,
+)
 from palpate.sim.contact.law import ContactLaw, solve_contact_law
 from palpate.sim.reference.sample import AxisymmetricSample
 
@@ -165,13 +171,32 @@ def point_law(lookup, thickness: float, breaks: list[float], tip_radius: float, 
             young, poisson, _ = lookup(np.zeros_like(offsets), depths)  # the axis' material, everywhere
             return young, poisson, np.ones(len(depths), dtype=bool)
 
-        law = axisymmetric_law(lookup, thickness, tip_radius, max_depth, base=base, breaks_z=breaks,
-                               breaks_r=breaks_r, surface=surface, column=column, column_lookup=column_lookup)
+        energy = _column_energy(lookup, thickness, breaks, tip_radius, max_depth, base, cache)
+        effect = lateral_effect(lookup, column_lookup, energy)
+        if np.max(np.abs(effect)) <= FIRST_ORDER_LIMIT:
+            law = first_order_law(column, energy, effect)
+        else:
+            law = axisymmetric_law(lookup, thickness, tip_radius, max_depth, base=base, breaks_z=breaks,
+                                   breaks_r=breaks_r, surface=surface, column=column, column_lookup=column_lookup)
     if cache is not None and key is not None:
         if len(cache) > 512:  # a long run pressing everywhere must not grow without bound
             cache.clear()
         cache[key] = law
     return law
+
+
+def _column_energy(lookup, thickness: float, breaks: list[float], tip_radius: float, max_depth: float, base: str,
+                   cache: dict | None):
+    """The press point column's FE energy shares (:func:`.axisymmetric.column_energy`), cached by its stack."""
+    stack = column_stack(lookup, thickness, breaks, base)
+    key = ("energy", tip_radius, round(max_depth, 7), _signature(stack))  # its shares depend on the depths
+    hit = cache.get(key) if cache is not None else None
+    if hit is not None:
+        return hit
+    energy = column_energy(stack, tip_radius, max_depth, breaks)
+    if cache is not None:
+        cache[key] = energy
+    return energy
 
 
 def _signature(stack: AxisymmetricSample) -> tuple:
