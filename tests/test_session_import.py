@@ -146,16 +146,41 @@ def test_a_given_clock_offset_is_used_as_given(session, memory, files, capsys):
     assert labels == session.sim_labels
 
 
+def _periodic_presses(period: float, n: int, offset: float) -> tuple[list, list]:
+    """n identical presses exactly ``period`` s apart: each 1 s down and 1 s up (5 mm, raised cosine), then a move of
+    20 mm sideways to the next cell. Taxel frames at 50 Hz; the fingertip's path at 240 Hz with 0.1 mm of noise,
+    ``offset`` s later on the tracker's clock."""
+
+    def depth_fraction(t: np.ndarray) -> np.ndarray:
+        u = np.mod(t, period)
+        return np.where(u < 2.0, 0.5 * (1.0 - np.cos(np.pi * u)), 0.0)
+
+    t = np.arange(0.0, n * period, 1.0 / 50.0)
+    frames = [TaxelFrame(float(ti), np.full((4, 4), int(200 * max(si - 0.3, 0.0)), np.uint8), 4.84e-6)
+              for ti, si in zip(t, depth_fraction(t), strict=True)]
+    tp = np.arange(0.0, n * period, 1.0 / 240.0)
+    u = np.mod(tp, period)
+    x = 0.02 * (np.floor(tp / period) + np.clip((u - 2.0) / (period - 2.0), 0.0, 1.0))
+    path = np.column_stack([x, np.zeros_like(tp), 0.05 - 0.005 * depth_fraction(tp)])
+    path += np.random.default_rng(4).normal(0.0, 1e-4, path.shape)
+    poses = [PoseSample(float(ti + offset), p, np.array([1.0, 0.0, 0.0, 0.0])) for ti, p in zip(tp, path, strict=True)]
+    return frames, poses
+
+
 def test_streams_that_do_not_overlap_or_align_ambiguously_are_refused(memory, tmp_path):
+    # presses at an exact rhythm look alike one period apart: refused, until the search is bounded
+    frames, poses = _periodic_presses(3.2, 8, 0.4)
+    with pytest.raises(ValidationError, match="ambiguous"):
+        estimate_clock_map(frames, poses)
+    cmap = estimate_clock_map(frames, poses, max_offset=1.0)
+    assert cmap.to_taxel(0.4 + 10.0) == pytest.approx(10.0, abs=0.01)
+    # a person's rhythm is not that steady: the same search finds the one offset that pairs every press
     steady = rs.simulate(memory, seed=11, n_per_material=3, steady=1.5)
     frames = [TaxelFrame(float(t), c, 4.84e-6) for t, c in zip(steady.frames_t, steady.counts, strict=True)]
     poses = [PoseSample(float(t), p, q) for t, p, q in zip(steady.pose_t + 3.0, steady.pose_p, steady.pose_q,
                                                             strict=True)]
-    with pytest.raises(ValidationError, match="ambiguous"):
-        estimate_clock_map(frames, poses)
-    # bounding the search settles it
-    cmap = estimate_clock_map(frames, poses, max_offset=3.5)
-    assert cmap.to_taxel(3.0 + 10.0) == pytest.approx(10.0, abs=0.01)
+    cmap = estimate_clock_map(frames, poses)
+    assert cmap.presses == 9 and cmap.to_taxel(3.0 + 10.0) == pytest.approx(10.0, abs=0.01)
     far = [PoseSample(p.t + 1000.0, p.position, p.quaternion) for p in poses]
     with pytest.raises(ValidationError, match="do not overlap"):
         merge_session(frames, far, ClockMap(offset=0.0))

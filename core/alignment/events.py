@@ -72,7 +72,8 @@ def reversals(t: np.ndarray, position: np.ndarray, *, travel: float = REVERSAL_T
     At each sample the direction of motion before it is the displacement from the last earlier sample at least
     ``travel`` away, and after it the displacement to the first later one; where the two point in opposite
     directions (angle over 135 degrees) the fingertip turned back. Each run of such samples is one reversal,
-    placed at the middle of the run (a hold at the deepest point stays inside the run).
+    placed at the middle of the run (a hold at the deepest point stays inside the run); two runs that turn the same
+    way with the path staying within ``travel`` between them are one run split by noise.
     """
     t = np.asarray(t, dtype=float)
     p = np.asarray(position, dtype=float)
@@ -92,13 +93,23 @@ def reversals(t: np.ndarray, position: np.ndarray, *, travel: float = REVERSAL_T
     norm = np.linalg.norm(d_in, axis=1) * np.linalg.norm(d_out, axis=1)
     cos = np.where(ok & (norm > 0), np.einsum("ij,ij->i", d_in, d_out) / np.where(norm > 0, norm, 1.0), 1.0)
     turning = cos < REVERSAL_COS
-    out = []
+    runs: list[list] = []  # [first sample, last sample, unit direction before]
     edges = np.flatnonzero(np.diff(np.concatenate([[0], turning.astype(np.int8), [0]])))
     for a, b in zip(edges[::2], edges[1::2], strict=True):
         mid = (a + b - 1) // 2
         d = d_in[mid] / np.linalg.norm(d_in[mid])
-        out.append(Reversal(float(0.5 * (t[a] + t[b - 1])), d))
-    return out
+        # noise near a slow turn can break its run in two: a neighbour that turns the same way, reached without
+        # going more than the travel away (no lift between two presses), is the same reversal
+        if runs and float(runs[-1][2] @ d) > 0.0 and _stays_near(p, runs[-1][1], a, travel):
+            runs[-1][1] = b - 1
+        else:
+            runs.append([a, b - 1, d])
+    return [Reversal(float(0.5 * (t[a] + t[b])), d) for a, b, d in runs]
+
+
+def _stays_near(p: np.ndarray, i: int, j: int, travel: float) -> bool:
+    """True if rows i..j of the path all lie within ``travel`` of row i."""
+    return bool(np.all(np.sum((p[i:j + 1] - p[i]) ** 2, axis=1) < travel * travel))
 
 
 def _first_at_distance(p: np.ndarray, travel: float, horizon: int, sign: int) -> np.ndarray:
