@@ -108,3 +108,24 @@ def test_a_file_with_several_presses_counts_each_and_a_new_file_is_seen(tmp_path
         for p in first.poses:
             w.write_pose(p)
     assert presses.press(2)[0] is not None
+
+
+@pytest.mark.parametrize("gap_frames", [9, 10])
+def test_a_sample_on_the_cut_between_two_presses_belongs_to_one_press(gap_frames):
+    """Two contacts whose cut (half-way between one's release and the next's onset) falls on a frame and a pose
+    when the gap is an even number of frames: every sample is still in exactly one press, none lost."""
+    from palpate.core.perception.streams import PoseSample, PressRecording, TaxelFrame
+    from palpate.core.session.operator_sessions import split_presses
+
+    period = 1.0 / 64.0  # binary-exact times: the cut lands exactly on a sample, as rounded export times do
+    active = np.zeros(60 + gap_frames, dtype=bool)
+    active[10:25] = True
+    active[25 + gap_frames:50 + gap_frames] = True
+    frames = [TaxelFrame(k * period, np.full((4, 4), 80 if on else 0, np.uint8), 4.84e-6)
+              for k, on in enumerate(active)]
+    poses = [PoseSample(k * period / 2.0, np.array([0.0, 0.0, 0.05]), np.array([1.0, 0.0, 0.0, 0.0]))
+             for k in range(2 * len(active))]
+    parts = split_presses(PressRecording(frames, poses, None, {}), "test")
+    assert len(parts) == 2
+    assert [f.t for p in parts for f in p.frames] == [f.t for f in frames]
+    assert [q.t for p in parts for q in p.poses] == [q.t for q in poses]

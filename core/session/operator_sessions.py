@@ -42,13 +42,15 @@ def split_presses(rec: PressRecording, where: str) -> list[PressRecording]:
 
 
 def _cut(rec: PressRecording, t0: float, t1: float, meta: dict) -> PressRecording:
+    # windows are half-open [t0, t1): a sample exactly on a cut (the middle of two frames an even count apart)
+    # belongs to the later press only, so every sample is in exactly one press
     ft = np.array([f.t for f in rec.frames])
     pt = np.array([p.t for p in rec.poses])
-    f0, f1 = np.searchsorted(ft, t0, "left"), np.searchsorted(ft, t1, "right")
-    p0, p1 = np.searchsorted(pt, t0, "left"), np.searchsorted(pt, t1, "right")
+    f0, f1 = np.searchsorted(ft, t0, "left"), np.searchsorted(ft, t1, "left")
+    p0, p1 = np.searchsorted(pt, t0, "left"), np.searchsorted(pt, t1, "left")
     truth = rec.truth
     if truth is not None:  # a simulated session carries its ground truth: cut it alike
-        i0, i1 = np.searchsorted(truth.t, t0, "left"), np.searchsorted(truth.t, t1, "right")
+        i0, i1 = np.searchsorted(truth.t, t0, "left"), np.searchsorted(truth.t, t1, "left")
         truth = GroundTruth(truth.t[i0:i1], truth.force[i0:i1], truth.indentation[i0:i1], truth.material) \
             if i1 > i0 else None
     return PressRecording(rec.frames[f0:f1], rec.poses[p0:p1], truth, meta)
