@@ -47,13 +47,12 @@ def convergence(sample: AxisymmetricSample, depths: np.ndarray, levels: list[flo
 
 def hertz_error(depths: np.ndarray, thicknesses: list[float], refinement: float) -> None:
     m = Material("block", 2e5, 0.3)
-    e_star = m.young / (1 - m.poisson**2)
     print(f"\nHertz (what analytic/rigid return for a homogeneous block) against the reference, E = 200 kPa, "
           f"nu 0.3, bonded base, refinement {refinement:g}")
     print(f"{'thickness mm':>12}  " + "  ".join(f"{1e3 * d:>6g} mm" for d in depths))
     for h in thicknesses:
         fe = fe_press(AxisymmetricSample(m, h), R, depths, refinement=refinement)
-        err = hertz_force(e_star, R, depths) / fe.force - 1
+        err = hertz_force(m.effective_modulus, R, depths) / fe.force - 1
         print(f"{1e3 * h:>12g}  " + "  ".join(f"{100 * e:>+8.1f}%" for e in err))
 
 
@@ -65,7 +64,8 @@ def main() -> None:
     d = np.array([0.5, 1.0, 2.0]) * 1e-3
     convergence(AxisymmetricSample(Material("b", 1e5, 0.45), 0.02), d, levels)
     thick = AxisymmetricSample(Material("m", 2e5, 0.3), 0.06)
-    closed = sneddon_sphere_force_at_depth(2e5 / 0.91, R, d) * dimitriadis_factor(np.sqrt(R * d) / 0.06, 0.3)
+    closed = sneddon_sphere_force_at_depth(thick.bulk.effective_modulus, R, d) * dimitriadis_factor(
+        np.sqrt(R * d) / thick.thickness, thick.bulk.poisson)
     convergence(thick, d, levels, closed)
     hertz_error(np.array([1.0, 2.0, 3.0]) * 1e-3, [0.005, 0.01, 0.02, 0.06] if not args.quick else [0.01, 0.06],
                 1.0)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from palpate.core.alignment.events import reversals
+from palpate.hardware.polhemus.emulator import press_motion
 
 
 @pytest.mark.parametrize("seed", range(12))
@@ -16,8 +17,8 @@ def test_a_noisy_slow_turn_is_one_reversal_and_reversals_alternate(seed):
     pair with the c_P peaks at two clock offsets)."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, 6.0, 1.0 / 240.0)
-    z = 0.05 - 0.005 * 0.5 * (1.0 - np.cos(2.0 * np.pi * t / 2.0))
-    path = np.column_stack([np.zeros_like(t), np.zeros_like(t), z]) + rng.normal(0.0, 1e-4, (len(t), 3))
+    motion = press_motion(depth=0.005, period=2.0)
+    path = np.array([motion(ti, 1)[0] for ti in t]) + rng.normal(0.0, 1e-4, (len(t), 3))
     found = reversals(t, path)
     np.testing.assert_allclose([r.t for r in found], [1.0, 2.0, 3.0, 4.0, 5.0], atol=0.05)
     down = [r.direction[2] < 0 for r in found]  # moving down before the turn: the bottom of a press
