@@ -9,13 +9,16 @@ from the press axis or the press over its middle, nu 0.3 / 0.45, depths 1 / 3 / 
 the lump of the contact law as scenes use it and of the 3-D FE (same grid, so its discretisation error cancels),
 and the law's error. Nothing is tuned: every case is report-only.
 
-Run: .venv/bin/python benchmarks/fe_offaxis.py [--quick]   (--quick: part 1 at nu 0.3 only, part 2 two cases)
+Run: .venv/bin/python benchmarks/fe_offaxis.py [--quick] [--save rows.json]
+(--quick: part 1 at nu 0.3 only, part 2 two cases; --save: the rows for benchmarks/fe_offaxis_mixing.py)
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -70,9 +73,15 @@ def table(quick: bool) -> list:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a subset (under ~2 min)")
+    parser.add_argument("--save", type=Path, help="write the rows as JSON (for benchmarks/fe_offaxis_mixing.py)")
     args = parser.parse_args()
     validate(args.quick)
-    table(args.quick)
+    rows = table(args.quick)
+    if args.save:
+        doc = [dict(contrast=r.case.contrast, top=r.case.top, near=r.case.near, poisson=r.case.poisson,
+                    depth=r.depth.tolist(), law_ratio=r.law_ratio.tolist(), fe_ratio=r.fe_ratio.tolist())
+               for r in rows]
+        args.save.write_text(json.dumps({"rows": doc}, indent=1))
 
 
 if __name__ == "__main__":
