@@ -45,9 +45,11 @@ def power_mean_materials(p: float):
             if p == 0.0:
                 mean = np.exp(np.sum(np.where(inside, np.log(e_in), 0.0), axis=1) / cnt)
             else:
-                mean = (np.sum(np.where(inside, e_in**p, 0.0), axis=1) / cnt) ** (1.0 / p)
+                # a ring wholly outside the object sums to 0, whose 1 / p-th power is inf for p < 0: give it 1
+                total = np.where(frac > 0, np.sum(np.where(inside, e_in**p, 0.0), axis=1) / cnt, 1.0)
+                mean = total ** (1.0 / p)
             e_max = float(np.max(np.where(inside, e, 0.0)))
-            young = np.maximum(frac * mean, axisymmetric.VOID * max(e_max, 1.0))
+            young = np.maximum(np.where(frac > 0, frac * mean, 0.0), axisymmetric.VOID * max(e_max, 1.0))
             poisson = np.where(frac > 0, np.sum(np.where(inside, nu, 0.0), axis=1) / cnt, 0.3)
             return young, poisson
 
