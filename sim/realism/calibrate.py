@@ -94,6 +94,7 @@ FREE_PARAMETERS = {p.key: p for p in (
     FreeParameter("taxels.hysteresis", 0.0, 0.3),
     FreeParameter("taxels.creep", 0.0, 0.2),
     FreeParameter("taxels.nonlinearity", 0.0, 3.0),
+    FreeParameter("taxels.activation_kpa", 0.0, 5.0),
     FreeParameter("pose.latency_ms", -30.0, 30.0),
     FreeParameter("pose.clock_offset_ms", 0.0, 60.0),
     FreeParameter("pose.clock_wander_ms", 0.0, 60.0),
