@@ -169,7 +169,8 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     if not (np.all(np.isfinite(z_prof)) and np.isfinite(profile.x) and np.isfinite(profile.y)):
         raise ValidationError("flex: profile z, x, y must be finite (m)")
     check_step_budget(t_prof[-1] - t_prof[0], dt, max_steps, " (flex)")
-    n = int(np.floor((t_prof[-1] - t_prof[0]) / dt + 1e-9)) + 1
+    times = profile.step_times(dt)
+    n = len(times)
     x, y = float(profile.x), float(profile.y)
     surface_z = float(profile.surface_z)
     grid = flex_grid(obj, x, y, res, window)
@@ -181,7 +182,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             "use fidelity 'analytic' or 'rigid'")
     fm, data = _model(scene, obj, grid, dt, verts_per_cell, models)
     model = fm.model
-    z0 = float(z_prof[0])
+    z0 = float(np.interp(times[0], t_prof, z_prof))
     model.body_pos[fm.tip_body] = [x, y, z0]
     mujoco.mj_forward(model, data)
     cell = float(np.mean(grid.cell[:2]))
@@ -193,12 +194,15 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     watched = [mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_CNSTRFULL,
                mujoco.mjtWarning.mjWARN_CONTACTFULL]
 
-    times = t_prof[0] + dt * np.arange(n)
     setpoints = np.interp(times, t_prof, z_prof) - z0
-    # velocity and acceleration feedforward (a robot controller's), so the servo follows the press's reversal
-    vel = np.gradient(setpoints, times)
+    # velocity and acceleration feedforward (a robot controller's), so the servo follows the press's reversal.
+    # The discrete integrator is implicit Euler (drive stiffness and damping at the step's end), so the control of
+    # step k that lands the tip on setpoint k at the setpoint's own speed takes the backward differences ending at
+    # k: central ones start braking a step before a sharp reversal and turn round short of the depth.
+    vel = np.diff(setpoints, prepend=setpoints[0]) / dt
+    acc = np.diff(vel, prepend=0.0) / dt
     inertia = float(model.dof_armature[model.jnt_dofadr[fm.tip_joint]] + model.body_mass[fm.tip_body])
-    lead = setpoints + (_damping(model) * vel + inertia * np.gradient(vel, times)) / fm.kp
+    lead = setpoints + (_damping(model) * vel + inertia * acc) / fm.kp
     tip_z = np.empty(n)
     force = np.empty(n)
     pressure = np.empty((n, tip.rows, tip.cols))

@@ -233,11 +233,16 @@ def run_rigid_press(
         f"(now {profile.meta.get('speed', 0.0)} m/s), use a shorter timestep (now {timestep} s) or a stiffer "
         "drive (FingerDrive.kp)"))
 
-    # sensel pressures from the same field, only at steps in contact
+    # sensel pressures from the same field at steps in contact, interpolated in the force's height table as the
+    # force is: evaluating the law per step costs steps x sensels x order^2 basis terms (minutes for a slow press)
     pressure = np.zeros((n,) + qpts.shape[:2])
     touching = indentation > 0
     if touching.any():
-        p = law_pressure(law, indentation[touching], sensel_r) @ qw
+        p_tab = law_pressure(law, d_tab, sensel_r) @ qw
+        x = np.clip((s_run[touching] - s_lo) * inv_ds, 0.0, top)
+        i = x.astype(int)
+        w = (x - i)[:, None, None]
+        p = p_tab[i] * (1.0 - w) + p_tab[i + 1] * w
         if tau > 0:
             elastic = np.interp(s_run[touching], s_tab, f_tab)
             ratio = np.divide(f[touching], elastic, out=np.ones_like(elastic), where=elastic > 0)

@@ -256,6 +256,36 @@ def test_a_step_too_long_for_the_press_or_over_the_budget_is_refused_naming_the_
         flex.reference_press(young=2e5, depth=0.007)
 
 
+def test_the_physics_grid_lands_on_the_deepest_setpoint():
+    """A profile sampled finer than the step (its samples are not a multiple of it) still gets a step at its
+    deepest point, on a uniform grid inside the profile."""
+    from palpate.core.session.sources import PressTarget
+    from palpate.sim.controller import press_profile
+
+    prof = press_profile(PressTarget(0.0, 0.0, depth=0.005, speed=0.2), 0.01, radius=R, timestep=0.002)
+    assert not np.any(np.isclose(prof.t[0] + 0.002 * np.arange(40), prof.t[np.argmin(prof.z)]))  # the old grid
+    times = prof.step_times(0.002)
+    np.testing.assert_allclose(np.diff(times), 0.002)
+    assert prof.t[0] <= times[0] < prof.t[0] + 0.002 and times[-1] <= prof.t[-1]
+    assert np.min(np.abs(times - prof.t[np.argmin(prof.z)])) < 1e-12
+
+
+@pytest.mark.parametrize("x", [0.0, 0.0195])
+def test_a_fast_press_into_nearly_incompressible_foam_reaches_its_depth(x):
+    """The stability matrix's cell (1 kPa, nu 0.49, 5 mm at 0.2 m/s in 2 ms steps) turned round at 4.72 mm and
+    passed its reach check: the step grid missed the deepest setpoint and the drive braked a step early."""
+    from palpate.core.session.sources import PressTarget
+    from palpate.sim.controller import press_profile
+
+    obj = ObjectSpec("b", "box", (0.04, 0.04, 0.01), (0.0, 0.0), Material("m", 1e3, 0.49))
+    target = PressTarget(x, 0.0, depth=0.005, speed=0.2)
+    prof = press_profile(target, 0.01, radius=R, timestep=0.002)
+    tr = flex.run_flex_press(Scene((obj,)), obj, target, prof, timestep=0.002)
+    assert tr.indentation.max() == pytest.approx(0.005, rel=0.01)
+    # where the tip turns round the block pushes hardest
+    assert abs(tr.t[np.argmax(tr.force)] - tr.t[np.argmax(tr.indentation)]) <= 0.002 + 1e-9
+
+
 @pytest.mark.physics
 def test_active_sensels_are_the_references_within_one_sensel():
     """From 0.5 to 3 mm on a 40 mm block, every sensel lit by flex and not by the reference pressure (the contact

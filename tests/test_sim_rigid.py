@@ -49,6 +49,10 @@ def test_sensel_pressure_is_the_hertz_distribution_on_a_thick_block_and_the_anal
     law = object_law(obj, 0.0, 0.0, obj.height, R, 0.004)
     same = law_sensel_pressure(law, tr.indentation[i:i + 1], sensel_bounds(scene.fingertip))[0]
     np.testing.assert_allclose(tr.sensel_pressure[i], same, rtol=0, atol=0.02 * same.max())
+    # along the whole press, not only at its deepest step (the pressures are interpolated in a height table)
+    touching = tr.indentation > 0
+    every = law_sensel_pressure(law, tr.indentation[touching], sensel_bounds(scene.fingertip))
+    np.testing.assert_allclose(tr.sensel_pressure[touching], every, rtol=0, atol=0.02 * same.max())
     assert tr.force[i] == pytest.approx(float(law.force_at(tr.indentation[i])), rel=0.005)
 
 

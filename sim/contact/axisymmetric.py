@@ -71,6 +71,22 @@ def azimuthal_materials(lookup):
     return materials
 
 
+def free_side(lookup, reach: float, breaks_r=()) -> float:
+    """Radius, m, from which the object's top is absent all around the press axis (a narrow object's rim within
+    ``reach`` m), ``inf`` if some azimuth has material out to ``reach``; ``lookup`` as in :mod:`.stack`.
+
+    Sampled every reach / 256 and at ``breaks_r``: the last radius with material on some azimuth.
+    """
+    r = np.union1d(np.linspace(0.0, reach, 257), [b for b in breaks_r if 0.0 < b <= reach])
+    theta = (np.arange(AZIMUTHS) + 0.5) * 2.0 * np.pi / AZIMUTHS
+    offsets = (r[:, None, None] * np.stack([np.cos(theta), np.sin(theta)], axis=-1)[None]).reshape(-1, 2)
+    _, _, inside = lookup(offsets, np.full(len(offsets), 1e-7))
+    none = ~inside.reshape(len(r), AZIMUTHS).any(axis=1)
+    if not none.any():
+        return math.inf
+    return float(r[max(int(np.argmax(none)) - 1, 0)])
+
+
 def column_energy(column: AxisymmetricSample, tip_radius: float, max_depth: float, breaks_z=()) -> FEPress:
     """The column's coarse FE answer at the tabulated depths, for its element energy shares (see the module
     docstring)."""
@@ -119,8 +135,10 @@ def axisymmetric_law(lookup, thickness: float, tip_radius: float, max_depth: flo
     """
     depths = max_depth * DEPTH_FRACTIONS
     sample = AxisymmetricSample(bulk=surface, thickness=thickness, base=base)
+    # a rim within the contact's reach is the sample's free side: a mesh line, and no surface to touch past it
+    rim = free_side(lookup, 1.3 * 1.15 * math.sqrt(tip_radius * max_depth), breaks_r)
     solve = dict(refinement=REFINEMENT, growth=GROWTH, depth_growth=DEPTH_GROWTH, breaks_z=breaks_z,
-                 breaks_r=breaks_r)
+                 breaks_r=breaks_r, free_side=rim)
     fe = fe_press(sample, tip_radius, depths, materials=azimuthal_materials(lookup), **solve)
     uniform = fe_press(sample, tip_radius, depths, materials=azimuthal_materials(column_lookup), **solve)
     force = column.force_at(depths) * fe.force / uniform.force
