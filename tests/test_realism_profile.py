@@ -70,6 +70,7 @@ def test_a_file_lists_only_what_departs_from_ideal():
     ({"finger": {"stiffness_n_per_mm": -1.0}}, "finger.stiffness_n_per_mm"),
     ({"finger": {"compliant": "yes"}}, "finger.compliant"),
     ({"press": {"tilt_deg": 45.0}}, "press.tilt_deg"),
+    ({"taxels": {"activation_kpa": -1.0}}, "taxels.activation_kpa"),
     ({"press": {"speed_cv": 0.7}}, "press.speed_cv"),
     ({"pose": {"latency_ms": "3"}}, "pose.latency_ms"),
     ({"material": {"relaxation_time_s": 0.0}}, "material.relaxation_time_s"),
