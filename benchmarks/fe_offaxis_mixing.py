@@ -1,12 +1,13 @@
-"""A proposed change to the contact law's azimuthal mixing, measured against the 3-D FE (a proposal: sim/contact is
-not changed; the mixing is swapped in for this process only).
+"""The contact law's azimuthal mixing, measured against the 3-D FE for each power mean (swapped in for this process
+only).
 
-The law averages the material around the press axis by the arithmetic mean of E over each ring (a Voigt-type upper
-bound: sectors in parallel). benchmarks/fe_offaxis.py shows it 35-45% too stiff beside a stiff shallow lump. The
-proposal: the ring's power mean M_p = (mean E^p)^(1/p) over the sectors inside the object, times the fraction of
-the ring inside (so a free edge counts as it does now); p = 1 is today's law, p = 0 the geometric mean, p = -1 the
-harmonic (Reuss) mean. On an on-axis inclusion, a layer or a cylinder's centre every ring is uniform and any p gives
-the same law, so the validated cases do not move.
+The law first averaged the material around the press axis by the arithmetic mean of E over each ring (a Voigt-type
+upper bound: sectors in parallel), which benchmarks/fe_offaxis.py showed 36-58% too stiff beside a stiff shallow
+lump; it now uses the geometric mean (p = 0 below), chosen here. The family: the ring's power mean
+M_p = (mean E^p)^(1/p) over the sectors inside the object, times the fraction of the ring inside (so a free edge
+counts as before); p = 1 is the first mixing, p = 0 the geometric mean, p = -1 the harmonic (Reuss) mean.
+On an on-axis inclusion, a layer or a cylinder's centre every ring is uniform and any p gives the same law, so the
+validated cases do not move.
 
 p is tuned on the nu 0.3 rows of the saved table and reported on the nu 0.45 rows (never tuned on).
 

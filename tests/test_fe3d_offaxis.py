@@ -1,10 +1,8 @@
 """The 3-D FE check of off-axis lumps (sim/reference/fe3d.py) and what it finds about the contact law beside a box
 lump (sim/validity/offaxis.py; the table: benchmarks/fe_offaxis.py).
 
-The 3-D FE is first checked against the axisymmetric reference on a homogeneous block (its own mesh error). The law
-comparison is a FINDING, not a claim of validity: beside a stiff shallow lump the law (the object averaged around the
-press axis, the mean of E over each ring) is stiffer than the 3-D FE by ~35-45%, so the test pins that the law is
-an upper bound there and by how much, and will fail (to be updated) once the surrogate's azimuthal mixing changes.
+The 3-D FE is first checked against the axisymmetric reference on a homogeneous block (its own mesh error), then
+the law is checked against it beside a stiff shallow lump, on rows its ring mixing was not chosen on.
 """
 
 from __future__ import annotations
@@ -65,15 +63,14 @@ def test_the_3d_fe_of_a_homogeneous_block_matches_the_axisymmetric_reference(nu)
     assert np.all(np.diff(fe3.contact_nodes) > 0)
 
 
-def test_finding_the_law_overestimates_a_stiff_shallow_lump_beside_the_press():
-    """FINDING (issue 12, off-axis lumps): not a validity claim. The 3-D FE feels the 20x lump 1 mm down (ratio
-    > 1.2 over its edge) and less as it moves 3 mm away; the law says the same direction but is 30-50% stiffer
-    (measured +37..+45%) at every depth: the ring mean of E is a Voigt-type upper bound."""
+def test_the_law_is_within_ten_percent_of_the_3d_fe_beside_a_stiff_shallow_lump():
+    """Off-axis lumps (issue 12): a 20x lump 1 mm down, pressed over its edge and 3 mm beside it, at nu 0.45. The
+    law's ring mixing (geometric mean) was chosen on the nu 0.3 rows of benchmarks/fe_offaxis.py; these rows were
+    not used. The arithmetic ring mean it replaced was +46..+58% here."""
     cache: dict = {}
-    edge = compare(OffAxisCase(20.0, 0.001, 0.0, 0.3), cache=cache)
-    aside = compare(OffAxisCase(20.0, 0.001, 0.003, 0.3), cache=cache)
+    edge = compare(OffAxisCase(20.0, 0.001, 0.0, 0.45), cache=cache)
+    aside = compare(OffAxisCase(20.0, 0.001, 0.003, 0.45), cache=cache)
     assert np.all(edge.fe_ratio > 1.2) and np.all(aside.fe_ratio > 1.0)
     assert np.all(aside.fe_ratio < edge.fe_ratio)
     for row in (edge, aside):
-        assert np.all(row.law_ratio > row.fe_ratio)  # an upper bound here
-        assert np.all((row.error > 0.30) & (row.error < 0.50)), row.error
+        assert np.all(np.abs(row.error) < 0.10), row.error

@@ -1,13 +1,14 @@
 """The contact law of a press point whose material varies laterally (an inclusion, a haptic-material map, an edge
 within reach): the object averaged around the press axis, solved by the axisymmetric FE on a coarse mesh.
 
-The object's material at radius r and depth z from the press point is averaged over 16 azimuths: the mean of E
-(the ring's sectors carry the load spreading from the axis in parallel; a sector outside the object, past a free
-edge, counts 0), and the mean Poisson ratio of the sectors inside. For an inclusion on the press axis (and a cylinder
+The object's material at radius r and depth z from the press point is averaged over 16 azimuths: the geometric mean
+of E over the sectors inside the object times the share of the ring inside (a sector past a free edge carries
+nothing), and the mean Poisson ratio of the sectors inside. For an inclusion on the press axis (and a cylinder
 pressed at its centre) this is exact; the coarse mesh (surface spacing a / 3.6 at the smallest tabulated depth,
 growth 1.5 radially and 1.2 with depth) is run twice, on the averaged object and on the press point's column alone,
-and its own error cancels in their ratio (see :func:`axisymmetric_law`); off the axis it is an approximation whose
-error the validity table does not cover (its lumps are on the axis). Costs two factorisations per press point.
+and its own error cancels in their ratio (see :func:`axisymmetric_law`); off the axis it is an approximation, checked
+against a 3-D FE beside box lumps (benchmarks/fe_offaxis.py) but not part of the validity table (its lumps are on
+the axis). Costs two factorisations per press point.
 
 Most press points that see some lateral variation within reach barely feel it (an object's side 30 mm away at the
 base, a lump 20 mm aside). For them the FE is replaced by first-order perturbation (:func:`lateral_effect`): the
@@ -61,10 +62,17 @@ def azimuthal_materials(lookup):
         inside = inside.reshape(len(r), -1)
         frac = inside.mean(axis=1)
         cnt = np.maximum(inside.sum(axis=1), 1)
-        # the sectors of a ring carry the load spreading out from the axis side by side (in parallel): the mean
-        # of E over the ring, a void sector counting 0 (an edge), at least VOID of the stiffest
-        e_max = float(np.max(np.where(inside, e, 0.0)))
-        young = np.maximum(np.sum(np.where(inside, e, 0.0), axis=1) / e.shape[1], VOID * max(e_max, 1.0))
+        # the geometric mean of E over the ring's sectors inside the object, times the share of the ring inside
+        # (a void sector past a free edge carries nothing). The arithmetic mean (sectors in parallel) is an upper
+        # bound that the 3-D FE beside off-axis lumps put 36-58% too stiff next to a 20x lump 1 mm down, the
+        # harmonic one a lower bound; the geometric mean was the closest of the power means
+        # (benchmarks/fe_offaxis_mixing.py). Uniform rings (layers, on-axis lumps, a cylinder's centre) do not move.
+        # (taken relative to the ring's stiffest sector, so a uniform ring gives its own E exactly)
+        e_in = np.where(inside, e, 0.0)
+        e_ring = np.max(e_in, axis=1)
+        rel = np.where(inside, e / np.where(e_ring > 0, e_ring, 1.0)[:, None], 1.0)
+        geo = e_ring * np.exp(np.sum(np.log(rel), axis=1) / cnt)
+        young = np.maximum(frac * geo, VOID * max(float(np.max(e_ring)), 1.0))
         poisson = np.where(frac > 0, np.sum(np.where(inside, nu, 0.0), axis=1) / cnt, 0.3)
         return young, poisson
 
