@@ -1,10 +1,10 @@
 """Runs of exploration policies on the shape-family scenes (benchmarks/scene_families.py), offline and with physics.
 
 Offline, a press is answered without simulating it: the cell's *felt* reference material is worked out once per
-cell from the physics model's depth-weighted effective modulus under the contact (sim/effective_modulus.py: a press
-on a wall or on a one-cell feature feels a blend, which may read as a third material), and each press then draws
-one of the memory's predicted posteriors for that material (palpate.core.planning.outcomes). With physics, every
-press is simulated (analytic fidelity) and perceived through the run's own loop (explore_object).
+cell from the physics model's contact law there (sim/contact: the modulus of the Hertz law through the force the
+press reaches; a press on a wall or on a one-cell feature feels a blend, which may read as a third material), and
+each press then draws one of the memory's predicted posteriors for that material (palpate.core.planning.outcomes).
+With physics, every press is simulated (analytic fidelity) and perceived through the run's own loop (explore_object).
 
 Both record the post-processed map's accuracy after every press; the *ceiling* of a scene is what a raster reaches
 with every cell pressed once (the attainable accuracy), and a run's presses are counted to 95% of the ceiling and to
@@ -35,7 +35,8 @@ from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory
 from palpate.core.world.scenario_file import parse_scenario
 from palpate.core.world.workspace import ground_truth_map, object_geometry
-from palpate.sim.effective_modulus import depth_for_force, effective_modulus
+from palpate.sim.contact.stack import object_law
+from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS
 
 #: Benchmark rows: name -> (scenario policy, info_gain objective).
 ROWS = {"raster": ("raster", None), "max_entropy": ("max_entropy", None),
@@ -43,7 +44,7 @@ ROWS = {"raster": ("raster", None), "max_entropy": ("max_entropy", None),
 ACCURACY = 0.95
 OF_CEILING = 0.95
 #: Where felt materials are cached (recomputed when missing; delete to recompute after changing the generator).
-CACHE_DIR = Path(tempfile.gettempdir()) / f"palpate_families_v{GENERATOR_VERSION}"
+CACHE_DIR = Path(tempfile.gettempdir()) / f"palpate_families_v{GENERATOR_VERSION}_law"
 #: Fractions of a scene's cells pressed at which the map's calibration is sampled.
 CALIBRATION_AT = (0.2, 0.35, 0.5, 1.0)
 
@@ -83,7 +84,8 @@ def answers_for(references: tuple[str, ...], moduli: tuple[float, ...], samples:
 
 def felt_cells(fs: FamilyScene) -> np.ndarray:
     """(ny, nx) reference index a press at each cell centre reads: the reference whose E* is nearest (in log) to
-    the effective modulus felt under a 4 mm / 10 N press there."""
+    the effective modulus felt under a 4 mm / 10 N press there (the Hertz law's E* through the contact law's force at
+    the press's depth: layers, lumps and the table under a thin object)."""
     sc = fs.scenario()
     entry = sc.objects[0]
     spec = entry.spec
@@ -97,8 +99,11 @@ def felt_cells(fs: FamilyScene) -> np.ndarray:
     for iy in range(centres.shape[0]):
         for ix in range(centres.shape[1]):
             x, y = (float(v) for v in centres[iy, ix])
-            d = min(sc.exploration.depth, depth_for_force(spec, x, y, top, radius, sc.exploration.max_force))
-            e = effective_modulus(spec, x, y, top, math.sqrt(radius * d))
+            law = object_law(spec, x, y, top, radius, MAX_DEPTH_OVER_RADIUS * radius)
+            force = sc.exploration.max_force
+            reach = law.depth_for_force(force) if force < law.force[-1] else law.max_depth
+            d = min(sc.exploration.depth, reach)
+            e = 3.0 * float(law.force_at(d)) / (4.0 * math.sqrt(radius) * d**1.5)
             out[iy, ix] = int(np.argmin(np.abs(e_ref - math.log(e))))
     return out
 

@@ -26,6 +26,11 @@ class SimulationDiverged(PalpateError, RuntimeError):
     """
 
 
+class PressShortfall(SimulationDiverged):
+    """A simulated press did not reach its commanded depth or force (within 2%); the message names what limits it
+    (drive stiffness, speed) and what to change."""
+
+
 class DeviceError(PalpateError, RuntimeError):
     """A device did not answer, answered wrongly, or reported an error."""
 

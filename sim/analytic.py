@@ -1,18 +1,18 @@
-"""``analytic`` fidelity: Hertz contact of the spherical tip on an elastic half-space, in closed form.
+"""``analytic`` fidelity: the contact law of the press point in closed form, the tip following the profile exactly.
 
-Force F = 4/3 E* sqrt(R) d^1.5, contact radius a = sqrt(R d), pressure p(r) = p0 sqrt(1 - r^2/a^2) with
-p0 = 3 F / (2 pi a^2), where E* is the depth-weighted effective modulus E*_eff(a) under the contact
-(:mod:`palpate.sim.effective_modulus`; E / (1 - nu^2) of the material on a homogeneous object, the tip is rigid),
-evaluated at the current contact radius, and d the commanded indentation of the press profile (the finger follows
-it exactly; no dynamics). Each sensel reports the mean of
-p over its square footprint, integrated exactly along x and by Gauss-Legendre along y between the points where
-the circle crosses the sensel edges, so the integrand is smooth on every piece.
+The force, contact radius and surface pressure against indentation come from the press point's
+:class:`~palpate.sim.contact.law.ContactLaw` (:func:`palpate.sim.contact.stack.object_law`): the exact sphere on the
+object's layer stack on the rigid table (finite thickness and layers exactly: Sneddon's sphere on a thick block,
+the bonded-layer stiffening on a thin one), or, where the material varies laterally within reach of the press (an
+inclusion, a haptic-material map, a nearby edge), the object averaged around the press axis and solved
+axisymmetrically. Each sensel reports the mean of the law's pressure p(r) = sum_k c_k sqrt(b_k^2 - r^2) over its
+square footprint, each Hertz profile integrated exactly along x and by Gauss-Legendre along y between the points
+where the circle crosses the sensel edges, so the integrand is smooth on every piece.
 
-Validity: material at least ~5 contact radii thick and wide (half-space), indentation small against the tip
-radius (d << R, paraboloid approximation of the sphere), quasi-static (damping ignored), flat surface under the
-tip (the object's own curvature is ignored). Layers and inclusions enter only through E*_eff (first order; see
-its module for where that fails: thin stiff skins, large indentation). Outside these limits use ``rigid`` (finite
-and curved objects) or ``flex`` (thin objects, stiff skins, large deformation). No MuJoCo is needed.
+Validity: quasi-static (damping ignored), flat surface under the tip (the object's own curvature is ignored),
+linear elasticity (small strain: the law is refused beyond 0.75 tip radii deep); off-axis inclusions and edges are
+averaged around the axis. The measured error against the FE reference per situation is the validity table
+(``palpate bench``, models/validity_table.json) that ``auto`` reads. No MuJoCo is needed.
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Material, ObjectSpec, Scene, material_at
+from palpate.sim.contact.law import ContactLaw
+from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import PressProfile
-from palpate.sim.effective_modulus import modulus_along_depth
 from palpate.sim.fingertip import gauss_points, sensel_bounds
-from palpate.sim.hertz import hertz_force
-from palpate.sim.stability import check_resolves_press
+from palpate.sim.stability import check_depth, check_resolves_press, law_depth
 from palpate.sim.trace import PhysicsTrace
 
 
@@ -133,6 +133,21 @@ def hertz_sensel_pressure(
     return out.reshape(n, rows, cols)
 
 
+def law_sensel_pressure(law: ContactLaw, depth: np.ndarray, bounds: np.ndarray, centre: np.ndarray | None = None,
+                        order: int = 6) -> np.ndarray:
+    """Mean pressure (Pa) of ``law``'s contact over each sensel at indentations ``depth`` (m), (n, rows, cols):
+    the sum of the law's Hertz profiles, each integrated by :func:`hertz_sensel_pressure`."""
+    d = np.maximum(np.atleast_1d(np.asarray(depth, dtype=float)), 0.0)
+    radii, coeffs = law.basis_at(d)
+    radius = law.tip_radius
+    out = np.zeros((len(d),) + bounds.shape[:2])
+    for k in range(radii.shape[1]):
+        # c sqrt(b^2 - r^2) is a Hertz profile of a tip of radius R at depth b^2 / R with E* = c pi R / 2
+        out += hertz_sensel_pressure(radii[:, k] ** 2 / radius, coeffs[:, k] * np.pi * radius / 2.0, radius, bounds,
+                                     centre, order=order)
+    return np.maximum(out, 0.0)
+
+
 def local_material(obj: ObjectSpec, x: float, y: float, surface_z: float) -> Material:
     """Material just under the surface at (x, y): the one the tip presses first."""
     probe = np.array([[x, y, surface_z - 1e-5]])
@@ -142,68 +157,61 @@ def local_material(obj: ObjectSpec, x: float, y: float, surface_z: float) -> Mat
     return mat
 
 
-def effective_modulus_along(obj: ObjectSpec, x: float, y: float, surface_z: float, radius: float,
-                            depth: np.ndarray) -> float | np.ndarray:
-    """E*_eff, Pa, felt at each indentation ``depth`` (m) of a tip of ``radius`` m pressing at (x, y).
-
-    One value (the material's E*, exactly as before) where the object is one material under the whole press,
-    else one per depth from a per-press table in the contact radius sqrt(R d).
-    """
-    d = np.asarray(depth, dtype=float)
-    deepest = float(np.max(d)) if d.size else 0.0
-    one_material = not (obj.layers or obj.inclusions or obj.material_map is not None)
-    if one_material or not deepest > 0:
-        return local_material(obj, x, y, surface_z).effective_modulus
-    _, moduli, at = modulus_along_depth(obj, x, y, surface_z, radius, deepest)
-    if np.all(moduli == moduli[0]):
-        return float(moduli[0])
-    return at(d)
-
-
 def run_analytic_press(
-    scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None, order: int = 6
+    scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None, order: int = 6,
+    law: ContactLaw | None = None,
 ) -> PhysicsTrace:
-    """Hertz press-and-release sampled at ``rate`` Hz (sensors interpolate between samples).
+    """The press-and-release under the contact law, sampled at ``rate`` Hz (sensors interpolate between samples).
 
     Args:
         scene: the scene (fingertip geometry).
-        obj: the pressed object (E*_eff under the press point; the trace names the material at the surface).
+        obj: the pressed object (the trace names the material at the surface).
         profile: the press trajectory; the tip follows it exactly.
         rate: sampling rate of the trace, Hz; by default the taxel rate, so every taxel frame falls on an
-            exactly integrated sample (the pose sensor interpolates position, smooth at this rate).
+            exactly integrated sample (the pose sensor interpolates position, smooth at this rate); the deepest
+            point of the profile is sampled as well.
         order: Gauss-Legendre order of the sensel integration.
+        law: the press point's contact law (computed here when not given; a SimSource caches it).
+
+    Raises:
+        ValidationError: a press deeper than 0.75 tip radii, or too short for the sampling rate.
     """
     rate = scene.taxels.rate if rate is None else rate
     if not (np.isfinite(rate) and rate > 0):
         raise ValidationError(f"run_analytic_press: rate must be > 0 Hz, got {rate!r}")
 
     # a press shorter than two samples would be missed: zero force, silently (the sensor could not see it either)
-    check_resolves_press(profile, 1.0 / rate, f" (analytic, sampled at the {rate:g} Hz taxel rate)", min_steps=2)
+    check_resolves_press(profile, 1.0 / rate, f" (analytic, sampled at the {rate:g} Hz taxel rate)", min_steps=2,
+                         knobs="a slower or deeper press, or a higher taxel rate")
     tip = scene.fingertip
     radius = tip.radius
     if abs(profile.meta.get("radius", radius) - radius) > 1e-12:
         raise ValidationError(
             f"press profile was made for a tip radius {profile.meta.get('radius')} m, the scene's is {radius} m"
         )
+    check_depth(profile, radius, " (analytic)")
     mat = local_material(obj, profile.x, profile.y, profile.surface_z)
-    n_samples = max(int(np.floor(profile.duration * rate)) + 1, 2)
-    t = profile.t[0] + np.arange(n_samples) / rate
+    grid = profile.t[0] + np.arange(max(int(np.floor(profile.duration * rate)) + 1, 2)) / rate
+    # the deepest point too, so the trace's peak is the press's (a taxel frame between samples interpolates)
+    t = np.union1d(grid, [float(profile.t[int(np.argmin(profile.z))])])
+    n_samples = len(t)
     z = profile.at(t)
     depth = np.maximum(profile.surface_z + radius - z, 0.0)
-    e_star = effective_modulus_along(obj, profile.x, profile.y, profile.surface_z, radius, depth)
+    if law is None:
+        law = object_law(obj, profile.x, profile.y, profile.surface_z, radius, law_depth(profile))
     normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
     # the contact is where the sphere faces the surface: at -R n in the tip frame, projected on the pad plane
     centre = -radius * normal[:2]
     contact = np.array([profile.x, profile.y, profile.surface_z])
     pos = contact[None, :] + normal[None, :] * (z - profile.surface_z)[:, None]
-    pressure = hertz_sensel_pressure(depth, e_star, radius, sensel_bounds(tip), centre, order=order)
+    pressure = law_sensel_pressure(law, depth, sensel_bounds(tip), centre, order=order)
     quat = np.tile([1.0, 0.0, 0.0, 0.0], (n_samples, 1))
     trace = PhysicsTrace(
         t=t, tip_position=pos, tip_quaternion=quat, sensel_pressure=pressure,
-        force=hertz_force(e_star, radius, depth), indentation=depth, surface_z=profile.surface_z,
+        force=law.force_at(depth), indentation=depth, surface_z=profile.surface_z,
         material=mat.name,
-        meta={"fidelity": "analytic", "rate": float(rate), "young_eff": float(np.max(e_star)),
-              "young_eff_surface": float(mat.effective_modulus), "order": int(order)},
+        meta={"fidelity": "analytic", "rate": float(rate), "young_eff_surface": float(mat.effective_modulus),
+              "order": int(order), "contact_law_max_depth": law.max_depth},
     )
     trace.check_finite()
     return trace

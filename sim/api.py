@@ -9,7 +9,7 @@ from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, PoseSe
 from palpate.sim.source import SimSource
 
 _OPTIONS = ("size", "thickness", "damping", "hold", "force", "variability", "timestep", "fingertip", "taxels",
-            "pose", "material_name")
+            "pose", "material_name", "max_steps", "tolerance")
 
 
 def simulate_press(
@@ -26,7 +26,9 @@ def simulate_press(
         seed: seed of press variability and sensor noise.
         **scene_options: size (block side, m, 0.1), thickness (m, 0.03), damping (s, 0), hold (s, 0),
             force (N, instead of depth), variability ("robot" or "human"), timestep (s), fingertip
-            (FingertipSpec), taxels (TaxelSensorSpec), pose (PoseSensorSpec), material_name.
+            (FingertipSpec), taxels (TaxelSensorSpec), pose (PoseSensorSpec), material_name, max_steps (the
+            step budget of one press, 200 000: a longer press is refused before it runs), tolerance (``auto``'s
+            largest predicted force error, fraction, 0.05).
 
     Returns:
         a PressRecording with ``.frames`` (TaxelFrame list), ``.poses`` (PoseSample list), ``.truth``
@@ -50,6 +52,7 @@ def simulate_press(
     force = scene_options.get("force")
     target = PressTarget(0.0, 0.0, depth=None if force is not None else depth, force=force, speed=speed,
                          hold=float(scene_options.get("hold", 0.0)))
+    extra = {k: scene_options[k] for k in ("max_steps", "tolerance") if k in scene_options}
     source = SimSource(scene, fidelity=fidelity, seed=seed, variability=scene_options.get("variability", "robot"),
-                       timestep=scene_options.get("timestep"))
+                       timestep=scene_options.get("timestep"), **extra)
     return source.press(target)

@@ -1,7 +1,11 @@
-"""``palpate bench``: the speed/accuracy trade of the simulation, measured (see :mod:`palpate.sim.tradeoff`).
+"""``palpate bench``: the speed/accuracy trade of the simulation, and where each fidelity is valid, measured.
 
-Writes tradeoff.txt (the table), tradeoff.json and pareto.png into --out, and prints the table (or the JSON with
---json). ``--quick`` is the CI sweep (a few minutes on two cores); without it, the workstation sweep.
+Writes tradeoff.txt (the table), tradeoff.json and pareto.png (:mod:`palpate.sim.tradeoff`), and validity.txt /
+validity.json (each fidelity's force against the FE reference over thickness, depth, Poisson ratio, skins, lumps
+and edges, with each fidelity's cost: :mod:`palpate.sim.validity`) into --out, and prints both (or the JSON with
+--json). ``--quick`` is the CI sweep (a few minutes on two cores): fewer settings, the validity subset; without it
+the workstation sweep and every validity case (``--write-table`` then also replaces the validity table ``auto``
+reads, models/validity_table.json).
 """
 
 from __future__ import annotations
@@ -26,6 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quick", action="store_true", help="the CI sweep: fewer settings and presses")
     p.add_argument("--out", type=Path, default=Path("bench"), help="folder for tradeoff.txt/.json, pareto.png")
     p.add_argument("--json", action="store_true", help="print the JSON report instead of the table")
+    p.add_argument("--write-table", action="store_true",
+                   help="with the full sweep: also replace models/validity_table.json, the table auto reads")
     p.set_defaults(func=run_bench)
 
 
@@ -35,6 +41,8 @@ def run_bench(args: argparse.Namespace) -> int:
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     from palpate.sim import tradeoff, tradeoff_report
+    from palpate.sim.validity import cases, measure, reference
+    from palpate.sim.validity import report as validity_report
 
     try:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -58,15 +66,25 @@ def run_bench(args: argparse.Namespace) -> int:
         print(head + state, file=sys.stderr, flush=True)
 
     report = tradeoff.run_tradeoff(settings, seeds=seeds, progress=progress, on_start=started)
-    validity = tradeoff.analytic_validity(seeds=(0, 1))
     doc = tradeoff_report.report_to_dict(report)
-    doc["analytic_validity"] = validity
-    table = tradeoff_report.format_table(report) + "\n\n" + tradeoff_report.format_validity(validity)
+    table = tradeoff_report.format_table(report)
+
+    def case_done(case, errs) -> None:
+        print(f"  validity {case.name}", file=sys.stderr, flush=True)
+
+    chosen = cases.quick_cases() if args.quick else cases.validity_cases()
+    validity = measure.measure_table(chosen, reference.load_reference(), progress=case_done)
+    validity_text = validity_report.format_table(validity)
+    doc["validity"] = validity
     try:
         (args.out / "tradeoff.txt").write_text(table + "\n")
         (args.out / "tradeoff.json").write_text(json.dumps(doc, indent=1, allow_nan=False))
+        (args.out / "validity.txt").write_text(validity_text + "\n")
+        (args.out / "validity.json").write_text(json.dumps(validity, indent=1, allow_nan=False))
         tradeoff_report.pareto_plot(report, args.out / "pareto.png")
+        if args.write_table and not args.quick:
+            measure.TABLE_PATH.write_text(json.dumps(validity, indent=1, allow_nan=False) + "\n")
     except OSError as exc:
         raise RecordingError(f"bench: cannot write into {args.out}: {exc}") from exc
-    print(json.dumps(doc, indent=1) if args.json else table)
+    print(json.dumps(doc, indent=1) if args.json else table + "\n\n" + validity_text)
     return 0

@@ -65,6 +65,20 @@ class PressProfile:
         contact = np.array([self.x, self.y, self.surface_z])
         return contact[None, :] + n[None, :] * (self.z - self.surface_z)[:, None]
 
+    def step_times(self, timestep: float) -> np.ndarray:
+        """Times, s, of a physics run at ``timestep`` s over this profile: a uniform grid laid so that one step
+        falls on the deepest setpoint, starting within one step after t[0].
+
+        A grid from t[0] steps over the deepest point whenever the profile's sampling is not a multiple of the
+        step, and the servo then turns round up to half a step's travel short of the commanded depth (found by
+        the stability matrix: flex, 5 mm at 0.2 m/s in 2 ms steps, reached 4.72 mm).
+        """
+        t0, t1 = float(self.t[0]), float(self.t[-1])
+        deep = float(self.t[int(np.argmin(self.z))])
+        start = deep - timestep * np.floor((deep - t0) / timestep + 1e-9)
+        n = int(np.floor((t1 - start) / timestep + 1e-9)) + 1
+        return start + timestep * np.arange(n)
+
     def at(self, t: float | np.ndarray) -> np.ndarray:
         """Height setpoint at time(s) t, s, linearly interpolated, m."""
         return np.interp(t, self.t, self.z)

@@ -1,13 +1,17 @@
-"""Stability at the extremes: one press per cell of a matrix of moduli, Poisson ratios, timesteps, speeds, depths
-and press locations (centre, edge, corner), each classified as
+"""Stability at the extremes: one press per cell of a matrix of moduli, Poisson ratios, timesteps, speeds, depths,
+press locations (centre, edge, corner) and targets (a depth, or a 10 N force), each run the way a user runs it
+(:class:`~palpate.sim.source.SimSource`, taxels included) and classified as
 
-- ``ok``: finite, physically ordered output (force >= 0, no NaN, force growing with indentation while loading);
-- ``diverged``: stopped with SimulationDiverged (its message says what to change);
-- ``invalid``: stopped with a ValidationError (ditto), including a press over the step budget;
-- ``BUG``: anything else (NaN or disordered output that got through, another exception).
+- ``ok``: finite, physically ordered output (force >= 0, force growing with indentation while loading) that reached
+  its commanded depth within 2% (and, for analytic and rigid, its force target);
+- ``diverged``: stopped with SimulationDiverged or PressShortfall (its message says what to change);
+- ``invalid``: stopped with a ValidationError (ditto), including a press over the step budget or deeper than 0.75
+  tip radii;
+- ``BUG``: anything else: NaN, disordered output, a press that missed its target without saying so (a *silent
+  miss*), another exception.
 
-A cell never hangs: the press's physics steps are counted before it runs and a press over ``max_steps`` is
-refused with a ValidationError naming the timestep and speed to change.
+A cell never hangs: the step budget refuses a press that would take more than ``max_steps`` steps before it runs.
+Each ok cell also reports how many of its taxel frames saturated (counted from the frames).
 """
 
 from __future__ import annotations
@@ -18,25 +22,24 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from palpate.core.errors import SimulationDiverged, ValidationError
+from palpate.core.perception.streams import saturated_frames
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, Scene
-from palpate.sim.analytic import local_material, run_analytic_press
-from palpate.sim.controller import press_profile
-from palpate.sim.flex import run_flex_press
-from palpate.sim.hertz import hertz_depth_for_force
-from palpate.sim.rigid import run_rigid_press
+from palpate.sim.source import SimSource
+from palpate.sim.stability import MAX_STEPS, REACH_TOLERANCE
 
 #: Block of the matrix: 40 x 40 mm, 10 mm thick, so 80% of its thickness is an 8 mm press.
 BLOCK = (0.04, 0.04, 0.01)
-#: Largest number of physics steps one press may take.
-MAX_STEPS = 200_000
 LOCATIONS = {"centre": (0.0, 0.0), "edge": (0.0195, 0.0), "corner": (0.0195, 0.0195)}
+#: The force target of ``target="force"`` cells, N.
+FORCE_TARGET = 10.0
 
 
 @dataclass(frozen=True)
 class Cell:
     """One cell: fidelity, Young's modulus Pa, Poisson ratio, timestep s, speed m/s, depth as a fraction of the
-    block's thickness, and where on the block (centre, edge, corner)."""
+    block's thickness (the depth limit of a force target), where on the block (centre, edge, corner), and the
+    target ("depth" or "force")."""
 
     fidelity: str
     young: float
@@ -45,21 +48,24 @@ class Cell:
     speed: float
     depth_fraction: float
     location: str = "centre"
+    target: str = "depth"
 
 
 @dataclass
 class Outcome:
-    """What a cell gave: outcome class, the message (for diverged/invalid/BUG) and the peak force, N."""
+    """What a cell gave: outcome class, the message (for diverged/invalid/BUG), the peak force (N) and the fraction
+    of its taxel frames that saturated."""
 
     cell: Cell
     outcome: str
     message: str = ""
     peak_force: float = float("nan")
+    saturated: float = 0.0
 
     def to_dict(self) -> dict:
         """JSON-ready form."""
         d = asdict(self.cell)
-        d.update(outcome=self.outcome, message=self.message,
+        d.update(outcome=self.outcome, message=self.message, saturated=float(self.saturated),
                  peak_force=None if not np.isfinite(self.peak_force) else float(self.peak_force))
         return d
 
@@ -88,50 +94,69 @@ def physically_ordered(t: np.ndarray, force: np.ndarray, indentation: np.ndarray
     return ""
 
 
+def silent_miss(rec) -> str:
+    """'' if the press reached what it was commanded (depth within 2%, and a force target within 2% where the
+    fidelity's force model set the depth), else what it missed: the rung should have raised and did not."""
+    prof = rec.meta.get("profile", {})
+    depth = float(prof.get("depth", 0.0))
+    reached = float(np.max(rec.truth.indentation))
+    if depth > 0 and abs(reached / depth - 1.0) > REACH_TOLERANCE + 0.005 and abs(reached - depth) > 2e-6:
+        return f"silent miss: reached {reached * 1e3:.3f} mm of {depth * 1e3:.3f} mm"
+    target = prof.get("force_target")
+    if target and rec.meta.get("fidelity") in ("analytic", "rigid"):
+        peak = float(np.max(rec.truth.force))
+        if abs(peak / target - 1.0) > REACH_TOLERANCE + 0.005:
+            return f"silent miss: reached {peak:.3g} N of the {target:.3g} N target"
+    return ""
+
+
 def run_cell(cell: Cell, *, max_steps: int = MAX_STEPS) -> Outcome:
     """Press the matrix block once at ``cell`` and classify the result (never raises for a sim failure)."""
-
     try:
-        mat = Material("m", cell.young, cell.poisson)
-        obj = ObjectSpec("block", "box", BLOCK, (0.0, 0.0), mat)
-        scene = Scene((obj,))
+        obj = ObjectSpec("block", "box", BLOCK, (0.0, 0.0), Material("m", cell.young, cell.poisson))
         x, y = LOCATIONS[cell.location]
-        target = PressTarget(x, y, depth=cell.depth_fraction * BLOCK[2], speed=cell.speed)
-        tip = scene.fingertip
-        e_star = local_material(obj, x, y, obj.height).effective_modulus
-        profile = press_profile(target, obj.height, radius=tip.radius, timestep=min(cell.timestep, 0.002),
-                                depth_for_force=lambda f: hertz_depth_for_force(e_star, tip.radius, f))
-        steps = int(np.ceil(profile.duration / cell.timestep))
-        if cell.fidelity != "analytic" and steps > max_steps:
-            raise ValidationError(
-                f"press of {profile.duration:.2f} s at timestep {cell.timestep} s needs {steps} steps, over the "
-                f"budget of {max_steps}; raise the timestep or the press speed ({cell.speed} m/s)")
-        if cell.fidelity == "analytic":
-            trace = run_analytic_press(scene, obj, profile)
-        elif cell.fidelity == "rigid":
-            trace = run_rigid_press(scene, obj, profile, timestep=cell.timestep)
-        else:
-            trace = run_flex_press(scene, obj, target, profile, timestep=cell.timestep)
+        depth = cell.depth_fraction * BLOCK[2]
+        force = FORCE_TARGET if cell.target == "force" else None
+        source = SimSource(Scene((obj,)), fidelity=cell.fidelity, timestep=cell.timestep, max_steps=max_steps)
+        rec = source.press(PressTarget(x, y, depth=depth, force=force, speed=cell.speed))
     except SimulationDiverged as exc:
         return Outcome(cell, "diverged", str(exc))
     except ValidationError as exc:
         return Outcome(cell, "invalid", str(exc))
     except Exception as exc:  # noqa: BLE001 - anything else is a bug the matrix must show, not hide
         return Outcome(cell, "BUG", f"{type(exc).__name__}: {exc}")
-    why = physically_ordered(trace.t, trace.force, trace.indentation)
-    if why and why != "no contact":
-        return Outcome(cell, "BUG", why, float(np.nanmax(trace.force)))
+    truth = rec.truth
+    peak = float(np.nanmax(truth.force))
+    sat = saturated_frames(rec.frames) / max(len(rec.frames), 1)
+    why = physically_ordered(truth.t, truth.force, truth.indentation) or silent_miss(rec)
     if why == "no contact":
-        return Outcome(cell, "BUG", "the press never touched the block", 0.0)
-    return Outcome(cell, "ok", "", float(trace.force.max()))
+        return Outcome(cell, "BUG", "the press never touched the block", 0.0, sat)
+    if why:
+        return Outcome(cell, "BUG", why, peak, sat)
+    return Outcome(cell, "ok", "", peak, sat)
 
 
 def matrix(fidelities=("analytic", "rigid"), youngs=(1e3, 1e5, 1e8), poissons=(0.0, 0.3, 0.49),
-           timesteps=(1e-4, 2e-3, 1e-2), speeds=(0.001, 0.01, 0.2), depth_fractions=(0.1, 0.8),
-           locations=("centre", "edge", "corner")) -> list[Cell]:
+           timesteps=(1e-4, 2e-3, 1e-2), speeds=(0.001, 0.01, 0.2), depth_fractions=(0.1, 0.5),
+           locations=("centre", "edge", "corner"), targets=("depth",)) -> list[Cell]:
     """The full product of the given axes, as cells."""
     return [Cell(*c) for c in itertools.product(fidelities, youngs, poissons, timesteps, speeds, depth_fractions,
-                                                locations)]
+                                                locations, targets)]
+
+
+def fuzz_cells(n: int, seed: int = 0, fidelities=("analytic", "rigid", "flex")) -> list[Cell]:
+    """``n`` random cells (seeded): E 1 kPa-100 MPa and speed 0.5-300 mm/s log-uniform, nu 0-0.499, depth 0.05-10
+    mm, a depth or a 10 N force target, any location, the fidelity's default timestep."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        out.append(Cell(
+            fidelity=str(rng.choice(fidelities)), young=float(10 ** rng.uniform(3, 8)),
+            poisson=float(rng.uniform(0.0, 0.499)), timestep=float(rng.choice([5e-4, 2e-3, 5e-3])),
+            speed=float(10 ** rng.uniform(np.log10(5e-4), np.log10(0.3))),
+            depth_fraction=float(rng.uniform(0.005, 1.0)), location=str(rng.choice(list(LOCATIONS))),
+            target=str(rng.choice(["depth", "force"]))))
+    return out
 
 
 def outcome_counts(outcomes: list[Outcome]) -> dict[str, int]:

@@ -5,8 +5,10 @@ chain of hinge links over the scene's objects, with the simulation's fingertip a
 centre is the finger's kinematic tip point, carrying the 4x4 sensel pad. Given the servo shaft angles it
 
 - places the chain (MuJoCo kinematics), finds the tip sphere against the object under it and evaluates the
-  ``rigid`` fidelity's local-Hertz contact (``p = kernel sqrt(2 g - g_ref - s)`` over the tip footprint, which
-  integrates to Hertz on a flat top; see :mod:`palpate.sim.rigid`), and
+  ``rigid`` fidelity's contact model: the press point's contact law (its column's layers on the table: finite
+  thickness and skins, exact sphere, :mod:`palpate.sim.contact`; an inclusion or edge within reach is not
+  solved for, the emulator answers in real time) mapped onto the real footprint by clearance (edges, sloped and
+  curved tops; see :mod:`palpate.sim.rigid`), and
 - returns the external torque on each servo shaft, ``J^T F`` with ``J`` MuJoCo's Jacobian of the contact point:
   that is the emulator's ``load_model``, so the joint currents a driver reads back are the physics' force;
 - records, through the emulator's ``observer`` hook, what the servos actually did (tip pose, force, true
@@ -19,10 +21,10 @@ its taxel frames. The finger is anything shaped like :class:`FingerChain` (a Dyn
 sim does not import the hardware package.
 
 Validity: quasi-static (the servos hold their position, the contact force is elastic: Kelvin-Voigt damping and
-the finger's inertia are ignored), one object under the tip with a horizontal top (the force is taken along +z;
-a sloped top would add a tangential part), the validity limits of ``rigid`` (thick homogeneous objects, local
-contact law), frictionless contact. The pad follows the fingertip's pitch: on a 2-link finger the tip tilts a few
-degrees during a press, which shifts the lit sensels along x.
+the finger's inertia are ignored), one object under the tip, the force taken along +z (a sloped top's tangential
+part is left out), the validity of ``rigid`` (the validity table of ``palpate bench``), frictionless contact. The
+pad follows the fingertip's pitch: on a 2-link finger the tip tilts a few degrees during a press, which shifts the
+lit sensels along x.
 """
 
 from __future__ import annotations
@@ -39,10 +41,12 @@ from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import GroundTruth, TaxelFrame
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import local_material
+from palpate.sim.contact.stack import object_law
 from palpate.sim.fingertip import cap_height, sensel_quadrature, sensel_sites
-from palpate.sim.rigid import footprint_rings
+from palpate.sim.rigid import contact_geometry, equivalent_radius, footprint_rings, law_pressure
 from palpate.sim.scene import add_object, surface_heights
 from palpate.sim.sensors import ground_truth, sample_taxels
+from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS
 from palpate.sim.trace import PhysicsTrace
 
 
@@ -136,7 +140,12 @@ class FingerPhysics:
         self._jacp = np.zeros((3, self.model.nv))
         self._dirs = finger.directions.copy()
         self._offs = finger.offsets.copy()
-        self._rings = footprint_rings(self.radius, rings, sectors)
+        self._cells = footprint_rings(self.radius, rings, sectors)
+        self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
+        for obj in scene.objects:  # solved now, not at the first contact the emulator must answer in time
+            if obj.shape != "mesh":
+                object_law(obj, *obj.position, obj.height, self.radius, MAX_DEPTH_OVER_RADIUS * self.radius,
+                           cache=self._laws, lateral=False)
         qpts, self._qw = sensel_quadrature(scene.fingertip, order)
         # quadrature points on the sphere in the fingertip frame (origin at the centre, pad facing -z)
         self._qpts_tip = np.concatenate(
@@ -172,8 +181,9 @@ class FingerPhysics:
         return None
 
     def _footprint(self, x: float, y: float) -> tuple | None:
-        """For a sphere centre above (x, y): (merged gaps g' = 2 g - g_ref (m), their areas (m^2), g_ref (m),
-        kernel (Pa/m^0.5), object), or None when no object is under it. Cached per ``retable`` cell."""
+        """For a sphere centre above (x, y): (equivalent radii of the footprint cells (m), their areas (m^2), the
+        first-contact height g_ref (m), the point's contact law, object), or None when no object is under it.
+        Cached per ``retable`` cell (laws of laterally uniform points are shared by their stack)."""
         obj = self._object_under(x, y)
         if obj is None:
             return None
@@ -181,31 +191,32 @@ class FingerPhysics:
         table = self._tables.get(key)
         if table is not None:
             return table
-        pts, areas = self._rings
-        gaps = surface_heights(obj, np.array([x, y]) + pts) - cap_height(self.scene.fingertip, pts)
-        # the rings' centres miss the axis, where a flat top is first touched (r^2 / 2R = 0.1 um lower)
-        g_ref = max(float(np.max(gaps)), float(surface_heights(obj, np.array([[x, y]]))[0]))
-        mat = local_material(obj, x, y, g_ref)
-        kernel = 2.0 * mat.effective_modulus / np.pi * np.sqrt(2.0 / self.radius) / np.sqrt(2.0)
-        g2 = 2.0 * gaps - g_ref
-        _, inverse = np.unique(np.round(g2 / 1e-7).astype(np.int64), return_inverse=True)
-        weight = np.bincount(inverse, weights=areas)
-        g = np.bincount(inverse, weights=g2 * areas) / weight
+        r_cells, areas, g_ref = contact_geometry(obj, np.array([x, y]), self.scene.fingertip, cells=self._cells)
+        # the column's layers on the table (finite thickness, skins): the emulator answers in real time and cannot
+        # wait for the axisymmetric solve of an inclusion or an edge within reach
+        law = object_law(obj, x, y, g_ref, self.radius, MAX_DEPTH_OVER_RADIUS * self.radius, cache=self._laws,
+                         lateral=False)
         if len(self._tables) > 4096:  # a long session sweeping a curved top must not grow without bound
             self._tables.clear()
-        table = self._tables[key] = (g, weight, g_ref, kernel, obj)
+        table = self._tables[key] = (r_cells, areas, g_ref, law, obj)
         return table
 
-    def _force(self, centre: np.ndarray) -> tuple[float, float, tuple | None]:
-        """(normal force N, indentation m, footprint table) for a sphere centred at ``centre``."""
+    def _force(self, centre: np.ndarray, quick: bool = False) -> tuple[float, float, tuple | None]:
+        """(normal force N, indentation m, footprint table) for a sphere centred at ``centre``; ``quick`` skips
+        sampling the footprint above a flat top (the emulator asks at every packet, in real time)."""
+        if quick:
+            obj = self._object_under(float(centre[0]), float(centre[1]))
+            if obj is None or (obj.shape != "mesh" and float(centre[2]) - self.radius >= obj.height):
+                return 0.0, 0.0, None
         table = self._footprint(float(centre[0]), float(centre[1]))
         if table is None:
             return 0.0, 0.0, None
-        g, w, g_ref, kernel, _ = table
+        r_cells, areas, g_ref, law, _ = table
         s = float(centre[2]) - self.radius  # height of the sphere's lowest point
         if s >= g_ref:
             return 0.0, 0.0, table
-        return float(kernel * (np.sqrt(np.maximum(g - s, 0.0)) @ w)), g_ref - s, table
+        depth = g_ref - s
+        return float(law_pressure(law, np.array([depth]), r_cells)[0] @ areas), depth, table
 
     def _joint_torque(self, centre: np.ndarray, force_z: float) -> np.ndarray:
         # MuJoCo's Jacobian of the contact point (the sphere's lowest point), after _place
@@ -234,23 +245,30 @@ class FingerPhysics:
         return FingerContact(tip, centre, quat, np.array([0.0, 0.0, force_z]), depth, torque, pressure)
 
     def _sensel_pressure(self, centres: np.ndarray, rots: np.ndarray, tables: list) -> np.ndarray:
-        """Mean pressure over each sensel, Pa, (n, rows, cols), for n fingertip placements; vectorised."""
+        """Mean pressure over each sensel, Pa, (n, rows, cols), for n fingertip placements; vectorised over the
+        placements that share a contact law (the emulator's thread must not wait on a Python loop)."""
         out = np.zeros((len(centres),) + self._shape)
         s = centres[:, 2] - self.radius
         touching = [i for i, tb in enumerate(tables) if tb is not None and s[i] < tb[2]]
-        for obj in {id(tables[i][4]): tables[i][4] for i in touching}.values():
-            idx = np.array([i for i in touching if tables[i][4] is obj])
+        groups: dict[int, list[int]] = {}
+        for i in touching:
+            groups.setdefault(id(tables[i][3]), []).append(i)
+        for members in groups.values():
+            idx = np.array(members)
+            law, obj = tables[idx[0]][3], tables[idx[0]][4]
             g_ref = np.array([tables[i][2] for i in idx])
-            kernel = np.array([tables[i][3] for i in idx])
-            # the pad's quadrature points, carried by the tilted fingertip, sample the pressure field under it
+            # the pad's quadrature points, carried by the tilted fingertip, sample the surface under it
             world = np.einsum("rckj,nij->nrcki", self._qpts_tip, rots[idx])
             rel = world[..., :2]
-            xy = centres[idx, None, None, None, :2] + rel
-            gap = surface_heights(obj, xy.reshape(-1, 2)).reshape(rel.shape[:-1]) - cap_height(
-                self.scene.fingertip, rel)
-            pen = 2.0 * gap - (g_ref + s[idx])[:, None, None, None]
-            pen = np.where(world[..., 2] < 0.0, pen, 0.0)  # only the lower hemisphere can touch
-            out[idx] = kernel[:, None, None] * (np.sqrt(np.maximum(pen, 0.0)) @ self._qw)
+            gap = surface_heights(obj, (centres[idx, None, None, None, :2] + rel).reshape(-1, 2)).reshape(
+                rel.shape[:-1]) - cap_height(self.scene.fingertip, rel)
+            r_eq = equivalent_radius(g_ref[:, None, None, None] - gap, self.radius)
+            r_eq = np.where(world[..., 2] < 0.0, r_eq, np.inf)  # only the lower hemisphere can touch
+            b, c = law.basis_at(np.minimum(g_ref - s[idx], law.max_depth))
+            p = np.zeros(r_eq.shape)
+            for k in range(b.shape[1]):
+                p += c[:, k, None, None, None] * np.sqrt(np.maximum(b[:, k, None, None, None] ** 2 - r_eq**2, 0.0))
+            out[idx] = p @ self._qw
         return out
 
     # ---- the emulator's hooks ------------------------------------------------------------------------------
@@ -263,7 +281,7 @@ class FingerPhysics:
                 return self._last_load[1]  # servos at rest are asked again at every packet
             self._place(self._dirs * angles + self._offs)
             centre = self.data.xpos[self._tip_body].copy()
-            force_z, _, _ = self._force(centre)
+            force_z, _, _ = self._force(centre, quick=True)
             torque = self._joint_torque(centre, force_z) if force_z > 0 else np.zeros(len(angles))
             # a servo mounted mirrored feels the joint torque with the opposite sign
             out = self._dirs * torque

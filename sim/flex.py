@@ -1,25 +1,17 @@
-"""The `flex` fidelity: a MuJoCo deformable block (trilinear flexcomp with linear elasticity) pressed by the tip.
+"""The `flex` fidelity: a MuJoCo deformable block (trilinear flexcomp, linear elasticity) pressed by the tip.
 
-What it models: finite thickness, layers and inclusions, large indentation, with the object's bottom bonded to the
-table. What it does not: the block is a *window* of the object around the press point (at most ``window`` wide,
-full height); where the window cuts through the object its side faces are pinned (the material around it is
-treated as rigid), free object edges stay free. A cylinder is modelled by the square inscribed in it; meshes are
-not supported. Gravity is off so that the undeformed top stays at the object's height.
+What MuJoCo computes: the block's elastic deformation (per-cell stiffness with the material at each cell: layers
+and inclusions, see :mod:`palpate.sim.flex_model`), the tip's drive dynamics, the frictionless contact between the
+tip sphere and the block's surface vertices, and each contact's normal force. What palpate adds: the window of the
+object (bottom bonded to the table, cut sides pinned, free object edges free), the mesh correction (the coarse
+trilinear grid is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell,
+measured against the reference on a thick block, :mod:`palpate.sim.flex_calibration`, so finite thickness, layers
+and edges come from the block itself), and the taxels: each contact force stands for the surface patch of its
+vertex (side = vertex spacing) and is spread uniformly over it on the pad, which then averages over each sensel.
 
-Validity limits (see benchmarks/flex_resolution.py for the measured table):
-- The elastic field is trilinear per cell (cell edge ``resolution``, default 6.5 mm, ~0.8 tip radius), far
-  coarser than the Hertz contact radius at small indentation, so the raw block is ~2x stiffer than Hertz and its
-  force-indentation exponent is ~1.4 rather than 1.5. The modulus is divided by a calibrated factor
-  (:mod:`palpate.sim.flex_calibration`) so that a thick homogeneous block matches Hertz in 0.3-1.5 mm.
-- Layers and inclusions are resolved per cell: each cell takes the material at its centre (stiffness matrix
-  rebuilt from that material's Lame parameters). Features thinner than a cell are smeared or lost.
-- Damping is one value per flex (MuJoCo has no per-cell damping): the largest damping of the materials present.
-- Contact is frictionless (condim 1) with the direct solref form; lateral jitter of the press point is applied
-  as a fixed offset (the tip moves only vertically).
-
-Taxels: each contact's normal force is spread over the pad by the skin model, a Gaussian of width ``skin_sigma``
-on the pad plane (the pad is wrapped onto the sphere by arc length), and averaged over each sensel square exactly
-(erf products), so the pressure field conserves the force and is smooth even when only a few flex vertices touch.
+The model is built once per window (a ``models`` dict the caller keeps, e.g. one per SimSource) and its state reset
+between presses. A cylinder is modelled by the square inscribed in it; meshes are not supported. Gravity is off so
+that the undeformed top stays at the object's height.
 """
 
 from __future__ import annotations
@@ -30,22 +22,31 @@ from palpate.core.errors import SimulationDiverged, ValidationError
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, Scene, material_index_at
 from palpate.sim.controller import press_profile
-from palpate.sim.flex_calibration import modulus_factor
+from palpate.sim.flex_calibration import load_calibration, mesh_factor
 from palpate.sim.flex_model import (
     CONTACT_SOLREF,
     DEFAULT_RESOLUTION,
-    DEFAULT_TIMESTEP,
     DEFAULT_WINDOW,
+    MAX_TIMESTEP,
+    VERTS_PER_CELL,
     build_flex_model,
     flex_grid,
 )
-from palpate.sim.stability import check_resolves_press
+from palpate.sim.stability import MAX_STEPS, check_depth, check_reached, check_resolves_press, check_step_budget
 from palpate.sim.trace import PhysicsTrace
 
 #: Contact penetration, m, beyond which (and beyond PENETRATION_FRACTION of the indentation) the run diverged.
-#: Soft blocks at large strain report up to ~55% (the sphere bulges between coarse surface vertices).
 PENETRATION_LIMIT = 5.0e-4
 PENETRATION_FRACTION = 0.65
+#: Smallest contact radius, in cells, whose force the mesh correction is measured for (below it one vertex
+#: touches and the force is the vertex's, not the block's).
+MIN_CONTACT_OVER_CELL = 0.25
+#: Side of the surface patch a contact force stands for, in collision-vertex spacings (1.5, chosen on the 40 mm
+#: block of tests/test_sim_flex.py so that the active-sensel map is the reference's within one sensel from 0.5 to 3 mm;
+#: 1 leaves the diagonal pattern of single contacts, 2 lights a ring too many): MuJoCo places a flex contact
+#: on a surface element (two triangles per vertex square, split along one diagonal), not at a vertex, so a force
+#: belongs to the elements around it.
+PATCH = 1.5
 
 
 def pad_coordinates(offsets: np.ndarray, radius: float) -> np.ndarray:
@@ -64,42 +65,69 @@ def pad_coordinates(offsets: np.ndarray, radius: float) -> np.ndarray:
     return off[:, :2] * scale[:, None]
 
 
-def sensel_pressure(pad_xy: np.ndarray, forces: np.ndarray, fingertip: FingertipSpec,
-                    skin_sigma: float) -> np.ndarray:
-    """Mean pressure over each sensel, Pa, shape (rows, cols), from point forces spread by a Gaussian skin.
+def sensel_pressure(pad_xy: np.ndarray, forces: np.ndarray, fingertip: FingertipSpec, patch: float) -> np.ndarray:
+    """Mean pressure over each sensel, Pa, (rows, cols), of point forces each spread uniformly over a square patch.
 
     Args:
         pad_xy: (k, 2) force positions on the pad plane, m (see :func:`pad_coordinates`).
         forces: (k,) normal forces, N, >= 0.
         fingertip: pad layout.
-        skin_sigma: standard deviation of the skin's spreading kernel, m.
+        patch: side of the square each force stands for (the contact vertex's share of the surface), m.
     """
-    # scipy.special costs ~0.3 s to import; only a flex press needs it, so every CLI start and sweep worker that
-    # never runs one does not pay for it
-    from scipy.special import ndtr
-
-    centres = fingertip.sensel_centres().reshape(-1, 2)
     if len(forces) == 0:
         return np.zeros((fingertip.rows, fingertip.cols))
+    centres = fingertip.sensel_centres().reshape(-1, 2)
     half = fingertip.sensel_size / 2.0
     d = centres[None, :, :] - np.asarray(pad_xy)[:, None, :]  # (k, s, 2)
-    # exact mean of a Gaussian over a square: product of 1-D erf differences
-    frac = np.prod(ndtr((d + half) / skin_sigma) - ndtr((d - half) / skin_sigma), axis=2)
+    # overlap length of [-patch/2, patch/2] with [d - half, d + half] per axis, exact
+    lo = np.maximum(d - half, -patch / 2.0)
+    hi = np.minimum(d + half, patch / 2.0)
+    frac = np.prod(np.clip(hi - lo, 0.0, None), axis=2) / patch**2
     p = np.asarray(forces) @ frac / fingertip.sensel_area
     return p.reshape(fingertip.rows, fingertip.cols)
 
 
 def _diverged(what: str, t: float, timestep: float) -> SimulationDiverged:
     return SimulationDiverged(
-        f"flex: {what} at t={t:.4f} s (timestep {timestep} s); reduce the timestep, the press speed or the "
-        "stiffness (a coarser resolution or softer material), or stiffen the contact solref"
+        f"flex: {what} at t={t:.4f} s (timestep {timestep} s); pass a shorter timestep or a slower press "
+        "(run_flex_press(timestep=...), simulate_press(timestep=..., speed=...)), or press less deep"
     )
+
+
+def default_timestep(profile) -> float:
+    """The flex step for a press, s: MAX_TIMESTEP, or a thirtieth of the time the press takes to go its depth at
+    its speed if that is shorter (the drive turns round at the deepest point within a fraction of a step, so the
+    step bounds how far short it stops: well inside the 2% a press must reach)."""
+    depth = float(profile.meta.get("depth", 0.0))
+    speed = float(profile.meta.get("speed_in", profile.meta.get("speed", 0.0)))
+    if depth > 0 and speed > 0:
+        return float(min(MAX_TIMESTEP, depth / speed / 30.0))
+    t0, t1 = profile.meta.get("phases", {}).get("press", (0.0, profile.duration))
+    return float(min(MAX_TIMESTEP, max(t1 - t0, 1e-6) / 30.0))
+
+
+def _model(scene: Scene, obj: ObjectSpec, grid, dt: float, verts_per_cell: int, models: dict | None):
+    """The cached (model, data) of a window, or a new one (kept in ``models``)."""
+    import mujoco
+
+    key = (obj, grid.key(), float(dt), int(verts_per_cell), scene.fingertip.radius)
+    if models is not None and key in models:
+        fm, data = models[key]
+        mujoco.mj_resetData(fm.model, data)
+        return fm, data
+    fm = build_flex_model(scene, obj, grid, timestep=dt, verts_per_cell=verts_per_cell)
+    data = mujoco.MjData(fm.model)
+    if models is not None:
+        if len(models) > 32:  # one window per press region; a long run must not keep them all
+            models.clear()
+        models[key] = (fm, data)
+    return fm, data
 
 
 def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: float | None = None,
                    resolution: float | None = None, seed: int = 0, window: float = DEFAULT_WINDOW,
-                   skin_sigma: float | None = None, calibrate: bool = True, verts_per_cell: int = 2,
-                   kp: float | None = None) -> PhysicsTrace:
+                   calibrate: bool = True, verts_per_cell: int = VERTS_PER_CELL, models: dict | None = None,
+                   max_steps: int = MAX_STEPS) -> PhysicsTrace:
     """Simulate one press-and-release of ``obj`` with a deformable flex block; return the physics-rate trace.
 
     Args:
@@ -107,63 +135,85 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         obj: the pressed object (box or cylinder; materials, layers, inclusions).
         target: the press target (kept for the trace's provenance; the motion comes from ``profile``).
         profile: a PressProfile: t (s), z (tip-centre height setpoints, m), x, y (m), surface_z (m), meta.
-        timestep: physics step, s (default 5 ms).
-        resolution: elastic cell edge, m (default 6.5 mm).
+        timestep: physics step, s (default :func:`default_timestep`).
+        resolution: elastic cell edge, m (default 5 mm).
         seed: recorded for provenance; the physics is deterministic and draws no random numbers.
         window: lateral size of the simulated window around the press point, m.
-        skin_sigma: width of the skin's Gaussian spreading kernel, m (default: 0.6 x the contact vertex spacing,
-            at least 1 mm).
-        calibrate: divide moduli by the calibrated factor (False only to measure the calibration).
+        calibrate: apply the mesh correction (False only to measure it).
         verts_per_cell: collision vertices per cell edge.
-        kp: tip position-actuator stiffness, N/m (default from the stiffest material).
+        models: a dict the caller keeps to reuse built windows between presses.
+        max_steps: step budget; a longer press is refused before it runs.
 
     Returns:
         PhysicsTrace with sensel_pressure (n, rows, cols) Pa, force N (total normal contact force), indentation m
         (surface_z minus the tip's lowest point, clipped at 0).
 
     Raises:
-        SimulationDiverged: a MuJoCo warning (bad qacc, instability), NaN, or the tip sinking through the block.
-        ValidationError: unsupported object shape or bad parameters.
+        SimulationDiverged: a MuJoCo warning, NaN, or the tip sinking through the block; PressShortfall: the tip
+            missed its commanded depth by over 2%; ValidationError: unsupported shape, bad parameters, a press
+            deeper than 0.75 tip radii or longer than the step budget.
     """
     import mujoco
 
-    dt = DEFAULT_TIMESTEP if timestep is None else float(timestep)
+    dt = default_timestep(profile) if timestep is None else float(timestep)
     res = DEFAULT_RESOLUTION if resolution is None else float(resolution)
     if not (np.isfinite(dt) and dt > 0):
         raise ValidationError(f"flex: timestep must be > 0 s, got {timestep!r}")
-
     check_resolves_press(profile, dt, " (flex)")
+    tip = scene.fingertip
+    check_depth(profile, tip.radius, " (flex)")
     t_prof = np.asarray(profile.t, dtype=float)
     z_prof = np.asarray(profile.z, dtype=float)
     if t_prof.ndim != 1 or t_prof.shape != z_prof.shape or len(t_prof) < 2 or np.any(np.diff(t_prof) <= 0):
         raise ValidationError("flex: profile.t must be strictly increasing and match profile.z in shape")
     if not (np.all(np.isfinite(z_prof)) and np.isfinite(profile.x) and np.isfinite(profile.y)):
         raise ValidationError("flex: profile z, x, y must be finite (m)")
-    tip = scene.fingertip
+    check_step_budget(t_prof[-1] - t_prof[0], dt, max_steps, " (flex)")
+    times = profile.step_times(dt)
+    n = len(times)
     x, y = float(profile.x), float(profile.y)
     surface_z = float(profile.surface_z)
     grid = flex_grid(obj, x, y, res, window)
-    factor, extrapolated = (modulus_factor(float(grid.cell[:2].mean()), tip.radius) if calibrate else (1.0, False))
-    model, info = build_flex_model(scene, obj, grid, x, y, float(z_prof[0]), timestep=dt, factor=factor,
-                                   verts_per_cell=verts_per_cell, kp=kp)
-    data = mujoco.MjData(model)
-    sigma = skin_sigma if skin_sigma is not None else max(1.0e-3, 0.6 * float(grid.cell[:2].min()) / verts_per_cell)
-    qadr = model.jnt_qposadr[info["tip_joint"]]
-    gid = info["tip_geom"]
-    z0 = float(z_prof[0])
+    shallowest = (MIN_CONTACT_OVER_CELL * float(np.mean(grid.cell[:2]))) ** 2 / tip.radius
+    if float(profile.meta.get("depth", np.inf)) < shallowest:
+        raise ValidationError(
+            f"flex resolves presses from {shallowest * 1e3:.2f} mm deep with {res * 1e3:g} mm cells (a contact "
+            f"radius of {MIN_CONTACT_OVER_CELL} cells), not {profile.meta['depth'] * 1e3:.3f} mm: press deeper or "
+            "use fidelity 'analytic' or 'rigid'")
+    fm, data = _model(scene, obj, grid, dt, verts_per_cell, models)
+    model = fm.model
+    z0 = float(np.interp(times[0], t_prof, z_prof))
+    model.body_pos[fm.tip_body] = [x, y, z0]
+    mujoco.mj_forward(model, data)
+    cell = float(np.mean(grid.cell[:2]))
+    nu = _surface_poisson(obj, x, y)
+    calibration = load_calibration() if calibrate else None
+    qadr = model.jnt_qposadr[fm.tip_joint]
+    gid = fm.tip_geom
     warn = data.warning
     watched = [mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_CNSTRFULL,
                mujoco.mjtWarning.mjWARN_CONTACTFULL]
 
-    n = int(np.floor((t_prof[-1] - t_prof[0]) / dt + 1e-9)) + 1
-    times = t_prof[0] + dt * np.arange(n)
     setpoints = np.interp(times, t_prof, z_prof) - z0
+    # velocity and acceleration feedforward (a robot controller's), so the servo follows the press's reversal.
+    # The discrete integrator is implicit Euler (drive stiffness and damping at the step's end), so the control of
+    # step k that lands the tip on setpoint k at the setpoint's own speed takes the backward differences ending at
+    # k: central ones start braking a step before a sharp reversal and turn round short of the depth.
+    vel = np.diff(setpoints, prepend=setpoints[0]) / dt
+    acc = np.diff(vel, prepend=0.0) / dt
+    inertia = float(model.dof_armature[model.jnt_dofadr[fm.tip_joint]] + model.body_mass[fm.tip_body])
+    lead = setpoints + (_damping(model) * vel + inertia * acc) / fm.kp
     tip_z = np.empty(n)
     force = np.empty(n)
     pressure = np.empty((n, tip.rows, tip.cols))
+    factors = np.ones(n)
+    extrapolated = False
     min_dist = 0.0
+    pushed = 0.0  # MuJoCo's contact force on the tip at the last step, N
     for k in range(n):
-        data.ctrl[0] = setpoints[k]
+        # the drive is told the force it will meet (last step's), as a robot's force feedforward: without it a
+        # stiff block leaves the tip short of its setpoint by F / kp
+        data.ctrl[0] = lead[k] - pushed / fm.kp
         if k > 0:
             mujoco.mj_step(model, data)
         for w in watched:
@@ -173,62 +223,64 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             raise _diverged("non-finite state", times[k], dt)
         zc = z0 + data.qpos[qadr]
         tip_z[k] = zc
+        ind_k = surface_z - (zc - tip.radius)
         ncon = data.ncon
-        if ncon:
-            con = data.contact
-            mine = np.any(con.geom[:ncon] == gid, axis=1) & (con.efc_address[:ncon] >= 0)
-            fn = data.efc_force[con.efc_address[:ncon][mine]]
-            fn = np.clip(fn, 0.0, None)
-            pos = con.pos[:ncon][mine]
-            if mine.any():
-                pen = -float(con.dist[:ncon][mine].min())
-                min_dist = min(min_dist, -pen)
-                ind_k = surface_z - (zc - tip.radius)
-                # a sound contact penetrates a small fraction of the indentation; more means the tip is passing
-                # through the surface and the force no longer comes from the block's elasticity
-                if pen > PENETRATION_LIMIT and pen > PENETRATION_FRACTION * ind_k:
-                    raise _diverged(f"the tip penetrates the flex surface by {pen * 1e3:.2f} mm at "
-                                    f"{ind_k * 1e3:.2f} mm indentation", times[k], dt)
-            force[k] = fn.sum()
-            pressure[k] = sensel_pressure(pad_coordinates(pos - [x, y, zc], tip.radius), fn, tip, sigma)
-        else:
-            force[k] = 0.0
-            pressure[k] = 0.0
+        force[k] = 0.0
+        pressure[k] = 0.0
+        pushed = 0.0
+        if not ncon:
+            continue
+        con = data.contact
+        mine = np.any(con.geom[:ncon] == gid, axis=1) & (con.efc_address[:ncon] >= 0)
+        if not mine.any():
+            continue
+        fn = np.clip(data.efc_force[con.efc_address[:ncon][mine]], 0.0, None)
+        pushed = float(fn.sum())
+        pos = con.pos[:ncon][mine]
+        pen = -float(con.dist[:ncon][mine].min())
+        min_dist = min(min_dist, -pen)
+        # a sound contact penetrates a small fraction of the indentation; more means the tip is passing through
+        # the surface and the force no longer comes from the block's elasticity
+        if pen > PENETRATION_LIMIT and pen > PENETRATION_FRACTION * ind_k:
+            raise _diverged(f"the tip penetrates the flex surface by {pen * 1e3:.2f} mm at {ind_k * 1e3:.2f} mm "
+                            "indentation", times[k], dt)
+        if calibrate:
+            factors[k], ext = mesh_factor(np.sqrt(tip.radius * max(ind_k, 0.0)) / cell, nu, cell / tip.radius,
+                                           calibration)
+            extrapolated |= ext
+        fn = fn / factors[k]
+        force[k] = fn.sum()
+        pressure[k] = sensel_pressure(pad_coordinates(pos - [x, y, zc], tip.radius), fn, tip, PATCH * fm.vertex_spacing)
         if zc - tip.radius < 0.02 * obj.height:
             raise _diverged("the tip sank through the flex block", times[k], dt)
         if not np.isfinite(force[k]):
             raise _diverged("non-finite contact force", times[k], dt)
 
-    _check_force_order(times, force, np.clip(surface_z - (tip_z - tip.radius), 0.0, None), dt)
-    mat_names = set(info["cell_material"])
+    indentation = np.clip(surface_z - (tip_z - tip.radius), 0.0, None)
+    _check_force_order(times, force, indentation, dt)
+    depth_cmd = float(profile.meta.get("depth", 0.0))
+    reached = depth_cmd + float(np.min(setpoints) - np.min(tip_z - z0))
+    check_reached(reached, float(force.max()), profile, " (flex)", check_force=False, knobs=(
+        f"the flex tip drive (kp {fm.kp:.3g} N/m) lags this press: pass a shorter timestep (now {dt:g} s) or a "
+        "slower press"))
     trace = PhysicsTrace(
         t=times,
         tip_position=np.column_stack([np.full(n, x), np.full(n, y), tip_z]),
         tip_quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
         sensel_pressure=pressure,
         force=force,
-        indentation=np.clip(surface_z - (tip_z - tip.radius), 0.0, None),
+        indentation=indentation,
         surface_z=surface_z,
         material=_material_under(obj, x, y),
         meta={
-            "fidelity": "flex",
-            "timestep": dt,
-            "integrator": "discrete",
-            "resolution": res,
-            "cell": [float(c) for c in grid.cell],
-            "cells": list(grid.cells),
-            "window_lower": [float(v) for v in grid.lower],
-            "window_size": [float(v) for v in grid.size],
-            "pinned_sides": list(grid.pinned),
-            "calibration_factor": factor,
-            "calibration_extrapolated": extrapolated,
-            "young_used": info["young_used"],
-            "materials": sorted(mat_names),
-            "skin_sigma": float(sigma),
-            "contact_solref": list(CONTACT_SOLREF),
-            "kp": info["kp"],
-            "max_contact_penetration": -min_dist,
-            "seed": int(seed),
+            "fidelity": "flex", "timestep": dt, "integrator": "discrete", "resolution": res,
+            "cell": [float(c) for c in grid.cell], "cells": list(grid.cells),
+            "window_lower": [float(v) for v in grid.lower], "window_size": [float(v) for v in grid.size],
+            "pinned_sides": list(grid.pinned), "mesh_factor_range": [float(factors.min()), float(factors.max())],
+            "calibration_extrapolated": bool(extrapolated), "young_range": fm.meta["young_range"],
+            "materials": sorted(set(fm.cell_material)), "vertex_patch": fm.vertex_spacing,
+            "contact_solref": list(CONTACT_SOLREF), "kp": fm.kp, "max_contact_penetration": -min_dist,
+            "dofs": int(model.nv), "seed": int(seed),
             "target": None if target is None else {"x": target.x, "y": target.y, "depth": target.depth,
                                                    "force": target.force, "speed": target.speed},
             "press_end": float(profile.meta.get("phases", {}).get("press", [0.0, times[int(np.argmin(tip_z))]])[1]),
@@ -236,6 +288,11 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     )
     trace.check_finite()
     return trace
+
+
+def _damping(model) -> float:
+    """The tip drive's damping kv, N s/m (MuJoCo stores a position actuator's -kv in biasprm[2])."""
+    return float(-model.actuator_biasprm[0, 2])
 
 
 def _check_force_order(t: np.ndarray, force: np.ndarray, indentation: np.ndarray, dt: float) -> None:
@@ -256,8 +313,7 @@ def _check_force_order(t: np.ndarray, force: np.ndarray, indentation: np.ndarray
         raise SimulationDiverged(
             f"flex: the force falls by {drop[i]:.3g} N (peak {f.max():.3g} N) while the indentation grows to "
             f"{indentation[: k + 1][order][i] * 1e3:.2f} mm (timestep {dt} s): the tip is sinking between the "
-            "coarse surface vertices; press less deep (under ~50% of the thickness for very soft blocks), or use "
-            "a finer resolution"
+            "surface vertices; press less deep, or use fidelity 'analytic' or 'rigid'"
         )
 
 
@@ -268,21 +324,27 @@ def _material_under(obj: ObjectSpec, x: float, y: float) -> str | None:
     return mats[i].name if i >= 0 else None
 
 
+def _surface_poisson(obj: ObjectSpec, x: float, y: float) -> float:
+    mats = obj.materials()
+    i = int(material_index_at(obj, np.array([[x, y, obj.height - 1e-6]]), [m.name for m in mats])[0])
+    return float(mats[max(i, 0)].poisson)
+
+
 def reference_press(*, young: float, poisson: float = 0.3, height: float = 0.02, radius: float = 0.008,
-                    resolution: float = DEFAULT_RESOLUTION, timestep: float = DEFAULT_TIMESTEP,
-                    depth: float = 0.004, speed: float = 0.01, window: float = DEFAULT_WINDOW,
-                    calibrate: bool = True, damping: float = 0.0,
-                    layers: tuple = (), inclusions: tuple = ()) -> PhysicsTrace:
-    """One robot press at the centre of a ``window``-wide box of one material (calibration and benchmarks).
+                    resolution: float = DEFAULT_RESOLUTION, timestep: float | None = None,
+                    depth: float = 0.004, speed: float = 0.01, window: float = DEFAULT_WINDOW, width: float = 0.1,
+                    calibrate: bool = True, damping: float = 0.0, layers: tuple = (), inclusions: tuple = (),
+                    models: dict | None = None) -> PhysicsTrace:
+    """One robot press at the centre of a ``width``-wide box of one material (calibration and benchmarks): the
+    window's sides are pinned where it cuts the block, as in a press on a large object.
 
     Args: moduli Pa, lengths m, speed m/s, timestep s; layers/inclusions as in :class:`ObjectSpec`.
     """
-
     mat = Material("bulk", young=young, poisson=poisson, damping=damping)
-    obj = ObjectSpec(name="block", shape="box", size=(window, window, height), position=(0.0, 0.0),
+    obj = ObjectSpec(name="block", shape="box", size=(width, width, height), position=(0.0, 0.0),
                      material=mat, layers=tuple(layers), inclusions=tuple(inclusions))
     scene = Scene(objects=(obj,), fingertip=FingertipSpec(radius=radius))
     target = PressTarget(x=0.0, y=0.0, depth=depth, speed=speed)
-    profile = press_profile(target, height, radius=radius, timestep=timestep)
+    profile = press_profile(target, height, radius=radius, timestep=min(timestep or 0.002, 0.002))
     return run_flex_press(scene, obj, target, profile, timestep=timestep, resolution=resolution,
-                          window=window, calibrate=calibrate)
+                          window=window, calibrate=calibrate, models=models)

@@ -1,5 +1,5 @@
-"""Measuring the `flex` calibration table (see :mod:`palpate.sim.flex_calibration` for what it holds and how it is
-used): reference presses on a thick block, each compared with Hertz."""
+"""Measuring the `flex` mesh correction (see :mod:`palpate.sim.flex_calibration` for what it holds and how it is
+used): uncalibrated presses on a thick block, each compared with the reference for the same block."""
 
 from __future__ import annotations
 
@@ -8,49 +8,54 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core.errors import ValidationError
+from palpate.core.world.scene import Material
+from palpate.sim.contact.law import solve_contact_law
 from palpate.sim.flex import reference_press
-from palpate.sim.flex_calibration import CAL_HEIGHT, CAL_POISSON, CAL_RANGE, CAL_YOUNG, FORMAT_VERSION
-from palpate.sim.hertz import effective_modulus_rigid, hertz_force
+from palpate.sim.flex_calibration import CAL_HEIGHT, CAL_YOUNG, FORMAT_VERSION
+from palpate.sim.flex_model import DEFAULT_WINDOW
+from palpate.sim.reference.sample import AxisymmetricSample
+
+#: Contact radius over cell edge at which the factor is tabulated (below the first the contact is one vertex).
+CONTACT_OVER_CELL = (0.25, 0.4, 0.55, 0.7, 0.85, 1.0, 1.2)
+#: The factor ripples by several % as the contact edge crosses surface vertices; a quadratic in a / cell fitted to
+#: the whole loading branch keeps the trend and leaves the ripple (the flex's own error) in place.
+FIT_ORDER = 2
+POISSONS = (0.0, 0.3, 0.45, 0.49)
 
 
-def hertz_ratio(indentation: np.ndarray, force: np.ndarray, young: float, poisson: float, radius: float,
-                depth_range: tuple[float, float] = CAL_RANGE) -> float:
-    """Least-squares ratio c of force = c * Hertz(d) over the indentations inside ``depth_range`` (m)."""
-    d = np.asarray(indentation, dtype=float)
-    sel = (d >= depth_range[0]) & (d <= depth_range[1])
-    if sel.sum() < 3:
-        raise ValidationError(f"hertz_ratio: fewer than 3 samples with indentation in {depth_range} m")
-    h = hertz_force(effective_modulus_rigid(young, poisson), radius, d[sel])
-    return float(np.dot(h, np.asarray(force)[sel]) / np.dot(h, h))
+def loading_ratio(indentation: np.ndarray, force: np.ndarray, reference, depths: np.ndarray) -> np.ndarray:
+    """F / F_reference at ``depths`` (m) along the loading branch of a press (force interpolated in depth)."""
+    k = int(np.argmax(indentation))
+    d, f = indentation[: k + 1], force[: k + 1]
+    keep = np.concatenate([[True], np.diff(d) > 0])
+    return np.interp(depths, d[keep], f[keep]) / reference.force_at(depths)
 
 
-def measure_calibration(cells_over_radius: list[float], *, radius: float = 0.008, timestep: float = 0.005,
-                        path: Path | str | None = None) -> dict:
-    """Measure the factor at each cell/radius (see module docstring) and optionally write the table to ``path``.
-
-    Returns:
-        the JSON-ready table (also written when ``path`` is given).
-    """
-    points = []
-    for c in cells_over_radius:
-        trace = reference_press(young=CAL_YOUNG, poisson=CAL_POISSON, height=CAL_HEIGHT, radius=radius,
-                                resolution=c * radius, timestep=timestep, depth=CAL_RANGE[1] * 1.5,
-                                calibrate=False)
-        press = trace.t <= trace.meta["press_end"]
-        factor = hertz_ratio(trace.indentation[press], trace.force[press], CAL_YOUNG, CAL_POISSON, radius)
-        # the grid rounds to an even cell count, so key the table by the cell actually used
+def measure_calibration(resolution: float, *, radius: float = 0.008, window: float = DEFAULT_WINDOW,
+                        poissons=POISSONS, path: Path | str | None = None) -> dict:
+    """Measure kappa on the calibration block for cells of ``resolution`` (m); write the file if ``path``."""
+    rows, cell = [], None
+    ac = np.array(CONTACT_OVER_CELL)
+    for nu in poissons:
+        depth_max = min((ac[-1] * resolution * 1.05) ** 2 / radius, 0.7 * radius)
+        trace = reference_press(young=CAL_YOUNG, poisson=nu, height=CAL_HEIGHT, radius=radius, resolution=resolution,
+                                window=window, width=4.0 * window, depth=depth_max, calibrate=False)
         cell = float(np.mean(trace.meta["cell"][:2]))
-        points.append({"cell_over_radius": round(cell / radius, 4), "factor": round(factor, 4),
-                       "cell": cell, "requested_resolution": float(c * radius)})
+        law = solve_contact_law(AxisymmetricSample(Material("m", CAL_YOUNG, nu), CAL_HEIGHT), radius,
+                                1.05 * depth_max)
+        dense = np.linspace(ac[0], ac[-1], 60)
+        ratio = loading_ratio(trace.indentation, trace.force, law, (dense * cell) ** 2 / radius)
+        fit = np.polynomial.Polynomial.fit(dense, ratio, FIT_ORDER)
+        rows.append([round(float(v), 4) for v in fit(ac)])
     table = {
         "version": FORMAT_VERSION,
         "measured_with": {
-            "young": CAL_YOUNG, "poisson": CAL_POISSON, "height": CAL_HEIGHT, "radius": radius,
-            "timestep": timestep, "depth_range": list(CAL_RANGE), "speed": 0.01,
+            "young": CAL_YOUNG, "height": CAL_HEIGHT, "radius": radius, "window": window,
+            "reference": "layered contact law of the same bonded block (palpate.sim.contact.law)",
             "how": "benchmarks/flex_resolution.py --calibrate (palpate.sim.flex_calibrate.measure_calibration)",
         },
-        "points": points,
+        "tables": [{"cell_over_radius": round(cell / radius, 4), "cell": cell, "poisson": list(poissons),
+                    "contact_over_cell": list(CONTACT_OVER_CELL), "factor": rows}],
     }
     if path is not None:
         Path(path).write_text(json.dumps(table, indent=1) + "\n")

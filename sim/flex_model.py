@@ -1,10 +1,25 @@
-"""The `flex` fidelity's MuJoCo model: a trilinear flexcomp window of the object under the press, with per-cell
-Lame stiffness for layers and inclusions (see :mod:`palpate.sim.flex` for the press that runs it)."""
+"""The `flex` fidelity's MuJoCo model: a trilinear flexcomp window of the object under the press, built once and
+reused (see :mod:`palpate.sim.flex` for the press that runs it).
+
+- The window: at most ``window`` wide around the press point (snapped to a 1 mm grid so nearby presses share a
+  model), the object's full height, cubic cells of about ``resolution``; its bottom is bonded to the table and
+  where it cuts through the object its sides are pinned, with MuJoCo's ``<pin>`` (not by deleting joints).
+- The stiffness: MuJoCo's trilinear cell integrates lambda (div u)^2 at 2x2x2 points, which locks as nu -> 0.5
+  (3.4x Hertz at nu = 0.49). Each cell's 24x24 block is replaced by the same element with selective reduced
+  integration (the volumetric term at the cell centre, the deviatoric 2 mu e:e at 2x2x2 points), with the Lame
+  parameters of the cell's material (:func:`cell_moduli`: a cell holding a skin and its base gets their mix), so
+  layers and inclusions are per cell and nu up to 0.49 does not lock. The block layout (node (i, j, k) with k
+  fastest, dof 3 node + axis, stored as -K) is MuJoCo 4.0's; a
+  compiled cell is checked against it, so a MuJoCo that stores it differently is refused, not misread.
+- Mass scaling: presses are quasi-static, so the density is scaled with the softest modulus (1000 kg/m^3 at
+  200 kPa) and the tip's drive with the stiffest: a homogeneous block of any modulus then runs the same dynamics,
+  and the force scales with E exactly (E-invariance), with the same contact softness (the direct solref is an
+  acceleration).
+"""
 
 from __future__ import annotations
 
-import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -12,13 +27,22 @@ from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, Scene, material_index_at
 
 #: Default cell edge of the elastic grid, m.
-DEFAULT_RESOLUTION = 0.0065
-#: Default physics step, s (the discrete integrator was stable here; 50 Hz taxels need far less).
-DEFAULT_TIMESTEP = 0.005
+DEFAULT_RESOLUTION = 0.005
 #: Default lateral size of the simulated window around the press point, m.
-DEFAULT_WINDOW = 0.04
-#: Direct-form contact solref (stiffness, damping): the reference form lets the tip sink through the flex.
+DEFAULT_WINDOW = 0.03
+#: Longest physics step, s (the default is the shorter of this and a twelfth of the press phase).
+MAX_TIMESTEP = 0.01
+#: Collision vertices per cell edge (the contact is resolved at resolution / VERTS_PER_CELL).
+VERTS_PER_CELL = 2
+#: Direct-form contact solref (stiffness, damping), accelerations: with mass scaling, the same for every modulus.
 CONTACT_SOLREF = (-1.0e8, -2.0e4)
+#: The modulus at which the block has its physical density (DENSITY); the density scales with the stiffest one.
+REFERENCE_YOUNG = 2.0e5
+DENSITY = 1000.0
+#: Press points are snapped to this grid to choose the window, m (nearby presses share a model).
+SNAP = 0.001
+#: Fewest cells through the thickness (a thin block bends and squeezes over its thickness, not over a cell).
+MIN_LAYERS = 2
 #: Name of the flexcomp (and the prefix of its bodies) in the model.
 NAME = "obj"
 
@@ -51,10 +75,25 @@ class FlexGrid:
         idx = np.stack([i.ravel(), j.ravel(), k.ravel()], axis=1) + 0.5
         return self.lower + idx * self.cell
 
+    def pinned_nodes(self) -> np.ndarray:
+        """Indices of the pinned grid nodes (MuJoCo's node order: k fastest, i slowest)."""
+        nx, ny, nz = (c + 1 for c in self.cells)
+        i, j, k = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
+        pin = k == 0
+        for flag, face in zip(self.pinned, (i == 0, i == nx - 1, j == 0, j == ny - 1), strict=True):
+            if flag:
+                pin |= face
+        return np.nonzero(pin.ravel())[0]
+
+    def key(self) -> tuple:
+        """A hashable identity (for model caches)."""
+        return (tuple(np.round(self.lower, 9)), tuple(np.round(self.size, 9)), self.cells, self.pinned)
+
 
 def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_RESOLUTION,
               window: float = DEFAULT_WINDOW) -> FlexGrid:
-    """Window of ``obj`` around the press point (x, y) (m), meshed with cells of about ``resolution`` m."""
+    """Window of ``obj`` around the press point (x, y) (m, snapped to SNAP), meshed with cells of about
+    ``resolution`` m (an even count across, so a node column stands under a press at its centre)."""
     if not (np.isfinite(resolution) and resolution > 0):
         raise ValidationError(f"flex: resolution must be a cell size > 0 m, got {resolution!r}")
     if not (np.isfinite(window) and window > 0):
@@ -72,7 +111,8 @@ def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_R
     lo_obj = np.array([cx, cy]) - half
     hi_obj = np.array([cx, cy]) + half
     w = np.minimum(window / 2.0, half)
-    centre = np.clip(np.array([x, y], dtype=float), lo_obj + w, hi_obj - w)
+    snapped = np.round(np.array([x, y], dtype=float) / SNAP) * SNAP
+    centre = np.clip(snapped, lo_obj + w, hi_obj - w)
     lo, hi = centre - w, centre + w
     eps = 1e-9
     pinned = (
@@ -80,134 +120,174 @@ def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_R
         bool(lo[1] > lo_obj[1] + eps or not edges_free), bool(hi[1] < hi_obj[1] - eps or not edges_free),
     )
     size = np.array([hi[0] - lo[0], hi[1] - lo[1], obj.height])
-    # an even lateral count puts a node column under a centred press: a cell centre there would reduce the
-    # trilinear field to one averaged spring (exponent ~1 instead of ~1.4)
     nx, ny = (int(2 * max(1, round(s / (2.0 * resolution)))) for s in size[:2])
-    nz = int(max(2, round(size[2] / resolution)))
-    cells = (nx, ny, nz)
-    return FlexGrid(lower=np.array([lo[0], lo[1], 0.0]), size=size, cells=cells, pinned=pinned)
+    nz = int(max(MIN_LAYERS, round(size[2] / resolution)))
+    return FlexGrid(lower=np.array([lo[0], lo[1], 0.0]), size=size, cells=(nx, ny, nz), pinned=pinned)
 
 
-def _lame(young: float, poisson: float) -> tuple[float, float]:
+#: Sub-points per cell edge at which the material is sampled (a cell holding two materials gets their mix).
+SUBCELL = 4
+
+
+def cell_moduli(obj: ObjectSpec, grid: FlexGrid) -> tuple[np.ndarray, np.ndarray]:
+    """Young's modulus (Pa) and Poisson ratio of each cell (MuJoCo's cell order), from SUBCELL^3 points inside it:
+    E in series down each vertical sub-column (harmonic mean: exact for the squeeze of a layered cell, which is how
+    a soft skin thinner than a cell is pressed), the sub-columns in parallel (mean: a lump filling part of the cell
+    carries its share); the mean Poisson ratio. A cell of one material gets exactly its own. A stiff skin thinner
+    than a cell carries load by bending, which no mix of moduli in a coarse cell gives: flex underestimates it (see
+    the validity table)."""
+    mats = obj.materials()
+    names = [m.name for m in mats]
+    young = np.array([m.young for m in mats])
+    poisson = np.array([m.poisson for m in mats])
+    frac = (np.arange(SUBCELL) + 0.5) / SUBCELL - 0.5
+    sub = np.stack(np.meshgrid(frac, frac, frac, indexing="ij"), axis=-1).reshape(-1, 3) * grid.cell
+    pts = grid.cell_centres()[:, None, :] + sub[None, :, :]
+    idx = material_index_at(obj, pts.reshape(-1, 3), names).reshape(len(pts), -1)
+    centre = material_index_at(obj, grid.cell_centres(), names)
+    idx = np.where(idx >= 0, idx, np.maximum(centre, 0)[:, None])
+    # sub-points are ordered (x, y, z) with z fastest: series down each sub-column, parallel across them
+    columns = 1.0 / np.mean(1.0 / young[idx].reshape(len(pts), SUBCELL * SUBCELL, SUBCELL), axis=2)
+    return np.mean(columns, axis=1), np.mean(poisson[idx], axis=1)
+
+
+def _lame(young, poisson):
     """Lame parameters (lambda, mu), Pa."""
     return young * poisson / ((1 + poisson) * (1 - 2 * poisson)), young / (2 * (1 + poisson))
 
 
-def _cell_basis(cell: np.ndarray, verts_per_cell: int) -> tuple[np.ndarray, np.ndarray]:
-    """Stiffness blocks per unit lambda and per unit mu of one trilinear cell of edges ``cell`` (m).
+def _strains(cell: np.ndarray, s: float, t: float, u: float) -> np.ndarray:
+    """Strain tensors (24, 3, 3) of each unit nodal dof of a trilinear cell at local point (s, t, u) in [0, 1]^3."""
+    out = np.zeros((24, 3, 3))
+    node = 0
+    for bx in range(2):
+        for by in range(2):
+            for bz in range(2):
+                px, py, pz = (1 - s, s)[bx], (1 - t, t)[by], (1 - u, u)[bz]
+                dx, dy, dz = (-1.0, 1.0)[bx], (-1.0, 1.0)[by], (-1.0, 1.0)[bz]
+                grad = np.array([dx * py * pz / cell[0], px * dy * pz / cell[1], px * py * dz / cell[2]])
+                for axis in range(3):
+                    du = np.zeros((3, 3))
+                    du[axis] = grad
+                    out[3 * node + axis] = 0.5 * (du + du.T)
+                node += 1
+    return out
 
-    MuJoCo's linear elasticity is linear in the Lame parameters, so two single-cell compiles span every material.
+
+def cell_bases(cell: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stiffness of one cell of edges ``cell`` (m) per unit Lame parameter, in MuJoCo's layout and sign (-K):
+    (volumetric at 2x2x2 points, volumetric at the centre, deviatoric 2 e:e at 2x2x2 points), each (24, 24)."""
+    xg, wg = np.polynomial.legendre.leggauss(2)
+    xg, wg = (xg + 1.0) / 2.0, wg / 2.0
+    vol = float(np.prod(cell))
+    lam_full = np.zeros((24, 24))
+    dev = np.zeros((24, 24))
+    for a in range(2):
+        for b in range(2):
+            for c in range(2):
+                eps = _strains(cell, xg[a], xg[b], xg[c])
+                w = wg[a] * wg[b] * wg[c] * vol
+                tr = np.einsum("aii->a", eps)
+                lam_full -= np.outer(tr, tr) * w
+                dev -= 2.0 * np.einsum("aij,bij->ab", eps, eps) * w
+    tr0 = np.einsum("aii->a", _strains(cell, 0.5, 0.5, 0.5))
+    lam_centre = -np.outer(tr0, tr0) * vol
+    return lam_full, lam_centre, dev
+
+
+@dataclass
+class FlexModel:
+    """A compiled flex window and what a press needs of it (built once, reused by every press in the window).
+
+    Attributes:
+        model: the MuJoCo model; grid: its window; tip_joint, tip_body, tip_geom: MuJoCo ids;
+        cell_material: per-cell material name; young_max: the stiffest modulus (Pa), which scales mass and drive;
+        kp: drive stiffness, N/m; vertex_spacing: collision vertex spacing on the top, m.
     """
-    import mujoco
 
-    blocks = []
-    for young, poisson in ((1.0, 0.0), (1.0, 0.25)):
-        spec = mujoco.MjSpec()
-        body = spec.worldbody.add_body(name="b")
-        flex = body.make_flex("c", type="box", dim=3, dof="trilinear", count=[verts_per_cell + 1] * 3,
-                              cellcount=[1, 1, 1], spacing=list(cell / verts_per_cell), mass=1.0)
-        flex.young, flex.poisson = young, poisson
-        with warnings.catch_warnings():
-            # a lone cell with no constraints is fine here: only its stiffness matrix is read
-            warnings.simplefilter("ignore", UserWarning)
-            blocks.append(spec.compile().flex_stiffness.copy())
-    k_mu = blocks[0] / _lame(1.0, 0.0)[1]
-    lam1, mu1 = _lame(1.0, 0.25)
-    k_lam = (blocks[1] - mu1 * k_mu) / lam1
-    return k_lam, k_mu
+    model: object
+    grid: FlexGrid
+    tip_joint: int
+    tip_body: int
+    tip_geom: int
+    cell_material: list[str]
+    young_max: float
+    kp: float
+    vertex_spacing: float
+    meta: dict = field(default_factory=dict)
 
 
-def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, x: float, y: float, z0: float, *,
-                     timestep: float = DEFAULT_TIMESTEP, factor: float = 1.0, verts_per_cell: int = 2,
-                     density: float = 1000.0, min_damping: float = 2.0e-3, kp: float | None = None):
-    """Compile the MuJoCo model: the flex window, the tip on a vertical slide joint, a position actuator.
+def flexcomp_xml(grid: FlexGrid, *, verts_per_cell: int, mass: float, damping: float, timestep: float) -> str:
+    """MJCF of the flex window alone (the tip is added with MjSpec), with the bottom and cut sides pinned."""
+    count = " ".join(str(c * verts_per_cell + 1) for c in grid.cells)
+    cells = " ".join(str(c) for c in grid.cells)
+    spacing = " ".join(repr(float(h) / verts_per_cell) for h in grid.cell)
+    centre = " ".join(repr(float(c)) for c in grid.lower + grid.size / 2.0)
+    pins = " ".join(str(int(i)) for i in grid.pinned_nodes())
+    solref = " ".join(repr(float(v)) for v in CONTACT_SOLREF)
+    return (
+        f'<mujoco model="palpate_flex"><option timestep="{timestep!r}" integrator="discrete" solver="CG" '
+        f'gravity="0 0 0"/><worldbody><body name="{NAME}" pos="{centre}">'
+        f'<flexcomp name="{NAME}" type="box" dim="3" dof="trilinear" count="{count}" cellcount="{cells}" '
+        f'spacing="{spacing}" mass="{mass!r}" radius="0">'
+        f'<elasticity young="1" poisson="0.3" damping="{damping!r}"/>'
+        f'<contact condim="1" selfcollide="none" solref="{solref}"/><pin id="{pins}"/></flexcomp>'
+        f"</body></worldbody></mujoco>"
+    )
 
-    Args:
-        scene, obj: the scene and the pressed object.
-        grid: the window (see :func:`flex_grid`).
-        x, y, z0: tip-centre start position, m.
-        timestep: physics step, s (integrator "discrete": 3D flex elasticity needs it in MuJoCo 4.0).
-        factor: calibration; every modulus is divided by it.
-        verts_per_cell: collision vertices per cell edge (contact resolution = cell / verts_per_cell).
-        density: mass density of the block, kg/m^3.
-        min_damping: floor of the flex damping, s (Kelvin-Voigt time), which keeps the grid from ringing.
-        kp: actuator stiffness, N/m; by default 50x the Hertz stiffness of the stiffest material at 4 mm.
 
-    Returns:
-        (model, info) with info holding ids ("tip_joint", "tip_geom", "flex"), per-cell material names and the
-        moduli used.
+def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, *, timestep: float,
+                     verts_per_cell: int = VERTS_PER_CELL, min_damping: float = 2.0e-3) -> FlexModel:
+    """Compile the window (see the module docstring) with the tip on a vertical slide joint and its drive.
+
+    The tip is placed by the press (its body position is set per press), so one model serves every press point
+    in the window.
     """
     import mujoco
 
     mats = obj.materials()
     names = [m.name for m in mats]
-    centres = grid.cell_centres()
-    idx = material_index_at(obj, centres, names)
-    # cells whose centre falls outside the object (cylinder windows never do; guard anyway) take the bulk
-    idx[idx < 0] = 0
-    used = sorted(set(idx.tolist()))
-    bulk = obj.material
-
-    spec = mujoco.MjSpec()
-    spec.modelname = "palpate_flex"
-    spec.option.timestep = timestep
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_DISCRETE
-    spec.option.gravity = [0.0, 0.0, 0.0]
-    count = [c * verts_per_cell + 1 for c in grid.cells]
-    spacing = list(grid.cell / verts_per_cell)
-    centre = grid.lower + grid.size / 2.0
-    body = spec.worldbody.add_body(name=NAME, pos=list(centre))
-    flex = body.make_flex(NAME, type="box", dim=3, dof="trilinear", count=count, cellcount=list(grid.cells),
-                          spacing=spacing, mass=float(density * np.prod(grid.size)), radius=0.0)
-    flex.young = bulk.young / factor
-    flex.poisson = bulk.poisson
-    flex.damping = max([mats[i].damping for i in used] + [min_damping])
-    flex.solref = list(CONTACT_SOLREF)
-    flex.condim = 1
-    flex.selfcollide = mujoco.mjtFlexSelf.mjFLEXSELF_NONE
-
-    # pin the bottom (bonded to the table) and the faces where the window cuts through the object
-    half = grid.size / 2.0
-    tol = 1e-3 * float(grid.cell.min())
-    for node in list(spec.bodies):
-        if not node.name.startswith(NAME + "_"):
-            continue
-        p = np.asarray(node.pos)
-        faces = (p[0] < -half[0] + tol, p[0] > half[0] - tol, p[1] < -half[1] + tol, p[1] > half[1] - tol)
-        if p[2] < -half[2] + tol or any(f and pin for f, pin in zip(faces, grid.pinned, strict=True)):
-            for joint in list(node.joints):
-                spec.delete(joint)
-
+    idx = material_index_at(obj, grid.cell_centres(), names)
+    idx[idx < 0] = 0  # a cell centre outside the object (never in a box or the square inside a cylinder)
+    young_cell, poisson_cell = cell_moduli(obj, grid)
+    young_max = float(young_cell.max())
+    scale = young_max / REFERENCE_YOUNG
+    # the softest cell sets the density: a soft skin over a hard base must not be made heavy (it would be too slow
+    # to get out of the tip's way); stiffer cells only have faster, implicitly integrated dynamics
+    mass = float(DENSITY * young_cell.min() / REFERENCE_YOUNG * np.prod(grid.size))
+    damping = max([m.damping for m in mats] + [min_damping])
+    spec = mujoco.MjSpec.from_string(flexcomp_xml(grid, verts_per_cell=verts_per_cell, mass=mass, damping=damping,
+                                                  timestep=timestep))
     tip_r = scene.fingertip.radius
-    tip = spec.worldbody.add_body(name="tip", pos=[x, y, z0])
-    joint = tip.add_joint(name="tip_z", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1], armature=1.0)
-    tip.add_geom(name="tip", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[tip_r, 0, 0], mass=0.01, condim=1)
-    e_max = max(mats[i].effective_modulus for i in used) / factor
-    if kp is None:
-        kp = max(1.0e5, 50.0 * 2.0 * e_max * np.sqrt(tip_r * 0.004))
+    tip = spec.worldbody.add_body(name="tip", pos=[float(grid.lower[0] + grid.size[0] / 2),
+                                                   float(grid.lower[1] + grid.size[1] / 2),
+                                                   float(grid.size[2] + tip_r + 0.002)])
+    armature = 0.1 * scale
+    joint = tip.add_joint(name="tip_z", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1], armature=armature)
+    tip.add_geom(name="tip", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[tip_r, 0, 0], mass=0.01 * scale, condim=1)
+    e_star = float(np.max(young_cell / (1.0 - poisson_cell**2)))
+    kp = 100.0 * 2.0 * e_star * np.sqrt(tip_r * 0.004)
     act = spec.add_actuator(name="tip_drive", target="tip_z", trntype=mujoco.mjtTrn.mjTRN_JOINT)
     act.set_to_position(kp=float(kp), kv=float(2.0 * np.sqrt(kp * joint.armature)))
     model = spec.compile()
 
     fid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, NAME)
-    if len(used) > 1:
-        ncell = int(np.prod(grid.cells))
-        stiff = model.flex_stiffness[model.flex_stiffnessadr[fid]:].reshape(ncell, -1)[:ncell]
-        k_lam, k_mu = _cell_basis(grid.cell, verts_per_cell)
-        lam_b, mu_b = _lame(bulk.young / factor, bulk.poisson)
-        ref = lam_b * k_lam + mu_b * k_mu
-        if k_lam.shape != stiff[0].shape or not np.allclose(stiff[0], ref, rtol=1e-6, atol=1e-9 * np.abs(ref).max()):
-            raise ValidationError("flex: this MuJoCo build stores cell stiffness differently; per-cell materials "
-                                  "(layers, inclusions) are not supported with it")
-        for i in used:
-            lam, mu = _lame(mats[i].young / factor, mats[i].poisson)
-            stiff[idx == i] = lam * k_lam + mu * k_mu
-    info = {
-        "tip_joint": model.joint("tip_z").id,
-        "tip_geom": model.geom("tip").id,
-        "flex": fid,
-        "cell_material": [names[i] for i in idx],
-        "young_used": {names[i]: mats[i].young / factor for i in used},
-        "kp": float(kp),
-    }
-    return model, info
+    ncell = int(np.prod(grid.cells))
+    stiff = model.flex_stiffness[model.flex_stiffnessadr[fid]:model.flex_stiffnessadr[fid] + ncell * 576]
+    if stiff.size != ncell * 576:
+        raise ValidationError("flex: this MuJoCo build stores the trilinear cell stiffness differently; "
+                              "use fidelity 'rigid' or 'analytic'")
+    blocks = stiff.reshape(ncell, 24, 24)
+    lam_full, lam_centre, dev = cell_bases(grid.cell)
+    lam1, mu1 = _lame(1.0, 0.3)
+    if not np.allclose(blocks[0], lam1 * lam_full + mu1 * dev, rtol=1e-6, atol=1e-9 * np.abs(dev).max()):
+        raise ValidationError("flex: this MuJoCo build's trilinear cell stiffness is not the element palpate "
+                              "expects; use fidelity 'rigid' or 'analytic'")
+    lam, mu = _lame(young_cell, poisson_cell)
+    blocks[:] = lam[:, None, None] * lam_centre + mu[:, None, None] * dev
+    return FlexModel(
+        model=model, grid=grid, tip_joint=model.joint("tip_z").id, tip_body=model.body("tip").id,
+        tip_geom=model.geom("tip").id, cell_material=[names[i] for i in idx], young_max=float(young_max),
+        kp=float(kp), vertex_spacing=float(np.min(grid.cell[:2]) / verts_per_cell),
+        meta={"young_range": [float(young_cell.min()), young_max], "mass_scale": float(scale)},
+    )

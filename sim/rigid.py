@@ -1,27 +1,25 @@
-"""``rigid`` fidelity: a MuJoCo-driven finger against a rigid object with a Hertz-shaped contact impedance.
+"""``rigid`` fidelity: a MuJoCo-driven finger against the object's contact law mapped onto its real geometry.
 
-The object is rigid geometry (box, cylinder, mesh); the finger is a sphere on a slide joint along the surface
-normal, driven by a position servo (MuJoCo integrates its dynamics: lag, overshoot, compliance of the drive).
-The contact is a per-step force applied to the joint, built from the *local* penetration delta(u, v) of the tip
-below the undeformed surface at every point of the tip's footprint, with the local Hertz kernel
+MuJoCo integrates the finger: a sphere on a slide joint along the surface normal, driven by a position servo
+(lag, overshoot, compliance of the drive). Contacts are disabled in MuJoCo; the contact force is applied to the
+joint each step from a table over the tip's height, built once per press:
 
-    p(u, v) = (2 E* / pi) sqrt(2 (delta - d / 2) / R),      d = max over the footprint of delta,
+- the press point's :class:`~palpate.sim.contact.law.ContactLaw` (finite thickness, layers, inclusions; exact
+  sphere) gives the pressure p(r; d) of a press d deep on a flat top;
+- the object's top under the tip's footprint (polar cells, sampled along z under the deepest tip position, so
+  edges, curved and sloped tops count) gives each cell's clearance h (how much further the tip must descend to
+  touch it); the cell feels the law's pressure at the radius r_eq where a flat top has the same clearance
+  (h = R - sqrt(R^2 - r_eq^2)), so a flat top gives exactly the law, and a cell off the object (past an edge)
+  nothing. The force is the sum over cells; sensel pressures are the same field averaged over each sensel.
 
-(Hertz: the surface sinks d/2 at the contact edge, so the contact radius is sqrt(R d), not the geometric
-sqrt(2 R d)), which integrates exactly to F = 4/3 E* sqrt(R) d^1.5 and p = p0 sqrt(1 - r^2/a^2) for a paraboloid
-on a flat surface, and follows the real geometry elsewhere (sphere vs paraboloid, edges, curved or sloped tops).
-The force as a function of tip height is tabulated once per press (the tip moves on one axis), so a step costs one
-MuJoCo step and a table look-up. Sensel pressures are the same kernel averaged over each sensel (Gauss-Legendre).
-Kelvin-Voigt damping of the material scales the force by (1 + tau * d(log F)/dt).
+Kelvin-Voigt damping of the material scales the force by (1 + tau d(log F)/dt). The servo gets the feedforward a
+robot controller gives it (the setpoint's velocity and the law's force at the setpoint), so it tracks the
+commanded depth; a press that still misses it (or its force target) by over 2% raises PressShortfall naming the
+drive stiffness and the speed.
 
-Layers, inclusions and haptic-material maps enter through the depth-weighted effective modulus E*_eff(a) of
-:mod:`palpate.sim.effective_modulus`, tabulated per press against the contact radius a = sqrt(R d): the force
-table and the sensel pressures are scaled by E*_eff(a(d)) / E*(surface); damping is the surface material's.
-
-Validity: thick objects (the kernel ignores finite thickness; layers and inclusions only to first order, see
-:mod:`palpate.sim.effective_modulus` for where that fails: thin stiff skins, large indentation: use ``flex``),
-moderate indentation (the kernel is local: no coupling between neighbouring points, so pressure at sharp edges is
-not smoothed), vertical surface sampling (on a tilted top the surface is sampled along z under the tip).
+Validity: as the contact law's (see its module; small strain, refused beyond 0.75 tip radii), plus the local
+geometry mapping: exact on flat tops; on a curved top of radius R2 it gives R_eff / R of the law's force where two
+spheres give sqrt(R_eff / R) (R_eff = 1 / (1/R + 1/R2)); vertical surface sampling on tilted tops.
 """
 
 from __future__ import annotations
@@ -30,11 +28,22 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, Scene
-from palpate.sim.analytic import effective_modulus_along, local_material
+from palpate.sim.analytic import local_material
+from palpate.sim.contact.law import ContactLaw
+from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import cap_height, sensel_quadrature
 from palpate.sim.scene import FingerDrive, build_press_model, surface_heights
-from palpate.sim.stability import check_resolves_press, check_run, check_warnings
+from palpate.sim.stability import (
+    MAX_STEPS,
+    check_depth,
+    check_reached,
+    check_resolves_press,
+    check_run,
+    check_step_budget,
+    check_warnings,
+    law_depth,
+)
 from palpate.sim.trace import PhysicsTrace
 
 
@@ -42,7 +51,7 @@ def footprint_rings(radius: float, rings: int, sectors: int) -> tuple[np.ndarray
     """Polar cells over the tip's footprint disc: centres (rings*sectors, 2), m, and exact cell areas, m^2.
 
     Rings are concentric with the tip axis, where a press on a flat top starts, so small contacts are resolved
-    by whole rings (a flat top gives one gap value per ring).
+    by whole rings (a flat top gives one clearance per ring).
     """
     edges = np.linspace(0.0, radius, rings + 1)
     r = 0.5 * (edges[1:] + edges[:-1])
@@ -52,55 +61,91 @@ def footprint_rings(radius: float, rings: int, sectors: int) -> tuple[np.ndarray
     return pts, area
 
 
-def force_table(gaps: np.ndarray, areas: np.ndarray, kernel: float, s: np.ndarray) -> np.ndarray:
-    """Total force F(s) = kernel * sum_i A_i sqrt(max(g_i - s, 0)) at sphere-bottom heights s (m), N.
+def equivalent_radius(clearance: np.ndarray, radius: float) -> np.ndarray:
+    """Radius (m) at which a flat top has ``clearance`` (m) under a sphere of ``radius``; inf past the equator."""
+    h = np.asarray(clearance, dtype=float)
+    return np.where(h < radius, np.sqrt(np.maximum(2.0 * radius * h - h * h, 0.0)), np.inf)
 
-    gaps: per footprint cell, the effective height at which that cell meets the object, m. Cells with the
-    same gap (to 0.1 um) are merged first, so a flat top costs one term per ring.
-    """
-    keys = np.round(gaps / 1e-7).astype(np.int64)
-    uniq, inverse = np.unique(keys, return_inverse=True)
+
+def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray) -> np.ndarray:
+    """The law's pressure (Pa) at radii r_eq (..., m) for indentations ``depth`` (n,) m: shape (n, ...).
+
+    Beyond the law's deepest tabulated depth the pressure grows as a Hertz contact would (d^0.5 at fixed r / a),
+    which only a runaway reaches (and the run then stops with its error)."""
+    d = np.maximum(np.asarray(depth, dtype=float), 0.0)
+    over = d > law.max_depth
+    b, c = law.basis_at(np.minimum(d, law.max_depth))
+    scale = np.ones_like(d)
+    if over.any():
+        scale[over] = np.sqrt(d[over] / law.max_depth)
+        b[over] *= scale[over, None]
+    shape = (len(d),) + (1,) * r_eq.ndim
+    rr = r_eq[None, ..., None] ** 2
+    p = np.sum(c.reshape(shape + (-1,)) * np.sqrt(np.maximum(b.reshape(shape + (-1,)) ** 2 - rr, 0.0)), axis=-1)
+    return p * scale.reshape(shape)
+
+
+def contact_geometry(obj: ObjectSpec, centre_xy: np.ndarray, tip, mesh=None, *, rings: int = 96, sectors: int = 24,
+                     cells: tuple[np.ndarray, np.ndarray] | None = None):
+    """Footprint of a tip above ``centre_xy`` (m) on ``obj``: (unique equivalent radii (m), their areas (m^2), the
+    first-contact height g_ref (m) of the sphere's lowest point). ``cells``: precomputed :func:`footprint_rings`."""
+    pts, areas = footprint_rings(tip.radius, rings, sectors) if cells is None else cells
+    gaps = surface_heights(obj, centre_xy[:2] + pts, mesh) - cap_height(tip, pts)
+    # the rings' centres miss the axis, where a flat top is first touched
+    g_ref = max(float(np.max(gaps)), float(surface_heights(obj, np.asarray(centre_xy[:2])[None, :], mesh)[0]))
+    r_eq = equivalent_radius(g_ref - gaps, tip.radius)
+    keys = np.round(np.where(np.isfinite(r_eq), r_eq, 1.0) / 1e-8).astype(np.int64)
+    _, inverse = np.unique(keys, return_inverse=True)
     weight = np.bincount(inverse, weights=areas)
-    g = np.bincount(inverse, weights=gaps * areas) / weight
-    reach = g > s[0]
-    pen = g[None, reach] - s[:, None]
-    return kernel * (np.sqrt(np.maximum(pen, 0.0)) @ weight[reach])
+    r_u = np.bincount(inverse, weights=np.where(np.isfinite(r_eq), r_eq, 1.0) * areas) / weight
+    return r_u, weight, g_ref
 
 
 def run_rigid_press(
     scene: Scene, obj: ObjectSpec, profile: PressProfile, *, timestep: float = 0.002,
     drive: FingerDrive | None = None, rings: int = 96, sectors: int = 24, order: int = 6,
-    young: float | None = None, mesh=None,
+    young: float | None = None, mesh=None, law: ContactLaw | None = None, max_steps: int = MAX_STEPS,
 ) -> PhysicsTrace:
-    """Press-and-release of the MuJoCo finger on a rigid object with the Hertz-shaped contact.
+    """Press-and-release of the MuJoCo finger on ``obj`` under the contact law (see the module docstring).
 
     Args:
         scene: the scene (fingertip, objects).
-        obj: the pressed object; its material at the press point sets damping and the trace's material name,
-            its depth-weighted E*_eff (layers, inclusions) the stiffness.
+        obj: the pressed object; its material at the press point sets damping and the trace's material name.
         profile: the setpoint trajectory (controller).
         timestep: physics step, s.
         drive: finger servo.
         rings, sectors: polar cells over the tip footprint for the total force table.
         order: Gauss-Legendre order per sensel side.
-        young: override of the local Young's modulus, Pa (for stability studies; the object is then taken as
-            homogeneous).
+        young: override of the Young's modulus, Pa (stability studies): the object is taken as homogeneous.
         mesh: the object's pre-loaded trimesh mesh, if a mesh object.
+        law: the press point's contact law (computed here when not given; a SimSource caches it).
+        max_steps: step budget; a longer press is refused before it runs.
 
     Raises:
         SimulationDiverged: MuJoCo warning, NaN, runaway penetration or speed, naming what to change.
+        PressShortfall: the press missed its commanded depth or force target by over 2%.
+        ValidationError: a press deeper than 0.75 tip radii or too short for the timestep.
     """
     import mujoco
 
     check_resolves_press(profile, timestep, " (rigid)")
+    check_step_budget(profile.duration, timestep, max_steps, " (rigid)")
     drive = FingerDrive() if drive is None else drive
     tip = scene.fingertip
     radius = tip.radius
+    check_depth(profile, radius, " (rigid)")
     mat = local_material(obj, profile.x, profile.y, profile.surface_z)
-    e_star = mat.effective_modulus if young is None else young / (1.0 - mat.poisson**2)
-    if not (np.isfinite(e_star) and e_star > 0):
-        raise ValidationError(f"run_rigid_press: young must be a positive modulus in Pa, got {young!r}")
-    kernel = 2.0 * e_star / np.pi * np.sqrt(2.0 / radius)
+    if young is not None:
+        if not (np.isfinite(young) and young > 0):
+            raise ValidationError(f"run_rigid_press: young must be a positive modulus in Pa, got {young!r}")
+        from dataclasses import replace
+
+        obj = replace(obj, material=replace(mat, young=float(young)), layers=(), inclusions=(), material_map=None,
+                      map_materials=())
+        mat = obj.material
+        law = None
+    if law is None:
+        law = object_law(obj, profile.x, profile.y, profile.surface_z, radius, law_depth(profile))
     axis = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
     centres = profile.centres()
     start = centres[0]
@@ -111,45 +156,39 @@ def run_rigid_press(
 
     # surface sampled under the deepest tip position (the tip moves on one axis)
     deepest = centres[int(np.argmin(profile.z))]
-    pts, areas = footprint_rings(radius, rings, sectors)
-    gaps = surface_heights(obj, deepest[:2] + pts, mesh) - cap_height(tip, pts)
+    r_cells, areas, g_ref = contact_geometry(obj, deepest, tip, mesh, rings=rings, sectors=sectors)
     qpts, qw = sensel_quadrature(tip, order)
     sensel_gaps = surface_heights(obj, deepest[:2] + qpts.reshape(-1, 2), mesh).reshape(qpts.shape[:-1]) - cap_height(
         tip, qpts)
-    # first point of contact; with delta - d/2 = (2 g - g_ref - s) / 2 the kernel keeps the table form
-    g_ref = float(np.max(gaps))
-    gaps = 2.0 * gaps - g_ref
-    sensel_gaps = 2.0 * sensel_gaps - g_ref
-    kernel = kernel / np.sqrt(2.0)
+    sensel_r = equivalent_radius(g_ref - sensel_gaps, radius)
 
     # sphere-bottom height s = centre_z - R; the table covers every height the run can reach (plus margin)
-    s_lo = float(np.min(profile.z)) - radius - 2.0 * float(profile.meta.get("depth", 0.004)) - 0.002
-    s_hi = float(np.max(gaps)) + 1e-4
+    depth_cmd = float(profile.meta.get("depth", 0.004))
+    s_lo = float(np.min(profile.z)) - radius - 2.0 * depth_cmd - 0.002
+    s_hi = g_ref + 1e-4
     n_tab = 1000
     s_tab = np.linspace(s_lo, s_hi, n_tab)
-    f_tab = force_table(gaps, areas, kernel, s_tab)
-    # what the press feels below the surface: E*_eff at the contact radius of each table height, relative to
-    # the surface E* the kernel was built with (1 everywhere on one material, so nothing changes there)
-    e_scale = None
-    if young is None:
-        e_tab = effective_modulus_along(obj, profile.x, profile.y, profile.surface_z, radius,
-                                        np.maximum(g_ref - s_tab, 0.0))
-        if np.ndim(e_tab):
-            e_scale = (s_tab, np.asarray(e_tab) / e_star)
-            f_tab = f_tab * e_scale[1]
+    d_tab = np.maximum(g_ref - s_tab, 0.0)
+    f_tab = law_pressure(law, d_tab, r_cells) @ areas
     df_tab = np.gradient(f_tab, s_tab)
     inv_ds = (n_tab - 1) / (s_hi - s_lo)
     tau = mat.damping
 
     n = int(np.ceil(profile.duration / timestep)) + 1
     t = profile.t[0] + timestep * np.arange(n)
-    ctrl = np.interp(t, profile.t, q_set).tolist()
+    q_cmd = np.interp(t, profile.t, q_set)
+    # feedforward of a robot controller: the setpoint's velocity through the servo damping and the law's force at
+    # the setpoint through its stiffness, so the drive's compliance does not leave the press short
+    v_cmd = np.gradient(q_cmd, t)
+    az = float(axis[2])
+    s_cmd = float(start[2]) - radius + q_cmd * az
+    f_cmd = np.interp(s_cmd, s_tab, f_tab)
+    ctrl = (q_cmd + (drive.kv * v_cmd - f_cmd) / drive.kp).tolist()
     q = [float("nan")] * n
     v = [float("nan")] * n
     f = [float("nan")] * n
     # plain Python floats and lists: indexing numpy scalars would cost more than the MuJoCo step itself
     base = (float(start[2]) - radius - s_lo) * inv_ds
-    az = float(axis[2])
     slope = az * inv_ds
     ftab = f_tab.tolist()
     dftab = df_tab.tolist()
@@ -180,30 +219,30 @@ def run_rigid_press(
     v = np.array(v)
     f = np.array(f)
     z0 = float(start[2])
-    context = f" (rigid, young={e_star * (1 - mat.poisson**2):g} Pa)"
+    context = f" (rigid, {mat.name}: E {mat.young:g} Pa)"
     check_warnings(model, data, timestep=timestep, context=context)
     zc = z0 + q * az
     s_run = zc - radius
     indentation = np.maximum(g_ref - s_run, 0.0)
     check_run(t=t, indentation=np.where(np.isnan(q), np.nan, indentation), velocity=v,
-              max_depth=float(profile.meta.get("depth", 0.004)), speed=float(profile.meta.get("speed", 0.01)),
-              timestep=timestep, young=e_star * (1 - mat.poisson**2), context=context)
+              max_depth=depth_cmd, speed=float(profile.meta.get("speed", 0.01)),
+              timestep=timestep, young=mat.young, context=context)
+    reached = depth_cmd + float(np.min(q_cmd) - np.nanmin(q))
+    check_reached(reached, float(np.nanmax(f)), profile, context, knobs=(
+        f"the finger drive (kp {drive.kp:g} N/m, kv {drive.kv:g} N s/m) cannot follow this press: slow the press "
+        f"(now {profile.meta.get('speed', 0.0)} m/s), use a shorter timestep (now {timestep} s) or a stiffer "
+        "drive (FingerDrive.kp)"))
 
-    if not indentation.max() > 0.0:
-        # the servo lags a very fast, shallow press and never reaches the surface: zero force, silently
-        raise ValidationError(
-            f"rigid: the finger never reached the surface{context} (commanded {profile.meta.get('depth', 0) * 1e3:.2f}"
-            f" mm at {profile.meta.get('speed', 0.0)} m/s): the press is faster than the finger drive follows; "
-            "slow the press speed or press deeper"
-        )
-    # sensel pressures from the same kernel, only at steps in contact
+    # sensel pressures from the same field at steps in contact, interpolated in the force's height table as the
+    # force is: evaluating the law per step costs steps x sensels x order^2 basis terms (minutes for a slow press)
     pressure = np.zeros((n,) + qpts.shape[:2])
-    touching = s_run < float(np.max(sensel_gaps))
+    touching = indentation > 0
     if touching.any():
-        pen = sensel_gaps[None] - s_run[touching, None, None, None]
-        p = kernel * np.sqrt(np.maximum(pen, 0.0)) @ qw
-        if e_scale is not None:
-            p = p * np.interp(s_run[touching], *e_scale)[:, None, None]
+        p_tab = law_pressure(law, d_tab, sensel_r) @ qw
+        x = np.clip((s_run[touching] - s_lo) * inv_ds, 0.0, top)
+        i = x.astype(int)
+        w = (x - i)[:, None, None]
+        p = p_tab[i] * (1.0 - w) + p_tab[i + 1] * w
         if tau > 0:
             elastic = np.interp(s_run[touching], s_tab, f_tab)
             ratio = np.divide(f[touching], elastic, out=np.ones_like(elastic), where=elastic > 0)
@@ -213,11 +252,22 @@ def run_rigid_press(
     trace = PhysicsTrace(
         t=t, tip_position=pos, tip_quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), sensel_pressure=pressure,
         force=f, indentation=indentation, surface_z=profile.surface_z, material=mat.name,
-        meta={"fidelity": "rigid", "timestep": float(timestep),
-              "young_eff": float(e_star if e_scale is None else e_star * np.interp(s_run.min(), *e_scale)),
-              "young_eff_surface": float(e_star),
-              "rings": int(rings), "sectors": int(sectors),
+        meta={"fidelity": "rigid", "timestep": float(timestep), "young_eff_surface": float(mat.effective_modulus),
+              "rings": int(rings), "sectors": int(sectors), "contact_law_max_depth": law.max_depth,
               "drive": {"kp": drive.kp, "kv": drive.kv, "armature": drive.armature, "mass": drive.mass}},
     )
     trace.check_finite()
     return trace
+
+
+def rigid_depth_for_force(obj: ObjectSpec, centre_xy: np.ndarray, tip, law: ContactLaw, force: float,
+                          mesh=None) -> float:
+    """Indentation (m) at which the rigid fidelity's force (the law on the footprint above ``centre_xy``) reaches
+    ``force`` N; the force target's depth, consistent with what :func:`run_rigid_press` will feel."""
+    r_cells, areas, _ = contact_geometry(obj, np.asarray(centre_xy, dtype=float), tip, mesh)
+    d = law.max_depth * (np.arange(401) / 400.0) ** 2
+    f = law_pressure(law, d, r_cells) @ areas
+    if not force <= f[-1]:
+        raise ValidationError(f"a {force:.3g} N force target needs more than {law.max_depth * 1e3:.2f} mm on "
+                              f"{obj.name!r} (the fidelity reaches {f[-1]:.3g} N there); lower the force target")
+    return float(np.interp(force, f, d))

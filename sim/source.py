@@ -3,21 +3,15 @@
 ``SimSource(scene).press(target)`` runs one press-and-release at the chosen fidelity and returns the same raw
 streams a Tekscan pad and a Polhemus tracker give, with ground truth beside them.
 
-Fidelity ``auto`` models only what the pressed object requires (:func:`explain_fidelity` says why; the numbers
-are from ``palpate bench`` / benchmarks/tradeoff.py, which measures them):
-  - ``flex`` if the object has layers, inclusions or a haptic-material map (the local contact laws of the other
-    levels cannot see below the surface), or the press is deeper than 20% of the object's height (large
-    indentation: the half-space and local-kernel levels ignore the bottom);
-  - ``analytic`` for a homogeneous box whose top is flat under the whole contact, at least 5 contact radii
-    (a = sqrt(R d)) thick, with the press point at least 3 contact radii plus the tip radius from every edge, and
-    depth <= 0.35 tip radii: there the sphere's force stays within 5% of Hertz (measured: 1% at d/R 0.06,
-    3.7% at 0.25, 5.4% at 0.375, 7.2% at 0.5) at ~1/4 of rigid's cost per press;
-  - ``rigid`` otherwise (cylinders near their rim, meshes and curved tops, thin or small objects, deeper presses):
-    its kernel follows the real sphere and surface, converged already at 5 ms (0.05% from the 0.25 ms reference).
+Fidelity ``auto`` picks, per press, the cheapest fidelity whose force error against the FE reference, measured
+in the validity table (models/validity_table.json, written by ``palpate bench``), is within the source's
+``tolerance`` (a scenario's ``tolerance_pct``, default 5%); :mod:`palpate.sim.validity.choice` places the press in
+the table and the reason it returns says where and with what predicted errors.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -27,58 +21,43 @@ from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import run_analytic_press
-from palpate.sim.controller import ROBOT, Variability, press_profile
-from palpate.sim.effective_modulus import depth_for_force
+from palpate.sim.contact.stack import object_law
+from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profile
 from palpate.sim.flex import run_flex_press
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import resolve_profile
 from palpate.sim.realism.stage import RealismSession
-from palpate.sim.rigid import run_rigid_press
+from palpate.sim.rigid import rigid_depth_for_force, run_rigid_press
 from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
+from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, law_depth
+from palpate.sim.validity.choice import choose, situation
+from palpate.sim.validity.measure import load_table
 
 FIDELITIES = ("auto", "analytic", "rigid", "flex")
+#: Default tolerance of ``auto``: the largest predicted force error against the reference, fraction.
+DEFAULT_TOLERANCE = 0.05
 
 
-#: Largest depth / tip radius for ``analytic``: the sphere's force is within 5% of Hertz up to here.
-ANALYTIC_MAX_DEPTH_OVER_RADIUS = 0.35
-#: Depth / object height beyond which the press is "large indentation" and needs ``flex``.
-FLEX_DEPTH_OVER_HEIGHT = 0.2
+def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, *, tolerance: float = DEFAULT_TOLERANCE,
+                     table: dict | None = None, depth: float | None = None, surface_z: float | None = None
+                     ) -> tuple[str, str]:
+    """The cheapest fidelity within ``tolerance`` for pressing ``obj`` at ``target``, and a one-line reason.
 
-
-def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float) -> tuple[str, str]:
-    """The cheapest fidelity valid for pressing ``obj`` at ``target``, and a one-line reason (module docstring).
-
-    A force-only target is taken as 0.25 tip radii deep (a typical palpation press).
+    Args:
+        depth: the press's depth, m (default the target's, or 0.25 tip radii for a force-only target).
+        table: a loaded validity table (default the shipped one).
+        surface_z: the top's height at the target, m (default the object's height).
     """
-    if obj.layers or obj.inclusions or obj.material_map is not None:
-        what = "layers" if obj.layers else "inclusions" if obj.inclusions else "a haptic-material map"
-        return "flex", f"{obj.name}: has {what}; only flex resolves material below the surface"
-    depth = target.depth if target.depth is not None else 0.25 * radius
-    if depth > FLEX_DEPTH_OVER_HEIGHT * obj.height:
-        return "flex", (f"{obj.name}: depth {depth * 1e3:.1f} mm is over {FLEX_DEPTH_OVER_HEIGHT:.0%} of its "
-                        f"{obj.height * 1e3:.1f} mm height (large indentation: the bottom matters)")
-    if obj.shape != "box":
-        return "rigid", f"{obj.name}: {obj.shape} top is curved or finite; rigid follows the real surface"
-    a = np.sqrt(radius * depth)
-    half = np.asarray(obj.size[:2]) / 2.0
-    edge = float(np.min(half - np.abs(np.array([target.x, target.y]) - np.asarray(obj.position))))
-    if obj.height < 5.0 * a:
-        return "rigid", (f"{obj.name}: {obj.height * 1e3:.1f} mm thick is under 5 contact radii "
-                         f"({5e3 * a:.1f} mm); Hertz's half-space does not hold")
-    if edge < 3.0 * a + radius:
-        return "rigid", (f"{obj.name}: press {edge * 1e3:.1f} mm from an edge, under 3 contact radii + tip radius "
-                         f"({(3 * a + radius) * 1e3:.1f} mm); Hertz's half-space does not hold")
-    if depth > ANALYTIC_MAX_DEPTH_OVER_RADIUS * radius:
-        return "rigid", (f"{obj.name}: depth {depth / radius:.2f} tip radii is over {ANALYTIC_MAX_DEPTH_OVER_RADIUS}; "
-                         "the sphere's force departs from Hertz by more than 5%")
-    return "analytic", (f"{obj.name}: homogeneous, thick and flat under the contact, depth {depth / radius:.2f} "
-                        "tip radii; Hertz within 5% at ~1/4 of rigid's cost")
+    table = load_table() if table is None else table
+    d = depth if depth is not None else (target.depth if target.depth is not None else 0.25 * radius)
+    top = obj.height if surface_z is None else surface_z
+    return choose(table, situation(obj, target.x, target.y, top, d, radius), tolerance, obj.name)
 
 
-def choose_fidelity(obj: ObjectSpec, target: PressTarget, radius: float) -> str:
-    """The cheapest fidelity valid for pressing ``obj`` at ``target`` (see :func:`explain_fidelity`)."""
-    return explain_fidelity(obj, target, radius)[0]
+def choose_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, **kwargs) -> str:
+    """The fidelity :func:`explain_fidelity` picks."""
+    return explain_fidelity(obj, target, radius, **kwargs)[0]
 
 
 class SimSource:
@@ -90,10 +69,13 @@ class SimSource:
         seed: seed of everything random (press variability, sensor noise); the n-th press of a source draws
             from (seed, n), so a source replays identically.
         variability: "robot" (exact), "human" (the realism profile's human-like press) or a Variability.
-        timestep: physics step, s (rigid default 2 ms, flex default 5 ms; analytic samples at the taxel rate).
+        timestep: physics step, s (rigid default 2 ms, flex its own; analytic samples at the taxel rate).
+        tolerance: largest predicted force error ``auto`` accepts, fraction (default 5%).
+        max_steps: physics steps one press may take; a longer one is refused before it runs.
         realism: a realism profile (:mod:`palpate.sim.realism`): a preset or shipped profile's name, a TOML path,
             or a RealismProfile; None is ``ideal`` (the simulation exactly as without profiles). One source is one
-            session (one pad equilibration, one clock synchronisation).
+            session (one pad equilibration, one clock synchronisation). Its finger pulp is in series with the
+            press point's contact law; the validity table (``auto``) is about the mechanics alone.
     """
 
     #: modules every fidelity imports when it presses (checked by the run before any work starts)
@@ -101,6 +83,7 @@ class SimSource:
 
     def __init__(self, scene: Scene, fidelity: str = "auto", seed: int = 0,
                  variability: str | Variability = "robot", timestep: float | None = None,
+                 tolerance: float = DEFAULT_TOLERANCE, max_steps: int = MAX_STEPS,
                  realism: str | Path | RealismProfile | None = None):
         if fidelity not in FIDELITIES:
             raise ValidationError(f"SimSource: fidelity must be one of {FIDELITIES}, got {fidelity!r}")
@@ -112,6 +95,13 @@ class SimSource:
             variability = ROBOT if variability == "robot" else self.realism.press
         if timestep is not None and not (np.isfinite(timestep) and timestep > 0):
             raise ValidationError(f"SimSource: timestep must be > 0 s, got {timestep!r}")
+        if not (np.isfinite(tolerance) and 0 < tolerance < 1):
+            raise ValidationError(f"SimSource: tolerance must be a fraction in (0, 1), got {tolerance!r}")
+        self.tolerance = float(tolerance)
+        if not (isinstance(max_steps, int) and max_steps > 0):
+            raise ValidationError(f"SimSource: max_steps must be a positive integer, got {max_steps!r}")
+        self.max_steps = max_steps
+        self._table = None  # the validity table, read on the first ``auto`` decision
         self.scene = scene
         self.fidelity = fidelity
         self.seed = int(seed)
@@ -119,6 +109,8 @@ class SimSource:
         self.timestep = timestep
         self._presses = 0
         self._meshes: dict = {}
+        self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
+        self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.run_flex_press)
         self._session = (None if self.realism.is_ideal else
                          RealismSession(self.realism, scene.fingertip, scene.taxels, self.seed))
 
@@ -136,7 +128,22 @@ class SimSource:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
         if self.fidelity != "auto":
             return self.fidelity, f"{obj.name}: fidelity {self.fidelity!r} set by the scenario"
-        return explain_fidelity(obj, target, self.scene.fingertip.radius)
+        return self._auto(obj, target)
+
+    def _auto(self, obj: ObjectSpec, target: PressTarget) -> tuple[str, str]:
+        """``auto``'s decision for a press at ``target`` (a force target's depth from the contact law)."""
+        if self._table is None:
+            self._table = load_table()
+        tip = self.scene.fingertip
+        surface_z, _ = surface_at(obj, target.x, target.y, self._mesh(obj))
+        depth = target.depth
+        if target.force is not None:
+            law = object_law(obj, target.x, target.y, surface_z, tip.radius, MAX_DEPTH_OVER_RADIUS * tip.radius,
+                             cache=self._laws)
+            reach = law.depth_for_force(target.force) if target.force < law.force[-1] else law.max_depth
+            depth = reach if depth is None else min(depth, reach)
+        return explain_fidelity(obj, target, tip.radius, tolerance=self.tolerance, table=self._table, depth=depth,
+                                surface_z=surface_z)
 
     def press(self, target: PressTarget) -> PressRecording:
         """One press-and-release at ``target``: taxel frames, pose samples and ground truth."""
@@ -144,38 +151,85 @@ class SimSource:
         if obj is None:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
         tip = self.scene.fingertip
-        fidelity = self.fidelity if self.fidelity != "auto" else choose_fidelity(obj, target, tip.radius)
+        fidelity, reason = self.explain(target)
         mesh = self._mesh(obj)
         surface_z, normal = surface_at(obj, target.x, target.y, mesh)
         # a fourth child for the realism keeps the first three (press, taxels, pose) as they always were
         s_profile, s_taxel, s_pose, s_real = np.random.SeedSequence([self.seed, self._presses]).spawn(4)
         self._presses += 1
         timestep = self.timestep or 0.002
+        seed = int(s_profile.generate_state(1)[0])
 
-        def object_depth_for_force(f: float) -> float:
-            # E*_eff at the radius the press reaches (layers, inclusions): exactly Hertz on one material
-            return depth_for_force(obj, target.x, target.y, surface_z, tip.radius, f)
+        deepest = MAX_DEPTH_OVER_RADIUS * tip.radius
+        if target.depth is not None and target.depth > deepest and target.force is not None:
+            # "this force, but no deeper than ...": no press goes past the deepest allowed either
+            target = replace(target, depth=deepest)
+        if target.depth is not None and target.depth > deepest:
+            raise ValidationError(f"press target depth {target.depth * 1e3:.2f} mm is over {MAX_DEPTH_OVER_RADIUS} tip "
+                                  f"radii ({tip.radius * 1e3:.1f} mm tip): the contact would reach the sphere's "
+                                  f"equator; press at most {deepest * 1e3:.2f} mm deep")
 
+        def profile_for(depth_for_force) -> PressProfile:
+            prof = press_profile(target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002),
+                                 variability=self.variability, seed=seed, normal=tuple(normal),
+                                 depth_for_force=depth_for_force)
+            planned = prof.meta["depth"]
+            if target.depth is not None and planned > deepest and prof.meta.get("force_target") is None:
+                # a person's press varies in depth, but no finger presses past what it can: the same draws,
+                # scaled to stop at the deepest press allowed
+                shorter = replace(target, depth=target.depth * deepest / planned)
+                prof = press_profile(shorter, surface_z, radius=tip.radius, timestep=min(timestep, 0.002),
+                                     variability=self.variability, seed=seed, normal=tuple(normal),
+                                     depth_for_force=depth_for_force)
+                prof.meta["depth_limited_from"] = float(planned)
+            return prof
+
+        law = None
         real = None
-        if self._session is not None:
-            planned = target.depth if target.depth is not None else object_depth_for_force(target.force)
-            real = self._session.press(obj.name, target.x, target.y, object_depth_for_force, 2.0 * planned + 0.01,
-                                       np.random.default_rng(s_real))
-        profile = press_profile(
-            target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002), variability=self.variability,
-            seed=int(s_profile.generate_state(1)[0]), normal=tuple(normal),
-            depth_for_force=object_depth_for_force if real is None else real.bone_depth_for_force,
-        )
-        physics_profile = profile if real is None else real.object_profile(profile)
-        if fidelity == "analytic":
-            trace = run_analytic_press(self.scene, obj, physics_profile)
-        elif fidelity == "rigid":
-            trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh)
+        if target.force is None and self._session is None:
+            profile = profile_for(None)
+            if fidelity in ("analytic", "rigid"):
+                law = object_law(obj, profile.x, profile.y, surface_z, tip.radius, law_depth(profile),
+                                 cache=self._laws)
         else:
-            # flex has its own default step (5 ms: >= 1x real time at the default resolution, see
-            # benchmarks/flex_resolution.py); the rigid default of 2 ms would make it 2.5x slower.
-            trace = run_flex_press(self.scene, obj, target, physics_profile, timestep=self.timestep,
-                                   seed=int(s_profile.generate_state(1)[0]))
+            # the same seed draws the same press point whatever the depth: find it, then invert the law felt there
+            point = profile_for(lambda force: 1e-3)
+            law = object_law(obj, point.x, point.y, surface_z, tip.radius, MAX_DEPTH_OVER_RADIUS * tip.radius,
+                             cache=self._laws)
+
+            def depth_for_force(force: float) -> float:
+                try:
+                    if fidelity == "rigid":
+                        # the force rigid will feel on this geometry (edges, curved tops), not the flat law's
+                        centre = np.array([point.x, point.y]) + tip.radius * normal[:2]
+                        return rigid_depth_for_force(obj, centre, tip, law, force, mesh)
+                    return law.depth_for_force(force)
+                except ValidationError:
+                    if target.depth is not None:
+                        return float("inf")  # the depth comes first: the force limit is never reached
+                    raise
+
+            if self._session is None:
+                profile = profile_for(depth_for_force)
+            else:
+                real = self._realism(obj, point, target, law, depth_for_force, s_real)
+                profile = profile_for(real.bone_depth_for_force)
+        physics_profile = profile
+        if real is not None:
+            # the pulp's share taken out of the bone's press; the force the person stops at is felt through the
+            # pulp and the softened material, applied after the physics: the physics is held to the depth alone
+            physics_profile = real.object_profile(profile)
+            physics_profile = replace(physics_profile, meta=dict(physics_profile.meta, force_target=None))
+        if fidelity == "analytic":
+            trace = run_analytic_press(self.scene, obj, physics_profile, law=law)
+        elif fidelity == "rigid":
+            trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
+                                    max_steps=self.max_steps)
+        else:
+            # flex has its own default step (up to 10 ms, see palpate.sim.flex.default_timestep): the rigid
+            # default of 2 ms would make it 5x slower for nothing (its elasticity is integrated implicitly)
+            trace = run_flex_press(self.scene, obj, target, physics_profile, timestep=self.timestep, seed=seed,
+                                   models=self._flex_models, max_steps=self.max_steps)
         pose_spec, latency, response = self.scene.pose, 0.0, None
         if real is not None:
             trace = real.finish(trace, profile)
@@ -183,7 +237,8 @@ class SimSource:
         frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel), response=response)
         poses = sample_poses(trace, pose_spec, np.random.default_rng(s_pose), latency=latency)
         meta = {
-            "source": "sim", "fidelity": fidelity, "object": obj.name, "material": trace.material,
+            "source": "sim", "fidelity": fidelity, "fidelity_reason": reason, "object": obj.name,
+            "material": trace.material,
             "seed": self.seed, "press_index": self._presses - 1,
             "target": {"x": target.x, "y": target.y, "depth": target.depth, "force": target.force,
                        "speed": target.speed, "hold": target.hold, "label": target.label},
@@ -193,3 +248,22 @@ class SimSource:
         if real is not None:
             meta["realism"] = real.meta()
         return PressRecording(frames=frames, poses=poses, truth=ground_truth(trace), meta=meta)
+
+    def _realism(self, obj: ObjectSpec, point: PressProfile, target: PressTarget, law, depth_for_force,
+                 stream: np.random.SeedSequence):
+        """This press's realism (:meth:`RealismSession.press`) at the drawn press point, planned on its law."""
+
+        def planning_depth(force: float) -> float:
+            try:
+                d = depth_for_force(force) if force < law.force[-1] else float("inf")
+            except ValidationError:
+                d = float("inf")
+            if np.isfinite(d):
+                return d
+            # past the deepest press allowed: Hertz's shape from the law's deepest point, only to tabulate the
+            # finger's series law (no press goes there)
+            return law.max_depth * (force / law.force[-1]) ** (2.0 / 3.0)
+
+        planned = target.depth if target.depth is not None else planning_depth(target.force)
+        return self._session.press(obj.name, point.x, point.y, planning_depth, 2.0 * planned + 0.01,
+                                   np.random.default_rng(stream))

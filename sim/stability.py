@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from palpate.core.errors import SimulationDiverged, ValidationError
+from palpate.core.errors import PressShortfall, SimulationDiverged, ValidationError
 
 # warnings that mean the integration itself failed (inertia/contact-buffer warnings are model issues)
 _FATAL_WARNINGS = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC", "mjWARN_BADCTRL")
@@ -69,19 +69,89 @@ def check_run(
 
 #: Fewest physics steps the press phase (first contact to deepest point) may span.
 MIN_PRESS_STEPS = 10
+#: Most physics steps one press may take by default (a press over it is refused before it runs).
+MAX_STEPS = 200_000
 
 
-def check_resolves_press(profile, timestep: float, context: str = "", min_steps: int = MIN_PRESS_STEPS) -> None:
+def check_step_budget(duration: float, timestep: float, max_steps: int, context: str = "") -> int:
+    """Number of steps of ``timestep`` (s) a press of ``duration`` (s) takes; ValidationError over ``max_steps``
+    (nothing runs for minutes without saying so), naming the timestep and the speed to change."""
+    steps = int(np.ceil(duration / timestep)) + 1
+    if steps > max_steps:
+        raise ValidationError(
+            f"the press of {duration:.2f} s needs {steps} steps of {timestep:g} s{context}, over the budget of "
+            f"{max_steps}; use a longer timestep or a faster press (or raise max_steps)"
+        )
+    return steps
+
+
+def check_resolves_press(profile, timestep: float, context: str = "", min_steps: int = MIN_PRESS_STEPS,
+                         knobs: str = "") -> None:
     """Raise ValidationError if the press phase lasts fewer than ``min_steps`` steps of ``timestep`` (s).
 
     A step longer than the press itself lets the servo skip the contact: the run "succeeds" with zero force
     (found by the stability matrix: flex at 10 ms, a 1 mm press at 0.2 m/s never touched the block).
+    ``knobs`` names what the caller can change (default: the timestep, the speed, the depth).
     """
 
     t0, t1 = profile.meta.get("phases", {}).get("press", (0.0, profile.duration))
     steps = (t1 - t0) / timestep
     if steps < min_steps:
+        advice = knobs or (f"a timestep of at most {(t1 - t0) / min_steps:.2g} s, a slower press or a deeper one")
         raise ValidationError(
-            f"the press phase lasts {t1 - t0:.4f} s, only {steps:.1f} steps of {timestep:g} s{context}; "
-            f"use a timestep of at most {(t1 - t0) / min_steps:.2g} s, a slower press or a deeper one"
+            f"the press phase lasts {t1 - t0:.4f} s, only {steps:.1f} steps of {timestep:g} s{context}; use {advice}"
+        )
+
+
+#: Deepest press any fidelity accepts, in tip radii: beyond it the contact nears the sphere's equator, where the
+#: small-strain contact mechanics of every level (and of the FE reference) no longer describe a press.
+MAX_DEPTH_OVER_RADIUS = 0.75
+#: A press must reach its commanded depth (and force, where the fidelity's force model set the depth) within this.
+REACH_TOLERANCE = 0.02
+
+
+def check_depth(profile, radius: float, context: str = "") -> None:
+    """Refuse (ValidationError) a press deeper than MAX_DEPTH_OVER_RADIUS tip radii of ``radius`` m."""
+    depth = float(profile.meta.get("depth", 0.0))
+    # a press scaled to stop exactly at the limit may land a rounding error past it
+    if depth > MAX_DEPTH_OVER_RADIUS * radius * (1.0 + 1e-9):
+        raise ValidationError(
+            f"indentation {depth * 1e3:.2f} mm is over {MAX_DEPTH_OVER_RADIUS} tip radii ({radius * 1e3:.1f} mm "
+            f"tip){context}: the contact would reach the sphere's equator; press at most "
+            f"{MAX_DEPTH_OVER_RADIUS * radius * 1e3:.2f} mm deep (or a lower force target), or use a larger tip radius"
+        )
+
+
+def law_depth(profile) -> float:
+    """Deepest indentation (m) a press's contact law must cover: the commanded depth with room for overshoot."""
+    depth = float(profile.meta.get("depth", 0.0))
+    radius = float(profile.meta.get("radius", 0.008))
+    return float(min(MAX_DEPTH_OVER_RADIUS * radius, max(1.25 * depth, depth + 2e-4)))
+
+
+def check_reached(reached: float, peak_force: float, profile, context: str = "", *, knobs: str = "",
+                  check_force: bool = True) -> None:
+    """Raise PressShortfall if the press missed its commanded depth, or its force target, by over 2%.
+
+    Args:
+        reached: the depth the tip reached along the press axis, m (commanded depth + how far the tip went past
+            its deepest setpoint).
+        peak_force: the largest contact force, N.
+        profile: the press profile (meta "depth", "force_target").
+        knobs: what the caller can change, named in the message.
+        check_force: compare the peak force with a force target (only where the fidelity's own force model set
+            the commanded depth).
+    """
+    depth = float(profile.meta.get("depth", 0.0))
+    target = profile.meta.get("force_target")
+    advice = knobs or "slow the press or stiffen the drive"
+    if depth > 0 and abs(reached / depth - 1.0) > REACH_TOLERANCE and abs(reached - depth) > 1e-6:
+        raise PressShortfall(
+            f"the press reached {reached * 1e3:.3f} mm of the commanded {depth * 1e3:.3f} mm "
+            f"({100 * (reached / depth - 1):+.1f}%){context}; {advice}"
+        )
+    if check_force and target and abs(peak_force / float(target) - 1.0) > REACH_TOLERANCE:
+        raise PressShortfall(
+            f"the press reached {peak_force:.3g} N of the {float(target):.3g} N target "
+            f"({100 * (peak_force / float(target) - 1):+.1f}%){context}; {advice}"
         )

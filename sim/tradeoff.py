@@ -10,8 +10,9 @@ reports:
 - peak memory of one press (tracemalloc: Python-side allocations, which hold every trace and frame array);
 - error against the reference setting (the finest stable one), per press with the same seed: relative error of
   the peak c_P, c_A, c_D and of the fitted n1 and a1 (median over presses);
-- force error against closed-form Hertz (the block is thick and homogeneous, so Hertz applies): relative RMS of
-  F / F_Hertz(indentation) - 1 over the loading phase beyond 0.2 mm;
+- force error against the reference mechanics of the bench block (its contact law, which the FE reference
+  confirms within ~1%, tests/test_fe_reference.py): relative RMS of F / F_ref(indentation) - 1 over the loading
+  phase beyond 0.2 mm;
 - leave-one-out accuracy of a haptic memory trained on that setting's presses.
 
 :func:`pareto_front` and :func:`cheapest_within` then pick the settings worth using.
@@ -32,11 +33,12 @@ from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, Scene, TaxelSensorSpec
 from palpate.sim.analytic import run_analytic_press
+from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import HUMAN, press_profile
 from palpate.sim.flex import run_flex_press
-from palpate.sim.hertz import hertz_depth_for_force, hertz_force
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
+from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS
 
 FIDELITY_ORDER = ("analytic", "rigid", "flex")
 #: Bench materials (name, Young's modulus Pa): soft, medium, hard, a decade apart as the thesis' references.
@@ -62,7 +64,7 @@ class Setting:
     timestep: float = 0.002
     taxel_rate: float = 50.0
     rings: int = 96
-    resolution: float = 0.0065
+    resolution: float = 0.005
 
     def __post_init__(self) -> None:
         if self.fidelity not in FIDELITY_ORDER:
@@ -96,9 +98,8 @@ def finite_or_none(v) -> float | None:
 def reference_setting() -> Setting:
     """The finest stable setting of the bench: rigid at 0.25 ms with the full contact quadrature.
 
-    Rigid rather than flex: on a thick homogeneous block both model the same Hertz contact, and rigid converges
-    (its force error against Hertz is below 1%) while flex is limited by its cell size (~10%, see
-    benchmarks/flex_resolution.py).
+    Rigid rather than flex: on a thick homogeneous block both model the same contact, and rigid converges (its
+    force is within 1% of the reference mechanics) while flex is limited by its cell size (see the validity table).
     """
     return Setting("rigid", timestep=0.00025, rings=96)
 
@@ -113,7 +114,7 @@ def quick_settings() -> list[Setting]:
         Setting("rigid", timestep=0.005),
         Setting("rigid", timestep=0.002, rings=24),
         Setting("rigid", timestep=0.002, taxel_rate=100.0),
-        Setting("flex", timestep=0.002, resolution=0.0065),
+        Setting("flex", timestep=0.01, resolution=0.005),
     ]
 
 
@@ -123,8 +124,8 @@ def full_settings() -> list[Setting]:
     out += [Setting("rigid", timestep=dt) for dt in (0.0005, 0.001, 0.002, 0.005, 0.01)]
     out += [Setting("rigid", timestep=0.002, rings=r) for r in (12, 24, 48)]
     out += [Setting("rigid", timestep=0.002, taxel_rate=r) for r in (25.0, 100.0, 200.0)]
-    out += [Setting("flex", timestep=dt, resolution=res) for res in (0.01, 0.0065, 0.005) for dt in (0.002, 0.005)]
-    out += [Setting("flex", timestep=0.001, resolution=0.0065)]
+    # the mesh correction is measured for 5 mm cells; the others run with it extrapolated (said in their meta)
+    out += [Setting("flex", timestep=dt, resolution=res) for res in (0.0075, 0.005) for dt in (0.005, 0.01)]
     return out
 
 
@@ -134,29 +135,36 @@ def bench_scene(young: float, name: str, taxel_rate: float = 50.0) -> tuple[Scen
     return Scene((obj,), taxels=TaxelSensorSpec(rate=taxel_rate)), obj
 
 
+def bench_law(young: float, name: str, laws: dict | None = None):
+    """The reference mechanics of the bench block of one material: its contact law to 0.75 tip radii."""
+    scene, obj = bench_scene(young, name)
+    tip = scene.fingertip
+    return object_law(obj, 0.0, 0.0, obj.height, tip.radius, MAX_DEPTH_OVER_RADIUS * tip.radius, cache=laws)
+
+
 def simulate(setting: Setting, young: float, name: str, seed: int, *, depth: float = 0.003,
-             speed: float = 0.01) -> PressRecording:
+             speed: float = 0.01, laws: dict | None = None, models: dict | None = None) -> PressRecording:
     """One press-and-release of the bench block at ``setting`` (human-like variability drawn from ``seed``).
 
     Mirrors :meth:`palpate.sim.source.SimSource.press` but passes the setting's knobs (quadrature, cell size)
-    that a SimSource keeps at their defaults.
+    that a SimSource keeps at their defaults; ``laws``/``models`` are caches kept by the caller.
     """
 
     scene, obj = bench_scene(young, name, setting.taxel_rate)
     tip = scene.fingertip
     target = PressTarget(0.0, 0.0, depth=depth, speed=speed)
     s_profile, s_taxel, s_pose = np.random.SeedSequence([seed, 0]).spawn(3)
-    e_star = obj.material.effective_modulus
+    law = bench_law(young, name, laws)
     profile = press_profile(target, obj.height, radius=tip.radius, timestep=min(setting.timestep, 0.002),
                             variability=HUMAN, seed=int(s_profile.generate_state(1)[0]),
-                            depth_for_force=lambda f: hertz_depth_for_force(e_star, tip.radius, f))
+                            depth_for_force=law.depth_for_force)
     if setting.fidelity == "analytic":
-        trace = run_analytic_press(scene, obj, profile)
+        trace = run_analytic_press(scene, obj, profile, law=law)
     elif setting.fidelity == "rigid":
-        trace = run_rigid_press(scene, obj, profile, timestep=setting.timestep, rings=setting.rings)
+        trace = run_rigid_press(scene, obj, profile, timestep=setting.timestep, rings=setting.rings, law=law)
     else:
         trace = run_flex_press(scene, obj, target, profile, timestep=setting.timestep,
-                               resolution=setting.resolution)
+                               resolution=setting.resolution, models=models)
     frames = sample_taxels(trace, scene.taxels, tip, np.random.default_rng(s_taxel))
     poses = sample_poses(trace, scene.pose, np.random.default_rng(s_pose))
     meta = {"source": "sim", "fidelity": setting.fidelity, "material": name, "seed": seed,
@@ -166,34 +174,36 @@ def simulate(setting: Setting, young: float, name: str, seed: int, *, depth: flo
 
 @dataclass
 class PressMeasure:
-    """What one press gave: peak features, fitted (n1, a1), Hertz force error, duration and wall time."""
+    """What one press gave: peak features, fitted (n1, a1), force error against the reference, duration, wall."""
 
     material: str
     seed: int
     wall: float
     duration: float
     peaks: dict[str, float]
-    hertz_error: float
+    law_error: float
     params: np.ndarray | None = None
 
 
-def hertz_force_error(rec: PressRecording, young_eff: float, radius: float, min_depth: float = 2e-4) -> float:
-    """Relative RMS of F / F_Hertz - 1 over the loading phase beyond ``min_depth`` (m); NaN if never that deep."""
+def law_force_error(rec: PressRecording, law, min_depth: float = 2e-4) -> float:
+    """Relative RMS of F / F_ref - 1 (``law``: the reference mechanics) over the loading phase beyond
+    ``min_depth`` (m); NaN if never that deep."""
 
     d = np.asarray(rec.truth.indentation)
     f = np.asarray(rec.truth.force)
     loading = (np.arange(len(d)) <= int(np.argmax(d))) & (d > min_depth)
     if not loading.any():
         return float("nan")
-    ratio = f[loading] / hertz_force(young_eff, radius, d[loading]) - 1.0
+    ratio = f[loading] / law.force_at(d[loading]) - 1.0
     return float(np.sqrt(np.mean(ratio**2)))
 
 
-def measure_press(setting: Setting, young: float, name: str, seed: int, depth: float = 0.003) -> PressMeasure:
+def measure_press(setting: Setting, young: float, name: str, seed: int, depth: float = 0.003,
+                  laws: dict | None = None, models: dict | None = None) -> PressMeasure:
     """Simulate and perceive one press; peaks are NaN where the pipeline found no press or the fit failed."""
 
     t0 = time.perf_counter()
-    rec = simulate(setting, young, name, seed, depth=depth)
+    rec = simulate(setting, young, name, seed, depth=depth, laws=laws, models=models)
     wall = time.perf_counter() - t0
     res = perceive_press(rec)
     peaks = {k: float("nan") for k in FEATURES}
@@ -202,7 +212,7 @@ def measure_press(setting: Setting, young: float, name: str, seed: int, depth: f
         peaks.update(c_P=float(np.max(pr.c_P)), c_A=float(np.max(pr.c_A)), c_D=float(np.max(pr.c_D)))
     if res.fit is not None:
         peaks.update(n1=res.fit.n1, a1=res.fit.a1)
-    herr = hertz_force_error(rec, young / (1 - 0.3**2), Scene(()).fingertip.radius)
+    herr = law_force_error(rec, bench_law(young, name, laws))
     return PressMeasure(name, seed, wall, rec.meta["duration"], peaks, herr, res.params)
 
 
@@ -231,7 +241,7 @@ class SettingResult:
     peak_memory: float = float("nan")
     errors: dict[str, float] = field(default_factory=dict)
     error: float = float("nan")
-    hertz_error: float = float("nan")
+    law_error: float = float("nan")
     loo_accuracy: float = float("nan")
     failed: str | None = None
     note: str | None = None
@@ -245,7 +255,8 @@ class SettingResult:
             "wall_per_press_s": num(self.wall_per_press), "realtime_factor": num(self.realtime_factor),
             "peak_memory_bytes": num(self.peak_memory),
             "errors": {k: num(v) for k, v in self.errors.items()}, "error": num(self.error),
-            "hertz_error": num(self.hertz_error), "loo_accuracy": num(self.loo_accuracy), "failed": self.failed,
+            "force_error_vs_reference": num(self.law_error), "loo_accuracy": num(self.loo_accuracy),
+            "failed": self.failed,
             "note": self.note,
         }
 
@@ -259,10 +270,12 @@ def measure_setting(setting: Setting, *, seeds: tuple[int, ...] = (0, 1, 2, 3),
     """
 
     out = SettingResult(setting)
+    laws: dict = {}
+    models: dict = {}
     try:
         for name, young in materials:
             for seed in seeds:
-                out.presses.append(measure_press(setting, young, name, seed, depth))
+                out.presses.append(measure_press(setting, young, name, seed, depth, laws, models))
         if memory:
             name, young = materials[0]
             out.peak_memory = peak_memory(setting, young, name, seeds[0])
@@ -273,8 +286,8 @@ def measure_setting(setting: Setting, *, seeds: tuple[int, ...] = (0, 1, 2, 3),
     durations = np.array([p.duration for p in out.presses])
     out.wall_per_press = float(np.median(walls))
     out.realtime_factor = float(np.sum(durations) / np.sum(walls))
-    herr = np.array([p.hertz_error for p in out.presses])
-    out.hertz_error = float(np.nanmedian(herr)) if np.isfinite(herr).any() else float("nan")
+    herr = np.array([p.law_error for p in out.presses])
+    out.law_error = float(np.nanmedian(herr)) if np.isfinite(herr).any() else float("nan")
     fitted = [p for p in out.presses if p.params is not None]
     try:
         params = np.array([p.params for p in fitted])
@@ -351,23 +364,3 @@ def run_tradeoff(settings: list[Setting], *, reference: Setting | None = None, s
             progress(r)
     return {"reference": ref, "results": results, "pareto": pareto_front(results),
             "within_5": cheapest_within(results, 0.05), "within_1": cheapest_within(results, 0.01)}
-
-
-def analytic_validity(depths=(0.001, 0.002, 0.003, 0.004), *, seeds: tuple[int, ...] = (0, 1),
-                      materials=BENCH_MATERIALS) -> list[dict]:
-    """Error of the analytic level against the reference at each press depth (m): where Hertz stops being enough.
-
-    Hertz assumes a paraboloid tip and small strain; the rigid reference follows the real sphere, so their gap
-    grows with depth / tip radius: ``hertz_error`` is the reference's force against Hertz (contact mechanics
-    alone), ``error`` the worst perceived-feature gap (which also holds the finger drive's compliance, absent
-    from the analytic level's kinematic press). These are the numbers behind the ``auto`` rule's depth limit.
-    """
-    rows = []
-    for d in depths:
-        ref = measure_setting(reference_setting(), seeds=seeds, materials=materials, memory=False, depth=d)
-        ana = measure_setting(Setting("analytic"), seeds=seeds, materials=materials, memory=False, depth=d)
-        compare_to_reference(ana, ref)
-        rows.append({"depth": float(d), "depth_over_radius": float(d / Scene(()).fingertip.radius),
-                     "hertz_error": finite_or_none(ref.hertz_error), "error": finite_or_none(ana.error),
-                     "errors": {k: finite_or_none(v) for k, v in ana.errors.items()}})
-    return rows

@@ -6,21 +6,10 @@ from __future__ import annotations
 import numpy as np
 
 
-def format_validity(rows: list[dict]) -> str:
-    """The analytic level's validity against depth, as text."""
-    lines = ["analytic (Hertz) against depth: sphere force vs Hertz, and analytic's features vs the reference",
-             f"{'depth mm':>8} {'d/R':>5} {'F vs Hertz %':>12} {'features %':>10}"]
-    for r in rows:
-        h = "-" if r["hertz_error"] is None else f"{100 * r['hertz_error']:.1f}"
-        e = "-" if r["error"] is None else f"{100 * r['error']:.1f}"
-        lines.append(f"{1e3 * r['depth']:8.1f} {r['depth_over_radius']:5.2f} {h:>12} {e:>10}")
-    return "\n".join(lines)
-
-
 def format_table(report: dict) -> str:
     """The measured table as text (one row per setting; times per press in ms, memory in MiB, errors in %)."""
     head = (f"{'setting':34} {'ms/press':>9} {'x RT':>7} {'MiB':>6} {'c_P%':>6} {'c_A%':>6} {'c_D%':>6} "
-            f"{'n1%':>6} {'a1%':>6} {'err%':>6} {'Hertz%':>7} {'LOO':>5}")
+            f"{'n1%':>6} {'a1%':>6} {'err%':>6} {'Fref%':>7} {'LOO':>5}")
     lines = [head]
     pareto = {id(r) for r in report["pareto"]}
 
@@ -38,9 +27,10 @@ def format_table(report: dict) -> str:
         lines.append(
             f"{name:34} {1e3 * r.wall_per_press:9.2f} {r.realtime_factor:7.1f} {r.peak_memory / 2**20:6.2f} "
             f"{pct(e.get('c_P'))} {pct(e.get('c_A'))} {pct(e.get('c_D'))} {pct(e.get('n1'))} {pct(e.get('a1'))} "
-            f"{pct(r.error)} {pct(r.hertz_error):>7} {r.loo_accuracy:5.2f}"
+            f"{pct(r.error)} {pct(r.law_error):>7} {r.loo_accuracy:5.2f}"
         )
-    lines.append("R = reference (finest stable), * = Pareto front (time per press vs err%); err% = worst feature")
+    lines.append("R = reference (finest stable), * = Pareto front (time per press vs err%); err% = worst feature; "
+                 "Fref% = force against the reference mechanics (RMS)")
     for key, tol in (("within_5", "5%"), ("within_1", "1%")):
         r = report[key]
         lines.append(f"cheapest within {tol} of the reference: " + (

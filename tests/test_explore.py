@@ -427,7 +427,9 @@ def test_the_shipped_info_gain_scenario_maps_the_block_with_fewer_presses_than_c
     summary = run_scenario(sc, tmp_path)
     (obj,) = summary["objects"]
     ny, nx = obj["grid"]["shape"]  # the map's array shape: rows, columns
-    assert obj["stop_reason"] == "min_gain" and obj["presses"] < min(sc.exploration.budget, nx * ny // 2)
+    # stopped by the rule, before the budget, with well under one press per cell (the contact law feels the lump
+    # from the neighbouring cells too, so its surroundings take more presses than the old surface-only law's half)
+    assert obj["stop_reason"] == "min_gain" and obj["presses"] < min(sc.exploration.budget, 0.6 * nx * ny)
     assert obj["accuracy"]["all_cells_after_postprocessing"] >= 0.9
     # the lattice comes first: every third cell, centred (1-based cells in the summary)
     lattice = {(x + 1, y + 1) for x in range((nx - 1) % 3 // 2, nx, 3) for y in range((ny - 1) % 3 // 2, ny, 3)}

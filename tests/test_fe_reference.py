@@ -1,8 +1,11 @@
 """The independent reference for the contact mechanics (sim/reference: axisymmetric FE, frictionless rigid sphere on
-an elastic sample on a rigid base), checked against closed forms it does not use: Sneddon's sphere on a half-space
-and Dimitriadis et al. (2002)'s bonded-layer correction for thin layers."""
+an elastic sample on a rigid base), checked against closed forms it does not use (Sneddon's sphere on a half-space,
+Dimitriadis et al. (2002)'s bonded-layer correction for thin layers), against the independent layered contact law,
+and its cached tables (models/reference_tables.json) validated on load."""
 
 from __future__ import annotations
+
+import json
 
 import numpy as np
 import pytest
@@ -11,6 +14,8 @@ pytest.importorskip("skfem")
 
 from palpate.core.errors import ValidationError  # noqa: E402
 from palpate.core.world.scene import Layer, Material  # noqa: E402
+from palpate.sim.contact.law import solve_contact_law  # noqa: E402
+from palpate.sim.contact.stack import sample_law  # noqa: E402
 from palpate.sim.hertz import (  # noqa: E402
     hertz_contact_radius,
     hertz_force,
@@ -20,6 +25,8 @@ from palpate.sim.hertz import (  # noqa: E402
 from palpate.sim.reference.bonded_layer import dimitriadis_factor  # noqa: E402
 from palpate.sim.reference.fe import fe_press  # noqa: E402
 from palpate.sim.reference.sample import AxisInclusion, AxisymmetricSample  # noqa: E402
+from palpate.sim.validity.cases import validity_cases  # noqa: E402
+from palpate.sim.validity.reference import load_reference, reference_force  # noqa: E402
 
 R = 0.008
 SOFT = Material("m", 2e5, 0.3)
@@ -94,3 +101,79 @@ def test_refining_the_mesh_converges_and_an_inclusion_of_the_bulk_changes_nothin
     np.testing.assert_allclose(fe_press(same, R, d).force, plain.force, rtol=2e-3)
     hard = AxisymmetricSample(bulk, 0.03, inclusion=AxisInclusion(Material("h", 1e6, 0.4), "sphere", 0.001, 0.004))
     assert np.all(fe_press(hard, R, d).force > plain.force * (1 + 1e-2))
+
+
+def test_the_cached_reference_matches_the_layered_law_on_every_laterally_uniform_case():
+    """Two independent methods (Q2 FE with an active set; Hankel kernel with a Fredholm equation) agree within 1.5%
+    on thick and thin blocks, nu up to 0.49, soft and stiff skins."""
+    ref = load_reference()
+    for case in validity_cases():
+        if case.family not in ("thickness", "skin"):
+            continue
+        law = solve_contact_law(case.sample, R, 1.05 * max(case.depths))
+        np.testing.assert_allclose(law.force_at(np.array(case.depths)), reference_force(ref, case), rtol=0.015,
+                                   err_msg=case.name)
+
+
+def test_every_validity_case_is_in_the_cached_reference_at_its_depths_and_converged():
+    ref = load_reference()
+    for case in validity_cases():
+        assert len(reference_force(ref, case)) == len(case.depths)
+    levels = ref["convergence"]
+    assert len(levels) >= 3
+    for name, c in levels.items():
+        forces = np.array([lev["force"] for lev in c["levels"]])
+        # refinement 1 (the shipped tables) within 1% of refinement 2 (a sphere inclusion is staircased on the
+        # tensor mesh: its last ~1%; a homogeneous block is within 0.2%), and converging
+        change = np.abs(forces[:2] / forces[2] - 1.0).max(axis=1)
+        assert change[1] < 0.01 and change[1] < change[0], name
+
+
+@pytest.mark.parametrize(
+    "edit, match",
+    [
+        (lambda d: d.update(format="other"), "not a palpate-fe-reference"),
+        (lambda d: d.update(tip_radius=0.01), "tip_radius"),
+        (lambda d: d["cases"].update(bad={"depth": [0.001], "force": [float("nan")], "contact_radius": [0.002]}),
+         "finite"),
+        (lambda d: d["cases"].update(bad={"depth": [0.002, 0.001], "force": [1, 2], "contact_radius": [1, 2]}),
+         "increasing"),
+    ],
+)
+def test_a_bad_reference_file_is_refused_naming_the_key(tmp_path, edit, match):
+    from palpate.sim.validity.reference import REFERENCE_PATH
+
+    doc = json.loads(REFERENCE_PATH.read_text())
+    edit(doc)
+    path = tmp_path / "ref.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ValidationError, match=match):
+        load_reference(path)
+    with pytest.raises(ValidationError, match="not found"):
+        load_reference(tmp_path / "none.json")
+
+
+
+@pytest.mark.physics
+def test_a_full_width_cylinder_inclusion_is_a_layer_and_a_lump_of_the_bulk_changes_nothing():
+    bulk, hard = Material("b", 1e5, 0.45), Material("h", 1e6, 0.4)
+    d = np.array([0.5, 1.0, 2.0]) * 1e-3
+    wide = AxisymmetricSample(bulk, 0.02, radius=0.05,
+                              inclusion=AxisInclusion(hard, "cylinder", 0.002, 0.05, 0.004))
+    layered = solve_contact_law(AxisymmetricSample(bulk, 0.02, layers=(Layer(bulk, 0.002), Layer(hard, 0.004))), R,
+                                0.0025)
+    # the side at 50 mm is free, the layered law's is not: their gap is the side's, below 1% at 50 mm
+    np.testing.assert_allclose(fe_press(wide, R, d).force, layered.force_at(d), rtol=0.02)
+    same = AxisymmetricSample(bulk, 0.03, inclusion=AxisInclusion(bulk, "sphere", 0.001, 0.004))
+    plain = fe_press(AxisymmetricSample(bulk, 0.03), R, d)
+    np.testing.assert_allclose(fe_press(same, R, d).force, plain.force, rtol=2e-3)
+
+
+@pytest.mark.physics
+def test_the_closed_form_rungs_law_is_within_ten_percent_on_lumps_and_edges():
+    ref = load_reference()
+    for case in validity_cases():
+        if case.family in ("lump", "edge"):
+            law = sample_law(case.sample, R, 1.05 * max(case.depths))
+            np.testing.assert_allclose(law.force_at(np.array(case.depths)), reference_force(ref, case), rtol=0.10,
+                                       err_msg=case.name)

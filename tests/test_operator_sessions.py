@@ -23,6 +23,13 @@ from palpate.core.world.workspace import map_geometries
 from palpate.sim.source import SimSource
 
 GAP = 2.0  # s between the person's presses
+# test_actuators' slab widened: its 10 mm width is narrower than a 5 mm press's ~12 mm contact, whose weak signal at
+# the corner cell flickers past the pad's threshold; here both pressed cells lie 15 mm inside the sides
+WIDE = (OPERATOR.replace("size_mm = [30.0, 10.0, 40.0]", "size_mm = [50.0, 30.0, 40.0]")
+        .replace("position_mm = [15.0, 5.0]", "position_mm = [25.0, 15.0]")
+        .replace("regions = [[1, 1], [3, 1]]", "regions = [[2, 2], [4, 2]]")
+        .replace("center_mm = [25.0, 5.0]", "center_mm = [35.0, 15.0]")
+        .replace("size_mm = [10.0, 10.0]", "size_mm = [10.0, 30.0]"))
 
 
 def _session(scenario, folder: Path, offset: float = 3.2) -> list:
@@ -57,18 +64,18 @@ def _session(scenario, folder: Path, offset: float = 3.2) -> list:
 
 def test_an_operator_run_takes_its_presses_from_an_imported_session(tmp_path, monkeypatch, capsys):
     raw = tmp_path / "raw"
-    _session(_scenario(OPERATOR), raw)
+    _session(_scenario(WIDE), raw)
     presses = tmp_path / "presses"
     presses.mkdir()
     assert main(["import", "session", "--taxels", str(raw / "pad.csv"), "--region", "1:5,1:5", "--poses",
                  str(raw / "liberty.mcap"), "--out", str(presses / "session.mcap")]) == 0
     assert "from 2 presses" in capsys.readouterr().out
     assert SessionFolder(presses).press(1)[0].meta["press_in_file"] == 2
-    sc = _scenario(OPERATOR, {"kind": "operator", "recordings_dir": str(presses), "figures": False})
+    sc = _scenario(WIDE, {"kind": "operator", "recordings_dir": str(presses), "figures": False})
     monkeypatch.setattr("sys.stdin", io.StringIO("\n\n"))
     summary = run_scenario(sc, tmp_path / "out")
     (obj,) = summary["objects"]
-    assert obj["presses"] == 2 and [r["cell"] for r in obj["per_press"]] == [[1, 1], [3, 1]]
+    assert obj["presses"] == 2 and [r["cell"] for r in obj["per_press"]] == [[2, 2], [4, 2]]
     post = [r["posterior"] for r in obj["per_press"]]
     assert post[0][0] > 0.99 and post[1][1] > 0.99  # the foam reads soft, the hard column hard
     assert all(not r["rejected"] for r in obj["per_press"])

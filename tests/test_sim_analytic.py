@@ -10,7 +10,13 @@ from palpate.sim import simulate_press
 from palpate.sim.analytic import hertz_sensel_pressure, run_analytic_press
 from palpate.sim.controller import HUMAN, ROBOT, press_profile
 from palpate.sim.fingertip import sensel_bounds
-from palpate.sim.hertz import hertz_contact_radius, hertz_depth_for_force, hertz_force
+from palpate.sim.hertz import (
+    hertz_contact_radius,
+    hertz_depth_for_force,
+    hertz_force,
+    sneddon_sphere_force_at_depth,
+)
+from palpate.sim.reference.bonded_layer import dimitriadis_factor
 from palpate.sim.source import SimSource, choose_fidelity
 
 R = 0.008
@@ -66,17 +72,37 @@ def test_sensel_means_match_an_independent_brute_force_integral(centre):
     np.testing.assert_allclose(fast, plain, rtol=0, atol=1e-5 * plain.max())
 
 
-def test_centred_press_gives_symmetric_counts_and_hertz_truth():
+def test_centred_press_on_a_thick_block_gives_symmetric_counts_and_sneddons_sphere():
     quiet = TaxelSensorSpec(noise_std=0.0, threshold=0)
-    rec = simulate_press(2e5, fidelity="analytic", depth=0.003, taxels=quiet)
+    # 0.6 m thick and 2 m wide: no edge within reach; the rigid table stiffens it by ~0.7% (a / h < 0.01)
+    rec = simulate_press(2e5, fidelity="analytic", depth=0.003, taxels=quiet, size=2.0, thickness=0.6)
     counts = np.stack([f.counts for f in rec.frames]).astype(int)
     assert counts.max() > 50  # the press registers
     for view in (counts[:, ::-1, :], counts[:, :, ::-1], counts.transpose(0, 2, 1)):
         np.testing.assert_array_equal(counts, view)
     truth = rec.truth
-    np.testing.assert_allclose(truth.force, hertz_force(E_STAR, R, truth.indentation), rtol=1e-12)
+    touching = truth.indentation > 2e-4
+    d = truth.indentation[touching]
+    exact = sneddon_sphere_force_at_depth(E_STAR, R, d) * dimitriadis_factor(np.sqrt(R * d) / 0.6, 0.3)
+    np.testing.assert_allclose(truth.force[touching], exact, rtol=2e-3)
+    # the sphere is softer than Hertz's paraboloid by ~2.5% at 3 mm deep: the law is not Hertz
+    assert truth.force.max() < 0.985 * hertz_force(E_STAR, R, 0.003)
     assert truth.indentation.max() == pytest.approx(0.003, rel=1e-9)
     assert rec.meta["fidelity"] == "analytic"
+
+
+@pytest.mark.parametrize(("thickness", "base", "poisson"), [(0.01, "bonded", 0.3), (0.012, "bonded", 0.49),
+                                                             (0.02, "bonded", 0.45)])
+def test_a_thin_block_stiffens_as_the_bonded_layer_series_says(thickness, base, poisson):
+    """Against Dimitriadis et al. 2002 (independent, published) where it holds: contact radius < half the layer."""
+    rec = simulate_press(2e5, poisson, fidelity="analytic", depth=0.002, thickness=thickness)
+    d, f = rec.truth.indentation, rec.truth.force
+    sel = (d > 2e-4) & (np.sqrt(R * d) < 0.5 * thickness)
+    e_star = 2e5 / (1 - poisson**2)
+    series = dimitriadis_factor(np.sqrt(R * d[sel]) / thickness, poisson, base)
+    exact_sphere = sneddon_sphere_force_at_depth(e_star, R, d[sel]) / hertz_force(e_star, R, d[sel])
+    np.testing.assert_allclose(f[sel], hertz_force(e_star, R, d[sel]) * series * exact_sphere, rtol=0.025)
+    assert f[sel][-1] > 1.08 * sneddon_sphere_force_at_depth(e_star, R, d[sel][-1])  # the table is felt
 
 
 def test_analytic_trace_follows_the_profile_exactly():
@@ -114,22 +140,20 @@ def test_force_target_uses_the_inverse_law_and_needs_it():
     assert hertz_force(E_STAR, R, prof.indentation().max()) == pytest.approx(5.0, rel=1e-9)
 
 
-def test_auto_fidelity_models_only_what_the_object_needs():
+def test_auto_fidelity_follows_the_validity_table_and_the_geometry():
     soft = Material("soft", 2e4)
     hard = Material("hard", 2e6)
     thick = ObjectSpec("thick", "box", (0.1, 0.1, 0.04), (0.0, 0.0), soft)
     thin = ObjectSpec("thin", "box", (0.1, 0.1, 0.005), (0.0, 0.0), soft)
-    cyl = ObjectSpec("cyl", "cylinder", (0.03, 0.04), (0.0, 0.0), soft)
     lump = ObjectSpec("lump", "box", (0.1, 0.1, 0.04), (0.0, 0.0), soft,
-                      inclusions=(Inclusion(hard, "sphere", (0.0, 0.0, 0.02), (0.005,)),))
+                      inclusions=(Inclusion(hard, "sphere", (0.0, 0.0, 0.03), (0.005,)),))
     centre = PressTarget(0.0, 0.0, depth=0.002)
-    assert choose_fidelity(thick, centre, R) == "analytic"
-    assert choose_fidelity(thick, PressTarget(0.045, 0.0, depth=0.002), R) == "rigid"  # near the edge
-    assert choose_fidelity(thick, PressTarget(0.0, 0.0, depth=0.004), R) == "rigid"  # sphere departs from Hertz
-    assert choose_fidelity(thin, PressTarget(0.0, 0.0, depth=0.0005), R) == "rigid"
-    assert choose_fidelity(thin, PressTarget(0.0, 0.0, depth=0.002), R) == "flex"  # 40% of its height
-    assert choose_fidelity(cyl, centre, R) == "rigid"
-    assert choose_fidelity(lump, centre, R) == "flex"
+    # the contact law is within 1% of the reference on thick and thin blocks and on-axis lumps: analytic, the
+    # cheapest, wherever the top under the contact is flat
+    for obj in (thick, thin, lump):
+        assert choose_fidelity(obj, centre, R) == "analytic", obj.name
+    # the contact reaching a free edge: only rigid and flex follow the real top
+    assert choose_fidelity(thick, PressTarget(0.049, 0.0, depth=0.002), R) == "rigid"
 
 
 def test_bad_requests_are_rejected_with_their_name():

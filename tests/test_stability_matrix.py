@@ -1,14 +1,17 @@
-"""Stability at the extremes: every cell of the matrix is ok (finite, ordered), diverged or invalid with a message
-that says what to change; never NaN, never a bug. The full matrix is benchmarks/stability_matrix.py."""
+"""Stability at the extremes: every cell of the matrix, and every call of a random fuzz, is ok (finite, ordered,
+at its commanded depth and force), diverged or invalid with a message that names an option the caller has; never
+NaN, never a silent miss, never a hang. The full matrix is benchmarks/stability_matrix.py."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from palpate.sim.extremes import Cell, matrix, physically_ordered, run_cell
+from palpate.sim.extremes import Cell, fuzz_cells, matrix, outcome_counts, physically_ordered, run_cell
 
-ACTIONABLE = ("timestep", "speed", "stiffness", "young", "deep", "depth", "resolution")
+#: Options a caller of simulate_press / SimSource / the run_*_press functions has, one of which every message names.
+ACTIONABLE = ("timestep", "speed", "slower", "deep", "depth", "taxel rate", "force target", "fidelity",
+              "max_steps", "tip radius")
 
 
 def _check(outcomes):
@@ -16,6 +19,7 @@ def _check(outcomes):
         assert o.outcome in ("ok", "diverged", "invalid"), (o.cell, o.message)
         if o.outcome == "ok":
             assert np.isfinite(o.peak_force) and o.peak_force > 0, o.cell
+            assert 0.0 <= o.saturated <= 1.0
         else:
             assert any(word in o.message for word in ACTIONABLE), (o.cell, o.message)
 
@@ -31,15 +35,18 @@ def test_ordering_check_catches_disorder_and_nan():
 
 def test_fast_subset_of_the_matrix():
     cells = matrix(fidelities=("analytic", "rigid"), youngs=(1e3, 1e8), poissons=(0.49,), timesteps=(1e-3, 1e-2),
-                   speeds=(0.01, 0.2), depth_fractions=(0.1, 0.8), locations=("centre", "corner"))
+                   speeds=(0.01, 0.2), depth_fractions=(0.1, 0.5), locations=("centre",))
+    cells += [Cell("rigid", 1e5, 0.3, 2e-3, 0.01, 0.3, "corner"), Cell("analytic", 1e5, 0.3, 2e-3, 0.01, 0.3, "edge")]
     outcomes = [run_cell(c) for c in cells]
     _check(outcomes)
     # closed form cannot diverge: analytic runs every press its taxel rate can see, and refuses the rest
     ana = [o for o in outcomes if o.cell.fidelity == "analytic"]
     assert all(o.outcome == "ok" or "taxel rate" in o.message for o in ana)
-    assert sum(o.outcome == "ok" for o in ana) >= len(ana) // 2
+    assert sum(o.outcome == "ok" for o in ana) >= len(ana) // 3
     # the stiff end at a coarse step is caught, not passed through as garbage
     assert any(o.outcome == "diverged" for o in outcomes if o.cell.young == 1e8 and o.cell.timestep == 1e-2)
+    # stiff presses saturate the 8-bit pad, and that is counted
+    assert max(o.saturated for o in outcomes if o.outcome == "ok" and o.cell.young == 1e8) > 0.05
 
 
 def test_step_shorter_than_the_press_is_refused_with_the_timestep_to_use():
@@ -48,15 +55,38 @@ def test_step_shorter_than_the_press_is_refused_with_the_timestep_to_use():
 
 
 def test_step_budget_stops_a_press_that_would_take_too_long():
-    o = run_cell(Cell("rigid", 2e5, 0.3, 1e-4, 0.001, 0.8, "centre"), max_steps=1000)
+    o = run_cell(Cell("rigid", 2e5, 0.3, 1e-4, 0.001, 0.5, "centre"), max_steps=1000)
     assert o.outcome == "invalid" and "budget" in o.message and "timestep" in o.message
+
+
+def test_a_press_past_three_quarters_of_the_tip_radius_is_refused_naming_the_depth():
+    o = run_cell(Cell("analytic", 2e5, 0.3, 2e-3, 0.01, 0.8, "centre"))
+    assert o.outcome == "invalid" and "tip radii" in o.message and "deep" in o.message
+
+
+def test_a_stiff_force_target_is_reached_not_silently_missed():
+    """The issue's case: a 10 N target at 20 MPa ended at 3.9 N with no warning."""
+    for fidelity in ("analytic", "rigid"):
+        o = run_cell(Cell(fidelity, 2e7, 0.3, 2e-3, 0.002, 0.5, "centre", "force"))
+        assert o.outcome == "ok" and o.peak_force == pytest.approx(10.0, rel=0.02), o.message
+
+
+def test_fuzz_of_the_closed_form_fidelities_has_no_nan_no_silent_miss_and_no_hang():
+    outcomes = [run_cell(c) for c in fuzz_cells(10, seed=3, fidelities=("analytic", "rigid"))]
+    _check(outcomes)
+    assert outcome_counts(outcomes).get("ok", 0) >= 3
+
+
+@pytest.mark.physics
+def test_fuzz_of_sixty_calls_with_flex_has_no_nan_no_silent_miss_and_no_hang():
+    _check([run_cell(c) for c in fuzz_cells(60, seed=12)])
 
 
 @pytest.mark.physics
 def test_larger_subset_with_flex_and_edges():
     cells = matrix(fidelities=("rigid",), youngs=(1e3, 1e5, 1e8), poissons=(0.0, 0.49), timesteps=(1e-4, 2e-3, 1e-2),
-                   speeds=(0.001, 0.2), depth_fractions=(0.1, 0.8), locations=("centre", "edge", "corner"))
+                   speeds=(0.001, 0.2), depth_fractions=(0.1, 0.5), locations=("centre", "edge", "corner"))
     cells += matrix(fidelities=("flex",), youngs=(1e3, 1e8), poissons=(0.49,), timesteps=(2e-3, 1e-2),
-                    speeds=(0.2,), depth_fractions=(0.1, 0.8), locations=("centre", "corner"))
-    cells.append(Cell("flex", 1e3, 0.49, 2e-3, 0.01, 0.8, "centre"))  # the disordered case the matrix found
+                    speeds=(0.2,), depth_fractions=(0.1, 0.5), locations=("centre", "corner"))
+    cells.append(Cell("flex", 1e3, 0.49, 2e-3, 0.01, 0.5, "centre"))
     _check([run_cell(c) for c in cells])

@@ -1,4 +1,5 @@
-"""sim/tradeoff: the speed/accuracy measurement (Pareto front, cheapest setting, errors against Hertz/reference)."""
+"""sim/tradeoff: the speed/accuracy measurement (Pareto front, cheapest setting, errors against the reference
+setting and the reference mechanics)."""
 
 from __future__ import annotations
 
@@ -37,21 +38,22 @@ def test_bad_setting_names_the_field():
         T.Setting("rigid", taxel_rate=float("nan"))
 
 
-def test_analytic_is_hertz_and_rigid_converges_to_its_reference():
+def test_analytic_is_the_contact_law_and_rigid_converges_to_its_reference():
     mats = T.BENCH_MATERIALS[:2]
     ana = T.measure_setting(T.Setting("analytic"), seeds=(0,), materials=mats, memory=False)
-    assert ana.failed is None and ana.hertz_error < 1e-9  # the closed form is Hertz by construction
+    assert ana.failed is None and ana.law_error < 1e-9  # the closed form is the law by construction
     ref = T.measure_setting(T.Setting("rigid", timestep=0.0005), seeds=(0,), materials=mats, memory=False)
     coarse = T.measure_setting(T.Setting("rigid", timestep=0.005), seeds=(0,), materials=mats, memory=False)
     T.compare_to_reference(coarse, ref)
     T.compare_to_reference(ref, ref)
     assert ref.error == 0.0
     assert coarse.error < 0.01
-    # a 3 mm press is 0.375 tip radii: the real sphere departs from Hertz by a few percent there
-    assert 0.02 < ref.hertz_error < 0.08
-    # the analytic level lacks the finger drive's compliance: its features differ from rigid's by more
+    # rigid's force is the law on the footprint (quadrature) reached by a drive that tracks (feedforward)
+    assert ref.law_error < 0.01
+    # with the drive tracking its setpoint, the analytic level's features agree with rigid's (the worst, the
+    # cutaneous slope a1 from 4x4 sensel areas, within 10%)
     T.compare_to_reference(ana, ref)
-    assert ana.error > coarse.error
+    assert ana.error < 0.10
 
 
 def test_report_json_and_table(tmp_path):
@@ -60,10 +62,10 @@ def test_report_json_and_table(tmp_path):
                             reference=T.Setting("rigid", timestep=0.001), seeds=(0, 1, 2, 3, 4), materials=mats)
     doc = json.loads(json.dumps(TR.report_to_dict(report), allow_nan=False))
     assert [r["label"] for r in doc["results"]] == ["analytic 50Hz", "rigid dt=5ms rings=96 50Hz"]
-    assert doc["cheapest_within_1pct"] == "rigid dt=5ms rings=96 50Hz"
+    assert doc["cheapest_within_5pct"] == "analytic 50Hz"
     assert all(0.0 <= r["loo_accuracy"] <= 1.0 for r in doc["results"])
     assert report["results"][1].realtime_factor > 1.0 and np.isfinite(report["results"][1].peak_memory)
     table = TR.format_table(report)
-    assert "cheapest within 5% of the reference: rigid dt=5ms" in table
+    assert "cheapest within 5% of the reference: analytic 50Hz" in table
     TR.pareto_plot(report, tmp_path / "p.png")
     assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -14,7 +14,7 @@ from palpate.core.errors import FitError
 from palpate.core.perception.fit import PressFit, fit_press
 from palpate.core.perception.pipeline import DEFAULT_CONFIG, PipelineConfig, presses_from_recording
 from palpate.core.perception.segment import Press
-from palpate.core.perception.streams import PressRecording
+from palpate.core.perception.streams import PressRecording, saturated_frames
 
 
 @dataclass(frozen=True)
@@ -27,6 +27,7 @@ class PressResult:
         fit: its 3/2-power fits, or None when no press could be fitted (reasons in ``rejected``).
         rejected: why contacts were rejected or the fit failed.
         truth_force, truth_indentation: the simulation's ground truth over the recording (N, m), if any.
+        frames: taxel frames in the recording; saturated_frames: how many had a sensel at the 8-bit ceiling.
     """
 
     target: tuple[float, float]
@@ -35,6 +36,8 @@ class PressResult:
     rejected: tuple[str, ...] = ()
     truth_force: np.ndarray | None = None
     truth_indentation: np.ndarray | None = None
+    frames: int = 0
+    saturated_frames: int = 0
 
     @property
     def location(self) -> tuple[float, float]:
@@ -86,10 +89,12 @@ def perceive_press(recording: PressRecording, pipeline_config: PipelineConfig | 
     truth = recording.truth
     tf = None if truth is None else np.asarray(truth.force)
     ti = None if truth is None else np.asarray(truth.indentation)
+    counted = {"frames": len(recording.frames), "saturated_frames": saturated_frames(recording.frames)}
     if not seg.presses:
-        return PressResult(target, None, None, reasons or ("no press found in the streams",), tf, ti)
+        return PressResult(target, None, None, reasons or ("no press found in the streams",), tf, ti, **counted)
     press = max(seg.presses, key=lambda p: p.depth)
     if len(seg.presses) > 1:
         reasons = (*reasons, f"{len(seg.presses)} presses found where one was made; kept the deepest")
-    return press_result(press, target=target, rejected=reasons, truth_force=tf, truth_indentation=ti,
-                        features=config.features)
+    res = press_result(press, target=target, rejected=reasons, truth_force=tf, truth_indentation=ti,
+                       features=config.features)
+    return replace(res, **counted)

@@ -136,6 +136,16 @@ class PressRecording:
     meta: dict = field(default_factory=dict)
 
 
+#: Raw count of a saturated 8-bit sensel.
+SATURATED = 255
+
+
+def saturated_frames(frames: list[TaxelFrame]) -> int:
+    """Number of taxel frames with at least one sensel at the 8-bit ceiling (SATURATED): counted from the frames
+    themselves, so real recordings are counted the same way as simulated ones."""
+    return sum(1 for f in frames if int(np.max(f.counts)) >= SATURATED) if frames else 0
+
+
 def frames_to_arrays(frames: list[TaxelFrame]) -> tuple[np.ndarray, np.ndarray, float]:
     """Stack taxel frames into arrays.
 

@@ -42,7 +42,28 @@ def step_row(step: PressStep) -> dict:
             "posterior": _posterior(step.posterior), "mean_entropy": step.mean_entropy,
             "mean_entropy_postprocessed": step.mean_entropy_postprocessed,
             "accuracy_explored": step.accuracy_explored,
-            "accuracy_all_cells_postprocessed": step.accuracy_postprocessed}
+            "accuracy_all_cells_postprocessed": step.accuracy_postprocessed,
+            "frames": res.frames, "saturated_frames": res.saturated_frames}
+
+
+#: A run warns when more than this fraction of an object's (or a material's) taxel frames saturate.
+SATURATION_WARNING = 0.05
+
+
+def saturation(results) -> dict:
+    """Saturated taxel frames over a set of PressResults: {"frames", "saturated_frames", "fraction"}."""
+    frames = sum(r.frames for r in results)
+    sat = sum(r.saturated_frames for r in results)
+    return {"frames": frames, "saturated_frames": sat, "fraction": sat / frames if frames else 0.0}
+
+
+def saturation_warning(what: str, counted: dict) -> str | None:
+    """The run's warning when ``counted`` (from :func:`saturation`) is past SATURATION_WARNING, else None."""
+    if counted["fraction"] <= SATURATION_WARNING:
+        return None
+    return (f"warning: {what}: {counted['saturated_frames']} of {counted['frames']} taxel frames "
+            f"({counted['fraction']:.0%}) have a sensel at the 8-bit ceiling (255): their pressure is clipped; "
+            "lower the taxel gain (sensors.taxels.gain_counts_per_kpa) or the press force/depth")
 
 
 def calibration_of(obj: ObjectResult, bins: int = 10) -> dict | None:
@@ -85,6 +106,7 @@ def object_summary(obj: ObjectResult) -> dict:
         "mean_entropy_after_each_press": [r["mean_entropy"] for r in rows],
         "mean_entropy_after_postprocessing": float(obj.post.mean_entropy()),
         "true_materials": list(obj.true_materials),
+        "saturation": saturation([s.result for s in obj.steps]),
         # the map's posteriors came from the memory's kinesthetic and cutaneous models, or (a finger without a pad,
         # c_P from its joint currents) from the kinesthetic one alone
         "features": sorted({r["fit"]["features"] for r in rows if r["fit"] is not None}),

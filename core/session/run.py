@@ -46,6 +46,8 @@ from palpate.core.session.report import (
     fit_summary,
     object_summary,
     run_calibration,
+    saturation,
+    saturation_warning,
 )
 from palpate.core.session.report import versions as _versions
 from palpate.core.session.sim_to_real import sim_to_real_summary
@@ -152,6 +154,9 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         if draw:
             drawer.submit([FigureJob("sim_vs_real.png", plot_sim_vs_real, (sim, real, memory.ddof))])
     timing["training_s"] = time.perf_counter() - t0
+    if training is not None:
+        for name, rs in training.presses.items():
+            _warn(progress, saturation_warning(f"training {name}", saturation(rs)))
 
     t0 = time.perf_counter()
     if scenario.actuator.kind == "sim":
@@ -161,6 +166,7 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
         objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers))
+        _warn(progress, saturation_warning(entry.spec.name, saturation([s.result for s in objects[-1].steps])))
         if draw:
             drawer.submit(object_jobs(objects[-1], scenario.outputs.render_3d))
     if draw:
@@ -190,7 +196,8 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         "format": SUMMARY_FORMAT,
         "version": SUMMARY_VERSION,
         "scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
-                     "fidelity": scenario.fidelity, "description": scenario.description},
+                     "fidelity": scenario.fidelity, "fidelity_tolerance_pct": 100.0 * scenario.fidelity_tolerance,
+                     "description": scenario.description},
         "actuator": scenario.actuator.kind,
         "seed": scenario.seed,
         "materials": list(scenario.references),
@@ -201,6 +208,7 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
             "accuracy": {m: float(np.asarray(crossval.confusion)[i, i]) for i, m in enumerate(scenario.references)},
         },
         "training": {name: [fit_summary(r.fit) for r in rs] for name, rs in presses.items()},
+        "training_saturation": {name: saturation(rs) for name, rs in presses.items()},
         "realism": scenario.realism.profile,
         "sim_to_real": sim_to_real,
         "map_calibration": ex.calibration.to_dict(),
@@ -215,6 +223,11 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
     assert_finite(summary)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
+
+
+def _warn(progress: Progress, message: str | None) -> None:
+    if message:
+        progress.message(message)
 
 
 def _say_fidelity(entry: ObjectEntry, scenario: Scenario, make_source, progress: Progress) -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from importlib.metadata import entry_points
+from inspect import signature
 from typing import Protocol, runtime_checkable
 
 from palpate.core.errors import ValidationError
@@ -92,10 +93,13 @@ def scenario_source_maker(scenario: Scenario, name: str = "sim"):
     sensors (and its ``[realism]`` profile, when not ideal): the shape every exploration and training loop asks for a
     source in."""
     factory = load_source(name)
-    realism = {} if scenario.realism.profile == "ideal" else {"realism": scenario.realism.profile}
+    # the scenario's tolerance for ``auto``, given to the sources that take one; its realism profile when not ideal
+    extra = {"tolerance": scenario.fidelity_tolerance} if "tolerance" in signature(factory).parameters else {}
+    if scenario.realism.profile != "ideal":
+        extra["realism"] = scenario.realism.profile
 
     def make(objects: tuple[ObjectSpec, ...], seed: int, variability: str):
         scene = Scene(objects, scenario.fingertip, scenario.taxels, scenario.pose)
-        return factory(scene, fidelity=scenario.fidelity, seed=seed, variability=variability, **realism)
+        return factory(scene, fidelity=scenario.fidelity, seed=seed, variability=variability, **extra)
 
     return make

@@ -134,6 +134,8 @@ class Scenario:
     raw: dict = field(default_factory=dict, repr=False)
     actuator: ActuatorSpec = field(default_factory=ActuatorSpec)
     realism: RealismSpec = field(default_factory=RealismSpec)
+    #: ``auto``'s tolerance: the largest predicted force error of a fidelity against the reference, fraction.
+    fidelity_tolerance: float = 0.05
 
     @property
     def references(self) -> list[str]:

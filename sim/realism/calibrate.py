@@ -3,7 +3,7 @@
 The table (``palpate memory``'s CSV: material, n1, n2, a1, a2, phi_n, phi_a; e.g. seed 000's Tables 6.3-6.5) gives,
 per material, the statistics :data:`MOMENTS`: the location of n1 and a1 (log of the mean), their spread (log of the
 coefficient of variation), the shares of negative n2 and a2, and how well leave-one-out cross-validation reads the
-material as itself (mean posterior, Table 6.7); all but a1's location and a2's sign are fitted (:data:`SCALES`).
+material as itself (mean posterior, Table 6.7); all but a2's sign are fitted (:data:`SCALES`).
 A candidate profile is scored by simulating the scenario's training protocol (its reference materials, presses,
 depth, force, speed, fingertip and sensors) on each *tuning* seed with common random numbers, computing the same
 statistics per seed (samples of the same size as the table's, so a CV is compared with a CV of as many presses) and
@@ -44,10 +44,11 @@ from palpate.sim.source import SimSource
 #: The statistics computed per material (see the module docstring).
 MOMENTS = ("log_mean_n1", "log_mean_a1", "log_cv_n1", "log_cv_a1", "negative_n2", "negative_a2", "loo_self")
 #: Tolerance of each statistic in the objective: a difference of one scale costs 1; inf: reported, not fitted.
-#: The location of a1 and the sign of a2 are left to the report: they depend on how the contact patch covers the
-#: scenario's pad (its size and pitch), which a profile does not change, and fitting them would pull the fit away
-#: from the spreads and the overlap it can reproduce.
-SCALES = np.array([0.15, np.inf, 0.15, 0.15, 0.15, np.inf, 0.06])
+#: a1's location is fitted loosely (0.3 in log): the pad's turn-on pressure moves it on soft materials (which of
+#: the covered sensels read), and it is where leave-one-out tells a sponge from a rubber (seed 000: a1 3.0 and 2.9,
+#: which makes Table 6.7's confusion), but the hard foam's (10.9) also depends on the real pad's sensel size and
+#: pitch, which a profile does not change. The sign of a2 is left to the report.
+SCALES = np.array([0.15, 0.3, 0.15, 0.15, 0.15, np.inf, 0.06])
 #: Objective of a candidate whose presses could not be fitted (a wall, not a number to descend).
 FAILED = 1e6
 
@@ -88,12 +89,13 @@ FREE_PARAMETERS = {p.key: p for p in (
     FreeParameter("press.slip", 0.0, 0.3),
     FreeParameter("press.tremor_mm", 0.0, 0.3),
     FreeParameter("press.force_scale", 0.05, 1.0, log=True),
-    FreeParameter("taxels.sensitivity", 0.5, 30.0, log=True),
+    FreeParameter("taxels.sensitivity", 0.5, 100.0, log=True),
     FreeParameter("taxels.gain_spread", 0.0, 0.3),
     FreeParameter("taxels.gain_drift", 0.0, 0.08),
     FreeParameter("taxels.hysteresis", 0.0, 0.3),
     FreeParameter("taxels.creep", 0.0, 0.2),
     FreeParameter("taxels.nonlinearity", 0.0, 3.0),
+    FreeParameter("taxels.activation_kpa", 0.0, 5.0),
     FreeParameter("pose.latency_ms", -30.0, 30.0),
     FreeParameter("pose.clock_offset_ms", 0.0, 60.0),
     FreeParameter("pose.clock_wander_ms", 0.0, 60.0),
@@ -341,8 +343,8 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
     tuned = sim_moments(tune_runs, materials, scenario.references, smooth=False)
     report = sim_moments(report_runs, materials, scenario.references, smooth=False)
     provenance = {
-        "method": "method of simulated moments (sim/realism/calibrate.py): per material log mean n1, log CV of n1 "
-                  "and a1, share of n2 < 0, leave-one-out self posterior (a1's mean and a2's sign reported only); "
+        "method": "method of simulated moments (sim/realism/calibrate.py): per material log mean n1 and a1, log CV "
+                  "of n1 and a1, share of n2 < 0, leave-one-out self posterior (a2's sign reported only); "
                   "Latin hypercube then Nelder-Mead",
         "table": table_name, "scenario": scenario.name, "fidelity": fidelity, "started_from": start.name,
         "tune_seeds": [int(s) for s in tune_seeds], "report_seeds": [int(s) for s in report_seeds],

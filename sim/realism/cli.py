@@ -29,8 +29,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     r = groups.add_parser(
         "realism", help="fit a realism profile to a per-press parameter table (method of simulated moments)",
         description="Fit the free parameters of a realism profile so that the scenario's simulated training presses "
-        "match the table's per-material statistics (log mean of n1, log CV of n1 and a1, negative share of n2, "
-        "leave-one-out self posterior; a1's mean and a2's sign are reported only), averaged over the tuning seeds; "
+        "match the table's per-material statistics (log mean of n1 and a1, log CV of n1 and a1, negative share of "
+        "n2, leave-one-out self posterior; a2's sign is reported only), averaged over the tuning seeds; "
         "then report the fitted profile on the report seeds. Deterministic for given arguments. Writes a profile "
         "file a scenario names in [realism] profile.")
     r.add_argument("table", type=Path, help="per-press parameter CSV (material,n1,n2,a1,a2,phi_n,phi_a), e.g. "

@@ -93,6 +93,9 @@ class TaxelRealism:
             conductance grows sub-linearly with load).
         crosstalk: fraction of each sensel's output that reads on each of its four neighbours (row/column
             ghosting of the matrix scan).
+        activation: pressure a sensel needs before its ink conducts, Pa: it reports max(p - activation, 0)
+            (resistive sensors have a turn-on pressure; a soft object's low rim pressure leaves sensels silent that
+            the patch covers, so the active area lags the patch most on the softest materials).
     """
 
     sensitivity: float = 1.0
@@ -102,9 +105,11 @@ class TaxelRealism:
     creep: float = 0.0
     nonlinearity: float = 0.0
     crosstalk: float = 0.0
+    activation: float = 0.0
 
     def __post_init__(self) -> None:
         _check("TaxelRealism", {"sensitivity": (self.sensitivity, 0.01, 100.0),
+                                "activation": (self.activation, 0.0, 1e5),
                                 "gain_spread": (self.gain_spread, 0.0, 0.5), "gain_drift": (self.gain_drift, 0.0, 0.5),
                                 "hysteresis": (self.hysteresis, 0.0, 0.5), "creep": (self.creep, 0.0, 0.5),
                                 "nonlinearity": (self.nonlinearity, 0.0, 5.0),

@@ -17,7 +17,7 @@ is an error naming the file and the key (``x.toml: press.tilt_deg: must be <= 29
     [press]          # speed_cv, depth_cv, lateral_mm, hold_s, smooth, tilt_deg, slip, tremor_mm, force_scale
     tilt_deg = 5.0
 
-    [taxels]         # sensitivity, gain_spread, gain_drift, hysteresis, creep, nonlinearity, crosstalk
+    [taxels]         # sensitivity, gain_spread, gain_drift, hysteresis, creep, nonlinearity, crosstalk, activation_kpa
     [pose]           # latency_ms, clock_offset_ms, clock_wander_ms
     [material]       # relaxation, relaxation_time_s, softening, softening_presses
     [provenance]     # free record (strings, numbers, arrays, tables): references, or the calibration's fit
@@ -123,7 +123,8 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
         tx = top.sub("taxels")
         taxels = TaxelRealism(sensitivity=tx.number("sensitivity", 1.0, lo=0.01, hi=100.0),
                               **{k: tx.number(k, 0.0, lo=0.0) for k in
-                                 ("gain_spread", "gain_drift", "hysteresis", "creep", "nonlinearity", "crosstalk")})
+                                 ("gain_spread", "gain_drift", "hysteresis", "creep", "nonlinearity", "crosstalk")},
+                              activation=tx.number("activation_kpa", 0.0, lo=0.0, hi=100.0) * 1e3)
         tx.finish()
         po = top.sub("pose")
         pose = PoseRealism(latency=po.number("latency_ms", 0.0) * 1e-3,
@@ -186,7 +187,7 @@ def profile_tables(profile: RealismProfile) -> dict:
                   "slip": p.slip_std, "tremor_mm": p.tremor * 1e3, "force_scale": p.force_scale},
         "taxels": {"sensitivity": t.sensitivity, "gain_spread": t.gain_spread, "gain_drift": t.gain_drift,
                    "hysteresis": t.hysteresis, "creep": t.creep, "nonlinearity": t.nonlinearity,
-                   "crosstalk": t.crosstalk},
+                   "crosstalk": t.crosstalk, "activation_kpa": t.activation * 1e-3},
         "pose": {"latency_ms": o.latency * 1e3, "clock_offset_ms": o.clock_offset_std * 1e3,
                  "clock_wander_ms": o.clock_wander * 1e3},
         "material": {"relaxation": m.relaxation, "relaxation_time_s": m.relaxation_time, "softening": m.softening,

@@ -4,6 +4,7 @@
 *reports* (Pa), before :func:`palpate.sim.sensors.taxel_counts` applies the gain, noise, 8-bit rounding, saturation
 and threshold. In order:
 
+0. activation: a sensel's ink conducts only above a turn-on pressure; it reports max(p - activation, 0);
 1. gain: the pad's sensitivity times each sensel's gain after equilibration (a session-long map) times the pad's
    drift for this press;
 2. creep: under load the output rises by ``creep`` per decade of the time the sensel has been loaded
@@ -51,7 +52,8 @@ class TaxelResponse:
     def __call__(self, t: np.ndarray, pressure: np.ndarray) -> np.ndarray:
         """Reported pressure, Pa, shape (n, rows, cols), of true mean sensel pressures (n, rows, cols) at times t."""
         r = self.realism
-        p = np.maximum(np.asarray(pressure, dtype=float), 0.0) * (r.sensitivity * self.gains)[None]
+        p = np.maximum(np.asarray(pressure, dtype=float), 0.0)
+        p = np.where(p > r.activation, p, 0.0) * (r.sensitivity * self.gains)[None]
         loaded = p > 0
         if r.creep > 0:
             p = p * (1.0 + r.creep * np.log10(1.0 + _loaded_time(t, loaded) / CREEP_REFERENCE_S))

@@ -1,0 +1,55 @@
+"""Where each fidelity is valid: every rung's force against the converged FE reference (sim/validity).
+
+    .venv/bin/python benchmarks/validity.py --reference   # recompute models/reference_tables.json (FE, minutes)
+    .venv/bin/python benchmarks/validity.py               # measure every case, write models/validity_table.json
+    .venv/bin/python benchmarks/validity.py --quick       # the CI subset, printed only
+
+The FE reference is checked against closed forms in tests/test_fe_reference.py and its mesh convergence is
+printed here (the force change of three cases at refinement 0.5 and 1 against 2). What was tuned on what: the
+contact law has nothing tuned (it is exact for layers; its axisymmetric averaging of lateral variation is exact on
+the axis); flex's mesh correction was measured on a 60 mm block, which is not a case here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+from palpate.sim.validity.cases import quick_cases, validity_cases
+from palpate.sim.validity.measure import TABLE_PATH, measure_table
+from palpate.sim.validity.reference import REFERENCE_PATH, compute_reference, convergence_rows, load_reference
+from palpate.sim.validity.report import format_table
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--reference", action="store_true", help=f"recompute {REFERENCE_PATH.name} first (slow)")
+    ap.add_argument("--quick", action="store_true", help="the CI subset; prints, writes nothing")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    if args.reference:
+        def say(name, fe):
+            print(f"  {time.perf_counter() - t0:7.1f} s  {name}: {fe.dofs} dofs", flush=True)
+
+        doc = compute_reference(validity_cases(), progress=say)
+        REFERENCE_PATH.write_text(json.dumps(doc, indent=1) + "\n")
+        print(f"wrote {REFERENCE_PATH}")
+    reference = load_reference()
+    print("FE reference mesh convergence (largest force change against refinement 2):")
+    for r in convergence_rows(reference):
+        print(f"  {r['case']:22} refinement {r['refinement']:4.1f}  {r['dofs']:7d} dofs  {r['max_change_pct']:6.3f}%")
+    cases = quick_cases() if args.quick else validity_cases()
+
+    def progress(case, errs):
+        print(f"  {time.perf_counter() - t0:7.1f} s  {case.name}", flush=True)
+
+    table = measure_table(cases, reference, progress=progress)
+    print(format_table(table))
+    if not args.quick:
+        TABLE_PATH.write_text(json.dumps(table, indent=1, allow_nan=False) + "\n")
+        print(f"wrote {TABLE_PATH}")
+
+
+if __name__ == "__main__":
+    main()

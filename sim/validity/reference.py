@@ -1,0 +1,134 @@
+"""The FE reference's answers for the validity table, computed once and cached as data (models/reference_tables.json,
+validated on load), with the convergence of a few cases under mesh refinement.
+
+Regenerate with ``.venv/bin/python benchmarks/validity.py --reference`` (minutes on two cores).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.world.resources import models_dir
+from palpate.sim.reference.fe import fe_press
+from palpate.sim.validity.cases import TIP_RADIUS, ValidityCase
+
+REFERENCE_PATH = models_dir() / "reference_tables.json"
+FORMAT = "palpate-fe-reference"
+VERSION = 1
+MAX_BYTES = 5_000_000
+#: Mesh refinement of the shipped reference (surface spacing = smallest contact radius / 12 / refinement).
+REFINEMENT = 1.0
+#: Cases whose refinement study the file keeps (a thick block, a thin one, a lump).
+CONVERGENCE_CASES = ("thick_100mm_nu0.45", "thick_5mm_nu0.49", "lump_hard_1mm")
+CONVERGENCE_LEVELS = (0.5, 1.0, 2.0)
+
+
+def compute_reference(cases: list[ValidityCase], *, refinement: float = REFINEMENT, progress=None,
+                      convergence: bool = True) -> dict:
+    """Solve every case with the FE reference; return the JSON document (see :func:`load_reference`)."""
+    doc = {"format": FORMAT, "version": VERSION, "tip_radius": TIP_RADIUS, "refinement": refinement, "cases": {},
+           "convergence": {}}
+    for case in cases:
+        fe = fe_press(case.sample, TIP_RADIUS, case.depths, refinement=refinement)
+        doc["cases"][case.name] = {"describe": case.sample.describe(), "depth": fe.depth.tolist(),
+                                   "force": fe.force.tolist(), "contact_radius": fe.contact_radius.tolist(),
+                                   "dofs": fe.dofs, "h0": fe.h0}
+        if progress is not None:
+            progress(case.name, fe)
+    if convergence:
+        for case in cases:
+            if case.name not in CONVERGENCE_CASES:
+                continue
+            levels = []
+            for level in CONVERGENCE_LEVELS:
+                fe = fe_press(case.sample, TIP_RADIUS, case.depths, refinement=level)
+                levels.append({"refinement": level, "dofs": fe.dofs, "force": fe.force.tolist()})
+            doc["convergence"][case.name] = {"depth": list(case.depths), "levels": levels}
+    return doc
+
+
+def _array(path: Path, key: str, value) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValidationError(f"{path}: {key} must be a list of numbers") from None
+    if arr.ndim != 1 or arr.size == 0 or arr.size > 1000 or not np.all(np.isfinite(arr)):
+        raise ValidationError(f"{path}: {key} must be 1 to 1000 finite numbers")
+    return arr
+
+
+def load_reference(path: Path | str = REFERENCE_PATH) -> dict:
+    """Read and validate a reference file: {case name: {"depth", "force", "contact_radius": arrays}} plus
+    "convergence" (raw) and "refinement".
+
+    Raises:
+        ValidationError: missing, too large, not JSON, wrong format/version, or a bad case, naming file and key.
+    """
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+    except FileNotFoundError:
+        raise ValidationError(f"{path}: FE reference tables not found; compute them with "
+                              "`.venv/bin/python benchmarks/validity.py --reference`") from None
+    if size > MAX_BYTES:
+        raise ValidationError(f"{path}: {size} bytes, over the {MAX_BYTES} a reference file may have")
+    try:
+        raw = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValidationError(f"{path}: not valid JSON (line {exc.lineno}): {exc.msg}") from None
+    if not isinstance(raw, dict) or raw.get("format") != FORMAT or raw.get("version") != VERSION:
+        raise ValidationError(f"{path}: not a {FORMAT} file of version {VERSION}")
+    if raw.get("tip_radius") != TIP_RADIUS:
+        raise ValidationError(f"{path}: key 'tip_radius' must be {TIP_RADIUS} m, got {raw.get('tip_radius')!r}")
+    cases = raw.get("cases")
+    if not isinstance(cases, dict) or not cases:
+        raise ValidationError(f"{path}: key 'cases' must be a non-empty object")
+    out = {}
+    for name, c in cases.items():
+        if not isinstance(c, dict):
+            raise ValidationError(f"{path}: cases.{name} must be an object")
+        d = _array(path, f"cases.{name}.depth", c.get("depth"))
+        f = _array(path, f"cases.{name}.force", c.get("force"))
+        a = _array(path, f"cases.{name}.contact_radius", c.get("contact_radius"))
+        if not (len(d) == len(f) == len(a)):
+            raise ValidationError(f"{path}: cases.{name}: depth, force and contact_radius differ in length")
+        if np.any(d <= 0) or np.any(np.diff(d) <= 0) or np.any(f <= 0) or np.any(np.diff(f) <= 0):
+            raise ValidationError(f"{path}: cases.{name}: depths and forces must be positive and increasing")
+        out[name] = {"depth": d, "force": f, "contact_radius": a}
+    return {"cases": out, "convergence": raw.get("convergence", {}), "refinement": raw.get("refinement")}
+
+
+def reference_force(reference: dict, case: ValidityCase) -> np.ndarray:
+    """The reference force (N) at each of the case's depths, from the loaded file.
+
+    Raises:
+        ValidationError: the file lacks the case or was computed at other depths (regenerate it).
+    """
+    entry = reference["cases"].get(case.name)
+    if entry is None:
+        raise ValidationError(f"the FE reference file has no case {case.name!r}; regenerate it with "
+                              "`.venv/bin/python benchmarks/validity.py --reference`")
+    if len(entry["depth"]) != len(case.depths) or not np.allclose(entry["depth"], case.depths, rtol=1e-9):
+        raise ValidationError(f"the FE reference for {case.name!r} was computed at other depths; regenerate it")
+    return entry["force"]
+
+
+def convergence_rows(reference: dict) -> list[dict]:
+    """Refinement study as rows: case, refinement, dofs, and the force change against the finest level, %."""
+    rows = []
+    for name, c in reference.get("convergence", {}).items():
+        levels = c.get("levels", [])
+        if not levels:
+            continue
+        finest = np.asarray(levels[-1]["force"], dtype=float)
+        for lev in levels:
+            f = np.asarray(lev["force"], dtype=float)
+            change = 100.0 * float(np.max(np.abs(f / finest - 1.0))) if f.shape == finest.shape else math.nan
+            rows.append({"case": name, "refinement": lev["refinement"], "dofs": lev["dofs"],
+                         "max_change_pct": change})
+    return rows

@@ -1,0 +1,139 @@
+"""The validity table (each fidelity against the FE reference) and ``auto``, which picks the cheapest fidelity the
+table says is within the scenario's tolerance."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from palpate.core.errors import ValidationError
+from palpate.core.session.sources import PressTarget, scenario_source_maker
+from palpate.core.world.scenario_file import parse_scenario
+from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec, Scene
+from palpate.sim.source import SimSource, explain_fidelity
+from palpate.sim.validity.cases import quick_cases, validity_cases
+from palpate.sim.validity.choice import Situation, choose, predicted_errors, situation
+from palpate.sim.validity.measure import TABLE_PATH, load_table
+from palpate.sim.validity.report import claims
+
+R = 0.008
+
+
+def _row(family, feature, analytic, rigid=None, flex=None, poisson=0.3):
+    return {"family": family, "feature": feature, "poisson": poisson, "depth": 0.001, "thickness": 0.03,
+            "a_over_h": 0.1, "error": {"analytic": analytic, "rigid": rigid, "flex": flex}}
+
+
+def test_cases_cover_the_issues_ranges_and_the_quick_set_is_a_subset():
+    cases = validity_cases()
+    thick = [c for c in cases if c.family == "thickness"]
+    assert {c.sample.thickness for c in thick} == {0.002, 0.005, 0.01, 0.02, 0.05, 0.1}
+    assert {c.sample.bulk.poisson for c in thick} == {0.3, 0.45, 0.49}
+    assert min(min(c.depths) for c in cases) == pytest.approx(2e-4) and max(max(c.depths) for c in cases) == 4e-3
+    assert {c.family for c in cases} == {"thickness", "skin", "lump", "edge"}
+    names = {c.name for c in cases}
+    assert {c.name for c in quick_cases()} <= names and len(names) == len(cases)
+    case = next(c for c in cases if c.name == "thick_10mm_nu0.3")
+    assert case.feature(0.002) == pytest.approx(0.01 / math.sqrt(R * 0.002))
+
+
+def test_the_cheapest_fidelity_within_tolerance_wins_and_the_reason_says_where():
+    table = {"rows": [_row("thickness", 2.0, 0.30, 0.02, 0.08), _row("thickness", 5.0, 0.01, 0.01, 0.09)]}
+    thin = Situation({"thickness": 2.2}, 0.3)
+    fid, why = choose(table, thin, 0.05, "Block")
+    assert fid == "rigid" and "Block" in why and "5% tolerance" in why and "analytic: 30.0%" in why
+    fid, _ = choose(table, Situation({"thickness": 6.0}, 0.3), 0.05, "Block")  # thicker than measured: fine
+    assert fid == "analytic"
+    fid, why = choose(table, thin, 0.01, "Block")
+    assert fid == "rigid" and "no fidelity is within the 1% tolerance" in why
+    # thinner than anything measured: no prediction, said as such
+    errs = predicted_errors(table, Situation({"thickness": 0.5}, 0.3))
+    assert all(math.isinf(v) for v in errs.values())
+    # geometry rules a fidelity out whatever the table says
+    fid, why = choose(table, Situation({"thickness": 6.0}, 0.3, excluded={"analytic": "a mesh top"}), 0.05, "Ball")
+    assert fid == "rigid" and "analytic ruled out: a mesh top" in why
+
+
+def test_every_applicable_family_counts_and_the_worst_decides():
+    table = {"rows": [_row("thickness", 5.0, 0.01, 0.01, 0.02), _row("lump", 1.0, 0.12, 0.12, 0.03)]}
+    fid, _ = choose(table, Situation({"thickness": 5.0, "lump": 1.0}, 0.3), 0.05, "Block")
+    assert fid == "flex"
+
+
+def test_a_press_is_placed_by_what_it_feels():
+    soft, hard = Material("soft", 2e4), Material("hard", 2e6)
+    wide = ObjectSpec("w", "box", (0.2, 0.2, 0.03), (0.0, 0.0), soft)
+    sit = situation(wide, 0.0, 0.0, 0.03, 0.002, R)
+    assert set(sit.features) == {"thickness"} and sit.features["thickness"] == pytest.approx(0.03 / 0.004)
+    near_edge = situation(wide, 0.098, 0.0, 0.03, 0.002, R)
+    assert "edge" in near_edge.features and "analytic" in near_edge.excluded
+    skin = ObjectSpec("s", "box", (0.2, 0.2, 0.03), (0.0, 0.0), hard, layers=(Layer(soft, 0.002),))
+    assert situation(skin, 0.0, 0.0, 0.03, 0.002, R).features["skin"] == pytest.approx(0.5)
+    lump = ObjectSpec("l", "box", (0.2, 0.2, 0.03), (0.0, 0.0), soft,
+                      inclusions=(Inclusion(hard, "sphere", (0.0, 0.0, 0.02), (0.005,)),))
+    on_axis = situation(lump, 0.0, 0.0, 0.03, 0.002, R)
+    assert on_axis.features["lump"] == pytest.approx(0.005 / 0.004, rel=0.15) and not on_axis.notes
+    off_axis = situation(lump, 0.006, 0.0, 0.03, 0.002, R)
+    assert "lump" in off_axis.features and any("off the press axis" in n for n in off_axis.notes)
+
+
+def test_the_shipped_table_supports_the_issues_claims_for_the_closed_form_fidelities():
+    table = load_table()
+    assert {r["family"] for r in table["rows"]} == {"thickness", "skin", "lump", "edge"}
+    for c in claims(table):
+        if c["fidelity"] in ("analytic", "rigid"):
+            assert c["holds"], c
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda d: d.update(format="x"), "not a palpate-validity"),
+    (lambda d: d["rows"][0].update(family="volcano"), r"rows\[0\].family"),
+    (lambda d: d["rows"][0].update(feature=float("nan")), r"rows\[0\].feature"),
+    (lambda d: d["rows"][0]["error"].update(fem=0.1), r"rows\[0\].error"),
+])
+def test_a_bad_table_is_refused_naming_the_key(tmp_path, edit, match):
+    doc = json.loads(TABLE_PATH.read_text())
+    edit(doc)
+    path = tmp_path / "t.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ValidationError, match=match):
+        load_table(path)
+    with pytest.raises(ValidationError, match="not found"):
+        load_table(tmp_path / "none.json")
+
+
+def test_auto_on_a_thick_block_is_analytic_and_the_press_records_why():
+    block = ObjectSpec("Block", "box", (0.1, 0.1, 0.03), (0.0, 0.0), Material("m", 2e5))
+    src = SimSource(Scene((block,)), fidelity="auto")
+    fid, why = src.explain(PressTarget(0.0, 0.0, depth=0.002))
+    assert fid == "analytic" and "validity table" in why
+    rec = src.press(PressTarget(0.0, 0.0, depth=0.002))
+    assert rec.meta["fidelity"] == "analytic" and rec.meta["fidelity_reason"] == why
+    # a force-only target is placed at the depth the law gives that force
+    _, why_f = src.explain(PressTarget(0.0, 0.0, depth=None, force=1.0))
+    assert "validity table" in why_f
+    assert explain_fidelity(block, PressTarget(0.0, 0.0, depth=0.002), R)[0] == "analytic"
+
+
+def test_the_scenario_tolerance_reaches_the_source():
+    raw = {"scenario": {"name": "t", "tolerance_pct": 2.5}, "exploration": {"policy": "raster"},
+           "materials": [{"name": "a", "young_kpa": 20.0}, {"name": "b", "young_kpa": 200.0}],
+           "objects": [{"name": "o", "shape": "box", "size_mm": [50.0, 50.0, 20.0], "position_mm": [0.0, 0.0],
+                        "material": "a"}]}
+    sc = parse_scenario(raw)
+    assert sc.fidelity_tolerance == pytest.approx(0.025)
+    src = scenario_source_maker(sc)((sc.objects[0].spec,), 0, "robot")
+    assert src.tolerance == pytest.approx(0.025)
+    raw["scenario"]["tolerance_pct"] = 0.0
+    with pytest.raises(ValidationError, match="tolerance_pct"):
+        parse_scenario(raw)
+
+
+def test_predicted_errors_are_finite_where_the_table_has_rows():
+    table = load_table()
+    block = ObjectSpec("b", "box", (0.2, 0.2, 0.02), (0.0, 0.0), Material("m", 2e5, 0.45))
+    errs = predicted_errors(table, situation(block, 0.0, 0.0, 0.02, 0.002, R))
+    assert np.isfinite(errs["analytic"]) and errs["analytic"] < 0.05
