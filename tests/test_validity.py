@@ -91,7 +91,8 @@ def test_the_shipped_table_supports_the_issues_claims_for_the_closed_form_fideli
 @pytest.mark.parametrize("edit, match", [
     (lambda d: d.update(format="x"), "not a palpate-validity"),
     (lambda d: d["rows"][0].update(family="volcano"), r"rows\[0\].family"),
-    (lambda d: d["rows"][0].update(feature=float("nan")), r"rows\[0\].feature"),
+    (lambda d: d["rows"][0].update(feature=float("nan")), "NaN is not a number"),
+    (lambda d: d["rows"][0].update(feature="wide"), r"rows\[0\].feature"),
     (lambda d: d["rows"][0]["error"].update(fem=0.1), r"rows\[0\].error"),
 ])
 def test_a_bad_table_is_refused_naming_the_key(tmp_path, edit, match):

@@ -9,7 +9,6 @@ per simulated second, one run). ``palpate bench`` writes it; models/validity_tab
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from pathlib import Path
@@ -27,13 +26,12 @@ from palpate.sim.flex import run_flex_press
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, law_depth
 from palpate.sim.validity.cases import FAMILIES, TIP_RADIUS, ValidityCase, case_object
-from palpate.sim.validity.reference import reference_force
+from palpate.sim.validity.reference import read_document, reference_force
 
 TABLE_PATH = models_dir() / "validity_table.json"
 FORMAT = "palpate-validity"
 VERSION = 1
 RUNGS = ("analytic", "rigid", "flex")
-MAX_BYTES = 5_000_000
 
 
 def loading_force(indentation: np.ndarray, force: np.ndarray, depths) -> np.ndarray:
@@ -103,20 +101,8 @@ def load_table(path: Path | str = TABLE_PATH) -> dict:
     Raises:
         ValidationError: missing, too large, not JSON, wrong format or a bad row, naming the file and the key.
     """
-    path = Path(path)
-    try:
-        size = path.stat().st_size
-    except FileNotFoundError:
-        raise ValidationError(f"{path}: validity table not found; measure it with `palpate bench` or "
-                              "`.venv/bin/python benchmarks/validity.py`") from None
-    if size > MAX_BYTES:
-        raise ValidationError(f"{path}: {size} bytes, over the {MAX_BYTES} a validity table may have")
-    try:
-        raw = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValidationError(f"{path}: not valid JSON (line {exc.lineno}): {exc.msg}") from None
-    if not isinstance(raw, dict) or raw.get("format") != FORMAT or raw.get("version") != VERSION:
-        raise ValidationError(f"{path}: not a {FORMAT} file of version {VERSION}")
+    raw = read_document(path, "validity table", FORMAT, VERSION,
+                        "measure it with `palpate bench` or `.venv/bin/python benchmarks/validity.py`")
     rows = raw.get("rows")
     if not isinstance(rows, list) or not rows:
         raise ValidationError(f"{path}: key 'rows' must be a non-empty list")

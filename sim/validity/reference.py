@@ -6,13 +6,13 @@ Regenerate with ``.venv/bin/python benchmarks/validity.py --reference`` (minutes
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.files import read_json
 from palpate.core.world.resources import models_dir
 from palpate.sim.reference.fe import fe_press
 from palpate.sim.validity.cases import TIP_RADIUS, ValidityCase
@@ -20,7 +20,6 @@ from palpate.sim.validity.cases import TIP_RADIUS, ValidityCase
 REFERENCE_PATH = models_dir() / "reference_tables.json"
 FORMAT = "palpate-fe-reference"
 VERSION = 1
-MAX_BYTES = 5_000_000
 #: Mesh refinement of the shipped reference (surface spacing = smallest contact radius / 12 / refinement).
 REFINEMENT = 1.0
 #: Cases whose refinement study the file keeps (a thick block, a thin one, a lump).
@@ -62,6 +61,22 @@ def _array(path: Path, key: str, value) -> np.ndarray:
     return arr
 
 
+def read_document(path: Path | str, what: str, fmt: str, version: int, missing: str) -> dict:
+    """A validity data file (bounded, strict JSON: core.files.read_json) whose ``format`` and ``version`` keys are
+    ``fmt`` and ``version``; ``missing`` says how to make it when it does not exist.
+
+    Raises:
+        ValidationError: missing, too large, not JSON (NaN included) or of another format, naming the file.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise ValidationError(f"{path}: {what} not found; {missing}")
+    raw = read_json(path, what)
+    if not isinstance(raw, dict) or raw.get("format") != fmt or raw.get("version") != version:
+        raise ValidationError(f"{path}: not a {fmt} file of version {version}")
+    return raw
+
+
 def load_reference(path: Path | str = REFERENCE_PATH) -> dict:
     """Read and validate a reference file: {case name: {"depth", "force", "contact_radius": arrays}} plus
     "convergence" (raw) and "refinement".
@@ -69,20 +84,8 @@ def load_reference(path: Path | str = REFERENCE_PATH) -> dict:
     Raises:
         ValidationError: missing, too large, not JSON, wrong format/version, or a bad case, naming file and key.
     """
-    path = Path(path)
-    try:
-        size = path.stat().st_size
-    except FileNotFoundError:
-        raise ValidationError(f"{path}: FE reference tables not found; compute them with "
-                              "`.venv/bin/python benchmarks/validity.py --reference`") from None
-    if size > MAX_BYTES:
-        raise ValidationError(f"{path}: {size} bytes, over the {MAX_BYTES} a reference file may have")
-    try:
-        raw = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValidationError(f"{path}: not valid JSON (line {exc.lineno}): {exc.msg}") from None
-    if not isinstance(raw, dict) or raw.get("format") != FORMAT or raw.get("version") != VERSION:
-        raise ValidationError(f"{path}: not a {FORMAT} file of version {VERSION}")
+    raw = read_document(path, "FE reference tables", FORMAT, VERSION,
+                        "compute them with `.venv/bin/python benchmarks/validity.py --reference`")
     if raw.get("tip_radius") != TIP_RADIUS:
         raise ValidationError(f"{path}: key 'tip_radius' must be {TIP_RADIUS} m, got {raw.get('tip_radius')!r}")
     cases = raw.get("cases")
