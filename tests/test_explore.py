@@ -430,7 +430,11 @@ def test_the_shipped_info_gain_scenario_maps_the_block_with_fewer_presses_than_c
     # stopped by the rule, before the budget, with well under one press per cell (the contact law feels the lump
     # from the neighbouring cells too, so its surroundings take more presses than the old surface-only law's half)
     assert obj["stop_reason"] == "min_gain" and obj["presses"] < min(sc.exploration.budget, 0.6 * nx * ny)
-    assert obj["accuracy"]["all_cells_after_postprocessing"] >= 0.9
+    # the map against what this physics allows (every column pressed once; 0.95 here): a press feels its
+    # neighbours, so a point-wise ground truth is not all attainable
+    ceiling = obj["attainable_accuracy"]["ceiling"]
+    assert ceiling >= 0.9
+    assert obj["accuracy"]["all_cells_after_postprocessing"] >= 0.9 * ceiling
     # the lattice comes first: every third cell, centred (1-based cells in the summary)
     lattice = {(x + 1, y + 1) for x in range((nx - 1) % 3 // 2, nx, 3) for y in range((ny - 1) % 3 // 2, ny, 3)}
     assert {tuple(r["cell"]) for r in obj["per_press"][:len(lattice)]} == lattice
