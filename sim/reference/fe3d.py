@@ -118,9 +118,18 @@ class FE3DPress:
     h: float
 
 
-def block_grids(block: BoxBlock, a_max: float, h: float, growth: float = 1.3) -> tuple[np.ndarray, ...]:
-    """(x, y, depth) grid lines, m: spacing ``h`` out to 1.3 a_max from the press axis (and 0.25 a_max deep),
-    growing by ``growth`` per cell beyond; the lump's faces are grid lines."""
+@dataclass(frozen=True)
+class TensorGrid:
+    """Grid lines of the tensor-product mesh, m: x and y from the press axis, depth below the top."""
+
+    x: np.ndarray
+    y: np.ndarray
+    depth: np.ndarray
+
+
+def block_grids(block: BoxBlock, a_max: float, h: float, growth: float = 1.3) -> TensorGrid:
+    """Grid lines: spacing ``h`` out to 1.3 a_max from the press axis (and 0.25 a_max deep), growing by ``growth``
+    per cell beyond; the lump's faces are grid lines."""
     lump = block.lump
     bx, by, bz = [], [], []
     if lump is not None:
@@ -133,15 +142,15 @@ def block_grids(block: BoxBlock, a_max: float, h: float, growth: float = 1.3) ->
     x = np.unique(np.concatenate([-left[::-1], right]))
     y = graded_line(block.half_y, h, uniform, growth, by)
     z = graded_line(block.thickness, h, 0.25 * a_max, growth, bz)
-    return x, y, z
+    return TensorGrid(x=x, y=y, depth=z)
 
 
-def _stiffness(block: BoxBlock, x: np.ndarray, y: np.ndarray, z: np.ndarray):
+def _stiffness(block: BoxBlock, grid: TensorGrid):
     from skfem import Basis, BilinearForm, ElementHex1, ElementVector, MeshHex, asm
     from skfem.helpers import ddot, sym_grad, trace
 
     # mesh coordinates: height above the base (depth = thickness - height)
-    mesh = MeshHex.init_tensor(x, y, np.sort(block.thickness - z))
+    mesh = MeshHex.init_tensor(grid.x, grid.y, np.sort(block.thickness - grid.depth))
     centroid = mesh.p[:, mesh.t].mean(axis=1)
     young, poisson = block.materials_at(centroid[0], centroid[1], block.thickness - centroid[2])
     lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
@@ -206,8 +215,7 @@ def fe3d_press(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.001,
     if not (h > 0 and growth >= 1.0):
         raise ValidationError(f"fe3d_press: need h > 0 and growth >= 1, got {h!r}, {growth!r}")
     a_max = 1.15 * math.sqrt(tip_radius * d[-1])
-    x, y, z = block_grids(block, a_max, h, growth)
-    basis, stiffness = _stiffness(block, x, y, z)
+    basis, stiffness = _stiffness(block, block_grids(block, a_max, h, growth))
     locs = basis.doflocs
     dofs = basis.get_dofs()
     uy, uz = dofs.all("u^2"), dofs.all("u^3")
