@@ -46,9 +46,14 @@ VOID = 1e-4
 FIRST_ORDER_LIMIT = 0.03
 
 
-def azimuthal_materials(lookup):
+#: Power of the ring mean of E (0: geometric), see :func:`azimuthal_materials`.
+RING_POWER = 0.0
+
+
+def azimuthal_materials(lookup, power: float = RING_POWER):
     """fn(r, z) -> (E, nu) averaging ``lookup`` (offsets (n, 2) m, depths (n,) m -> E, nu, inside) around the
-    axis (see the module docstring)."""
+    axis (see the module docstring); ``power``: of the ring's power mean of E (1 arithmetic, 0 geometric, -1
+    harmonic; benchmarks/fe_offaxis_mixing.py compares them)."""
     theta = (np.arange(AZIMUTHS) + 0.5) * 2.0 * np.pi / AZIMUTHS
     ring = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
 
@@ -62,17 +67,21 @@ def azimuthal_materials(lookup):
         inside = inside.reshape(len(r), -1)
         frac = inside.mean(axis=1)
         cnt = np.maximum(inside.sum(axis=1), 1)
-        # the geometric mean of E over the ring's sectors inside the object, times the share of the ring inside
+        # the power mean of E over the ring's sectors inside the object, times the share of the ring inside
         # (a void sector past a free edge carries nothing). The arithmetic mean (sectors in parallel) is an upper
         # bound that the 3-D FE beside off-axis lumps put 36-58% too stiff next to a 20x lump 1 mm down, the
         # harmonic one a lower bound; the geometric mean was the closest of the power means
-        # (benchmarks/fe_offaxis_mixing.py). Uniform rings (layers, on-axis lumps, a cylinder's centre) do not move.
-        # (taken relative to the ring's stiffest sector, so a uniform ring gives its own E exactly)
-        e_in = np.where(inside, e, 0.0)
-        e_ring = np.max(e_in, axis=1)
+        # (benchmarks/fe_offaxis_mixing.py). Uniform rings (layers, on-axis lumps, a cylinder's centre) do not move:
+        # the mean is taken relative to the ring's stiffest sector, so a uniform ring gives its own E exactly.
+        e_ring = np.max(np.where(inside, e, 0.0), axis=1)
         rel = np.where(inside, e / np.where(e_ring > 0, e_ring, 1.0)[:, None], 1.0)
-        geo = e_ring * np.exp(np.sum(np.log(rel), axis=1) / cnt)
-        young = np.maximum(frac * geo, VOID * max(float(np.max(e_ring)), 1.0))
+        if power == 0.0:
+            mean = e_ring * np.exp(np.sum(np.log(rel), axis=1) / cnt)
+        else:
+            # a ring wholly outside the object has no sector to average (and 0 ** (1 / power) is inf for power < 0)
+            total = np.where(frac > 0, np.sum(np.where(inside, rel**power, 0.0), axis=1) / cnt, 1.0)
+            mean = e_ring * total ** (1.0 / power)
+        young = np.maximum(frac * mean, VOID * max(float(np.max(e_ring)), 1.0))
         poisson = np.where(frac > 0, np.sum(np.where(inside, nu, 0.0), axis=1) / cnt, 0.3)
         return young, poisson
 
