@@ -191,7 +191,8 @@ class FingerPhysics:
         table = self._tables.get(key)
         if table is not None:
             return table
-        r_cells, areas, g_ref = contact_geometry(obj, np.array([x, y]), self.scene.fingertip, cells=self._cells)
+        foot = contact_geometry(obj, np.array([x, y]), self.scene.fingertip, cells=self._cells)
+        r_cells, areas, g_ref = foot.radius, foot.area, foot.first_contact
         # the column's layers on the table (finite thickness, skins): the emulator answers in real time and cannot
         # wait for the axisymmetric solve of an inclusion or an edge within reach
         law = object_law(obj, x, y, g_ref, self.radius, MAX_DEPTH_OVER_RADIUS * self.radius, cache=self._laws,

@@ -24,6 +24,8 @@ spheres give sqrt(R_eff / R) (R_eff = 1 / (1/R + 1/R2)); vertical surface sampli
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from palpate.core.errors import ValidationError
@@ -47,8 +49,28 @@ from palpate.sim.stability import (
 from palpate.sim.trace import PhysicsTrace
 
 
-def footprint_rings(radius: float, rings: int, sectors: int) -> tuple[np.ndarray, np.ndarray]:
-    """Polar cells over the tip's footprint disc: centres (rings*sectors, 2), m, and exact cell areas, m^2.
+@dataclass(frozen=True)
+class FootprintCells:
+    """Polar cells over the tip's footprint disc: ``points`` (n, 2) cell centres from the tip axis, m; ``area``
+    (n,) exact cell areas, m^2."""
+
+    points: np.ndarray
+    area: np.ndarray
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """The tip's footprint on an object: ``radius`` (k,) the distinct equivalent radii of its cells (m; 1 m for a
+    cell off the object), ``area`` (k,) their summed areas (m^2), ``first_contact`` the height (m) of the sphere's
+    lowest point when it first touches."""
+
+    radius: np.ndarray
+    area: np.ndarray
+    first_contact: float
+
+
+def footprint_rings(radius: float, rings: int, sectors: int) -> FootprintCells:
+    """Polar cells over the tip's footprint disc of ``radius`` m.
 
     Rings are concentric with the tip axis, where a press on a flat top starts, so small contacts are resolved
     by whole rings (a flat top gives one clearance per ring).
@@ -58,7 +80,7 @@ def footprint_rings(radius: float, rings: int, sectors: int) -> tuple[np.ndarray
     theta = (np.arange(sectors) + 0.5) * 2.0 * np.pi / sectors
     pts = np.stack([np.outer(r, np.cos(theta)), np.outer(r, np.sin(theta))], axis=-1).reshape(-1, 2)
     area = np.repeat(np.pi * (edges[1:] ** 2 - edges[:-1] ** 2) / sectors, sectors)
-    return pts, area
+    return FootprintCells(points=pts, area=area)
 
 
 def equivalent_radius(clearance: np.ndarray, radius: float) -> np.ndarray:
@@ -86,10 +108,10 @@ def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray) -> np.nda
 
 
 def contact_geometry(obj: ObjectSpec, centre_xy: np.ndarray, tip, mesh=None, *, rings: int = 96, sectors: int = 24,
-                     cells: tuple[np.ndarray, np.ndarray] | None = None):
-    """Footprint of a tip above ``centre_xy`` (m) on ``obj``: (unique equivalent radii (m), their areas (m^2), the
-    first-contact height g_ref (m) of the sphere's lowest point). ``cells``: precomputed :func:`footprint_rings`."""
-    pts, areas = footprint_rings(tip.radius, rings, sectors) if cells is None else cells
+                     cells: FootprintCells | None = None) -> Footprint:
+    """Footprint of a tip above ``centre_xy`` (m) on ``obj``. ``cells``: precomputed :func:`footprint_rings`."""
+    cells = footprint_rings(tip.radius, rings, sectors) if cells is None else cells
+    pts, areas = cells.points, cells.area
     gaps = surface_heights(obj, centre_xy[:2] + pts, mesh) - cap_height(tip, pts)
     # the rings' centres miss the axis, where a flat top is first touched
     g_ref = max(float(np.max(gaps)), float(surface_heights(obj, np.asarray(centre_xy[:2])[None, :], mesh)[0]))
@@ -98,7 +120,7 @@ def contact_geometry(obj: ObjectSpec, centre_xy: np.ndarray, tip, mesh=None, *, 
     _, inverse = np.unique(keys, return_inverse=True)
     weight = np.bincount(inverse, weights=areas)
     r_u = np.bincount(inverse, weights=np.where(np.isfinite(r_eq), r_eq, 1.0) * areas) / weight
-    return r_u, weight, g_ref
+    return Footprint(radius=r_u, area=weight, first_contact=g_ref)
 
 
 def run_rigid_press(
@@ -156,7 +178,8 @@ def run_rigid_press(
 
     # surface sampled under the deepest tip position (the tip moves on one axis)
     deepest = centres[int(np.argmin(profile.z))]
-    r_cells, areas, g_ref = contact_geometry(obj, deepest, tip, mesh, rings=rings, sectors=sectors)
+    foot = contact_geometry(obj, deepest, tip, mesh, rings=rings, sectors=sectors)
+    r_cells, areas, g_ref = foot.radius, foot.area, foot.first_contact
     qpts, qw = sensel_quadrature(tip, order)
     sensel_gaps = surface_heights(obj, deepest[:2] + qpts.reshape(-1, 2), mesh).reshape(qpts.shape[:-1]) - cap_height(
         tip, qpts)
@@ -264,9 +287,9 @@ def rigid_depth_for_force(obj: ObjectSpec, centre_xy: np.ndarray, tip, law: Cont
                           mesh=None) -> float:
     """Indentation (m) at which the rigid fidelity's force (the law on the footprint above ``centre_xy``) reaches
     ``force`` N; the force target's depth, consistent with what :func:`run_rigid_press` will feel."""
-    r_cells, areas, _ = contact_geometry(obj, np.asarray(centre_xy, dtype=float), tip, mesh)
+    foot = contact_geometry(obj, np.asarray(centre_xy, dtype=float), tip, mesh)
     d = law.max_depth * (np.arange(401) / 400.0) ** 2
-    f = law_pressure(law, d, r_cells) @ areas
+    f = law_pressure(law, d, foot.radius) @ foot.area
     if not force <= f[-1]:
         raise ValidationError(f"a {force:.3g} N force target needs more than {law.max_depth * 1e3:.2f} mm on "
                               f"{obj.name!r} (the fidelity reaches {f[-1]:.3g} N there); lower the force target")
