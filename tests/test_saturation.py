@@ -36,8 +36,8 @@ def test_a_hard_deep_press_is_counted_in_its_result_the_recording_and_the_summar
     soft = perceive_press(simulate_press(2e4, fidelity="analytic", depth=0.002))
     assert soft.saturated_frames == 0
     counted = saturation([res, soft])
-    assert counted["saturated_frames"] == expected and counted["frames"] == res.frames + soft.frames
-    assert counted["fraction"] > SATURATION_WARNING
+    assert counted.saturated_frames == expected and counted.frames == res.frames + soft.frames
+    assert counted.fraction > SATURATION_WARNING
     message = saturation_warning("Block", counted)
     assert "255" in message and "gain_counts_per_kpa" in message
     assert saturation_warning("Block", saturation([soft])) is None

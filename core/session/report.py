@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import importlib.metadata as md
 import platform
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -50,19 +51,34 @@ def step_row(step: PressStep) -> dict:
 SATURATION_WARNING = 0.05
 
 
-def saturation(results) -> dict:
-    """Saturated taxel frames over a set of PressResults: {"frames", "saturated_frames", "fraction"}."""
-    frames = sum(r.frames for r in results)
-    sat = sum(r.saturated_frames for r in results)
-    return {"frames": frames, "saturated_frames": sat, "fraction": sat / frames if frames else 0.0}
+@dataclass(frozen=True)
+class SaturationCount:
+    """Taxel frames over a set of presses, and how many had a sensel at the 8-bit ceiling."""
+
+    frames: int
+    saturated_frames: int
+
+    @property
+    def fraction(self) -> float:
+        return self.saturated_frames / self.frames if self.frames else 0.0
+
+    def to_dict(self) -> dict:
+        """The summary.json entry: frames, saturated_frames, fraction."""
+        return {"frames": self.frames, "saturated_frames": self.saturated_frames, "fraction": self.fraction}
 
 
-def saturation_warning(what: str, counted: dict) -> str | None:
-    """The run's warning when ``counted`` (from :func:`saturation`) is past SATURATION_WARNING, else None."""
-    if counted["fraction"] <= SATURATION_WARNING:
+def saturation(results) -> SaturationCount:
+    """Saturated taxel frames over a set of PressResults."""
+    return SaturationCount(frames=sum(r.frames for r in results),
+                           saturated_frames=sum(r.saturated_frames for r in results))
+
+
+def saturation_warning(what: str, counted: SaturationCount) -> str | None:
+    """The run's warning when ``counted`` is past SATURATION_WARNING, else None."""
+    if counted.fraction <= SATURATION_WARNING:
         return None
-    return (f"warning: {what}: {counted['saturated_frames']} of {counted['frames']} taxel frames "
-            f"({counted['fraction']:.0%}) have a sensel at the 8-bit ceiling (255): their pressure is clipped; "
+    return (f"warning: {what}: {counted.saturated_frames} of {counted.frames} taxel frames "
+            f"({counted.fraction:.0%}) have a sensel at the 8-bit ceiling (255): their pressure is clipped; "
             "lower the taxel gain (sensors.taxels.gain_counts_per_kpa) or the press force/depth")
 
 
@@ -106,7 +122,7 @@ def object_summary(obj: ObjectResult) -> dict:
         "mean_entropy_after_each_press": [r["mean_entropy"] for r in rows],
         "mean_entropy_after_postprocessing": float(obj.post.mean_entropy()),
         "true_materials": list(obj.true_materials),
-        "saturation": saturation([s.result for s in obj.steps]),
+        "saturation": saturation([s.result for s in obj.steps]).to_dict(),
         # the map's posteriors came from the memory's kinesthetic and cutaneous models, or (a finger without a pad,
         # c_P from its joint currents) from the kinesthetic one alone
         "features": sorted({r["fit"]["features"] for r in rows if r["fit"] is not None}),

@@ -208,7 +208,7 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
             "accuracy": {m: float(np.asarray(crossval.confusion)[i, i]) for i, m in enumerate(scenario.references)},
         },
         "training": {name: [fit_summary(r.fit) for r in rs] for name, rs in presses.items()},
-        "training_saturation": {name: saturation(rs) for name, rs in presses.items()},
+        "training_saturation": {name: saturation(rs).to_dict() for name, rs in presses.items()},
         "realism": scenario.realism.profile,
         "sim_to_real": sim_to_real,
         "map_calibration": ex.calibration.to_dict(),
