@@ -174,7 +174,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     x, y = float(profile.x), float(profile.y)
     surface_z = float(profile.surface_z)
     grid = flex_grid(obj, x, y, res, window)
-    shallowest = (MIN_CONTACT_OVER_CELL * float(np.mean(grid.cell[:2]))) ** 2 / tip.radius
+    shallowest = (MIN_CONTACT_OVER_CELL * grid.finest) ** 2 / tip.radius
     if float(profile.meta.get("depth", np.inf)) < shallowest:
         raise ValidationError(
             f"flex resolves presses from {shallowest * 1e3:.2f} mm deep with {res * 1e3:g} mm cells (a contact "
@@ -185,7 +185,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     z0 = float(np.interp(times[0], t_prof, z_prof))
     model.body_pos[fm.tip_body] = [x, y, z0]
     mujoco.mj_forward(model, data)
-    cell = float(np.mean(grid.cell[:2]))
+    cell = grid.finest
     nu = _surface_poisson(obj, x, y)
     calibration = load_calibration() if calibrate else None
     qadr = model.jnt_qposadr[fm.tip_joint]
@@ -274,7 +274,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         material=_material_under(obj, x, y),
         meta={
             "fidelity": "flex", "timestep": dt, "integrator": "discrete", "resolution": res,
-            "cell": [float(c) for c in grid.cell], "cells": list(grid.cells),
+            "cell": grid.finest, "cells": list(grid.cells),
             "window_lower": [float(v) for v in grid.lower], "window_size": [float(v) for v in grid.size],
             "pinned_sides": list(grid.pinned), "mesh_factor_range": [float(factors.min()), float(factors.max())],
             "calibration_extrapolated": bool(extrapolated), "young_range": fm.meta["young_range"],

@@ -40,7 +40,7 @@ def measure_calibration(resolution: float, *, radius: float = 0.008, window: flo
         depth_max = min((ac[-1] * resolution * 1.05) ** 2 / radius, 0.7 * radius)
         trace = reference_press(young=CAL_YOUNG, poisson=nu, height=CAL_HEIGHT, radius=radius, resolution=resolution,
                                 window=window, width=4.0 * window, depth=depth_max, calibrate=False)
-        cell = float(np.mean(trace.meta["cell"][:2]))
+        cell = float(trace.meta["cell"])
         law = solve_contact_law(AxisymmetricSample(Material("m", CAL_YOUNG, nu), CAL_HEIGHT), radius,
                                 1.05 * depth_max)
         dense = np.linspace(ac[0], ac[-1], 60)
