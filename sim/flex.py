@@ -4,10 +4,11 @@ What MuJoCo computes: the block's elastic deformation (per-cell stiffness with t
 and inclusions, see :mod:`palpate.sim.flex_model`), the tip's drive dynamics, the frictionless contact between the
 tip sphere and the block's surface vertices, and each contact's normal force. What palpate adds: the window of the
 object (bottom bonded to the table, cut sides pinned, free object edges free), the mesh correction (the coarse
-trilinear grid is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell,
-measured against the reference on a thick block, :mod:`palpate.sim.flex_calibration`, so finite thickness, layers
-and edges come from the block itself), and the taxels: each contact force stands for the surface patch of its
-vertex (side = vertex spacing) and is spread uniformly over it on the pad, which then averages over each sensel.
+trilinear grid is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell
+and the block's thickness, measured against the reference of homogeneous blocks, :mod:`palpate.sim.flex_calibration`,
+so finite thickness, layers and edges come from the block itself), and the taxels: each contact force stands for
+the surface patch of its vertex (side = vertex spacing) and is spread uniformly over it on the pad, which then
+averages over each sensel.
 
 The model is built once per window (a ``models`` dict the caller keeps, e.g. one per SimSource) and its state reset
 between presses. A cylinder is modelled by the square inscribed in it; meshes are not supported. Gravity is off so
@@ -246,7 +247,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
                             "indentation", times[k], dt)
         if calibrate:
             factors[k], ext = mesh_factor(np.sqrt(tip.radius * max(ind_k, 0.0)) / cell, nu, cell / tip.radius,
-                                           calibration)
+                                           calibration, obj.height)
             extrapolated |= ext
         fn = fn / factors[k]
         force[k] = fn.sum()

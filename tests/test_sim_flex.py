@@ -80,26 +80,38 @@ def test_each_contact_force_covers_its_vertex_patch_and_is_conserved():
 def test_shipped_calibration_is_valid_and_interpolates():
     cal = load_calibration()
     t = cal["tables"][0]
-    assert np.all(t["factor"] > 1.0)  # the trilinear grid is stiffer than the continuum at every point
-    c_r = t["cell_over_radius"]
-    k, extra = mesh_factor(t["contact_over_cell"][2], t["poisson"][1], c_r, cal)
-    assert k == pytest.approx(t["factor"][1, 2]) and not extra
-    mid = 0.5 * (t["contact_over_cell"][2] + t["contact_over_cell"][3])
-    k_mid, _ = mesh_factor(mid, t["poisson"][1], c_r, cal)
-    assert min(t["factor"][1, 2:4]) <= k_mid <= max(t["factor"][1, 2:4])
-    assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal)[1]  # another cell size: flagged
+    c_r, ac, hs = t["cell_over_radius"], t["contact_over_cell"], t["thickness"]
+    # the trilinear grid is stiffer than the continuum wherever a press is allowed (a >= 0.25 cells) on a block
+    # thicker than the validity table's thinnest layers
+    usable = ac >= 0.25
+    assert np.all(t["factor"][:, 2:, usable] > 1.0)
+    k, extra = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3])
+    assert k == pytest.approx(t["factor"][1, 3, 8]) and not extra
+    mid = 0.5 * (ac[8] + ac[9])
+    k_mid, _ = mesh_factor(mid, t["poisson"][1], c_r, cal, hs[3])
+    assert min(t["factor"][1, 3, 8:10]) <= k_mid <= max(t["factor"][1, 3, 8:10])
+    # between two calibrated thicknesses: between their factors (linear in log thickness)
+    k_h, _ = mesh_factor(ac[8], t["poisson"][1], c_r, cal, float(np.sqrt(hs[3] * hs[4])))
+    assert k_h == pytest.approx(0.5 * (t["factor"][1, 3, 8] + t["factor"][1, 4, 8]))
+    assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal, hs[3])[1]  # another cell size: flagged
+    assert mesh_factor(0.5, 0.3, c_r, cal, 2.0 * hs[-1])[1]  # thicker than measured: flagged
+    assert mesh_factor(1.2, 0.3, c_r, cal, hs[0])[1]  # deeper than the thin block was pressed: flagged
+
+
+_TABLE = {"cell_over_radius": 0.6, "poisson": [0.3], "thickness": [0.02], "contact_over_cell": [0.5],
+          "measured_to": [[0.5]]}
 
 
 @pytest.mark.parametrize(
     "content, match",
     [
         ("{not json", "not valid JSON"),
-        (json.dumps({"version": 1, "points": []}), "version"),
-        (json.dumps({"version": 2, "tables": []}), "tables"),
-        (json.dumps({"version": 2, "tables": [{"cell_over_radius": 0.6, "poisson": [0.3], "contact_over_cell": [0.5],
-                                               "factor": [[1.5, 2.0]]}]}), r"tables\[0\].factor must be 1 x 1"),
-        (json.dumps({"version": 2, "tables": [{"cell_over_radius": 0.6, "poisson": [0.3], "contact_over_cell": [0.5],
-                                               "factor": [[-1.0]]}]}), "factors > 0"),
+        (json.dumps({"version": 2, "points": []}), "version"),
+        (json.dumps({"version": 3, "tables": []}), "tables"),
+        (json.dumps({"version": 3, "tables": [{**_TABLE, "factor": [[[1.5, 2.0]]]}]}),
+         r"tables\[0\].factor must be 1 x 1 x 1"),
+        (json.dumps({"version": 3, "tables": [{**_TABLE, "factor": [[1.5]]}]}), r"tables\[0\].factor must be a .*3-D"),
+        (json.dumps({"version": 3, "tables": [{**_TABLE, "factor": [[[-1.0]]]}]}), "factors > 0"),
     ],
 )
 def test_bad_calibration_files_name_the_problem(tmp_path, content, match):
