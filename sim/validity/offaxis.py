@@ -9,7 +9,8 @@ Cases: a 20 mm-thick block, 80 x 80 mm, bulk 25 kPa (the foam of scenarios/heter
 along x (away from the press), 20 mm wide, 10 mm tall, its top 1 or 5 mm down, 4x or 20x stiffer, its near face 0
 (the press over its edge), 3, 8 or 15 mm from the press axis (or the press over its middle: near = -7.5 mm); nu
 0.3 or 0.45 for both; pressed 1, 3 and 5 mm by the 8 mm tip. The law's ring mixing was chosen on the nu 0.3
-cases (benchmarks/fe_offaxis_mixing.py); the nu 0.45 cases were not used for it.
+cases (benchmarks/fe_offaxis_mixing.py); the nu 0.45 cases were not used for it. Soft lumps (:func:`soft_cases`:
+4x and 20x softer, top 1 or 5 mm down, nu 0.45 or 0.3; a cyst or a void-like pocket under a skin) are separate.
 """
 
 from __future__ import annotations
@@ -75,6 +76,13 @@ def offaxis_cases(quick: bool = False) -> list[OffAxisCase]:
                     out.append(OffAxisCase(contrast, top, near, nu))
         out += [OffAxisCase(20.0, top, -LUMP_LENGTH / 2, nu) for top in (0.001, 0.005)]
     return out
+
+
+def soft_cases() -> list[OffAxisCase]:
+    """Soft lumps (module docstring): 4x and 20x softer than the bulk, top 1 or 5 mm down, nu 0.45 or 0.3, near
+    face 0, 3 and 8 mm from the press axis or the press over the lump's middle."""
+    return [OffAxisCase(contrast, top, near, nu) for nu in (0.45, 0.3) for top in (0.001, 0.005)
+            for contrast in (0.25, 0.05) for near in (0.0, 0.003, 0.008, -LUMP_LENGTH / 2)]
 
 
 def _materials(case: OffAxisCase) -> tuple[Material, Material]:
