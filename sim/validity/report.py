@@ -6,15 +6,16 @@ from __future__ import annotations
 import math
 
 from palpate.sim.validity.cases import TIP_RADIUS
+from palpate.sim.validity.table import RungCost, ValidityRow, ValidityTable
 
 #: The claims checked against the table: (label, row filter, fidelities, bound).
 CLAIMS = (
-    ("thickness >= 2 contact radii, depth <= 0.4 R", lambda r: r["family"] == "thickness" and r["a_over_h"] <= 0.5
-     and r["depth"] <= 0.4 * TIP_RADIUS, ("analytic", "rigid"), 0.05),
-    ("a skin over a base", lambda r: r["family"] == "skin", ("analytic", "rigid"), 0.10),
-    ("an on-axis lump", lambda r: r["family"] == "lump", ("analytic", "rigid"), 0.10),
-    ("flex, thickness >= 20 mm, depth 0.5-3 mm", lambda r: r["family"] == "thickness" and r["thickness"] >= 0.02
-     and 4e-4 <= r["depth"] <= 3.1e-3, ("flex",), 0.10),
+    ("thickness >= 2 contact radii, depth <= 0.4 R", lambda r: r.family == "thickness" and r.a_over_h <= 0.5
+     and r.depth <= 0.4 * TIP_RADIUS, ("analytic", "rigid"), 0.05),
+    ("a skin over a base", lambda r: r.family == "skin", ("analytic", "rigid"), 0.10),
+    ("an on-axis lump", lambda r: r.family == "lump", ("analytic", "rigid"), 0.10),
+    ("flex, thickness >= 20 mm, depth 0.5-3 mm", lambda r: r.family == "thickness" and r.thickness >= 0.02
+     and 4e-4 <= r.depth <= 3.1e-3, ("flex",), 0.10),
 )
 
 
@@ -22,17 +23,17 @@ def _pct(v) -> str:
     return f"{'-':>7}" if v is None or not math.isfinite(v) else f"{100 * v:+7.1f}"
 
 
-def worst(rows: list[dict], rung: str) -> float:
+def worst(rows: list[ValidityRow], rung: str) -> float:
     """Largest |error| of ``rung`` over ``rows`` (inf if any is missing)."""
-    vals = [r["error"].get(rung) for r in rows]
+    vals = [r.error.get(rung) for r in rows]
     return max((abs(v) if v is not None else math.inf) for v in vals) if vals else math.nan
 
 
-def claims(table: dict) -> list[dict]:
+def claims(table: ValidityTable) -> list[dict]:
     """Each claim with the worst error of each of its fidelities over its rows, and whether it holds."""
     out = []
     for label, keep, rungs, bound in CLAIMS:
-        rows = [r for r in table["rows"] if keep(r)]
+        rows = [r for r in table.rows if keep(r)]
         for rung in rungs:
             w = worst(rows, rung)
             out.append({"claim": label, "fidelity": rung, "rows": len(rows), "worst": w, "bound": bound,
@@ -40,16 +41,16 @@ def claims(table: dict) -> list[dict]:
     return out
 
 
-def format_table(table: dict) -> str:
+def format_table(table: ValidityTable) -> str:
     """Text table: case, nu, thickness, depth, a/h, the family's feature, reference force and errors (%)."""
-    rungs = table["rungs"]
+    rungs = table.rungs
     head = (f"{'case':24} {'nu':>5} {'h mm':>5} {'d mm':>5} {'a/h':>5} {'feat':>6} {'F ref N':>9} "
             + " ".join(f"{r + ' %':>8}" for r in rungs))
     lines = ["validity: each fidelity's force against the FE reference (robot press, 10 mm/s, 8 mm tip)", head]
-    for r in table["rows"]:
-        lines.append(f"{r['case']:24} {r['poisson']:5.2f} {1e3 * r['thickness']:5.0f} {1e3 * r['depth']:5.1f} "
-                     f"{r['a_over_h']:5.2f} {r['feature']:6.2f} {r['reference_force']:9.4g} "
-                     + " ".join(f"{_pct(r['error'].get(k)):>8}" for k in rungs))
+    for r in table.rows:
+        lines.append(f"{r.case:24} {r.poisson:5.2f} {1e3 * r.thickness:5.0f} {1e3 * r.depth:5.1f} "
+                     f"{r.a_over_h:5.2f} {r.feature:6.2f} {r.reference_force:9.4g} "
+                     + " ".join(f"{_pct(r.error.get(k)):>8}" for k in rungs))
     lines.append("feat: thickness / a, skin / a, lump depth / a or edge distance / a, with a = sqrt(R d)")
     lines.append("")
     lines.append("claims (worst |error| over their rows):")
@@ -61,10 +62,10 @@ def format_table(table: dict) -> str:
     lines.append("")
     lines.append("cost (all cases of this run, one core):")
     for rung in rungs:
-        c = table["cost"].get(rung, {})
-        rt = c.get("realtime")
-        lines.append(f"  {rung:8} {c.get('wall_s', 0.0):8.1f} s wall for {c.get('sim_s', 0.0):7.1f} s simulated"
+        c = table.cost.get(rung, RungCost(wall_s=0.0, sim_s=0.0))
+        rt = c.realtime
+        lines.append(f"  {rung:8} {c.wall_s:8.1f} s wall for {c.sim_s:7.1f} s simulated"
                      + (f" ({rt:.2f}x real time)" if rt else ""))
-    for f in table.get("failures", []):
-        lines.append(f"  failed: {f['fidelity']} on {f['case']}: {f['error'][:120]}")
+    for f in table.failures:
+        lines.append(f"  failed: {f.fidelity} on {f.case}: {f.error[:120]}")
     return "\n".join(lines)
