@@ -265,7 +265,8 @@ class FingerPhysics:
                 rel.shape[:-1]) - cap_height(self.scene.fingertip, rel)
             r_eq = equivalent_radius(g_ref[:, None, None, None] - gap, self.radius)
             r_eq = np.where(world[..., 2] < 0.0, r_eq, np.inf)  # only the lower hemisphere can touch
-            b, c = law.basis_at(np.minimum(g_ref - s[idx], law.max_depth))
+            basis = law.basis_at(np.minimum(g_ref - s[idx], law.max_depth))
+            b, c = basis.radii, basis.coeffs
             p = np.zeros(r_eq.shape)
             for k in range(b.shape[1]):
                 p += c[:, k, None, None, None] * np.sqrt(np.maximum(b[:, k, None, None, None] ** 2 - r_eq**2, 0.0))
