@@ -88,8 +88,8 @@ def test_the_shipped_table_supports_the_issues_claims_for_the_closed_form_fideli
     table = load_table()
     assert {r.family for r in table.rows} == {"thickness", "skin", "lump", "edge"}
     for c in claims(table):
-        if c["fidelity"] in ("analytic", "rigid"):
-            assert c["holds"], c
+        if c.fidelity in ("analytic", "rigid"):
+            assert c.holds, c
 
 
 @pytest.mark.parametrize("edit, match", [

@@ -4,6 +4,7 @@ cost."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from palpate.sim.validity.cases import TIP_RADIUS
 from palpate.sim.validity.table import RungCost, ValidityRow, ValidityTable
@@ -29,15 +30,36 @@ def worst(rows: list[ValidityRow], rung: str) -> float:
     return max((abs(v) if v is not None else math.inf) for v in vals) if vals else math.nan
 
 
-def claims(table: ValidityTable) -> list[dict]:
+@dataclass(frozen=True)
+class Claim:
+    """A claim checked against the table for one fidelity.
+
+    Attributes:
+        claim: what is claimed (its label).
+        fidelity: the fidelity it is about.
+        rows: how many table rows it covers.
+        worst: largest |relative force error| over them (inf if one is missing, NaN if there are none).
+        bound: the largest error the claim allows.
+        holds: there are rows and the worst is within the bound.
+    """
+
+    claim: str
+    fidelity: str
+    rows: int
+    worst: float
+    bound: float
+    holds: bool
+
+
+def claims(table: ValidityTable) -> list[Claim]:
     """Each claim with the worst error of each of its fidelities over its rows, and whether it holds."""
     out = []
     for label, keep, rungs, bound in CLAIMS:
         rows = [r for r in table.rows if keep(r)]
         for rung in rungs:
             w = worst(rows, rung)
-            out.append({"claim": label, "fidelity": rung, "rows": len(rows), "worst": w, "bound": bound,
-                        "holds": bool(rows) and w <= bound})
+            out.append(Claim(claim=label, fidelity=rung, rows=len(rows), worst=w, bound=bound,
+                             holds=bool(rows) and w <= bound))
     return out
 
 
@@ -55,10 +77,9 @@ def format_table(table: ValidityTable) -> str:
     lines.append("")
     lines.append("claims (worst |error| over their rows):")
     for c in claims(table):
-        state = "holds" if c["holds"] else "FAILS"
-        w = "-" if not math.isfinite(c["worst"]) else f"{100 * c['worst']:.1f}%"
-        lines.append(f"  {c['fidelity']:8} {c['claim']:44} {w:>7} (bound {100 * c['bound']:.0f}%, "
-                     f"{c['rows']} rows): {state}")
+        state = "holds" if c.holds else "FAILS"
+        w = "-" if not math.isfinite(c.worst) else f"{100 * c.worst:.1f}%"
+        lines.append(f"  {c.fidelity:8} {c.claim:44} {w:>7} (bound {100 * c.bound:.0f}%, {c.rows} rows): {state}")
     lines.append("")
     lines.append("cost (all cases of this run, one core):")
     for rung in rungs:
