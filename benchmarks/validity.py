@@ -39,7 +39,7 @@ def main() -> None:
     reference = load_reference()
     print("FE reference mesh convergence (largest force change against refinement 2):")
     for r in convergence_rows(reference):
-        print(f"  {r['case']:22} refinement {r['refinement']:4.1f}  {r['dofs']:7d} dofs  {r['max_change_pct']:6.3f}%")
+        print(f"  {r.case:22} refinement {r.refinement:4.1f}  {r.dofs:7d} dofs  {r.max_change_pct:6.3f}%")
     cases = quick_cases() if args.quick else validity_cases()
 
     def progress(case, errs):

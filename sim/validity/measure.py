@@ -24,7 +24,7 @@ from palpate.sim.flex import run_flex_press
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, law_depth
 from palpate.sim.validity.cases import TIP_RADIUS, ValidityCase, case_object
-from palpate.sim.validity.reference import reference_force
+from palpate.sim.validity.reference import FEReference, reference_force
 from palpate.sim.validity.table import RUNGS, RungCost, RungFailure, ValidityRow, ValidityTable
 
 
@@ -56,7 +56,7 @@ def press_case(case: ValidityCase, fidelity: str, models: dict | None = None):
     return trace, time.perf_counter() - t0
 
 
-def measure_table(cases: list[ValidityCase], reference: dict, *, rungs=RUNGS, progress=None) -> ValidityTable:
+def measure_table(cases: list[ValidityCase], reference: FEReference, *, rungs=RUNGS, progress=None) -> ValidityTable:
     """The validity table (see the module docstring); failures are recorded, not raised."""
     rows, failures = [], []
     wall = dict.fromkeys(rungs, 0.0)
