@@ -166,7 +166,8 @@ def table_from_document(raw: dict, path: Path | str = "validity table") -> Valid
     if not isinstance(rows, list) or not rows:
         raise ValidationError(f"{path}: key 'rows' must be a non-empty list")
     rungs = raw.get("rungs", list(RUNGS))
-    if not isinstance(rungs, list) or not rungs or not set(rungs) <= set(RUNGS) or len(set(rungs)) != len(rungs):
+    if (not isinstance(rungs, list) or not rungs or not all(isinstance(r, str) for r in rungs)
+            or not set(rungs) <= set(RUNGS) or len(set(rungs)) != len(rungs)):
         raise ValidationError(f"{path}: key 'rungs' must list distinct fidelities of {RUNGS}")
     return ValidityTable(tip_radius=_number(path, "tip_radius", raw.get("tip_radius"), positive=True),
                          rungs=tuple(rungs), rows=tuple(_row(path, i, r) for i, r in enumerate(rows)),
