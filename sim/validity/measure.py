@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -23,6 +24,7 @@ from palpate.sim.controller import press_profile
 from palpate.sim.flex import run_flex_press
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, law_depth
+from palpate.sim.trace import PhysicsTrace
 from palpate.sim.validity.cases import TIP_RADIUS, ValidityCase, case_object
 from palpate.sim.validity.reference import FEReference, reference_force
 from palpate.sim.validity.table import RUNGS, RungCost, RungFailure, ValidityRow, ValidityTable
@@ -36,8 +38,16 @@ def loading_force(indentation: np.ndarray, force: np.ndarray, depths) -> np.ndar
     return np.interp(depths, d[keep], f[keep], left=np.nan, right=np.nan)
 
 
-def press_case(case: ValidityCase, fidelity: str, models: dict | None = None):
-    """Press a case once at ``fidelity``; returns (trace, wall time s)."""
+@dataclass(frozen=True)
+class CasePress:
+    """One press of a case: its physics trace and the wall time it took, s."""
+
+    trace: PhysicsTrace
+    wall_s: float
+
+
+def press_case(case: ValidityCase, fidelity: str, models: dict | None = None) -> CasePress:
+    """Press a case once at ``fidelity`` (``models``: built flex windows, reused across cases)."""
     obj = case_object(case)
     scene = Scene((obj,))
     deepest = min(max(case.depths) * 1.03, 0.99 * MAX_DEPTH_OVER_RADIUS * TIP_RADIUS)
@@ -53,7 +63,7 @@ def press_case(case: ValidityCase, fidelity: str, models: dict | None = None):
             trace = run_analytic_press(scene, obj, profile, law=law, rate=1000.0)
         else:
             trace = run_rigid_press(scene, obj, profile, law=law)
-    return trace, time.perf_counter() - t0
+    return CasePress(trace=trace, wall_s=time.perf_counter() - t0)
 
 
 def measure_table(cases: list[ValidityCase], reference: FEReference, *, rungs=RUNGS, progress=None) -> ValidityTable:
@@ -67,14 +77,14 @@ def measure_table(cases: list[ValidityCase], reference: FEReference, *, rungs=RU
         errs = {}
         for rung in rungs:
             try:
-                trace, seconds = press_case(case, rung, models)
+                run = press_case(case, rung, models)
             except PalpateError as exc:
                 failures.append(RungFailure(case=case.name, fidelity=rung, error=f"{type(exc).__name__}: {exc}"))
                 errs[rung] = np.full(len(case.depths), np.nan)
                 continue
-            wall[rung] += seconds
-            simulated[rung] += float(trace.t[-1] - trace.t[0])
-            errs[rung] = loading_force(trace.indentation, trace.force, case.depths) / ref - 1.0
+            wall[rung] += run.wall_s
+            simulated[rung] += float(run.trace.t[-1] - run.trace.t[0])
+            errs[rung] = loading_force(run.trace.indentation, run.trace.force, case.depths) / ref - 1.0
         for i, d in enumerate(case.depths):
             rows.append(ValidityRow(
                 case=case.name, family=case.family, poisson=case.sample.surface.poisson,
