@@ -77,16 +77,12 @@ def offaxis_cases(quick: bool = False) -> list[OffAxisCase]:
     return out
 
 
-def _materials(case: OffAxisCase) -> tuple[Material, Material]:
-    bulk = Material("bulk", BULK_E, case.poisson)
-    return bulk, Material("lump", BULK_E * case.contrast, case.poisson)
-
-
 def case_block(case: OffAxisCase | None, poisson: float = 0.3) -> BoxBlock:
     """The 3-D FE's block (``case`` None: without a lump, at ``poisson``)."""
     if case is None:
         return BoxBlock(Material("bulk", BULK_E, poisson), THICKNESS, HALF, HALF)
-    bulk, hard = _materials(case)
+    bulk = Material("bulk", BULK_E, case.poisson)
+    hard = Material("lump", BULK_E * case.contrast, case.poisson)
     return BoxBlock(bulk, THICKNESS, HALF, HALF,
                     BoxLump(hard, case.near, LUMP_LENGTH, LUMP_WIDTH, case.top, LUMP_HEIGHT))
 

@@ -4,19 +4,31 @@ cost."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from palpate.sim.validity.cases import TIP_RADIUS
 from palpate.sim.validity.table import RungCost, ValidityRow, ValidityTable
 
-#: The claims checked against the table: (label, row filter, fidelities, bound).
+
+@dataclass(frozen=True)
+class ClaimRule:
+    """A claim to check: its label, which rows it covers, the fidelities it is about and its error bound."""
+
+    label: str
+    covers: Callable[[ValidityRow], bool]
+    fidelities: tuple[str, ...]
+    bound: float
+
+
+#: The claims checked against the table.
 CLAIMS = (
-    ("thickness >= 2 contact radii, depth <= 0.4 R", lambda r: r.family == "thickness" and r.a_over_h <= 0.5
-     and r.depth <= 0.4 * TIP_RADIUS, ("analytic", "rigid"), 0.05),
-    ("a skin over a base", lambda r: r.family == "skin", ("analytic", "rigid"), 0.10),
-    ("an on-axis lump", lambda r: r.family == "lump", ("analytic", "rigid"), 0.10),
-    ("flex, thickness >= 20 mm, depth 0.5-3 mm", lambda r: r.family == "thickness" and r.thickness >= 0.02
-     and 4e-4 <= r.depth <= 3.1e-3, ("flex",), 0.10),
+    ClaimRule("thickness >= 2 contact radii, depth <= 0.4 R", lambda r: r.family == "thickness"
+              and r.a_over_h <= 0.5 and r.depth <= 0.4 * TIP_RADIUS, ("analytic", "rigid"), 0.05),
+    ClaimRule("a skin over a base", lambda r: r.family == "skin", ("analytic", "rigid"), 0.10),
+    ClaimRule("an on-axis lump", lambda r: r.family == "lump", ("analytic", "rigid"), 0.10),
+    ClaimRule("flex, thickness >= 20 mm, depth 0.5-3 mm", lambda r: r.family == "thickness" and r.thickness >= 0.02
+              and 4e-4 <= r.depth <= 3.1e-3, ("flex",), 0.10),
 )
 
 
@@ -54,12 +66,12 @@ class Claim:
 def claims(table: ValidityTable) -> list[Claim]:
     """Each claim with the worst error of each of its fidelities over its rows, and whether it holds."""
     out = []
-    for label, keep, rungs, bound in CLAIMS:
-        rows = [r for r in table.rows if keep(r)]
-        for rung in rungs:
+    for rule in CLAIMS:
+        rows = [r for r in table.rows if rule.covers(r)]
+        for rung in rule.fidelities:
             w = worst(rows, rung)
-            out.append(Claim(claim=label, fidelity=rung, rows=len(rows), worst=w, bound=bound,
-                             holds=bool(rows) and w <= bound))
+            out.append(Claim(claim=rule.label, fidelity=rung, rows=len(rows), worst=w, bound=rule.bound,
+                             holds=bool(rows) and w <= rule.bound))
     return out
 
 
