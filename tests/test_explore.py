@@ -435,6 +435,14 @@ def test_the_shipped_info_gain_scenario_maps_the_block_with_fewer_presses_than_c
     ceiling = obj["attainable_accuracy"]["ceiling"]
     assert ceiling >= 0.9
     assert obj["accuracy"]["all_cells_after_postprocessing"] >= 0.9 * ceiling
+    # the same accuracy split by whether a wall lies within a press's contact radius: the parts add up, the lump
+    # makes both kinds, and the cells clear of walls are the easier ones
+    walls = obj["accuracy"]["by_walls_after_postprocessing"]
+    clear, near = walls["clear"], walls["near"]
+    assert clear["cells"] + near["cells"] == nx * ny and clear["cells"] > 0 and near["cells"] > 0
+    assert (clear["accuracy"] * clear["cells"] + near["accuracy"] * near["cells"]) / (nx * ny) == pytest.approx(
+        obj["accuracy"]["all_cells_after_postprocessing"])
+    assert clear["accuracy"] >= near["accuracy"]
     # the lattice comes first: every third cell, centred (1-based cells in the summary)
     lattice = {(x + 1, y + 1) for x in range((nx - 1) % 3 // 2, nx, 3) for y in range((ny - 1) % 3 // 2, ny, 3)}
     assert {tuple(r["cell"]) for r in obj["per_press"][:len(lattice)]} == lattice

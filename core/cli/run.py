@@ -136,6 +136,12 @@ def format_report(summary: dict, out: Path) -> str:
             lines.append(f"    attainable accuracy (every column pressed once, same physics) "
                          f"{_pct(ceiling['ceiling'])}; presses to 95%: {ceiling['presses_to_level'] or 'not reached'}, "
                          f"to 95% of the attainable: {ceiling['presses_to_level_of_ceiling'] or 'not reached'}")
+        walls = acc.get("by_walls_after_postprocessing")
+        if walls:
+            clear, near = walls["clear"], walls["near"]
+            lines.append(f"    after post-processing: {_pct(clear['accuracy'])} of the {clear['cells']} cells with one "
+                         f"material within a press's contact radius, {_pct(near['accuracy'])} of the {near['cells']} "
+                         "with a wall within it")
         cal = obj.get("calibration")
         if cal:
             lines.append(f"    calibration error (ECE) of the post-processed map {cal['ece']:.3f} over {cal['cells']} "

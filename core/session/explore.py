@@ -26,7 +26,7 @@ from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scenario import ObjectEntry, Scenario
-from palpate.core.world.workspace import ground_truth_map, object_geometry
+from palpate.core.world.workspace import clear_of_walls, contact_radius, ground_truth_map, object_geometry
 
 
 @dataclass(frozen=True)
@@ -73,6 +73,8 @@ class ObjectResult:
         grid, post: the measured and the post-processed map.
         truth: the true reference-material index per cell (-1 = none).
         true_materials: the reference materials the object is made of.
+        clear_of_walls: 2-D maps, per cell: no second material within a press's contact radius at exploration
+            depth (:func:`~palpate.core.world.workspace.clear_of_walls`); None for voxel maps.
     """
 
     name: str
@@ -87,6 +89,7 @@ class ObjectResult:
     post: Grid2D | VoxelGrid
     truth: np.ndarray
     true_materials: tuple[str, ...]
+    clear_of_walls: np.ndarray | None = None
 
     @property
     def results(self) -> list[PressResult]:
@@ -287,4 +290,6 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
     return ObjectResult(
         name=entry.spec.name, geometry=geometry, policy=ex.policy, stop_reason=stop, steps=tuple(steps),
         regions=regions0, cycle_posteriors=tuple(cycles), snapshots=tuple(snapshots), grid=grid, post=post,
-        truth=truth, true_materials=tuple(sorted({scenario.materials[m.name].like for m in entry.spec.materials()})))
+        truth=truth, true_materials=tuple(sorted({scenario.materials[m.name].like for m in entry.spec.materials()})),
+        clear_of_walls=clear_of_walls(entry, scenario, geometry, contact_radius(scenario)))
+

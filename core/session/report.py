@@ -118,7 +118,8 @@ def object_summary(obj: ObjectResult) -> dict:
         "accuracy": {"explored_before_postprocessing": map_accuracy(obj.grid.probabilities, obj.truth,
                                                                     obj.grid.explored),
                      "all_cells_before_postprocessing": map_accuracy(obj.grid.probabilities, obj.truth),
-                     "all_cells_after_postprocessing": map_accuracy(obj.post.probabilities, obj.truth)},
+                     "all_cells_after_postprocessing": map_accuracy(obj.post.probabilities, obj.truth),
+                     "by_walls_after_postprocessing": accuracy_by_walls(obj)},
         "mean_entropy_after_each_press": [r["mean_entropy"] for r in rows],
         "mean_entropy_after_postprocessing": float(obj.post.mean_entropy()),
         "true_materials": list(obj.true_materials),
@@ -128,6 +129,19 @@ def object_summary(obj: ObjectResult) -> dict:
         "features": sorted({r["fit"]["features"] for r in rows if r["fit"] is not None}),
         "calibration": calibration_of(obj),
     }
+
+
+def accuracy_by_walls(obj: ObjectResult) -> dict | None:
+    """summary.json's split of the post-processed accuracy into the cells a press reads without feeling a second
+    material (``clear``) and the cells with a wall within its contact radius (``near``): a press there feels both
+    sides, so those cells bound what any policy can reach. None for voxel maps or without ground truth."""
+    mask = obj.clear_of_walls
+    truth = np.asarray(obj.truth)
+    if mask is None or not (truth >= 0).any():
+        return None
+    p = obj.post.probabilities
+    return {"clear": {"cells": int(np.count_nonzero(mask & (truth >= 0))), "accuracy": map_accuracy(p, truth, mask)},
+            "near": {"cells": int(np.count_nonzero(~mask & (truth >= 0))), "accuracy": map_accuracy(p, truth, ~mask)}}
 
 
 def versions() -> dict[str, str]:

@@ -72,3 +72,43 @@ def ground_truth_map(entry: ObjectEntry, scenario: Scenario, geometry: MapGeomet
     pts = np.concatenate([np.column_stack([flat, np.full(nx * ny, z)]) for z in zc])
     truth = ground_truth_cells(entry, scenario, pts[:, :2], pts[:, 2]).reshape(nz, ny, nx)
     return np.transpose(truth, (2, 1, 0))
+
+
+def contact_radius(scenario: Scenario) -> float:
+    """Contact radius of the fingertip pressed to the exploration depth, m: sqrt(R d), the sphere's (Hertz)
+    value on a thick block."""
+    return float(np.sqrt(scenario.fingertip.radius * scenario.exploration.depth))
+
+
+#: Rings and angles at which clear_of_walls samples the truth around a cell's centre (at a 6 mm radius the
+#: outer ring's points are 1.6 mm apart, finer than a sensel).
+_RING_FRACTIONS = np.array([0.25, 0.5, 0.75, 1.0])
+_RING_ANGLES = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+
+
+def clear_of_walls(entry: ObjectEntry, scenario: Scenario, geometry: MapGeometry, radius: float) -> np.ndarray | None:
+    """Which cells of a 2-D map a press can read without feeling a second material.
+
+    Args:
+        entry, scenario, geometry: the object, its scenario and its map.
+        radius: distance around each cell's centre that must hold one reference material, m (e.g. the contact
+            radius of a press at exploration depth).
+
+    Returns:
+        (ny, nx) booleans like :func:`ground_truth_map`: True where the truth is the same at every sampled point
+        within ``radius`` of the centre, at the depth the truth is taken; None for voxel maps. Points off the
+        object (truth -1) are not a second material: a free edge is the contact law's business, not a wall.
+    """
+    if geometry.voxel:
+        return None
+    if radius < 0 or not np.isfinite(radius):
+        raise ValueError(f"clear_of_walls: radius must be finite and >= 0, got {radius!r} m")
+    nx, ny = geometry.plane_shape
+    centres = geometry.cell_centres().reshape(-1, 2)
+    rings = radius * _RING_FRACTIONS[:, None]
+    offsets = np.column_stack([(rings * np.cos(_RING_ANGLES)).ravel(), (rings * np.sin(_RING_ANGLES)).ravel()])
+    points = (centres[:, None, :] + offsets[None, :, :]).reshape(-1, 2)
+    z = np.full(len(points), entry.spec.height - scenario.exploration.depth / 2)
+    around = ground_truth_cells(entry, scenario, points, z).reshape(len(centres), len(offsets))
+    centre = ground_truth_cells(entry, scenario, centres, z[: len(centres)])
+    return ((around == centre[:, None]) | (around < 0)).all(axis=1).reshape(ny, nx)
