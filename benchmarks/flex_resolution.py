@@ -4,7 +4,7 @@ Each row is one robot press-and-release (3.2 mm deep, 10 mm/s) at the centre of 
 to the table (200 kPa) under an 8 mm tip, on one core: cells (nx, ny, nz), degrees of freedom, wall time, the
 real-time factor (simulated seconds per wall second, measured in the same run), and the force against the
 reference (the layered contact law of the same block, which agrees with the FE reference within ~1%) at 0.5, 1, 2
-and 3 mm. The mesh correction was measured on a 60 mm block (tuning); the 10, 20 and 40 mm blocks report.
+and 3 mm. The mesh correction was measured on 3/7/14/30/70/150 mm blocks (tuning); the 10, 20 and 40 mm blocks report.
 
     .venv/bin/python benchmarks/flex_resolution.py             # default resolution and window, 3 thicknesses
     .venv/bin/python benchmarks/flex_resolution.py --full      # also other resolutions/windows (uncalibrated ones
@@ -53,12 +53,14 @@ def main() -> None:
     ap.add_argument("--calibrate", action="store_true", help=f"remeasure {CALIBRATION_PATH.name} first")
     args = ap.parse_args()
     if args.calibrate:
-        table = measure_calibration(DEFAULT_RESOLUTION, radius=RADIUS, window=DEFAULT_WINDOW, path=CALIBRATION_PATH)
+        table = measure_calibration(DEFAULT_RESOLUTION, radius=RADIUS, window=DEFAULT_WINDOW, path=CALIBRATION_PATH,
+                                    progress=lambda nu, h: print(f"  measured nu {nu} H {h * 1e3:g} mm", flush=True))
         print(f"wrote {CALIBRATION_PATH}")
         t = table["tables"][0]
-        print("a/cell " + " ".join(f"{v:6.2f}" for v in t["contact_over_cell"]))
-        for nu, row in zip(t["poisson"], t["factor"], strict=True):
-            print(f"nu {nu:4.2f} " + " ".join(f"{v:6.3f}" for v in row))
+        print("a/cell       " + " ".join(f"{v:5.2f}" for v in t["contact_over_cell"][::4]))
+        for nu, rows in zip(t["poisson"], t["factor"], strict=True):
+            for h, row in zip(t["thickness"], rows, strict=True):
+                print(f"nu {nu:4.2f} {h * 1e3:3.0f}mm " + " ".join(f"{v:5.3f}" for v in row[::4]))
     settings = [(DEFAULT_RESOLUTION, DEFAULT_WINDOW)]
     if args.full:
         settings += [(0.0075, 0.03), (0.005, 0.02), (0.005, 0.04), (0.0033, 0.03)]

@@ -4,10 +4,11 @@ What MuJoCo computes: the block's elastic deformation (per-cell stiffness with t
 and inclusions, see :mod:`palpate.sim.flex_model`), the tip's drive dynamics, the frictionless contact between the
 tip sphere and the block's surface vertices, and each contact's normal force. What palpate adds: the window of the
 object (bottom bonded to the table, cut sides pinned, free object edges free), the mesh correction (the coarse
-trilinear grid is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell,
-measured against the reference on a thick block, :mod:`palpate.sim.flex_calibration`, so finite thickness, layers
-and edges come from the block itself), and the taxels: each contact force stands for the surface patch of its
-vertex (side = vertex spacing) and is spread uniformly over it on the pad, which then averages over each sensel.
+trilinear grid is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell
+and the block's thickness, measured against the reference of homogeneous blocks, :mod:`palpate.sim.flex_calibration`,
+so finite thickness, layers and edges come from the block itself), and the taxels: each contact force stands for
+the surface patch of its vertex (side = vertex spacing) and is spread uniformly over it on the pad, which then
+averages over each sensel.
 
 The model is built once per window (a ``models`` dict the caller keeps, e.g. one per SimSource) and its state reset
 between presses. A cylinder is modelled by the square inscribed in it; meshes are not supported. Gravity is off so
@@ -174,7 +175,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     x, y = float(profile.x), float(profile.y)
     surface_z = float(profile.surface_z)
     grid = flex_grid(obj, x, y, res, window)
-    shallowest = (MIN_CONTACT_OVER_CELL * float(np.mean(grid.cell[:2]))) ** 2 / tip.radius
+    shallowest = (MIN_CONTACT_OVER_CELL * grid.finest) ** 2 / tip.radius
     if float(profile.meta.get("depth", np.inf)) < shallowest:
         raise ValidationError(
             f"flex resolves presses from {shallowest * 1e3:.2f} mm deep with {res * 1e3:g} mm cells (a contact "
@@ -185,7 +186,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     z0 = float(np.interp(times[0], t_prof, z_prof))
     model.body_pos[fm.tip_body] = [x, y, z0]
     mujoco.mj_forward(model, data)
-    cell = float(np.mean(grid.cell[:2]))
+    cell = grid.finest
     nu = _surface_poisson(obj, x, y)
     calibration = load_calibration() if calibrate else None
     qadr = model.jnt_qposadr[fm.tip_joint]
@@ -246,7 +247,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
                             "indentation", times[k], dt)
         if calibrate:
             factors[k], ext = mesh_factor(np.sqrt(tip.radius * max(ind_k, 0.0)) / cell, nu, cell / tip.radius,
-                                           calibration)
+                                           calibration, obj.height)
             extrapolated |= ext
         fn = fn / factors[k]
         force[k] = fn.sum()
@@ -274,7 +275,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         material=_material_under(obj, x, y),
         meta={
             "fidelity": "flex", "timestep": dt, "integrator": "discrete", "resolution": res,
-            "cell": [float(c) for c in grid.cell], "cells": list(grid.cells),
+            "cell": grid.finest, "cells": list(grid.cells),
             "window_lower": [float(v) for v in grid.lower], "window_size": [float(v) for v in grid.size],
             "pinned_sides": list(grid.pinned), "mesh_factor_range": [float(factors.min()), float(factors.max())],
             "calibration_extrapolated": bool(extrapolated), "young_range": fm.meta["young_range"],

@@ -11,16 +11,16 @@ import numpy as np
 from palpate.core.world.scene import Material
 from palpate.sim.contact.law import solve_contact_law
 from palpate.sim.flex import reference_press
-from palpate.sim.flex_calibration import CAL_HEIGHT, CAL_YOUNG, FORMAT_VERSION
+from palpate.sim.flex_calibration import CAL_HEIGHTS, CAL_YOUNG, FORMAT_VERSION
 from palpate.sim.flex_model import DEFAULT_WINDOW
 from palpate.sim.reference.sample import AxisymmetricSample
 
-#: Contact radius over cell edge at which the factor is tabulated (below the first the contact is one vertex).
-CONTACT_OVER_CELL = (0.25, 0.4, 0.55, 0.7, 0.85, 1.0, 1.2)
-#: The factor ripples by several % as the contact edge crosses surface vertices; a quadratic in a / cell fitted to
-#: the whole loading branch keeps the trend and leaves the ripple (the flex's own error) in place.
-FIT_ORDER = 2
+#: Contact radius over cell edge at which the factor is tabulated (below the first the contact is one vertex): dense,
+#: because the factor ripples as the contact's edge crosses the rings of surface vertices.
+CONTACT_OVER_CELL = tuple(round(v, 3) for v in np.arange(0.2, 1.301, 0.025))
 POISSONS = (0.0, 0.3, 0.45, 0.49)
+#: Deepest calibration press, as a fraction of the block's thickness (the validity table presses to 0.6).
+MAX_DEPTH_OVER_HEIGHT = 0.62
 
 
 def loading_ratio(indentation: np.ndarray, force: np.ndarray, reference, depths: np.ndarray) -> np.ndarray:
@@ -32,31 +32,44 @@ def loading_ratio(indentation: np.ndarray, force: np.ndarray, reference, depths:
 
 
 def measure_calibration(resolution: float, *, radius: float = 0.008, window: float = DEFAULT_WINDOW,
-                        poissons=POISSONS, path: Path | str | None = None) -> dict:
-    """Measure kappa on the calibration block for cells of ``resolution`` (m); write the file if ``path``."""
-    rows, cell = [], None
+                        poissons=POISSONS, heights=CAL_HEIGHTS, path: Path | str | None = None,
+                        progress=None) -> dict:
+    """Measure kappa on the calibration blocks for cells of ``resolution`` (m); write the file if ``path``.
+
+    Each (poisson, thickness) is one uncalibrated press, as deep as a / cell reaches the table's end or the
+    thickness allows; beyond the deepest measured a / cell the row repeats its last value (and a press there is
+    flagged extrapolated).
+    """
     ac = np.array(CONTACT_OVER_CELL)
+    factor, reach, cell = [], [], None
     for nu in poissons:
-        depth_max = min((ac[-1] * resolution * 1.05) ** 2 / radius, 0.7 * radius)
-        trace = reference_press(young=CAL_YOUNG, poisson=nu, height=CAL_HEIGHT, radius=radius, resolution=resolution,
-                                window=window, width=4.0 * window, depth=depth_max, calibrate=False)
-        cell = float(np.mean(trace.meta["cell"][:2]))
-        law = solve_contact_law(AxisymmetricSample(Material("m", CAL_YOUNG, nu), CAL_HEIGHT), radius,
-                                1.05 * depth_max)
-        dense = np.linspace(ac[0], ac[-1], 60)
-        ratio = loading_ratio(trace.indentation, trace.force, law, (dense * cell) ** 2 / radius)
-        fit = np.polynomial.Polynomial.fit(dense, ratio, FIT_ORDER)
-        rows.append([round(float(v), 4) for v in fit(ac)])
+        rows, ups = [], []
+        for h in heights:
+            depth_max = min((ac[-1] * resolution * 1.02) ** 2 / radius, 0.7 * radius, MAX_DEPTH_OVER_HEIGHT * h)
+            trace = reference_press(young=CAL_YOUNG, poisson=nu, height=h, radius=radius, resolution=resolution,
+                                    window=window, width=4.0 * window, depth=depth_max, calibrate=False)
+            cell = float(trace.meta["cell"])
+            law = solve_contact_law(AxisymmetricSample(Material("m", CAL_YOUNG, nu), h), radius, 1.05 * depth_max)
+            up = min(ac[-1], np.sqrt(radius * 0.98 * float(trace.indentation.max())) / cell)
+            inside = np.minimum(ac, up)
+            rows.append([round(float(v), 4) for v in loading_ratio(trace.indentation, trace.force, law,
+                                                                   (inside * cell) ** 2 / radius)])
+            ups.append(round(float(up), 4))
+            if progress is not None:
+                progress(nu, h)
+        factor.append(rows)
+        reach.append(ups)
     table = {
         "version": FORMAT_VERSION,
         "measured_with": {
-            "young": CAL_YOUNG, "height": CAL_HEIGHT, "radius": radius, "window": window,
+            "young": CAL_YOUNG, "heights": list(heights), "radius": radius, "window": window,
             "reference": "layered contact law of the same bonded block (palpate.sim.contact.law)",
             "how": "benchmarks/flex_resolution.py --calibrate (palpate.sim.flex_calibrate.measure_calibration)",
         },
         "tables": [{"cell_over_radius": round(cell / radius, 4), "cell": cell, "poisson": list(poissons),
-                    "contact_over_cell": list(CONTACT_OVER_CELL), "factor": rows}],
+                    "thickness": list(heights), "contact_over_cell": list(CONTACT_OVER_CELL), "measured_to": reach,
+                    "factor": factor}],
     }
     if path is not None:
-        Path(path).write_text(json.dumps(table, indent=1) + "\n")
+        Path(path).write_text(json.dumps(table) + "\n")
     return table

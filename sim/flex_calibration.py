@@ -1,13 +1,16 @@
 """The `flex` fidelity's mesh correction: how much stiffer the trilinear flex block is than the elastic continuum.
 
 A trilinear cell interpolates displacement over an edge comparable to the contact radius, so the block answers a
-press with more force than the continuum does, by a factor that depends mostly on the contact radius a over the
-cell edge (and a little on the Poisson ratio). The factor is measured once, on a thick block (CAL_HEIGHT deep,
-wider than the window, bonded to the table) against the reference for that same block (the layered contact law,
-which agrees with the FE reference within ~1%): kappa(a / cell, nu) = F_flex / F_reference. A press divides its
-contact forces by kappa at its current contact radius sqrt(R d). Because the calibration block is thick, the factor
-is the mesh's alone: a thinner block, a layer or an edge keeps the stiffening its own elasticity gives it (the
-previous calibration divided E by a constant fitted to Hertz on a 20 mm block, which cancelled that stiffening).
+press with more force than the continuum does (1.3-1.9x with 5 mm cells), by a factor that depends on the contact
+radius a over the cell edge, on the block's thickness (a thick block deforms over more coarse cells: at a = 1.1
+cells the factor is 1.44 on 20 mm and 1.70 on 100 mm, nu 0.3) and on the Poisson ratio. The factor ripples by
++-8% in a / cell as the contact's edge crosses the rings of surface vertices (a press stands on a node column), so
+it is tabulated densely in a / cell, not smoothed. It is measured on homogeneous blocks (CAL_HEIGHTS, none of the
+validity table's thicknesses, wider than the window, bonded to the table) against the reference for the same block
+(the layered contact law, which agrees with the FE reference within ~1%): kappa(a / cell, H, nu) = F_flex /
+F_reference. A press divides its contact forces by kappa at its current contact radius sqrt(R d) and its object's
+height. kappa is the mesh's alone (the reference of each block includes its own thickness), so a thinner block, a
+layer or an edge keeps the stiffening its own elasticity gives it.
 
 models/flex_calibration.json holds one table per cell size (cell / tip radius); ``benchmarks/flex_resolution.py
 --calibrate`` remeasures it (:func:`palpate.sim.flex_calibrate.measure_calibration`).
@@ -25,11 +28,12 @@ from palpate.core.world.resources import models_dir
 
 #: The shipped table.
 CALIBRATION_PATH = models_dir() / "flex_calibration.json"
-#: Thickness of the calibration block, m (a / thickness < 0.1 over the calibrated presses).
-CAL_HEIGHT = 0.06
+#: Thicknesses of the calibration blocks, m (chosen between the validity table's 2/5/10/20/50/100 mm, so that every
+#: row of the table reports on a thickness the correction was not measured on).
+CAL_HEIGHTS = (0.003, 0.007, 0.014, 0.03, 0.07, 0.15)
 #: Reference modulus of the calibration (the flex is E-invariant; this only fixes the units), Pa.
 CAL_YOUNG = 2.0e5
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 #: Largest calibration file accepted, bytes.
 MAX_BYTES = 1_000_000
 
@@ -48,8 +52,9 @@ def load_calibration(path: Path | str = CALIBRATION_PATH) -> dict:
     """Read and validate a calibration file.
 
     Returns:
-        {"tables": [{"cell_over_radius": float, "poisson": (p,), "contact_over_cell": (c,), "factor": (p, c)}],
-        "measured_with": dict}, tables sorted by cell_over_radius.
+        {"tables": [{"cell_over_radius": float, "poisson": (p,), "thickness": (h,) m, "contact_over_cell": (c,),
+        "measured_to": (p, h) largest a / cell measured, "factor": (p, h, c)}], "measured_with": dict}, tables
+        sorted by cell_over_radius.
 
     Raises:
         ValidationError: missing, too large, not JSON, wrong version or a bad key, naming the file and the key.
@@ -77,33 +82,43 @@ def load_calibration(path: Path | str = CALIBRATION_PATH) -> dict:
         key = f"tables[{i}]"
         c_r = float(_numbers(path, f"{key}.cell_over_radius", t.get("cell_over_radius"), 0))
         nu = _numbers(path, f"{key}.poisson", t.get("poisson"), 1)
+        hs = _numbers(path, f"{key}.thickness", t.get("thickness"), 1)
         ac = _numbers(path, f"{key}.contact_over_cell", t.get("contact_over_cell"), 1)
-        fac = _numbers(path, f"{key}.factor", t.get("factor"), 2)
-        if fac.shape != (len(nu), len(ac)):
-            raise ValidationError(f"{path}: {key}.factor must be {len(nu)} x {len(ac)} (poisson x contact_over_cell)")
-        if not (c_r > 0 and np.all(np.diff(nu) > 0) and np.all(np.diff(ac) > 0) and np.all(fac > 0)):
-            raise ValidationError(f"{path}: {key} needs cell_over_radius > 0, increasing poisson and "
+        fac = _numbers(path, f"{key}.factor", t.get("factor"), 3)
+        upto = _numbers(path, f"{key}.measured_to", t.get("measured_to"), 2)
+        if fac.shape != (len(nu), len(hs), len(ac)) or upto.shape != (len(nu), len(hs)):
+            raise ValidationError(f"{path}: {key}.factor must be {len(nu)} x {len(hs)} x {len(ac)} and "
+                                  f"{key}.measured_to {len(nu)} x {len(hs)} (poisson x thickness x contact_over_cell)")
+        if not (c_r > 0 and np.all(np.diff(nu) > 0) and np.all(np.diff(ac) > 0) and np.all(np.diff(hs) > 0)
+                and hs[0] > 0 and np.all(fac > 0)):
+            raise ValidationError(f"{path}: {key} needs cell_over_radius > 0, increasing poisson, thickness > 0 and "
                                   "contact_over_cell, and factors > 0")
-        out.append({"cell_over_radius": c_r, "poisson": nu, "contact_over_cell": ac, "factor": fac})
+        out.append({"cell_over_radius": c_r, "poisson": nu, "thickness": hs, "contact_over_cell": ac, "factor": fac,
+                    "measured_to": upto})
     out.sort(key=lambda t: t["cell_over_radius"])
     return {"tables": out, "measured_with": raw.get("measured_with", {})}
 
 
-def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: float,
-                calibration: dict) -> tuple[float, bool]:
-    """kappa at contact radius / cell ``contact_over_cell`` and ``poisson`` for cells of ``cell_over_radius``.
+def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: float, calibration: dict,
+                thickness: float) -> tuple[float, bool]:
+    """kappa at contact radius / cell ``contact_over_cell``, ``poisson`` and block ``thickness`` (m) for cells of
+    ``cell_over_radius``.
 
-    Uses the table of the nearest cell size, bilinear in (poisson, a / cell) and clamped at the table's ends.
+    Uses the table of the nearest cell size, linear in a / cell, log thickness and poisson, clamped at the table's
+    ends.
 
     Returns:
         (kappa, extrapolated): extrapolated is True if the cell size is over 5% from the table's, or the point
-        lies outside the table.
+        lies outside what was measured.
     """
     tables = calibration["tables"]
     t = min(tables, key=lambda tb: abs(np.log(tb["cell_over_radius"] / cell_over_radius)))
-    nu, ac, fac = t["poisson"], t["contact_over_cell"], t["factor"]
-    per_nu = np.array([np.interp(contact_over_cell, ac, row) for row in fac])
+    nu, hs, ac, fac = t["poisson"], t["thickness"], t["contact_over_cell"], t["factor"]
+    lh = np.log(hs)
+    per = np.array([[np.interp(contact_over_cell, ac, row) for row in rows] for rows in fac])  # (p, h)
+    per_nu = np.array([np.interp(np.log(thickness), lh, row) for row in per])
     kappa = float(np.interp(poisson, nu, per_nu))
+    reach = float(np.interp(poisson, nu, [np.interp(np.log(thickness), lh, row) for row in t["measured_to"]]))
     outside = (abs(t["cell_over_radius"] / cell_over_radius - 1.0) > 0.05 or not nu[0] <= poisson <= nu[-1]
-               or contact_over_cell > ac[-1] * 1.05)
+               or not hs[0] * 0.95 <= thickness <= hs[-1] * 1.05 or contact_over_cell > reach * 1.05)
     return kappa, bool(outside)

@@ -26,8 +26,10 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, Scene, material_index_at
 
-#: Default cell edge of the elastic grid, m.
+#: Default cell edge of the elastic grid (under the press, if graded), m.
 DEFAULT_RESOLUTION = 0.005
+#: Ratio of neighbouring cell edges beyond the fine region of a graded grid (flex_grid(core=...)).
+GROWTH = 1.5
 #: Default lateral size of the simulated window around the press point, m.
 DEFAULT_WINDOW = 0.03
 #: Longest physics step, s (the default is the shorter of this and a twelfth of the press phase).
@@ -49,31 +51,55 @@ NAME = "obj"
 
 @dataclass(frozen=True)
 class FlexGrid:
-    """The simulated window of the object.
+    """The simulated window of the object: a tensor grid of nodes, fine at the press point and coarser away.
 
     Attributes:
-        lower: (x, y, z) lower corner, m, world frame.
-        size: (sx, sy, sz) extents, m.
-        cells: (nx, ny, nz) trilinear cells per axis.
+        x, y, z: node coordinates along each axis, m, world frame, increasing (z from the table, 0, to the top).
         pinned: which side faces are pinned, order (x-, x+, y-, y+) (the bottom is always pinned).
     """
 
-    lower: np.ndarray
-    size: np.ndarray
-    cells: tuple[int, int, int]
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
     pinned: tuple[bool, bool, bool, bool]
 
     @property
-    def cell(self) -> np.ndarray:
-        """Cell edge lengths (hx, hy, hz), m."""
-        return self.size / np.asarray(self.cells)
+    def lower(self) -> np.ndarray:
+        """(x, y, z) lower corner, m."""
+        return np.array([self.x[0], self.y[0], self.z[0]])
+
+    @property
+    def size(self) -> np.ndarray:
+        """(sx, sy, sz) extents, m."""
+        return np.array([self.x[-1] - self.x[0], self.y[-1] - self.y[0], self.z[-1] - self.z[0]])
+
+    @property
+    def cells(self) -> tuple[int, int, int]:
+        """(nx, ny, nz) trilinear cells per axis."""
+        return (len(self.x) - 1, len(self.y) - 1, len(self.z) - 1)
+
+    @property
+    def finest(self) -> float:
+        """The smallest lateral cell edge (the cells under the press), m."""
+        return float(min(np.diff(self.x).min(), np.diff(self.y).min()))
+
+    def _per_cell(self, values) -> np.ndarray:
+        """(n, 3) of per-axis cell values in MuJoCo's cell order (z fastest, then y, then x)."""
+        i, j, k = np.meshgrid(*values, indexing="ij")
+        return np.stack([i.ravel(), j.ravel(), k.ravel()], axis=1)
+
+    def cell_edges(self) -> np.ndarray:
+        """(n, 3) cell edge lengths (hx, hy, hz) in MuJoCo's cell order, m."""
+        return self._per_cell([np.diff(self.x), np.diff(self.y), np.diff(self.z)])
 
     def cell_centres(self) -> np.ndarray:
-        """(n, 3) cell centres in MuJoCo's cell order (z fastest, then y, then x), m."""
-        nx, ny, nz = self.cells
-        i, j, k = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
-        idx = np.stack([i.ravel(), j.ravel(), k.ravel()], axis=1) + 0.5
-        return self.lower + idx * self.cell
+        """(n, 3) cell centres in MuJoCo's cell order, m."""
+        mid = [(a[1:] + a[:-1]) / 2.0 for a in (self.x, self.y, self.z)]
+        return self._per_cell(mid)
+
+    def nodes(self) -> np.ndarray:
+        """(N, 3) node positions in MuJoCo's node order (k fastest, i slowest), m."""
+        return self._per_cell([self.x, self.y, self.z])
 
     def pinned_nodes(self) -> np.ndarray:
         """Indices of the pinned grid nodes (MuJoCo's node order: k fastest, i slowest)."""
@@ -87,17 +113,51 @@ class FlexGrid:
 
     def key(self) -> tuple:
         """A hashable identity (for model caches)."""
-        return (tuple(np.round(self.lower, 9)), tuple(np.round(self.size, 9)), self.cells, self.pinned)
+        return tuple(tuple(np.round(a, 9)) for a in (self.x, self.y, self.z)) + (self.pinned,)
+
+
+def graded_nodes(lo: float, hi: float, focus: float, fine: float, core: float, growth: float) -> np.ndarray:
+    """Node coordinates on [lo, hi] (m): steps of ``fine`` within ``core`` of ``focus`` (a node), then steps growing
+    by ``growth`` each to the ends (the last ones stretched or shrunk so the ends are nodes). ``focus`` may be an
+    end (a one-sided grading, e.g. down from the top)."""
+    out = [np.array([focus])]
+    for side, length in ((-1.0, focus - lo), (1.0, hi - focus)):
+        if length <= 1e-12:
+            continue
+        steps = []
+        n_core = int(max(1, round(min(core, length) / fine)))
+        steps = [min(core, length) / n_core] * n_core
+        rest = length - sum(steps)
+        if rest > 1e-12:
+            grown, h = [], steps[-1]
+            while sum(grown) < rest:
+                h *= growth
+                grown.append(h)
+            if len(grown) > 1 and sum(grown) - rest > 0.5 * grown[-1]:
+                grown.pop()  # the last step would be mostly overshoot: stretch the others instead
+            steps += list(np.asarray(grown) * rest / sum(grown))
+        out.append(focus + side * np.cumsum(steps))
+    nodes = np.sort(np.concatenate(out))
+    nodes[0], nodes[-1] = lo, hi
+    return nodes
 
 
 def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_RESOLUTION,
-              window: float = DEFAULT_WINDOW) -> FlexGrid:
-    """Window of ``obj`` around the press point (x, y) (m, snapped to SNAP), meshed with cells of about
-    ``resolution`` m (an even count across, so a node column stands under a press at its centre)."""
-    if not (np.isfinite(resolution) and resolution > 0):
-        raise ValidationError(f"flex: resolution must be a cell size > 0 m, got {resolution!r}")
-    if not (np.isfinite(window) and window > 0):
-        raise ValidationError(f"flex: window must be > 0 m, got {window!r}")
+              window: float = DEFAULT_WINDOW, core: float | None = None, growth: float = GROWTH) -> FlexGrid:
+    """Window of ``obj`` around the press point (x, y) (m, snapped to SNAP), meshed with cells of ``resolution`` m
+    within ``core`` m of the press (laterally and down from the top) growing by ``growth`` per cell beyond (a node
+    column stands under the press). ``core`` None (the default): a uniform grid.
+
+    A graded grid resolves the contact better for its node count, but the discrete integrator solves M + K
+    iteratively each step and its cost grows with the node count and the grading's ill-conditioning: 1.5 mm cells
+    graded to the 30 mm window (14 x 14 x 10 cells) run several times slower than the uniform 5 mm default
+    (benchmarks/flex_resolution.py --graded)."""
+    core = max(window, obj.height, resolution) if core is None else core
+    for name, v in (("resolution", resolution), ("window", window), ("core", core)):
+        if not (np.isfinite(v) and v > 0):
+            raise ValidationError(f"flex: {name} must be a length > 0 m, got {v!r}")
+    if not (np.isfinite(growth) and growth >= 1.0):
+        raise ValidationError(f"flex: growth must be a cell-to-cell ratio >= 1, got {growth!r}")
     cx, cy = obj.position
     if obj.shape == "box":
         half = np.array(obj.size[:2], dtype=float) / 2.0
@@ -114,15 +174,17 @@ def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_R
     snapped = np.round(np.array([x, y], dtype=float) / SNAP) * SNAP
     centre = np.clip(snapped, lo_obj + w, hi_obj - w)
     lo, hi = centre - w, centre + w
+    focus = np.clip(snapped, lo, hi)
     eps = 1e-9
     pinned = (
         bool(lo[0] > lo_obj[0] + eps or not edges_free), bool(hi[0] < hi_obj[0] - eps or not edges_free),
         bool(lo[1] > lo_obj[1] + eps or not edges_free), bool(hi[1] < hi_obj[1] - eps or not edges_free),
     )
-    size = np.array([hi[0] - lo[0], hi[1] - lo[1], obj.height])
-    nx, ny = (int(2 * max(1, round(s / (2.0 * resolution)))) for s in size[:2])
-    nz = int(max(MIN_LAYERS, round(size[2] / resolution)))
-    return FlexGrid(lower=np.array([lo[0], lo[1], 0.0]), size=size, cells=(nx, ny, nz), pinned=pinned)
+    xs, ys = (graded_nodes(lo[a], hi[a], focus[a], resolution, core, growth) for a in range(2))
+    zs = graded_nodes(0.0, obj.height, obj.height, resolution, core, growth)
+    if len(zs) - 1 < MIN_LAYERS:
+        zs = np.linspace(0.0, obj.height, MIN_LAYERS + 1)
+    return FlexGrid(x=xs, y=ys, z=zs, pinned=pinned)
 
 
 #: Sub-points per cell edge at which the material is sampled (a cell holding two materials gets their mix).
@@ -141,8 +203,8 @@ def cell_moduli(obj: ObjectSpec, grid: FlexGrid) -> tuple[np.ndarray, np.ndarray
     young = np.array([m.young for m in mats])
     poisson = np.array([m.poisson for m in mats])
     frac = (np.arange(SUBCELL) + 0.5) / SUBCELL - 0.5
-    sub = np.stack(np.meshgrid(frac, frac, frac, indexing="ij"), axis=-1).reshape(-1, 3) * grid.cell
-    pts = grid.cell_centres()[:, None, :] + sub[None, :, :]
+    sub = np.stack(np.meshgrid(frac, frac, frac, indexing="ij"), axis=-1).reshape(-1, 3)
+    pts = grid.cell_centres()[:, None, :] + sub[None, :, :] * grid.cell_edges()[:, None, :]
     idx = material_index_at(obj, pts.reshape(-1, 3), names).reshape(len(pts), -1)
     centre = material_index_at(obj, grid.cell_centres(), names)
     idx = np.where(idx >= 0, idx, np.maximum(centre, 0)[:, None])
@@ -156,43 +218,56 @@ def _lame(young, poisson):
     return young * poisson / ((1 + poisson) * (1 - 2 * poisson)), young / (2 * (1 + poisson))
 
 
-def _strains(cell: np.ndarray, s: float, t: float, u: float) -> np.ndarray:
-    """Strain tensors (24, 3, 3) of each unit nodal dof of a trilinear cell at local point (s, t, u) in [0, 1]^3."""
-    out = np.zeros((24, 3, 3))
+def _strain_parts(s: float, t: float, u: float) -> np.ndarray:
+    """Strain tensors (3, 24, 3, 3) of each unit nodal dof of a unit trilinear cell at local point (s, t, u) in
+    [0, 1]^3, split by the axis of the shape-function derivative: a cell of edges h has strain sum_i part_i / h_i."""
+    out = np.zeros((3, 24, 3, 3))
     node = 0
     for bx in range(2):
         for by in range(2):
             for bz in range(2):
                 px, py, pz = (1 - s, s)[bx], (1 - t, t)[by], (1 - u, u)[bz]
                 dx, dy, dz = (-1.0, 1.0)[bx], (-1.0, 1.0)[by], (-1.0, 1.0)[bz]
-                grad = np.array([dx * py * pz / cell[0], px * dy * pz / cell[1], px * py * dz / cell[2]])
-                for axis in range(3):
-                    du = np.zeros((3, 3))
-                    du[axis] = grad
-                    out[3 * node + axis] = 0.5 * (du + du.T)
+                grad = (dx * py * pz, px * dy * pz, px * py * dz)
+                for i in range(3):
+                    for axis in range(3):
+                        du = np.zeros((3, 3))
+                        du[axis, i] = grad[i]
+                        out[i, 3 * node + axis] = 0.5 * (du + du.T)
                 node += 1
     return out
 
 
-def cell_bases(cell: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Stiffness of one cell of edges ``cell`` (m) per unit Lame parameter, in MuJoCo's layout and sign (-K):
-    (volumetric at 2x2x2 points, volumetric at the centre, deviatoric 2 e:e at 2x2x2 points), each (24, 24)."""
+def _unit_parts() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(3, 3, 24, 24) stiffness parts of a unit cell per unit Lame parameter, each to be weighted by
+    vol / (h_i h_j): volumetric at 2x2x2 points, volumetric at the centre, deviatoric 2 e:e at 2x2x2 points."""
     xg, wg = np.polynomial.legendre.leggauss(2)
     xg, wg = (xg + 1.0) / 2.0, wg / 2.0
-    vol = float(np.prod(cell))
-    lam_full = np.zeros((24, 24))
-    dev = np.zeros((24, 24))
+    lam_full = np.zeros((3, 3, 24, 24))
+    dev = np.zeros((3, 3, 24, 24))
     for a in range(2):
         for b in range(2):
             for c in range(2):
-                eps = _strains(cell, xg[a], xg[b], xg[c])
-                w = wg[a] * wg[b] * wg[c] * vol
-                tr = np.einsum("aii->a", eps)
-                lam_full -= np.outer(tr, tr) * w
-                dev -= 2.0 * np.einsum("aij,bij->ab", eps, eps) * w
-    tr0 = np.einsum("aii->a", _strains(cell, 0.5, 0.5, 0.5))
-    lam_centre = -np.outer(tr0, tr0) * vol
-    return lam_full, lam_centre, dev
+                eps = _strain_parts(xg[a], xg[b], xg[c])
+                w = wg[a] * wg[b] * wg[c]
+                tr = np.einsum("iaxx->ia", eps)
+                lam_full += w * np.einsum("ia,jb->ijab", tr, tr)
+                dev += 2.0 * w * np.einsum("iaxy,jbxy->ijab", eps, eps)
+    tr0 = np.einsum("iaxx->ia", _strain_parts(0.5, 0.5, 0.5))
+    return lam_full, np.einsum("ia,jb->ijab", tr0, tr0), dev
+
+
+_UNIT_PARTS = _unit_parts()
+
+
+def cell_bases(cell: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stiffness of cells of edges ``cell`` (m; (3,) or (n, 3)) per unit Lame parameter, in MuJoCo's layout and
+    sign (-K): (volumetric at 2x2x2 points, volumetric at the centre, deviatoric 2 e:e at 2x2x2 points), each
+    (24, 24) or (n, 24, 24)."""
+    h = np.asarray(cell, dtype=float)
+    inv = 1.0 / h
+    weight = -np.prod(h, axis=-1)[..., None, None] * inv[..., :, None] * inv[..., None, :]
+    return tuple(np.einsum("...ij,ijab->...ab", weight, part) for part in _UNIT_PARTS)
 
 
 @dataclass
@@ -218,10 +293,11 @@ class FlexModel:
 
 
 def flexcomp_xml(grid: FlexGrid, *, verts_per_cell: int, mass: float, damping: float, timestep: float) -> str:
-    """MJCF of the flex window alone (the tip is added with MjSpec), with the bottom and cut sides pinned."""
+    """MJCF of the flex window alone (the tip is added with MjSpec), with the bottom and cut sides pinned, on a
+    uniform grid of the window's cell counts (:func:`place_nodes` moves its nodes to the graded grid)."""
     count = " ".join(str(c * verts_per_cell + 1) for c in grid.cells)
     cells = " ".join(str(c) for c in grid.cells)
-    spacing = " ".join(repr(float(h) / verts_per_cell) for h in grid.cell)
+    spacing = " ".join(repr(float(h) / verts_per_cell) for h in _uniform_cell(grid))
     centre = " ".join(repr(float(c)) for c in grid.lower + grid.size / 2.0)
     pins = " ".join(str(int(i)) for i in grid.pinned_nodes())
     solref = " ".join(repr(float(v)) for v in CONTACT_SOLREF)
@@ -234,6 +310,41 @@ def flexcomp_xml(grid: FlexGrid, *, verts_per_cell: int, mass: float, damping: f
         f'<contact condim="1" selfcollide="none" solref="{solref}"/><pin id="{pins}"/></flexcomp>'
         f"</body></worldbody></mujoco>"
     )
+
+
+def _uniform_cell(grid: FlexGrid) -> np.ndarray:
+    """Cell edges (3,) of the uniform grid with the window's size and cell counts, m."""
+    return grid.size / np.asarray(grid.cells)
+
+
+def place_nodes(model, flex_id: int, grid: FlexGrid, density: float) -> None:
+    """Move the compiled (uniform) flex's nodes to ``grid``'s graded positions, in place.
+
+    MuJoCo interpolates the collision vertices from the nodes by fixed cell-local coordinates, and the elastic
+    force is the per-cell blocks times the nodes' displacements, so moving the nodes' reference positions (free
+    nodes: their bodies; pinned nodes: their offsets in the flex's body) and giving each cell its own block
+    (:func:`build_flex_model`) is the graded mesh. Each free node gets the mass of an eighth of each cell it
+    touches (``density`` kg/m^3), as a lumped-mass element has.
+    """
+    nodes = grid.nodes()
+    adr, num = int(model.flex_nodeadr[flex_id]), int(model.flex_nodenum[flex_id])
+    if num != len(nodes):
+        raise ValidationError(f"flex: the compiled window has {num} nodes, the grid {len(nodes)}")
+    body = model.flex_nodebodyid[adr:adr + num]
+    owner = int(model.body_parentid[body[body != body.min()][0]]) if np.any(body != body.min()) else int(body[0])
+    origin = model.body_pos[owner].copy()
+    pinned = body == owner
+    model.flex_node[adr:adr + num][pinned] = nodes[pinned] - origin
+    model.body_pos[body[~pinned]] = nodes[~pinned] - origin
+    model.flex_node0[adr:adr + num] = nodes
+    nx, ny, nz = grid.cells
+    vol = np.prod(grid.cell_edges(), axis=1).reshape(nx, ny, nz) / 8.0
+    share = np.zeros((nx + 1, ny + 1, nz + 1))
+    for di in (0, 1):
+        for dj in (0, 1):
+            for dk in (0, 1):
+                share[di:di + nx, dj:dj + ny, dk:dk + nz] += vol
+    model.body_mass[body[~pinned]] = density * share.ravel()[~pinned]
 
 
 def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, *, timestep: float,
@@ -278,16 +389,18 @@ def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, *, timestep:
         raise ValidationError("flex: this MuJoCo build stores the trilinear cell stiffness differently; "
                               "use fidelity 'rigid' or 'analytic'")
     blocks = stiff.reshape(ncell, 24, 24)
-    lam_full, lam_centre, dev = cell_bases(grid.cell)
+    lam_full, _, dev = cell_bases(_uniform_cell(grid))
     lam1, mu1 = _lame(1.0, 0.3)
     if not np.allclose(blocks[0], lam1 * lam_full + mu1 * dev, rtol=1e-6, atol=1e-9 * np.abs(dev).max()):
         raise ValidationError("flex: this MuJoCo build's trilinear cell stiffness is not the element palpate "
                               "expects; use fidelity 'rigid' or 'analytic'")
+    place_nodes(model, fid, grid, mass / float(np.prod(grid.size)))
+    _, lam_centre, dev = cell_bases(grid.cell_edges())
     lam, mu = _lame(young_cell, poisson_cell)
     blocks[:] = lam[:, None, None] * lam_centre + mu[:, None, None] * dev
     return FlexModel(
         model=model, grid=grid, tip_joint=model.joint("tip_z").id, tip_body=model.body("tip").id,
         tip_geom=model.geom("tip").id, cell_material=[names[i] for i in idx], young_max=float(young_max),
-        kp=float(kp), vertex_spacing=float(np.min(grid.cell[:2]) / verts_per_cell),
+        kp=float(kp), vertex_spacing=grid.finest / verts_per_cell,
         meta={"young_range": [float(young_cell.min()), young_max], "mass_scale": float(scale)},
     )

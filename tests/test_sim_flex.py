@@ -80,26 +80,38 @@ def test_each_contact_force_covers_its_vertex_patch_and_is_conserved():
 def test_shipped_calibration_is_valid_and_interpolates():
     cal = load_calibration()
     t = cal["tables"][0]
-    assert np.all(t["factor"] > 1.0)  # the trilinear grid is stiffer than the continuum at every point
-    c_r = t["cell_over_radius"]
-    k, extra = mesh_factor(t["contact_over_cell"][2], t["poisson"][1], c_r, cal)
-    assert k == pytest.approx(t["factor"][1, 2]) and not extra
-    mid = 0.5 * (t["contact_over_cell"][2] + t["contact_over_cell"][3])
-    k_mid, _ = mesh_factor(mid, t["poisson"][1], c_r, cal)
-    assert min(t["factor"][1, 2:4]) <= k_mid <= max(t["factor"][1, 2:4])
-    assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal)[1]  # another cell size: flagged
+    c_r, ac, hs = t["cell_over_radius"], t["contact_over_cell"], t["thickness"]
+    # the trilinear grid is stiffer than the continuum wherever a press is allowed (a >= 0.25 cells) on a block
+    # thicker than the validity table's thinnest layers
+    usable = ac >= 0.25
+    assert np.all(t["factor"][:, 2:, usable] > 1.0)
+    k, extra = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3])
+    assert k == pytest.approx(t["factor"][1, 3, 8]) and not extra
+    mid = 0.5 * (ac[8] + ac[9])
+    k_mid, _ = mesh_factor(mid, t["poisson"][1], c_r, cal, hs[3])
+    assert min(t["factor"][1, 3, 8:10]) <= k_mid <= max(t["factor"][1, 3, 8:10])
+    # between two calibrated thicknesses: between their factors (linear in log thickness)
+    k_h, _ = mesh_factor(ac[8], t["poisson"][1], c_r, cal, float(np.sqrt(hs[3] * hs[4])))
+    assert k_h == pytest.approx(0.5 * (t["factor"][1, 3, 8] + t["factor"][1, 4, 8]))
+    assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal, hs[3])[1]  # another cell size: flagged
+    assert mesh_factor(0.5, 0.3, c_r, cal, 2.0 * hs[-1])[1]  # thicker than measured: flagged
+    assert mesh_factor(1.2, 0.3, c_r, cal, hs[0])[1]  # deeper than the thin block was pressed: flagged
+
+
+_TABLE = {"cell_over_radius": 0.6, "poisson": [0.3], "thickness": [0.02], "contact_over_cell": [0.5],
+          "measured_to": [[0.5]]}
 
 
 @pytest.mark.parametrize(
     "content, match",
     [
         ("{not json", "not valid JSON"),
-        (json.dumps({"version": 1, "points": []}), "version"),
-        (json.dumps({"version": 2, "tables": []}), "tables"),
-        (json.dumps({"version": 2, "tables": [{"cell_over_radius": 0.6, "poisson": [0.3], "contact_over_cell": [0.5],
-                                               "factor": [[1.5, 2.0]]}]}), r"tables\[0\].factor must be 1 x 1"),
-        (json.dumps({"version": 2, "tables": [{"cell_over_radius": 0.6, "poisson": [0.3], "contact_over_cell": [0.5],
-                                               "factor": [[-1.0]]}]}), "factors > 0"),
+        (json.dumps({"version": 2, "points": []}), "version"),
+        (json.dumps({"version": 3, "tables": []}), "tables"),
+        (json.dumps({"version": 3, "tables": [{**_TABLE, "factor": [[[1.5, 2.0]]]}]}),
+         r"tables\[0\].factor must be 1 x 1 x 1"),
+        (json.dumps({"version": 3, "tables": [{**_TABLE, "factor": [[1.5]]}]}), r"tables\[0\].factor must be a .*3-D"),
+        (json.dumps({"version": 3, "tables": [{**_TABLE, "factor": [[[-1.0]]]}]}), "factors > 0"),
     ],
 )
 def test_bad_calibration_files_name_the_problem(tmp_path, content, match):
@@ -136,7 +148,7 @@ def test_layer_cells_get_their_own_lame_stiffness_and_pins_hold_the_bottom():
     fm = flex_model.build_flex_model(Scene((obj,)), obj, g, timestep=0.005)
     ncell = int(np.prod(g.cells))
     stiff = fm.model.flex_stiffness[:ncell * 576].reshape(ncell, 24, 24)
-    _, lam_centre, dev = flex_model.cell_bases(g.cell)
+    _, lam_centre, dev = flex_model.cell_bases(g.cell_edges()[0])
     mats = {"soft": soft, "hard": hard}
     for c, name in enumerate(fm.cell_material):
         lam, mu = flex_model._lame(mats[name].young, mats[name].poisson)
@@ -145,6 +157,48 @@ def test_layer_cells_get_their_own_lame_stiffness_and_pins_hold_the_bottom():
     # pinned nodes carry no joint: the free nodes' 3 dofs and the tip's one are all there is
     free = (g.cells[0] + 1) * (g.cells[1] + 1) * (g.cells[2] + 1) - len(g.pinned_nodes())
     assert fm.model.nv == 3 * free + 1
+
+
+def test_graded_grid_is_fine_at_the_press_and_mujoco_uses_its_cells():
+    """MuJoCo's elastic force on a graded window equals -K u of the graded cells assembled here (so moving the
+    compiled flex's nodes and replacing its blocks is the graded mesh), and its collision vertices follow."""
+    import mujoco
+
+    obj = ObjectSpec("b", "box", (0.1, 0.1, 0.02), (0, 0), Material("m", 2e5, 0.3))
+    g = flex_model.flex_grid(obj, 0.0021, 0.0, resolution=0.002, window=0.03, core=0.004, growth=1.6)
+    dx = np.diff(g.x)
+    assert g.finest == pytest.approx(0.002) and dx.max() > 2.5 * dx.min()
+    assert 0.002 in np.round(g.x, 9) and g.z[-1] == pytest.approx(0.02)  # a node column under the (snapped) press
+    np.testing.assert_allclose(np.diff(g.z)[-2:], 0.002)  # fine cells under the top
+    fm = flex_model.build_flex_model(Scene((obj,)), obj, g, timestep=0.005)
+    m, d = fm.model, mujoco.MjData(fm.model)
+    nodes = g.nodes()
+    body = m.flex_nodebodyid
+    free = np.nonzero(body != body.min())[0]
+    rng = np.random.default_rng(1)
+    u = np.zeros_like(nodes)
+    u[free] = rng.normal(size=(len(free), 3)) * 1e-7
+    for n in free:
+        d.qpos[m.jnt_qposadr[m.body_jntadr[body[n]]]:][:3] = u[n]
+    mujoco.mj_forward(m, d)
+    K = np.zeros((nodes.size, nodes.size))
+    _, lam_centre, dev = flex_model.cell_bases(g.cell_edges())
+    lam, mu = flex_model._lame(2e5, 0.3)
+    nx, ny, nz = g.cells
+    c = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                corner = [((i + a) * (ny + 1) + j + b) * (nz + 1) + k + e
+                          for a in (0, 1) for b in (0, 1) for e in (0, 1)]
+                dofs = (3 * np.array(corner)[:, None] + np.arange(3)).ravel()
+                K[np.ix_(dofs, dofs)] -= lam * lam_centre[c] + mu * dev[c]
+                c += 1
+    f = -(K @ u.ravel()).reshape(-1, 3)
+    got = np.array([d.qfrc_passive[m.jnt_dofadr[m.body_jntadr[body[n]]]:][:3] for n in free])
+    np.testing.assert_allclose(got, f[free], atol=1e-3 * np.abs(f).max())
+    top = d.flexvert_xpos[np.isclose(d.flexvert_xpos[:, 2], 0.02, atol=1e-5)]
+    assert np.min(np.abs(top[:, 0] - 0.002 - 0.001)) < 1e-5  # vertex midway in a fine cell: 1 mm spacing there
 
 
 def test_a_skin_thinner_than_a_cell_mixes_into_it_in_series():

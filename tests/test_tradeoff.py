@@ -69,3 +69,16 @@ def test_report_json_and_table(tmp_path):
     assert "cheapest within 5% of the reference: analytic 50Hz" in table
     TR.pareto_plot(report, tmp_path / "p.png")
     assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_one_law_cache_serves_blocks_that_share_a_name_and_place_but_not_a_modulus():
+    """The bench presses blocks of three moduli under one name and place with one law cache: the edge of its block
+    is within reach, so the law is cached by place, and a block ten times stiffer must still push ten times harder
+    (same geometry and Poisson ratio: force is proportional to E)."""
+    laws: dict = {}
+    forces = [T.bench_law(young, name, laws).force_at(np.array([0.001, 0.003])) for name, young in T.BENCH_MATERIALS]
+    for (_, y0), (_, y1), f0, f1 in zip(T.BENCH_MATERIALS, T.BENCH_MATERIALS[1:], forces, forces[1:]):
+        np.testing.assert_allclose(f1 / f0, y1 / y0, rtol=1e-6)
+    again = T.bench_law(T.BENCH_MATERIALS[0][1], T.BENCH_MATERIALS[0][0], laws)
+    assert again is T.bench_law(T.BENCH_MATERIALS[0][1], T.BENCH_MATERIALS[0][0], laws)  # still a cache hit
+    np.testing.assert_allclose(again.force_at(np.array([0.001, 0.003])), forces[0])

@@ -7,8 +7,13 @@ import numpy as np
 import pytest
 
 from palpate.core.world.scenario_file import load_scenario
-from palpate.core.world.workspace import (clear_of_walls, contact_radius, ground_truth_cells, ground_truth_map,
-                                          object_geometry)
+from palpate.core.world.workspace import (
+    clear_of_walls,
+    contact_radius,
+    ground_truth_cells,
+    ground_truth_map,
+    object_geometry,
+)
 
 
 @pytest.fixture()

@@ -10,6 +10,7 @@ averaged around the press axis and solved axisymmetrically (:mod:`.axisymmetric`
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -123,8 +124,35 @@ def column_stack(lookup, thickness: float, breaks: list[float], base: str = "bon
     return AxisymmetricSample(bulk=mats[-1], thickness=thickness, layers=layers, base=base)
 
 
-def varies_laterally(lookup, thickness: float, breaks: list[float], contact_radius: float) -> bool:
-    """True if some depth is not one material across the disc of radius REACH_A a + depth (edges count)."""
+@dataclass(frozen=True)
+class ReachProbe:
+    """The material sampled where a press reaches (what :func:`varies_laterally` decides on).
+
+    Attributes:
+        young, poisson: E (Pa) and nu at each probe point: rings of 16 points out to REACH_A a + depth, at the
+            middle of each depth slice.
+        inside: whether each probe point is inside the object (off it counts as a change: an edge).
+        axis_young, axis_poisson: E and nu on the press axis at each probe point's depth.
+    """
+
+    young: np.ndarray
+    poisson: np.ndarray
+    inside: np.ndarray
+    axis_young: np.ndarray
+    axis_poisson: np.ndarray
+
+    def varies(self) -> bool:
+        """True if some probe point is off the object or not the axis' material at its depth."""
+        same = self.inside & (self.young == self.axis_young) & (self.poisson == self.axis_poisson)
+        return not bool(np.all(same))
+
+    def fingerprint(self) -> bytes:
+        """The sampled field as bytes: two press points whose surroundings sample alike share a cached law."""
+        return b"".join(np.ascontiguousarray(a).tobytes() for a in (self.young, self.poisson, self.inside))
+
+
+def reach_probe(lookup, thickness: float, breaks: list[float], contact_radius: float) -> ReachProbe:
+    """Sample ``lookup`` over the disc of radius REACH_A a + depth around the press axis, at every depth slice."""
     step = max(contact_radius / 2.0, thickness / 40.0)
     edges = _depth_edges(thickness, breaks, step)
     mid = 0.5 * (edges[1:] + edges[:-1])
@@ -135,8 +163,13 @@ def varies_laterally(lookup, thickness: float, breaks: list[float], contact_radi
     offsets = (radius[:, None, None] * unit[None]).reshape(-1, 2)
     young, poisson, inside = lookup(offsets, np.repeat(mid, len(unit)))
     axis_e, axis_nu, _ = lookup(np.zeros((len(mid), 2)), mid)
-    same = inside & (young == np.repeat(axis_e, len(unit))) & (poisson == np.repeat(axis_nu, len(unit)))
-    return not bool(np.all(same))
+    return ReachProbe(np.asarray(young, float), np.asarray(poisson, float), np.asarray(inside, bool),
+                      np.repeat(axis_e, len(unit)), np.repeat(axis_nu, len(unit)))
+
+
+def varies_laterally(lookup, thickness: float, breaks: list[float], contact_radius: float) -> bool:
+    """True if some depth is not one material across the disc of radius REACH_A a + depth (edges count)."""
+    return reach_probe(lookup, thickness, breaks, contact_radius).varies()
 
 
 def point_law(lookup, thickness: float, breaks: list[float], tip_radius: float, max_depth: float, *,
@@ -150,12 +183,15 @@ def point_law(lookup, thickness: float, breaks: list[float], tip_radius: float, 
     the axisymmetric solve, e.g. a servo emulator answering in real time).
     """
     a_deep = 1.2 * math.sqrt(tip_radius * max_depth)
-    lateral = lateral and varies_laterally(lookup, thickness, breaks, a_deep)
+    probe = reach_probe(lookup, thickness, breaks, a_deep) if lateral else None
+    lateral = probe is not None and probe.varies()
     if not lateral:
         stack = column_stack(lookup, thickness, breaks, base)
         key = ("layered", tip_radius, _signature(stack))
     else:
-        key = ("axisymmetric", tip_radius, place) if place is not None else None
+        # the place names the point; the probe tells objects apart that share a name and place but not materials
+        # (a bench pressing blocks of several moduli, a calibration trying moduli)
+        key = ("axisymmetric", tip_radius, place, probe.fingerprint()) if place is not None else None
     if cache is not None and key is not None:
         hit = cache.get(key)
         if hit is not None and hit.max_depth >= max_depth:

@@ -27,8 +27,8 @@ CLAIMS = (
               and r.a_over_h <= 0.5 and r.depth <= 0.4 * TIP_RADIUS, ("analytic", "rigid"), 0.05),
     ClaimRule("a skin over a base", lambda r: r.family == "skin", ("analytic", "rigid"), 0.10),
     ClaimRule("an on-axis lump", lambda r: r.family == "lump", ("analytic", "rigid"), 0.10),
-    ClaimRule("flex, thickness >= 20 mm, depth 0.5-3 mm", lambda r: r.family == "thickness" and r.thickness >= 0.02
-              and 4e-4 <= r.depth <= 3.1e-3, ("flex",), 0.10),
+    ClaimRule("flex, thickness >= 10 mm, depth 0.5-4 mm", lambda r: r.family == "thickness" and r.thickness >= 0.01
+              and 4e-4 <= r.depth <= 4.1e-3, ("flex",), 0.10),
 )
 
 
