@@ -17,9 +17,10 @@ import json
 import time
 
 from palpate.sim.validity.cases import quick_cases, validity_cases
-from palpate.sim.validity.measure import TABLE_PATH, measure_table
+from palpate.sim.validity.measure import measure_table
 from palpate.sim.validity.reference import REFERENCE_PATH, compute_reference, convergence_rows, load_reference
 from palpate.sim.validity.report import format_table
+from palpate.sim.validity.table import TABLE_PATH
 
 
 def main() -> None:
@@ -38,7 +39,7 @@ def main() -> None:
     reference = load_reference()
     print("FE reference mesh convergence (largest force change against refinement 2):")
     for r in convergence_rows(reference):
-        print(f"  {r['case']:22} refinement {r['refinement']:4.1f}  {r['dofs']:7d} dofs  {r['max_change_pct']:6.3f}%")
+        print(f"  {r.case:22} refinement {r.refinement:4.1f}  {r.dofs:7d} dofs  {r.max_change_pct:6.3f}%")
     cases = quick_cases() if args.quick else validity_cases()
 
     def progress(case, errs):
@@ -47,7 +48,7 @@ def main() -> None:
     table = measure_table(cases, reference, progress=progress)
     print(format_table(table))
     if not args.quick:
-        TABLE_PATH.write_text(json.dumps(table, indent=1, allow_nan=False) + "\n")
+        TABLE_PATH.write_text(json.dumps(table.to_dict(), indent=1, allow_nan=False) + "\n")
         print(f"wrote {TABLE_PATH}")
 
 

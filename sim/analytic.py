@@ -138,7 +138,8 @@ def law_sensel_pressure(law: ContactLaw, depth: np.ndarray, bounds: np.ndarray, 
     """Mean pressure (Pa) of ``law``'s contact over each sensel at indentations ``depth`` (m), (n, rows, cols):
     the sum of the law's Hertz profiles, each integrated by :func:`hertz_sensel_pressure`."""
     d = np.maximum(np.atleast_1d(np.asarray(depth, dtype=float)), 0.0)
-    radii, coeffs = law.basis_at(d)
+    basis = law.basis_at(d)
+    radii, coeffs = basis.radii, basis.coeffs
     radius = law.tip_radius
     out = np.zeros((len(d),) + bounds.shape[:2])
     for k in range(radii.shape[1]):

@@ -43,6 +43,7 @@ def run_bench(args: argparse.Namespace) -> int:
     from palpate.sim import tradeoff, tradeoff_report
     from palpate.sim.validity import cases, measure, reference
     from palpate.sim.validity import report as validity_report
+    from palpate.sim.validity import table as validity_table
 
     try:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -75,15 +76,15 @@ def run_bench(args: argparse.Namespace) -> int:
     chosen = cases.quick_cases() if args.quick else cases.validity_cases()
     validity = measure.measure_table(chosen, reference.load_reference(), progress=case_done)
     validity_text = validity_report.format_table(validity)
-    doc["validity"] = validity
+    doc["validity"] = validity.to_dict()
     try:
         (args.out / "tradeoff.txt").write_text(table + "\n")
         (args.out / "tradeoff.json").write_text(json.dumps(doc, indent=1, allow_nan=False))
         (args.out / "validity.txt").write_text(validity_text + "\n")
-        (args.out / "validity.json").write_text(json.dumps(validity, indent=1, allow_nan=False))
+        (args.out / "validity.json").write_text(json.dumps(doc["validity"], indent=1, allow_nan=False))
         tradeoff_report.pareto_plot(report, args.out / "pareto.png")
         if args.write_table and not args.quick:
-            measure.TABLE_PATH.write_text(json.dumps(validity, indent=1, allow_nan=False) + "\n")
+            validity_table.TABLE_PATH.write_text(json.dumps(doc["validity"], indent=1, allow_nan=False) + "\n")
     except OSError as exc:
         raise RecordingError(f"bench: cannot write into {args.out}: {exc}") from exc
     print(json.dumps(doc, indent=1) if args.json else table + "\n\n" + validity_text)

@@ -41,9 +41,10 @@ from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import GroundTruth, TaxelFrame
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import local_material
+from palpate.sim.contact.law import ContactLaw
 from palpate.sim.contact.stack import object_law
 from palpate.sim.fingertip import cap_height, sensel_quadrature, sensel_sites
-from palpate.sim.rigid import contact_geometry, equivalent_radius, footprint_rings, law_pressure
+from palpate.sim.rigid import Footprint, contact_geometry, equivalent_radius, footprint_rings, law_pressure
 from palpate.sim.scene import add_object, surface_heights
 from palpate.sim.sensors import ground_truth, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS
@@ -99,6 +100,24 @@ class FingerContact:
     sensel_pressure: np.ndarray | None = None
 
 
+@dataclass(frozen=True)
+class _Under:
+    """What the tip meets above one point: its footprint there, the point's contact law and the object."""
+
+    footprint: Footprint
+    law: ContactLaw
+    obj: ObjectSpec
+
+
+@dataclass(frozen=True)
+class _Load:
+    """The surface's push on the tip sphere: normal force N, indentation m, and what it pressed (None: nothing)."""
+
+    force: float
+    depth: float
+    under: _Under | None
+
+
 class FingerPhysics:
     """The MuJoCo finger over a scene's objects, with the local-Hertz contact of the ``rigid`` fidelity.
 
@@ -152,7 +171,7 @@ class FingerPhysics:
             [qpts, -np.sqrt(np.maximum(self.radius**2 - np.sum(qpts**2, -1), 0.0))[..., None]], axis=-1)
         self._retable = float(retable)
         self.max_states = int(max_states)
-        self._tables: dict[tuple, tuple] = {}
+        self._tables: dict[tuple, _Under] = {}
         self._lock = threading.RLock()
         self._t: list[float] = []
         self._angles: list[np.ndarray] = []
@@ -180,10 +199,9 @@ class FingerPhysics:
                 return obj
         return None
 
-    def _footprint(self, x: float, y: float) -> tuple | None:
-        """For a sphere centre above (x, y): (equivalent radii of the footprint cells (m), their areas (m^2), the
-        first-contact height g_ref (m), the point's contact law, object), or None when no object is under it.
-        Cached per ``retable`` cell (laws of laterally uniform points are shared by their stack)."""
+    def _footprint(self, x: float, y: float) -> _Under | None:
+        """What a sphere centred above (x, y) meets, or None when no object is under it. Cached per ``retable``
+        cell (laws of laterally uniform points are shared by their stack)."""
         obj = self._object_under(x, y)
         if obj is None:
             return None
@@ -192,32 +210,31 @@ class FingerPhysics:
         if table is not None:
             return table
         foot = contact_geometry(obj, np.array([x, y]), self.scene.fingertip, cells=self._cells)
-        r_cells, areas, g_ref = foot.radius, foot.area, foot.first_contact
         # the column's layers on the table (finite thickness, skins): the emulator answers in real time and cannot
         # wait for the axisymmetric solve of an inclusion or an edge within reach
-        law = object_law(obj, x, y, g_ref, self.radius, MAX_DEPTH_OVER_RADIUS * self.radius, cache=self._laws,
-                         lateral=False)
+        law = object_law(obj, x, y, foot.first_contact, self.radius, MAX_DEPTH_OVER_RADIUS * self.radius,
+                         cache=self._laws, lateral=False)
         if len(self._tables) > 4096:  # a long session sweeping a curved top must not grow without bound
             self._tables.clear()
-        table = self._tables[key] = (r_cells, areas, g_ref, law, obj)
+        table = self._tables[key] = _Under(footprint=foot, law=law, obj=obj)
         return table
 
-    def _force(self, centre: np.ndarray, quick: bool = False) -> tuple[float, float, tuple | None]:
-        """(normal force N, indentation m, footprint table) for a sphere centred at ``centre``; ``quick`` skips
-        sampling the footprint above a flat top (the emulator asks at every packet, in real time)."""
+    def _force(self, centre: np.ndarray, quick: bool = False) -> _Load:
+        """The surface's push on a sphere centred at ``centre``; ``quick`` skips sampling the footprint above a
+        flat top (the emulator asks at every packet, in real time)."""
         if quick:
             obj = self._object_under(float(centre[0]), float(centre[1]))
             if obj is None or (obj.shape != "mesh" and float(centre[2]) - self.radius >= obj.height):
-                return 0.0, 0.0, None
-        table = self._footprint(float(centre[0]), float(centre[1]))
-        if table is None:
-            return 0.0, 0.0, None
-        r_cells, areas, g_ref, law, _ = table
+                return _Load(0.0, 0.0, None)
+        under = self._footprint(float(centre[0]), float(centre[1]))
+        if under is None:
+            return _Load(0.0, 0.0, None)
+        foot = under.footprint
         s = float(centre[2]) - self.radius  # height of the sphere's lowest point
-        if s >= g_ref:
-            return 0.0, 0.0, table
-        depth = g_ref - s
-        return float(law_pressure(law, np.array([depth]), r_cells)[0] @ areas), depth, table
+        if s >= foot.first_contact:
+            return _Load(0.0, 0.0, under)
+        depth = foot.first_contact - s
+        return _Load(float(law_pressure(under.law, np.array([depth]), foot.radius)[0] @ foot.area), depth, under)
 
     def _joint_torque(self, centre: np.ndarray, force_z: float) -> np.ndarray:
         # MuJoCo's Jacobian of the contact point (the sphere's lowest point), after _place
@@ -237,27 +254,27 @@ class FingerPhysics:
             centre = self.data.xpos[self._tip_body].copy()
             rot = self.data.xmat[self._tip_body].reshape(3, 3).copy()
             quat = self.data.xquat[self._tip_body].copy()
-            force_z, depth, table = self._force(centre)
-            torque = self._joint_torque(centre, force_z) if force_z > 0 else np.zeros(len(q))
+            load = self._force(centre)
+            torque = self._joint_torque(centre, load.force) if load.force > 0 else np.zeros(len(q))
         pressure = None
         if sensels:
-            pressure = self._sensel_pressure(centre[None], rot[None], [table])[0]
+            pressure = self._sensel_pressure(centre[None], rot[None], [load.under])[0]
         tip = centre + rot @ np.array([0.0, 0.0, -self.radius])
-        return FingerContact(tip, centre, quat, np.array([0.0, 0.0, force_z]), depth, torque, pressure)
+        return FingerContact(tip, centre, quat, np.array([0.0, 0.0, load.force]), load.depth, torque, pressure)
 
-    def _sensel_pressure(self, centres: np.ndarray, rots: np.ndarray, tables: list) -> np.ndarray:
+    def _sensel_pressure(self, centres: np.ndarray, rots: np.ndarray, tables: list[_Under | None]) -> np.ndarray:
         """Mean pressure over each sensel, Pa, (n, rows, cols), for n fingertip placements; vectorised over the
         placements that share a contact law (the emulator's thread must not wait on a Python loop)."""
         out = np.zeros((len(centres),) + self._shape)
         s = centres[:, 2] - self.radius
-        touching = [i for i, tb in enumerate(tables) if tb is not None and s[i] < tb[2]]
+        touching = [i for i, tb in enumerate(tables) if tb is not None and s[i] < tb.footprint.first_contact]
         groups: dict[int, list[int]] = {}
         for i in touching:
-            groups.setdefault(id(tables[i][3]), []).append(i)
+            groups.setdefault(id(tables[i].law), []).append(i)
         for members in groups.values():
             idx = np.array(members)
-            law, obj = tables[idx[0]][3], tables[idx[0]][4]
-            g_ref = np.array([tables[i][2] for i in idx])
+            law, obj = tables[idx[0]].law, tables[idx[0]].obj
+            g_ref = np.array([tables[i].footprint.first_contact for i in idx])
             # the pad's quadrature points, carried by the tilted fingertip, sample the surface under it
             world = np.einsum("rckj,nij->nrcki", self._qpts_tip, rots[idx])
             rel = world[..., :2]
@@ -265,7 +282,8 @@ class FingerPhysics:
                 rel.shape[:-1]) - cap_height(self.scene.fingertip, rel)
             r_eq = equivalent_radius(g_ref[:, None, None, None] - gap, self.radius)
             r_eq = np.where(world[..., 2] < 0.0, r_eq, np.inf)  # only the lower hemisphere can touch
-            b, c = law.basis_at(np.minimum(g_ref - s[idx], law.max_depth))
+            basis = law.basis_at(np.minimum(g_ref - s[idx], law.max_depth))
+            b, c = basis.radii, basis.coeffs
             p = np.zeros(r_eq.shape)
             for k in range(b.shape[1]):
                 p += c[:, k, None, None, None] * np.sqrt(np.maximum(b[:, k, None, None, None] ** 2 - r_eq**2, 0.0))
@@ -282,7 +300,7 @@ class FingerPhysics:
                 return self._last_load[1]  # servos at rest are asked again at every packet
             self._place(self._dirs * angles + self._offs)
             centre = self.data.xpos[self._tip_body].copy()
-            force_z, _, _ = self._force(centre, quick=True)
+            force_z = self._force(centre, quick=True).force
             torque = self._joint_torque(centre, force_z) if force_z > 0 else np.zeros(len(angles))
             # a servo mounted mirrored feels the joint torque with the opposite sign
             out = self._dirs * torque
@@ -330,14 +348,16 @@ class FingerPhysics:
                 centre[i] = self.data.xpos[self._tip_body]
                 rot[i] = self.data.xmat[self._tip_body].reshape(3, 3)
                 quat[i] = self.data.xquat[self._tip_body]
-                force[i], depth[i], table = self._force(centre[i])
-                tables.append(table)
+                load = self._force(centre[i])
+                force[i], depth[i] = load.force, load.depth
+                tables.append(load.under)
         pressure = self._sensel_pressure(centre, rot, tables)
         first = tables[0]
+        surface_z = first.footprint.first_contact if first is not None else 0.0
         trace = PhysicsTrace(
             t=t[keep], tip_position=centre, tip_quaternion=quat, sensel_pressure=pressure, force=force,
-            indentation=depth, surface_z=first[2] if first is not None else 0.0,
-            material=local_material(first[4], float(centre[0, 0]), float(centre[0, 1]), first[2]).name
+            indentation=depth, surface_z=surface_z,
+            material=local_material(first.obj, float(centre[0, 0]), float(centre[0, 1]), surface_z).name
             if first is not None else None,
             meta={"fidelity": "finger-rigid", "finger": self.finger.name})
         trace.check_finite()

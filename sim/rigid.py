@@ -96,11 +96,11 @@ def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray) -> np.nda
     which only a runaway reaches (and the run then stops with its error)."""
     d = np.maximum(np.asarray(depth, dtype=float), 0.0)
     over = d > law.max_depth
-    b, c = law.basis_at(np.minimum(d, law.max_depth))
+    basis = law.basis_at(np.minimum(d, law.max_depth))
     scale = np.ones_like(d)
     if over.any():
         scale[over] = np.sqrt(d[over] / law.max_depth)
-        b[over] *= scale[over, None]
+    b, c = basis.radii * scale[:, None], basis.coeffs
     shape = (len(d),) + (1,) * r_eq.ndim
     rr = r_eq[None, ..., None] ** 2
     p = np.sum(c.reshape(shape + (-1,)) * np.sqrt(np.maximum(b.reshape(shape + (-1,)) ** 2 - rr, 0.0)), axis=-1)

@@ -31,8 +31,8 @@ from palpate.sim.rigid import rigid_depth_for_force, run_rigid_press
 from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, law_depth
-from palpate.sim.validity.choice import choose, situation
-from palpate.sim.validity.measure import load_table
+from palpate.sim.validity.choice import Choice, choose, situation
+from palpate.sim.validity.table import ValidityTable, load_table
 
 FIDELITIES = ("auto", "analytic", "rigid", "flex")
 #: Default tolerance of ``auto``: the largest predicted force error against the reference, fraction.
@@ -40,9 +40,10 @@ DEFAULT_TOLERANCE = 0.05
 
 
 def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, *, tolerance: float = DEFAULT_TOLERANCE,
-                     table: dict | None = None, depth: float | None = None, surface_z: float | None = None
-                     ) -> tuple[str, str]:
-    """The cheapest fidelity within ``tolerance`` for pressing ``obj`` at ``target``, and a one-line reason.
+                     table: ValidityTable | None = None, depth: float | None = None, surface_z: float | None = None
+                     ) -> Choice:
+    """The cheapest fidelity within ``tolerance`` for pressing ``obj`` at ``target``, a one-line reason and the
+    predicted errors.
 
     Args:
         depth: the press's depth, m (default the target's, or 0.25 tip radii for a force-only target).
@@ -57,7 +58,7 @@ def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, *, tol
 
 def choose_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, **kwargs) -> str:
     """The fidelity :func:`explain_fidelity` picks."""
-    return explain_fidelity(obj, target, radius, **kwargs)[0]
+    return explain_fidelity(obj, target, radius, **kwargs).fidelity
 
 
 class SimSource:
@@ -121,16 +122,16 @@ class SimSource:
             self._meshes[obj.name] = load_mesh(obj)
         return self._meshes[obj.name]
 
-    def explain(self, target: PressTarget) -> tuple[str, str]:
+    def explain(self, target: PressTarget) -> Choice:
         """The fidelity a press at ``target`` would use, and why (for ``auto``: the rule that chose it)."""
         obj = self.scene.object_under(target.x, target.y)
         if obj is None:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
         if self.fidelity != "auto":
-            return self.fidelity, f"{obj.name}: fidelity {self.fidelity!r} set by the scenario"
+            return Choice(self.fidelity, f"{obj.name}: fidelity {self.fidelity!r} set by the scenario")
         return self._auto(obj, target)
 
-    def _auto(self, obj: ObjectSpec, target: PressTarget) -> tuple[str, str]:
+    def _auto(self, obj: ObjectSpec, target: PressTarget) -> Choice:
         """``auto``'s decision for a press at ``target`` (a force target's depth from the contact law)."""
         if self._table is None:
             self._table = load_table()
@@ -151,7 +152,8 @@ class SimSource:
         if obj is None:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
         tip = self.scene.fingertip
-        fidelity, reason = self.explain(target)
+        choice = self.explain(target)
+        fidelity = choice.fidelity
         mesh = self._mesh(obj)
         surface_z, normal = surface_at(obj, target.x, target.y, mesh)
         # a fourth child for the realism keeps the first three (press, taxels, pose) as they always were
@@ -237,7 +239,7 @@ class SimSource:
         frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel), response=response)
         poses = sample_poses(trace, pose_spec, np.random.default_rng(s_pose), latency=latency)
         meta = {
-            "source": "sim", "fidelity": fidelity, "fidelity_reason": reason, "object": obj.name,
+            "source": "sim", "fidelity": fidelity, "fidelity_reason": choice.reason, "object": obj.name,
             "material": trace.material,
             "seed": self.seed, "press_index": self._presses - 1,
             "target": {"x": target.x, "y": target.y, "depth": target.depth, "force": target.force,

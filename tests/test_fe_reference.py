@@ -119,10 +119,10 @@ def test_every_validity_case_is_in_the_cached_reference_at_its_depths_and_conver
     ref = load_reference()
     for case in validity_cases():
         assert len(reference_force(ref, case)) == len(case.depths)
-    levels = ref["convergence"]
-    assert len(levels) >= 3
-    for name, c in levels.items():
-        forces = np.array([lev["force"] for lev in c["levels"]])
+    studies = ref.convergence
+    assert len(studies) >= 3
+    for name, levels in studies.items():
+        forces = np.array([lev.force for lev in levels])
         # refinement 1 (the shipped tables) within 1% of refinement 2 (a sphere inclusion is staircased on the
         # tensor mesh: its last ~1%; a homogeneous block is within 0.2%), and converging
         change = np.abs(forces[:2] / forces[2] - 1.0).max(axis=1)
@@ -138,6 +138,8 @@ def test_every_validity_case_is_in_the_cached_reference_at_its_depths_and_conver
          "finite"),
         (lambda d: d["cases"].update(bad={"depth": [0.002, 0.001], "force": [1, 2], "contact_radius": [1, 2]}),
          "increasing"),
+        (lambda d: d["convergence"]["lump_hard_1mm"]["levels"][0].update(dofs="many"),
+         r"convergence.lump_hard_1mm.levels\[0\].dofs"),
     ],
 )
 def test_a_bad_reference_file_is_refused_naming_the_key(tmp_path, edit, match):

@@ -95,7 +95,7 @@ def test_summary_follows_the_documented_schema(small_run):
         assert {"k", "cell", "target_m", "location_m", "depth_m", "fit", "posterior", "mean_entropy",
                 "accuracy_explored", "rejected"} <= set(row)
     assert set(obj["accuracy"]) == {"explored_before_postprocessing", "all_cells_before_postprocessing",
-                                    "all_cells_after_postprocessing"}
+                                    "all_cells_after_postprocessing", "by_walls_after_postprocessing"}
     assert set(summary["timing"]) == {"training_s", "exploration_s", "attainable_accuracy_s", "maps_s", "figures_s"}
 
 

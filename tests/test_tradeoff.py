@@ -77,7 +77,8 @@ def test_one_law_cache_serves_blocks_that_share_a_name_and_place_but_not_a_modul
     (same geometry and Poisson ratio: force is proportional to E)."""
     laws: dict = {}
     forces = [T.bench_law(young, name, laws).force_at(np.array([0.001, 0.003])) for name, young in T.BENCH_MATERIALS]
-    for (_, y0), (_, y1), f0, f1 in zip(T.BENCH_MATERIALS, T.BENCH_MATERIALS[1:], forces, forces[1:]):
+    for (_, y0), (_, y1), f0, f1 in zip(T.BENCH_MATERIALS, T.BENCH_MATERIALS[1:], forces, forces[1:],
+                                         strict=False):
         np.testing.assert_allclose(f1 / f0, y1 / y0, rtol=1e-6)
     again = T.bench_law(T.BENCH_MATERIALS[0][1], T.BENCH_MATERIALS[0][0], laws)
     assert again is T.bench_law(T.BENCH_MATERIALS[0][1], T.BENCH_MATERIALS[0][0], laws)  # still a cache hit

@@ -16,15 +16,19 @@ from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec, Sce
 from palpate.sim.source import SimSource, explain_fidelity
 from palpate.sim.validity.cases import quick_cases, validity_cases
 from palpate.sim.validity.choice import Situation, choose, predicted_errors, situation
-from palpate.sim.validity.measure import TABLE_PATH, load_table
 from palpate.sim.validity.report import claims
+from palpate.sim.validity.table import TABLE_PATH, ValidityRow, ValidityTable, load_table, table_from_document
 
 R = 0.008
 
 
 def _row(family, feature, analytic, rigid=None, flex=None, poisson=0.3):
-    return {"family": family, "feature": feature, "poisson": poisson, "depth": 0.001, "thickness": 0.03,
-            "a_over_h": 0.1, "error": {"analytic": analytic, "rigid": rigid, "flex": flex}}
+    return ValidityRow(case="c", family=family, poisson=poisson, thickness=0.03, depth=0.001, feature=feature,
+                       a_over_h=0.1, reference_force=1.0, error={"analytic": analytic, "rigid": rigid, "flex": flex})
+
+
+def _table(*rows):
+    return ValidityTable(tip_radius=R, rungs=("analytic", "rigid", "flex"), rows=rows, cost={})
 
 
 def test_cases_cover_the_issues_ranges_and_the_quick_set_is_a_subset():
@@ -41,51 +45,51 @@ def test_cases_cover_the_issues_ranges_and_the_quick_set_is_a_subset():
 
 
 def test_the_cheapest_fidelity_within_tolerance_wins_and_the_reason_says_where():
-    table = {"rows": [_row("thickness", 2.0, 0.30, 0.02, 0.08), _row("thickness", 5.0, 0.01, 0.01, 0.09)]}
-    thin = Situation({"thickness": 2.2}, 0.3)
-    fid, why = choose(table, thin, 0.05, "Block")
-    assert fid == "rigid" and "Block" in why and "5% tolerance" in why and "analytic: 30.0%" in why
-    fid, _ = choose(table, Situation({"thickness": 6.0}, 0.3), 0.05, "Block")  # thicker than measured: fine
-    assert fid == "analytic"
-    fid, why = choose(table, thin, 0.01, "Block")
-    assert fid == "rigid" and "no fidelity is within the 1% tolerance" in why
+    table = _table(_row("thickness", 2.0, 0.30, 0.02, 0.08), _row("thickness", 5.0, 0.01, 0.01, 0.09))
+    thin = Situation(thickness=2.2, poisson=0.3)
+    choice = choose(table, thin, 0.05, "Block")
+    assert choice.fidelity == "rigid" and "Block" in choice.reason and "5% tolerance" in choice.reason
+    assert "analytic: 30.0%" in choice.reason and choice.predicted["analytic"] == pytest.approx(0.30)
+    # thicker than measured: fine
+    assert choose(table, Situation(thickness=6.0, poisson=0.3), 0.05, "Block").fidelity == "analytic"
+    choice = choose(table, thin, 0.01, "Block")
+    assert choice.fidelity == "rigid" and "no fidelity is within the 1% tolerance" in choice.reason
     # thinner than anything measured: no prediction, said as such
-    errs = predicted_errors(table, Situation({"thickness": 0.5}, 0.3))
+    errs = predicted_errors(table, Situation(thickness=0.5, poisson=0.3))
     assert all(math.isinf(v) for v in errs.values())
     # geometry rules a fidelity out whatever the table says
-    fid, why = choose(table, Situation({"thickness": 6.0}, 0.3, excluded={"analytic": "a mesh top"}), 0.05, "Ball")
-    assert fid == "rigid" and "analytic ruled out: a mesh top" in why
+    choice = choose(table, Situation(thickness=6.0, poisson=0.3, excluded={"analytic": "a mesh top"}), 0.05, "Ball")
+    assert choice.fidelity == "rigid" and "analytic ruled out: a mesh top" in choice.reason
 
 
 def test_every_applicable_family_counts_and_the_worst_decides():
-    table = {"rows": [_row("thickness", 5.0, 0.01, 0.01, 0.02), _row("lump", 1.0, 0.12, 0.12, 0.03)]}
-    fid, _ = choose(table, Situation({"thickness": 5.0, "lump": 1.0}, 0.3), 0.05, "Block")
-    assert fid == "flex"
+    table = _table(_row("thickness", 5.0, 0.01, 0.01, 0.02), _row("lump", 1.0, 0.12, 0.12, 0.03))
+    assert choose(table, Situation(thickness=5.0, poisson=0.3, lump=1.0), 0.05, "Block").fidelity == "flex"
 
 
 def test_a_press_is_placed_by_what_it_feels():
     soft, hard = Material("soft", 2e4), Material("hard", 2e6)
     wide = ObjectSpec("w", "box", (0.2, 0.2, 0.03), (0.0, 0.0), soft)
     sit = situation(wide, 0.0, 0.0, 0.03, 0.002, R)
-    assert set(sit.features) == {"thickness"} and sit.features["thickness"] == pytest.approx(0.03 / 0.004)
+    assert sit.families() == ("thickness",) and sit.thickness == pytest.approx(0.03 / 0.004)
     near_edge = situation(wide, 0.098, 0.0, 0.03, 0.002, R)
-    assert "edge" in near_edge.features and "analytic" in near_edge.excluded
+    assert near_edge.edge is not None and "analytic" in near_edge.excluded
     skin = ObjectSpec("s", "box", (0.2, 0.2, 0.03), (0.0, 0.0), hard, layers=(Layer(soft, 0.002),))
-    assert situation(skin, 0.0, 0.0, 0.03, 0.002, R).features["skin"] == pytest.approx(0.5)
+    assert situation(skin, 0.0, 0.0, 0.03, 0.002, R).skin == pytest.approx(0.5)
     lump = ObjectSpec("l", "box", (0.2, 0.2, 0.03), (0.0, 0.0), soft,
                       inclusions=(Inclusion(hard, "sphere", (0.0, 0.0, 0.02), (0.005,)),))
     on_axis = situation(lump, 0.0, 0.0, 0.03, 0.002, R)
-    assert on_axis.features["lump"] == pytest.approx(0.005 / 0.004, rel=0.15) and not on_axis.notes
+    assert on_axis.lump == pytest.approx(0.005 / 0.004, rel=0.15) and not on_axis.notes
     off_axis = situation(lump, 0.006, 0.0, 0.03, 0.002, R)
-    assert "lump" in off_axis.features and any("off the press axis" in n for n in off_axis.notes)
+    assert off_axis.lump is not None and any("off the press axis" in n for n in off_axis.notes)
 
 
 def test_the_shipped_table_supports_the_issues_claims_for_the_closed_form_fidelities():
     table = load_table()
-    assert {r["family"] for r in table["rows"]} == {"thickness", "skin", "lump", "edge"}
+    assert {r.family for r in table.rows} == {"thickness", "skin", "lump", "edge"}
     for c in claims(table):
-        if c["fidelity"] in ("analytic", "rigid"):
-            assert c["holds"], c
+        if c.fidelity in ("analytic", "rigid"):
+            assert c.holds, c
 
 
 @pytest.mark.parametrize("edit, match", [
@@ -94,6 +98,10 @@ def test_the_shipped_table_supports_the_issues_claims_for_the_closed_form_fideli
     (lambda d: d["rows"][0].update(feature=float("nan")), "NaN is not a number"),
     (lambda d: d["rows"][0].update(feature="wide"), r"rows\[0\].feature"),
     (lambda d: d["rows"][0]["error"].update(fem=0.1), r"rows\[0\].error"),
+    (lambda d: d["rows"][0].update(reference_force=None), r"rows\[0\].reference_force"),
+    (lambda d: d["cost"]["rigid"].update(wall_s="long"), r"cost.rigid.wall_s"),
+    (lambda d: d["rungs"].append(["rigid"]), "key 'rungs'"),
+    (lambda d: d["failures"].append({"case": "x", "fidelity": "flex"}), r"failures\[2\].error"),
 ])
 def test_a_bad_table_is_refused_naming_the_key(tmp_path, edit, match):
     doc = json.loads(TABLE_PATH.read_text())
@@ -106,17 +114,23 @@ def test_a_bad_table_is_refused_naming_the_key(tmp_path, edit, match):
         load_table(tmp_path / "none.json")
 
 
+def test_the_table_reads_back_as_written():
+    doc = json.loads(TABLE_PATH.read_text())
+    table = load_table()
+    assert table.to_dict() == doc  # nothing in the file is lost or changed by reading it
+    assert table_from_document(table.to_dict()) == table
+
+
 def test_auto_on_a_thick_block_is_analytic_and_the_press_records_why():
     block = ObjectSpec("Block", "box", (0.1, 0.1, 0.03), (0.0, 0.0), Material("m", 2e5))
     src = SimSource(Scene((block,)), fidelity="auto")
-    fid, why = src.explain(PressTarget(0.0, 0.0, depth=0.002))
-    assert fid == "analytic" and "validity table" in why
+    choice = src.explain(PressTarget(0.0, 0.0, depth=0.002))
+    assert choice.fidelity == "analytic" and "validity table" in choice.reason
     rec = src.press(PressTarget(0.0, 0.0, depth=0.002))
-    assert rec.meta["fidelity"] == "analytic" and rec.meta["fidelity_reason"] == why
+    assert rec.meta["fidelity"] == "analytic" and rec.meta["fidelity_reason"] == choice.reason
     # a force-only target is placed at the depth the law gives that force
-    _, why_f = src.explain(PressTarget(0.0, 0.0, depth=None, force=1.0))
-    assert "validity table" in why_f
-    assert explain_fidelity(block, PressTarget(0.0, 0.0, depth=0.002), R)[0] == "analytic"
+    assert "validity table" in src.explain(PressTarget(0.0, 0.0, depth=None, force=1.0)).reason
+    assert explain_fidelity(block, PressTarget(0.0, 0.0, depth=0.002), R).fidelity == "analytic"
 
 
 def test_the_scenario_tolerance_reaches_the_source():

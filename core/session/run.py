@@ -237,8 +237,9 @@ def _say_fidelity(entry: ObjectEntry, scenario: Scenario, make_source, progress:
         return
     ex = scenario.exploration
     x, y = entry.spec.position
-    fidelity, reason = source.explain(PressTarget(x, y, depth=ex.depth, force=ex.max_force, speed=ex.speed))
-    progress.message(f"fidelity {fidelity}: {reason}")
+    # the source's choice: its ``fidelity`` and the ``reason`` it gives (palpate.sim.validity.choice.Choice)
+    choice = source.explain(PressTarget(x, y, depth=ex.depth, force=ex.max_force, speed=ex.speed))
+    progress.message(f"fidelity {choice.fidelity}: {choice.reason}")
 
 
 __all__ = ["run_scenario", "scenario_inputs"]

@@ -162,8 +162,7 @@ def axisymmetric_law(lookup, thickness: float, tip_radius: float, max_depth: flo
     # the coarse contact radii move in steps of the mesh spacing, so their ratio is noisy: keep the column's radius
     # and let the pressure basis (below) carry how the lateral variation reshapes the contact
     radius = column.contact_radius_at(depths)
-    _, c_column = column.basis_at(depths)
-    coeffs = c_column + _fit_coeffs(fe) - _fit_coeffs(uniform)
+    coeffs = column.basis_at(depths).coeffs + _fit_coeffs(fe) - _fit_coeffs(uniform)
     coeffs = np.vstack([coeffs[:1], coeffs])  # a contact shrinking to a point keeps its shape
     a_tab = np.concatenate([[0.0], radius])
     force = np.concatenate([[0.0], force])

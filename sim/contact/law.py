@@ -37,6 +37,37 @@ RADII = 40
 
 
 @dataclass(frozen=True)
+class PressureBasis:
+    """A contact's pressure as a sum of Hertz profiles p(r) = sum_k c_k sqrt(b_k^2 - r^2)_+ at n indentations.
+
+    Attributes:
+        radii: the profiles' radii b, m, (n, K).
+        coeffs: their coefficients c, Pa/m, (n, K).
+    """
+
+    radii: np.ndarray
+    coeffs: np.ndarray
+
+
+@dataclass(frozen=True)
+class KernelTable:
+    """M(x) of a stack tabulated on a grid of x (both (m,); x in m, M in 1/m), with the top layer's E*, Pa."""
+
+    x: np.ndarray
+    m: np.ndarray
+    surface_modulus: float
+
+
+@dataclass(frozen=True)
+class StackArrays:
+    """A laterally uniform stack per layer, top first, bulk last: thickness m, Young modulus Pa, Poisson ratio."""
+
+    thickness: np.ndarray
+    young: np.ndarray
+    poisson: np.ndarray
+
+
+@dataclass(frozen=True)
 class ContactLaw:
     """Force, contact radius and pressure of a rigid sphere against indentation on one stack.
 
@@ -90,19 +121,19 @@ class ContactLaw:
                                   f"{self.max_depth * 1e3:.2f} mm (the law reaches {self.force[-1]:.3g} N there)")
         return float(np.interp(force, self.force, self.depth**1.5) ** (2.0 / 3.0))
 
-    def basis_at(self, depth) -> tuple[np.ndarray, np.ndarray]:
-        """Pressure basis at indentations ``depth`` (n,): radii b (n, K), m, and coefficients c (n, K), Pa/m."""
+    def basis_at(self, depth) -> PressureBasis:
+        """Pressure basis at indentations ``depth`` (n,) m: radii b (n, K), m, and coefficients c (n, K), Pa/m."""
         a = self.contact_radius_at(depth)
         c = np.stack([np.interp(a, self.contact_radius, self.coeffs[:, k]) for k in range(self.coeffs.shape[1])],
                      axis=-1)
         b = a[..., None] * (np.arange(1, self.coeffs.shape[1] + 1) / self.coeffs.shape[1])
-        return b, c
+        return PressureBasis(radii=b, coeffs=c)
 
     def pressure_at(self, r, depth: float) -> np.ndarray:
         """Surface pressure, Pa, at radii ``r`` (m) for one indentation ``depth`` (m)."""
-        b, c = self.basis_at(np.array([depth]))
+        basis = self.basis_at(np.array([depth]))
         rr = np.asarray(r, dtype=float)[..., None]
-        return np.sum(c[0] * np.sqrt(np.maximum(b[0] ** 2 - rr**2, 0.0)), axis=-1)
+        return np.sum(basis.coeffs[0] * np.sqrt(np.maximum(basis.radii[0] ** 2 - rr**2, 0.0)), axis=-1)
 
     def _check_range(self, d: np.ndarray) -> None:
         if d.size and float(np.max(d)) > self.max_depth * (1 + 1e-9):
@@ -116,9 +147,10 @@ def sphere_profile_term(t: np.ndarray, tip_radius: float) -> np.ndarray:
     return 0.5 * t * np.log((tip_radius + t) / (tip_radius - t))
 
 
-def _kernel_table(stack: AxisymmetricSample, x_max: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """M(x) on a grid of x in [0, x_max] (m), the top layer's E* (Pa) and the smallest layer thickness (m)."""
-    thick, young, poisson = stack_arrays(stack)
+def _kernel_table(stack: AxisymmetricSample, x_max: float) -> KernelTable:
+    """M(x) on a grid of x in [0, x_max] (m) and the top layer's E* (Pa)."""
+    layers = stack_arrays(stack)
+    thick, young, poisson = layers.thickness, layers.young, layers.poisson
     t_top = float(thick[0]) if len(thick) > 1 else float(stack.thickness)
     t_min = float(np.min(thick))
     xi_max = 20.0 / t_top
@@ -139,11 +171,12 @@ def _kernel_table(stack: AxisymmetricSample, x_max: float) -> tuple[np.ndarray, 
     for start in range(0, n_x, 64):
         m[start:start + 64] = np.cos(np.outer(x[start:start + 64], xi)) @ ((h - 1.0) * w)
     e_top = young[0] / (1.0 - poisson[0] ** 2)
-    return x, m, e_top
+    return KernelTable(x=x, m=m, surface_modulus=e_top)
 
 
-def stack_arrays(stack: AxisymmetricSample) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-layer (thickness m, Young Pa, Poisson) of a laterally uniform stack, top first, bulk last."""
+def stack_arrays(stack: AxisymmetricSample) -> StackArrays:
+    """Per-layer thickness m, Young modulus Pa and Poisson ratio of a laterally uniform stack, top first, bulk
+    last."""
     if stack.inclusion is not None:
         raise ValidationError("contact law: the layered solution needs a laterally uniform stack; homogenise the "
                               "inclusion first (palpate.sim.contact.stack)")
@@ -155,7 +188,7 @@ def stack_arrays(stack: AxisymmetricSample) -> tuple[np.ndarray, np.ndarray, np.
         thick.append(rest)
         young.append(stack.bulk.young)
         poisson.append(stack.bulk.poisson)
-    return np.array(thick), np.array(young), np.array(poisson)
+    return StackArrays(thickness=np.array(thick), young=np.array(young), poisson=np.array(poisson))
 
 
 def solve_contact_law(stack: AxisymmetricSample, tip_radius: float, max_depth: float, *,
@@ -169,8 +202,9 @@ def solve_contact_law(stack: AxisymmetricSample, tip_radius: float, max_depth: f
         raise ValidationError(f"contact law: max_depth must lie in (0, 0.75 R) = (0, {0.75 * tip_radius:.4g}) m, got "
                               f"{max_depth!r}")
     a_top = min(0.97 * tip_radius, 1.6 * math.sqrt(tip_radius * max_depth))
-    x, m_tab, e_top = _kernel_table(stack, 2.0 * a_top)
-    t_top = float(stack_arrays(stack)[0][0])
+    kernel = _kernel_table(stack, 2.0 * a_top)
+    x, m_tab, e_top = kernel.x, kernel.m, kernel.surface_modulus
+    t_top = float(stack_arrays(stack).thickness[0])
     a_grid = a_top * (np.arange(1, radii + 1) / radii) ** 1.0
     depth, force, coeffs = [0.0], [0.0], [np.zeros(BASIS)]
     for a in a_grid:

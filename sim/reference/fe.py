@@ -62,7 +62,27 @@ class FEPress:
     element_energy: np.ndarray
 
 
-def _assemble(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray, materials=None):
+@dataclass(frozen=True)
+class _System:
+    """The assembled problem: skfem basis, stiffness matrix, the Lame fields at the quadrature points (the keyword
+    arguments the energy forms take) and each element's centroid (radius and depth, m)."""
+
+    basis: object
+    stiffness: object
+    fields: dict
+    centroid_r: np.ndarray
+    centroid_depth: np.ndarray
+
+
+@dataclass(frozen=True)
+class HatDisc:
+    """The loaded hats of one indentation: every hat's pressure, Pa, and how many (from the axis) carry load."""
+
+    pressure: np.ndarray
+    loaded: int
+
+
+def _assemble(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray, materials=None) -> _System:
     from skfem import Basis, BilinearForm, ElementQuad2, ElementVector, MeshQuad1, asm
 
     top = float(z_nodes[-1])
@@ -89,7 +109,8 @@ def _assemble(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarr
 
     fields = dict(lam=np.repeat(lam[:, None], nqp, axis=1), mu=np.repeat(mu[:, None], nqp, axis=1))
     stiffness = asm(axisymmetric, basis, **fields)
-    return basis, stiffness, fields, (centroid[0], top - centroid[1])
+    return _System(basis=basis, stiffness=stiffness, fields=fields, centroid_r=centroid[0],
+                   centroid_depth=top - centroid[1])
 
 
 def _element_energy(basis, fields: dict, u: np.ndarray) -> np.ndarray:
@@ -164,9 +185,11 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
         inc = sample.inclusion
         breaks_r.append(inc.radius)
         breaks_z += [inc.depth, inc.bottom]
-    r_nodes, z_nodes = sample_grids(sample.thickness, width, a_max, h0, breaks_r, breaks_z, growth=growth,
-                                   depth_growth=depth_growth)
-    basis, stiffness, fields, (cent_r, cent_depth) = _assemble(sample, r_nodes, z_nodes, materials)
+    grid = sample_grids(sample.thickness, width, a_max, h0, breaks_r, breaks_z, growth=growth,
+                        depth_growth=depth_growth)
+    r_nodes, z_nodes = grid.r, grid.depth
+    system = _assemble(sample, r_nodes, z_nodes, materials)
+    basis, stiffness = system.basis, system.stiffness
     locs = basis.doflocs
     dofs = basis.get_dofs()
     ur, uz = dofs.all("u^1"), dofs.all("u^2")
@@ -204,22 +227,23 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
     gap0[r_top > free_side * (1.0 + 1e-9)] = np.inf
     forces, radii, pressures = [], [], []
     for depth in d:
-        p, k = contact_disc(compliance, depth - gap0, depth)
-        forces.append(2.0 * math.pi * float(weights @ p))
-        radii.append(_edge(r_top, p, k))
-        pressures.append(p)
+        disc = contact_disc(compliance, depth - gap0, depth)
+        forces.append(2.0 * math.pi * float(weights @ disc.pressure))
+        radii.append(_edge(r_top, disc.pressure, disc.loaded))
+        pressures.append(disc.pressure)
     shares = []
     for p in pressures if energy else ():
         u = np.zeros(n)
         u[free] = settle @ p
-        share = np.maximum(_element_energy(basis, fields, u), 0.0)
+        share = np.maximum(_element_energy(basis, system.fields, u), 0.0)
         shares.append(share / max(float(share.sum()), 1e-300))
     return FEPress(depth=d, force=np.array(forces), contact_radius=np.array(radii), r=r_top,
-                   pressure=np.array(pressures), dofs=int(n), h0=float(h0), element_r=cent_r,
-                   element_depth=cent_depth, element_energy=np.array(shares) if shares else np.zeros((0, len(cent_r))))
+                   pressure=np.array(pressures), dofs=int(n), h0=float(h0), element_r=system.centroid_r,
+                   element_depth=system.centroid_depth,
+                   element_energy=np.array(shares) if shares else np.zeros((0, len(system.centroid_r))))
 
 
-def contact_disc(compliance: np.ndarray, gap: np.ndarray, depth: float) -> tuple[np.ndarray, int]:
+def contact_disc(compliance: np.ndarray, gap: np.ndarray, depth: float) -> HatDisc:
     """Hat pressures (Pa) and the number k of loaded hats: the smallest disc of hats whose settlement equals the
     sphere's ``gap`` (m) with no penetration outside it."""
     n = len(gap)
@@ -245,7 +269,7 @@ def contact_disc(compliance: np.ndarray, gap: np.ndarray, depth: float) -> tuple
     if k >= n - 1:
         raise ValidationError("fe_press: the contact reached the edge of the refined region; this is a bug in the "
                               "mesh sizing")
-    return p, k
+    return HatDisc(pressure=p, loaded=k)
 
 
 def _edge(r: np.ndarray, p: np.ndarray, k: int) -> float:

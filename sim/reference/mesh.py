@@ -8,6 +8,8 @@ grid lines, so each element holds one material (a sphere inclusion is staircased
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from palpate.core.errors import ValidationError
@@ -44,10 +46,17 @@ def graded_line(length: float, h0: float, uniform_to: float, growth: float, brea
     return x
 
 
+@dataclass(frozen=True)
+class SampleGrid:
+    """The nodes of a sample's tensor mesh: radii r from the axis and depths below the top, both m, increasing."""
+
+    r: np.ndarray
+    depth: np.ndarray
+
+
 def sample_grids(thickness: float, radius: float, a_max: float, h0: float, breaks_r=(), breaks_z=(), *,
-                 growth: float = 1.15, depth_growth: float = 1.10) -> tuple[np.ndarray, np.ndarray]:
-    """(r nodes, depth nodes), m, for a sample ``thickness`` deep and ``radius`` wide pressed up to contact radius
-    ``a_max`` with surface spacing ``h0`` (see the module docstring)."""
-    r = graded_line(radius, h0, 1.3 * a_max, growth, breaks_r)
-    z = graded_line(thickness, h0, 0.25 * a_max, depth_growth, breaks_z)
-    return r, z
+                 growth: float = 1.15, depth_growth: float = 1.10) -> SampleGrid:
+    """The mesh nodes for a sample ``thickness`` deep and ``radius`` wide pressed up to contact radius ``a_max``
+    with surface spacing ``h0``, all m (see the module docstring)."""
+    return SampleGrid(r=graded_line(radius, h0, 1.3 * a_max, growth, breaks_r),
+                      depth=graded_line(thickness, h0, 0.25 * a_max, depth_growth, breaks_z))

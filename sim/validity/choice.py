@@ -22,8 +22,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.world.scene import ObjectSpec, material_index_at
+from palpate.sim.validity.table import ValidityRow, ValidityTable
 
 ORDER = ("analytic", "rigid", "flex")
+#: The families a press can be placed by, in the order its reason lists them.
+FEATURES = ("thickness", "edge", "skin", "lump")
 #: Reach of a lateral feature: 1.5 contact radii plus its depth (as the contact law's homogenisation).
 REACH_A = 1.5
 #: Rows within this factor of the press's feature count.
@@ -32,19 +35,52 @@ SPAN = 1.5
 
 @dataclass(frozen=True)
 class Situation:
-    """Where a press sits in the validity table.
+    """Where a press sits in the validity table: its dimensionless value in each family that applies (see the
+    module docstring; None where the family does not apply).
 
     Attributes:
-        features: family -> the press's dimensionless value (see the module docstring).
+        thickness: thickness / a.
         poisson: Poisson ratio under the tip.
+        edge: distance to an edge within reach / a.
+        skin: top layer's thickness / a.
+        lump: depth of a material change within reach / a.
         excluded: fidelity -> why the geometry rules it out.
         notes: what lies outside the table (said in the reason).
     """
 
-    features: dict[str, float]
+    thickness: float
     poisson: float
+    edge: float | None = None
+    skin: float | None = None
+    lump: float | None = None
     excluded: dict[str, str] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+
+    def families(self) -> tuple[str, ...]:
+        """The families that apply, in the order of FEATURES."""
+        return tuple(f for f in FEATURES if self.value(f) is not None)
+
+    def value(self, family: str) -> float | None:
+        """The press's value in ``family`` (one of FEATURES), None where it does not apply."""
+        if family not in FEATURES:
+            raise ValueError(f"Situation: no family {family!r}; one of {FEATURES}")
+        return getattr(self, family)
+
+
+@dataclass(frozen=True)
+class Choice:
+    """What ``auto`` picked for a press, and why.
+
+    Attributes:
+        fidelity: the fidelity to press with.
+        reason: one line saying where the press sits in the table and with what predicted errors.
+        predicted: fidelity -> predicted |relative force error| (inf where unknown or ruled out); empty when the
+            fidelity was set rather than chosen.
+    """
+
+    fidelity: str
+    reason: str
+    predicted: dict[str, float] = field(default_factory=dict)
 
 
 def _edge_distance(obj: ObjectSpec, x: float, y: float) -> float:
@@ -55,9 +91,18 @@ def _edge_distance(obj: ObjectSpec, x: float, y: float) -> float:
     return float(np.min(half - np.abs(d)))
 
 
-def _lateral_depth(obj: ObjectSpec, x: float, y: float, surface_z: float, a: float) -> tuple[float, bool] | None:
-    """Depth (m) of the shallowest material change off the press axis within reach, and whether it is centred on
-    the axis; None if the object is laterally uniform within reach."""
+@dataclass(frozen=True)
+class LateralChange:
+    """The shallowest material change off the press axis within reach: its depth below the top, m, and whether
+    it is centred on the axis (the same material all round each ring: an on-axis lump)."""
+
+    depth: float
+    centred: bool
+
+
+def _lateral_depth(obj: ObjectSpec, x: float, y: float, surface_z: float, a: float) -> LateralChange | None:
+    """The shallowest material change off the press axis within reach; None if the object is laterally uniform
+    within reach."""
     names = [m.name for m in obj.materials()]
     depths = np.linspace(0.0, surface_z, 41)[:-1] + surface_z / 80.0
     theta = np.arange(12) * np.pi / 6.0
@@ -75,14 +120,14 @@ def _lateral_depth(obj: ObjectSpec, x: float, y: float, surface_z: float, a: flo
             # centred: the same material all round each ring (an on-axis lump), else off the axis
             rings_same = idx.reshape(-1) if len(idx) != len(pts) else idx.reshape(len(rings), len(theta))
             centred = bool(len(idx) == len(pts) and np.all(rings_same == rings_same[:, :1]))
-            return float(z), centred
+            return LateralChange(depth=float(z), centred=centred)
     return None
 
 
 def situation(obj: ObjectSpec, x: float, y: float, surface_z: float, depth: float, tip_radius: float) -> Situation:
     """Place a press of ``depth`` m at (x, y) on ``obj`` (top at ``surface_z``) in the validity table."""
     a = math.sqrt(tip_radius * max(depth, 1e-6))
-    features: dict[str, float] = {"thickness": surface_z / a}
+    edge_value = skin = lump = None
     excluded: dict[str, str] = {}
     notes: list[str] = []
     mats = obj.materials()
@@ -96,66 +141,67 @@ def situation(obj: ObjectSpec, x: float, y: float, surface_z: float, depth: floa
         if edge < 1.2 * a:
             excluded["analytic"] = f"the contact reaches the edge {edge * 1e3:.1f} mm away"
         if edge < REACH_A * a + surface_z:
-            features["edge"] = max(edge, 1e-6) / a
+            edge_value = max(edge, 1e-6) / a
             if obj.shape == "box":
                 notes.append("a straight edge (the table's edges are a cylinder's)")
     if obj.layers and obj.layers[0].thickness < surface_z:
-        features["skin"] = obj.layers[0].thickness / a
+        skin = obj.layers[0].thickness / a
     lateral = _lateral_depth(obj, x, y, surface_z, a)
     if lateral is not None:
-        z, centred = lateral
-        features["lump"] = max(z, 0.5e-3) / a
-        if not centred:
+        lump = max(lateral.depth, 0.5e-3) / a
+        if not lateral.centred:
             notes.append("material changing off the press axis (the table's lumps are on it)")
-    return Situation(features, poisson, excluded, tuple(notes))
+    return Situation(thickness=surface_z / a, poisson=poisson, edge=edge_value, skin=skin, lump=lump,
+                     excluded=excluded, notes=tuple(notes))
 
 
-def _family_error(rows: list[dict], rung: str, value: float) -> float:
+def _family_error(rows: list[ValidityRow], rung: str, value: float) -> float:
     if not rows:
         return math.inf
-    feats = np.array([r["feature"] for r in rows])
+    feats = np.array([r.feature for r in rows])
     if value < feats.min() / SPAN:
         return math.inf  # smaller than anything measured
     near = (feats >= value / SPAN) & (feats <= value * SPAN)
     if not near.any():
         near = feats >= feats.max() / SPAN if value > feats.max() else np.abs(np.log(feats / value)) == np.min(
             np.abs(np.log(feats / value)))
-    errs = [rows[i]["error"].get(rung) for i in np.nonzero(near)[0]]
+    errs = [rows[i].error.get(rung) for i in np.nonzero(near)[0]]
     return max((abs(e) if e is not None else math.inf) for e in errs)
 
 
-def predicted_errors(table: dict, sit: Situation) -> dict[str, float]:
-    """Predicted |force error| per fidelity for a situation (inf where unknown or excluded)."""
-    rows = table["rows"]
+def predicted_errors(table: ValidityTable, sit: Situation) -> dict[str, float]:
+    """Predicted |relative force error| per fidelity for a situation (inf where unknown or excluded)."""
+    rows = table.rows
     out = {}
     for rung in ORDER:
         if rung in sit.excluded:
             out[rung] = math.inf
             continue
         worst = 0.0
-        for family, value in sit.features.items():
-            fam = [r for r in rows if r["family"] == family]
+        for family in sit.families():
+            fam = [r for r in rows if r.family == family]
             if family == "thickness" and fam:
-                nus = np.array([r["poisson"] for r in fam])
+                nus = np.array([r.poisson for r in fam])
                 best = nus[np.argmin(np.abs(nus - sit.poisson))]
-                fam = [r for r in fam if r["poisson"] == best]
-            worst = max(worst, _family_error(fam, rung, value))
+                fam = [r for r in fam if r.poisson == best]
+            worst = max(worst, _family_error(fam, rung, sit.value(family)))
         out[rung] = worst
     return out
 
 
-def choose(table: dict, sit: Situation, tolerance: float, name: str) -> tuple[str, str]:
-    """(fidelity, reason) for a situation under ``tolerance`` (fraction)."""
+def choose(table: ValidityTable, sit: Situation, tolerance: float, name: str) -> Choice:
+    """The cheapest fidelity for a situation under ``tolerance`` (fraction), the reason and the predicted errors;
+    ``name`` (the object's) starts the reason."""
     errs = predicted_errors(table, sit)
-    where = ", ".join(f"{k} {v:.2g}" for k, v in sit.features.items())
+    where = ", ".join(f"{k} {sit.value(k):.2g}" for k in sit.families())
     said = "; ".join(f"{k}: {v:.1%}" if math.isfinite(v) else f"{k}: outside the table" for k, v in errs.items())
     extra = "".join(f"; {k} ruled out: {v}" for k, v in sit.excluded.items())
     extra += "".join(f"; note: {n}" for n in sit.notes)
     for rung in ORDER:
         if errs[rung] <= tolerance:
-            return rung, (f"{name}: {rung} is the cheapest within the {tolerance:.0%} tolerance (validity table at "
-                          f"{where}, nu {sit.poisson:g}: {said}{extra})")
+            return Choice(rung, f"{name}: {rung} is the cheapest within the {tolerance:.0%} tolerance (validity "
+                          f"table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)
     finite = {k: v for k, v in errs.items() if math.isfinite(v)}
     best = min(finite, key=finite.get) if finite else next(r for r in ORDER if r not in sit.excluded)
-    return best, (f"{name}: no fidelity is within the {tolerance:.0%} tolerance; {best} is the most accurate "
-                  f"(validity table at {where}, nu {sit.poisson:g}: {said}{extra})")
+    return Choice(best, f"{name}: no fidelity is within the {tolerance:.0%} tolerance; {best} is the most accurate "
+                  f"(validity table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)

@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 
-from palpate.core.errors import PalpateError, ValidationError
+from palpate.core.errors import PalpateError
 from palpate.core.session.sources import PressTarget
-from palpate.core.world.resources import models_dir
 from palpate.core.world.scene import Scene
 from palpate.sim.analytic import run_analytic_press
 from palpate.sim.contact.stack import object_law
@@ -25,13 +24,10 @@ from palpate.sim.controller import press_profile
 from palpate.sim.flex import run_flex_press
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, law_depth
-from palpate.sim.validity.cases import FAMILIES, TIP_RADIUS, ValidityCase, case_object
-from palpate.sim.validity.reference import read_document, reference_force
-
-TABLE_PATH = models_dir() / "validity_table.json"
-FORMAT = "palpate-validity"
-VERSION = 1
-RUNGS = ("analytic", "rigid", "flex")
+from palpate.sim.trace import PhysicsTrace
+from palpate.sim.validity.cases import TIP_RADIUS, ValidityCase, case_object
+from palpate.sim.validity.reference import FEReference, reference_force
+from palpate.sim.validity.table import RUNGS, RungCost, RungFailure, ValidityRow, ValidityTable
 
 
 def loading_force(indentation: np.ndarray, force: np.ndarray, depths) -> np.ndarray:
@@ -42,8 +38,16 @@ def loading_force(indentation: np.ndarray, force: np.ndarray, depths) -> np.ndar
     return np.interp(depths, d[keep], f[keep], left=np.nan, right=np.nan)
 
 
-def press_case(case: ValidityCase, fidelity: str, models: dict | None = None):
-    """Press a case once at ``fidelity``; returns (trace, wall time s)."""
+@dataclass(frozen=True)
+class CasePress:
+    """One press of a case: its physics trace and the wall time it took, s."""
+
+    trace: PhysicsTrace
+    wall_s: float
+
+
+def press_case(case: ValidityCase, fidelity: str, models: dict | None = None) -> CasePress:
+    """Press a case once at ``fidelity`` (``models``: built flex windows, reused across cases)."""
     obj = case_object(case)
     scene = Scene((obj,))
     deepest = min(max(case.depths) * 1.03, 0.99 * MAX_DEPTH_OVER_RADIUS * TIP_RADIUS)
@@ -59,64 +63,36 @@ def press_case(case: ValidityCase, fidelity: str, models: dict | None = None):
             trace = run_analytic_press(scene, obj, profile, law=law, rate=1000.0)
         else:
             trace = run_rigid_press(scene, obj, profile, law=law)
-    return trace, time.perf_counter() - t0
+    return CasePress(trace=trace, wall_s=time.perf_counter() - t0)
 
 
-def measure_table(cases: list[ValidityCase], reference: dict, *, rungs=RUNGS, progress=None) -> dict:
-    """The validity table document (see the module docstring); failures are recorded, not raised."""
+def measure_table(cases: list[ValidityCase], reference: FEReference, *, rungs=RUNGS, progress=None) -> ValidityTable:
+    """The validity table (see the module docstring); failures are recorded, not raised."""
     rows, failures = [], []
-    cost = {r: {"wall_s": 0.0, "sim_s": 0.0} for r in rungs}
+    wall = dict.fromkeys(rungs, 0.0)
+    simulated = dict.fromkeys(rungs, 0.0)
     models: dict = {}
     for case in cases:
         ref = reference_force(reference, case)
         errs = {}
         for rung in rungs:
             try:
-                trace, wall = press_case(case, rung, models)
+                run = press_case(case, rung, models)
             except PalpateError as exc:
-                failures.append({"case": case.name, "fidelity": rung, "error": f"{type(exc).__name__}: {exc}"})
+                failures.append(RungFailure(case=case.name, fidelity=rung, error=f"{type(exc).__name__}: {exc}"))
                 errs[rung] = np.full(len(case.depths), np.nan)
                 continue
-            cost[rung]["wall_s"] += wall
-            cost[rung]["sim_s"] += float(trace.t[-1] - trace.t[0])
-            errs[rung] = loading_force(trace.indentation, trace.force, case.depths) / ref - 1.0
+            wall[rung] += run.wall_s
+            simulated[rung] += float(run.trace.t[-1] - run.trace.t[0])
+            errs[rung] = loading_force(run.trace.indentation, run.trace.force, case.depths) / ref - 1.0
         for i, d in enumerate(case.depths):
-            rows.append({
-                "case": case.name, "family": case.family, "poisson": case.sample.surface.poisson,
-                "thickness": case.sample.thickness, "depth": float(d), "feature": case.feature(d),
-                "a_over_h": math.sqrt(TIP_RADIUS * d) / case.sample.thickness, "reference_force": float(ref[i]),
-                "error": {r: (None if not np.isfinite(errs[r][i]) else float(errs[r][i])) for r in rungs},
-            })
+            rows.append(ValidityRow(
+                case=case.name, family=case.family, poisson=case.sample.surface.poisson,
+                thickness=case.sample.thickness, depth=float(d), feature=case.feature(d),
+                a_over_h=math.sqrt(TIP_RADIUS * d) / case.sample.thickness, reference_force=float(ref[i]),
+                error={r: (None if not np.isfinite(errs[r][i]) else float(errs[r][i])) for r in rungs}))
         if progress is not None:
             progress(case, {r: errs[r] for r in rungs})
-    for c in cost.values():
-        c["realtime"] = c["sim_s"] / c["wall_s"] if c["wall_s"] > 0 else None
-    return {"format": FORMAT, "version": VERSION, "tip_radius": TIP_RADIUS, "rungs": list(rungs), "rows": rows,
-            "cost": cost, "failures": failures}
-
-
-def load_table(path: Path | str = TABLE_PATH) -> dict:
-    """Read and validate a validity table (rows with family, feature, poisson, depth and per-rung errors).
-
-    Raises:
-        ValidationError: missing, too large, not JSON, wrong format or a bad row, naming the file and the key.
-    """
-    raw = read_document(path, "validity table", FORMAT, VERSION,
-                        "measure it with `palpate bench` or `.venv/bin/python benchmarks/validity.py`")
-    rows = raw.get("rows")
-    if not isinstance(rows, list) or not rows:
-        raise ValidationError(f"{path}: key 'rows' must be a non-empty list")
-    for i, row in enumerate(rows):
-        if not isinstance(row, dict) or row.get("family") not in FAMILIES:
-            raise ValidationError(f"{path}: rows[{i}].family must be one of {FAMILIES}")
-        for key in ("feature", "poisson", "depth"):
-            v = row.get(key)
-            if not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ValidationError(f"{path}: rows[{i}].{key} must be a finite number")
-        err = row.get("error")
-        if not isinstance(err, dict) or set(err) - set(RUNGS):
-            raise ValidationError(f"{path}: rows[{i}].error must map fidelities {RUNGS} to numbers or null")
-        for r, v in err.items():
-            if v is not None and (not isinstance(v, (int, float)) or not math.isfinite(v)):
-                raise ValidationError(f"{path}: rows[{i}].error.{r} must be a finite number or null")
-    return raw
+    return ValidityTable(tip_radius=TIP_RADIUS, rungs=tuple(rungs), rows=tuple(rows),
+                         cost={r: RungCost(wall_s=wall[r], sim_s=simulated[r]) for r in rungs},
+                         failures=tuple(failures))

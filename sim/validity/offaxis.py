@@ -85,18 +85,14 @@ def soft_cases() -> list[OffAxisCase]:
             for contrast in (0.25, 0.05) for near in (0.0, 0.003, 0.008, -LUMP_LENGTH / 2)]
 
 
-def _materials(case: OffAxisCase) -> tuple[Material, Material]:
-    bulk = Material("bulk", BULK_E, case.poisson)
-    return bulk, Material("lump", BULK_E * case.contrast, case.poisson)
-
-
 def case_block(case: OffAxisCase | None, poisson: float = 0.3) -> BoxBlock:
     """The 3-D FE's block (``case`` None: without a lump, at ``poisson``)."""
     if case is None:
         return BoxBlock(Material("bulk", BULK_E, poisson), THICKNESS, HALF, HALF)
-    bulk, hard = _materials(case)
+    bulk = Material("bulk", BULK_E, case.poisson)
+    lump = Material("lump", BULK_E * case.contrast, case.poisson)
     return BoxBlock(bulk, THICKNESS, HALF, HALF,
-                    BoxLump(hard, case.near, LUMP_LENGTH, LUMP_WIDTH, case.top, LUMP_HEIGHT))
+                    BoxLump(lump, case.near, LUMP_LENGTH, LUMP_WIDTH, case.top, LUMP_HEIGHT))
 
 
 def case_object(case: OffAxisCase | None, poisson: float = 0.3) -> ObjectSpec:

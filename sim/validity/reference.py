@@ -7,6 +7,7 @@ Regenerate with ``.venv/bin/python benchmarks/validity.py --reference`` (minutes
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -77,13 +78,73 @@ def read_document(path: Path | str, what: str, fmt: str, version: int, missing: 
     return raw
 
 
-def load_reference(path: Path | str = REFERENCE_PATH) -> dict:
-    """Read and validate a reference file: {case name: {"depth", "force", "contact_radius": arrays}} plus
-    "convergence" (raw) and "refinement".
+@dataclass(frozen=True)
+class ReferenceCase:
+    """The FE reference's answer for one case: depth m, force N and contact radius m, each (n,)."""
+
+    depth: np.ndarray
+    force: np.ndarray
+    contact_radius: np.ndarray
+
+
+@dataclass(frozen=True)
+class ConvergenceLevel:
+    """One case solved at one mesh refinement: its degrees of freedom and force (N) at the case's depths."""
+
+    refinement: float
+    dofs: int
+    force: np.ndarray
+
+
+@dataclass(frozen=True)
+class FEReference:
+    """A loaded reference file.
+
+    Attributes:
+        cases: case name -> its answer.
+        convergence: case name -> the case at each refinement of its study, coarsest first.
+        refinement: the refinement the cases were solved at (None if the file does not say).
+    """
+
+    cases: dict[str, ReferenceCase]
+    convergence: dict[str, tuple[ConvergenceLevel, ...]]
+    refinement: float | None
+
+
+@dataclass(frozen=True)
+class ConvergenceRow:
+    """A case at one refinement: its dofs and its largest force change against the finest level, %."""
+
+    case: str
+    refinement: float
+    dofs: int
+    max_change_pct: float
+
+
+def _levels(path: Path, name: str, study) -> tuple[ConvergenceLevel, ...]:
+    levels = study.get("levels") if isinstance(study, dict) else None
+    if not isinstance(levels, list) or len(levels) > 100:
+        raise ValidationError(f"{path}: convergence.{name}.levels must be a list of at most 100 levels")
+    out = []
+    for i, lev in enumerate(levels):
+        key = f"convergence.{name}.levels[{i}]"
+        refinement, dofs = (lev.get("refinement"), lev.get("dofs")) if isinstance(lev, dict) else (None, None)
+        if isinstance(refinement, bool) or not isinstance(refinement, (int, float)) or not refinement > 0:
+            raise ValidationError(f"{path}: {key}.refinement must be a positive number")
+        if isinstance(dofs, bool) or not isinstance(dofs, int) or dofs <= 0:
+            raise ValidationError(f"{path}: {key}.dofs must be a positive integer")
+        out.append(ConvergenceLevel(refinement=float(refinement), dofs=dofs,
+                                    force=_array(path, f"{key}.force", lev.get("force"))))
+    return tuple(out)
+
+
+def load_reference(path: Path | str = REFERENCE_PATH) -> FEReference:
+    """Read and validate a reference file: each case's depth, force and contact radius, and the convergence study.
 
     Raises:
         ValidationError: missing, too large, not JSON, wrong format/version, or a bad case, naming file and key.
     """
+    path = Path(path)
     raw = read_document(path, "FE reference tables", FORMAT, VERSION,
                         "compute them with `.venv/bin/python benchmarks/validity.py --reference`")
     if raw.get("tip_radius") != TIP_RADIUS:
@@ -102,36 +163,42 @@ def load_reference(path: Path | str = REFERENCE_PATH) -> dict:
             raise ValidationError(f"{path}: cases.{name}: depth, force and contact_radius differ in length")
         if np.any(d <= 0) or np.any(np.diff(d) <= 0) or np.any(f <= 0) or np.any(np.diff(f) <= 0):
             raise ValidationError(f"{path}: cases.{name}: depths and forces must be positive and increasing")
-        out[name] = {"depth": d, "force": f, "contact_radius": a}
-    return {"cases": out, "convergence": raw.get("convergence", {}), "refinement": raw.get("refinement")}
+        out[name] = ReferenceCase(depth=d, force=f, contact_radius=a)
+    convergence = raw.get("convergence", {})
+    if not isinstance(convergence, dict):
+        raise ValidationError(f"{path}: key 'convergence' must be an object")
+    refinement = raw.get("refinement")
+    if refinement is not None and (isinstance(refinement, bool) or not isinstance(refinement, (int, float))):
+        raise ValidationError(f"{path}: key 'refinement' must be a number")
+    return FEReference(cases=out, convergence={n: _levels(path, n, c) for n, c in convergence.items()},
+                       refinement=None if refinement is None else float(refinement))
 
 
-def reference_force(reference: dict, case: ValidityCase) -> np.ndarray:
+def reference_force(reference: FEReference, case: ValidityCase) -> np.ndarray:
     """The reference force (N) at each of the case's depths, from the loaded file.
 
     Raises:
         ValidationError: the file lacks the case or was computed at other depths (regenerate it).
     """
-    entry = reference["cases"].get(case.name)
+    entry = reference.cases.get(case.name)
     if entry is None:
         raise ValidationError(f"the FE reference file has no case {case.name!r}; regenerate it with "
                               "`.venv/bin/python benchmarks/validity.py --reference`")
-    if len(entry["depth"]) != len(case.depths) or not np.allclose(entry["depth"], case.depths, rtol=1e-9):
+    if len(entry.depth) != len(case.depths) or not np.allclose(entry.depth, case.depths, rtol=1e-9):
         raise ValidationError(f"the FE reference for {case.name!r} was computed at other depths; regenerate it")
-    return entry["force"]
+    return entry.force
 
 
-def convergence_rows(reference: dict) -> list[dict]:
-    """Refinement study as rows: case, refinement, dofs, and the force change against the finest level, %."""
+def convergence_rows(reference: FEReference) -> list[ConvergenceRow]:
+    """The refinement study as rows: each case at each refinement, its dofs and its largest force change against
+    the finest level, %."""
     rows = []
-    for name, c in reference.get("convergence", {}).items():
-        levels = c.get("levels", [])
+    for name, levels in reference.convergence.items():
         if not levels:
             continue
-        finest = np.asarray(levels[-1]["force"], dtype=float)
+        finest = levels[-1].force
         for lev in levels:
-            f = np.asarray(lev["force"], dtype=float)
-            change = 100.0 * float(np.max(np.abs(f / finest - 1.0))) if f.shape == finest.shape else math.nan
-            rows.append({"case": name, "refinement": lev["refinement"], "dofs": lev["dofs"],
-                         "max_change_pct": change})
+            change = (100.0 * float(np.max(np.abs(lev.force / finest - 1.0))) if lev.force.shape == finest.shape
+                      else math.nan)
+            rows.append(ConvergenceRow(case=name, refinement=lev.refinement, dofs=lev.dofs, max_change_pct=change))
     return rows
