@@ -74,3 +74,17 @@ def test_the_law_is_within_ten_percent_of_the_3d_fe_beside_a_stiff_shallow_lump(
     assert np.all(aside.fe_ratio < edge.fe_ratio)
     for row in (edge, aside):
         assert np.all(np.abs(row.error) < 0.10), row.error
+
+
+def test_the_law_is_within_ten_percent_of_the_3d_fe_beside_a_soft_shallow_pocket():
+    """A 20x softer lump 1 mm down (a pocket under a skin), pressed over its edge and 3 mm beside it, at nu 0.3.
+    The exponent of the sectors softer than the matrix was chosen on the nu 0.45 soft rows of
+    benchmarks/fe_offaxis.py --soft; these rows were not used. The geometric ring mean before it was -40% and
+    -10..-20% here: the stiff bulk bridges a soft pocket."""
+    cache: dict = {}
+    edge = compare(OffAxisCase(0.05, 0.001, 0.0, 0.3), cache=cache)
+    aside = compare(OffAxisCase(0.05, 0.001, 0.003, 0.3), cache=cache)
+    assert np.all(edge.fe_ratio < 0.6) and np.all(aside.fe_ratio < 0.9)
+    assert np.all(aside.fe_ratio > edge.fe_ratio)
+    for row in (edge, aside):
+        assert np.all(np.abs(row.error) < 0.10), row.error

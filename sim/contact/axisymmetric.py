@@ -1,9 +1,12 @@
 """The contact law of a press point whose material varies laterally (an inclusion, a haptic-material map, an edge
 within reach): the object averaged around the press axis, solved by the axisymmetric FE on a coarse mesh.
 
-The object's material at radius r and depth z from the press point is averaged over 16 azimuths: the geometric mean
-of E over the sectors inside the object times the share of the ring inside (a sector past a free edge carries
-nothing), and the mean Poisson ratio of the sectors inside. For an inclusion on the press axis (and a cylinder
+The object's material at radius r and depth z from the press point is averaged over 16 azimuths, relative to the
+depth's matrix (the material covering most of the disc the call samples at that depth): sectors stiffer than the
+matrix enter by their geometric mean (a stiff island in a soft matrix is partly bypassed), sectors softer than it
+by a power mean of exponent 1/2 (the stiff matrix carries load around a soft pocket, closer to sectors in
+parallel); times the share of the ring inside (a sector past a free edge carries nothing), and the mean Poisson
+ratio of the sectors inside. For an inclusion on the press axis (and a cylinder
 pressed at its centre) this is exact; the coarse mesh (surface spacing a / 3.6 at the smallest tabulated depth,
 growth 1.5 radially and 1.2 with depth) is run twice, on the averaged object and on the press point's column alone,
 and its own error cancels in their ratio (see :func:`axisymmetric_law`); off the axis it is an approximation, checked
@@ -46,14 +49,43 @@ VOID = 1e-4
 FIRST_ORDER_LIMIT = 0.03
 
 
-#: Power of the ring mean of E (0: geometric), see :func:`azimuthal_materials`.
+#: Power of the ring mean of the sectors stiffer than the matrix (0: geometric), and of those softer than it, see
+#: :func:`azimuthal_materials`.
 RING_POWER = 0.0
+SOFT_RING_POWER = 0.5
+#: Rings (area-weighted) on which the matrix of each depth is sampled.
+MATRIX_RINGS = 8
 
 
-def azimuthal_materials(lookup, power: float = RING_POWER):
+def _power_part(rel: np.ndarray, take: np.ndarray, count: np.ndarray, power: float) -> np.ndarray:
+    """Per ring, the power mean of ``rel`` over the sectors in ``take``, the others counting as 1 (the matrix)."""
+    if power == 0.0:
+        return np.exp(np.sum(np.where(take, np.log(rel), 0.0), axis=1) / count)
+    return np.maximum(1.0 + np.sum(np.where(take, rel**power - 1.0, 0.0), axis=1) / count, 0.0) ** (1.0 / power)
+
+
+def matrix_moduli(lookup, depths: np.ndarray, reach: float) -> np.ndarray:
+    """The matrix E (Pa) at each of ``depths`` (m): of the materials inside the object within ``reach`` m of the
+    press axis at that depth, the one covering the most area (sampled on MATRIX_RINGS rings of AZIMUTHS sectors)."""
+    theta = (np.arange(AZIMUTHS) + 0.5) * 2.0 * np.pi / AZIMUTHS
+    radii = reach * (np.arange(MATRIX_RINGS) + 0.5) / MATRIX_RINGS
+    offsets = (radii[:, None, None] * np.stack([np.cos(theta), np.sin(theta)], axis=-1)[None]).reshape(-1, 2)
+    e, _, inside = lookup(np.tile(offsets, (len(depths), 1)), np.repeat(depths, len(offsets)))
+    e = e.reshape(len(depths), -1)
+    weight = np.where(inside.reshape(len(depths), -1), np.repeat(radii, AZIMUTHS)[None, :], 0.0)
+    out = np.empty(len(depths))
+    for k in range(len(depths)):  # a few dozen depth rows per FE mesh
+        values, index = np.unique(e[k], return_inverse=True)
+        share = np.bincount(index, weights=weight[k], minlength=len(values))
+        out[k] = values[int(np.argmax(share))] if share.max() > 0 else float(np.max(e[k]))
+    return out
+
+
+def azimuthal_materials(lookup, power: float = RING_POWER, soft_power: float = SOFT_RING_POWER):
     """fn(r, z) -> (E, nu) averaging ``lookup`` (offsets (n, 2) m, depths (n,) m -> E, nu, inside) around the
-    axis (see the module docstring); ``power``: of the ring's power mean of E (1 arithmetic, 0 geometric, -1
-    harmonic; benchmarks/fe_offaxis_mixing.py compares them)."""
+    axis (see the module docstring); ``power``, ``soft_power``: of the ring's power means of E over the sectors
+    stiffer and softer than the depth's matrix (1 arithmetic, 0 geometric, -1 harmonic;
+    benchmarks/fe_offaxis_mixing.py compares them). The matrix is sampled out to the largest r of each call."""
     theta = (np.arange(AZIMUTHS) + 0.5) * 2.0 * np.pi / AZIMUTHS
     ring = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
 
@@ -67,21 +99,17 @@ def azimuthal_materials(lookup, power: float = RING_POWER):
         inside = inside.reshape(len(r), -1)
         frac = inside.mean(axis=1)
         cnt = np.maximum(inside.sum(axis=1), 1)
-        # the power mean of E over the ring's sectors inside the object, times the share of the ring inside
-        # (a void sector past a free edge carries nothing). The arithmetic mean (sectors in parallel) is an upper
-        # bound that the 3-D FE beside off-axis lumps put 36-58% too stiff next to a 20x lump 1 mm down, the
-        # harmonic one a lower bound; the geometric mean was the closest of the power means
-        # (benchmarks/fe_offaxis_mixing.py). Uniform rings (layers, on-axis lumps, a cylinder's centre) do not move:
-        # the mean is taken relative to the ring's stiffest sector, so a uniform ring gives its own E exactly.
-        e_ring = np.max(np.where(inside, e, 0.0), axis=1)
-        rel = np.where(inside, e / np.where(e_ring > 0, e_ring, 1.0)[:, None], 1.0)
-        if power == 0.0:
-            mean = e_ring * np.exp(np.sum(np.log(rel), axis=1) / cnt)
-        else:
-            # a ring wholly outside the object has no sector to average (and 0 ** (1 / power) is inf for power < 0)
-            total = np.where(frac > 0, np.sum(np.where(inside, rel**power, 0.0), axis=1) / cnt, 1.0)
-            mean = e_ring * total ** (1.0 / power)
-        young = np.maximum(frac * mean, VOID * max(float(np.max(e_ring)), 1.0))
+        # Each ring's mean is taken relative to its depth's matrix, so a uniform ring (layers, on-axis lumps, a
+        # cylinder's centre) gives its own E exactly. The 3-D FE beside box lumps (benchmarks/fe_offaxis.py) put
+        # the arithmetic mean (a Voigt-type upper bound) 36-58% too stiff next to a 20x stiffer lump 1 mm down, and
+        # the geometric mean 34-41% too soft next to a 20x softer one: a stiff island in a soft matrix is bypassed,
+        # a soft pocket in a stiff matrix is bridged.
+        depths, row = np.unique(z, return_inverse=True)
+        matrix = matrix_moduli(lookup, depths, float(np.max(r)) if r.size else 0.0)[row]
+        rel = np.where(inside, e / matrix[:, None], 1.0)
+        stiff = inside & (rel >= 1.0)
+        mean = (matrix * _power_part(rel, stiff, cnt, power) * _power_part(rel, inside & ~stiff, cnt, soft_power))
+        young = np.maximum(frac * mean, VOID * max(float(np.max(matrix)) if matrix.size else 1.0, 1.0))
         poisson = np.where(frac > 0, np.sum(np.where(inside, nu, 0.0), axis=1) / cnt, 0.3)
         return young, poisson
 
