@@ -246,9 +246,10 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             raise _diverged(f"the tip penetrates the flex surface by {pen * 1e3:.2f} mm at {ind_k * 1e3:.2f} mm "
                             "indentation", times[k], dt)
         if calibrate:
-            factors[k], ext = mesh_factor(np.sqrt(tip.radius * max(ind_k, 0.0)) / cell, nu, cell / tip.radius,
-                                           calibration, obj.height)
-            extrapolated |= ext
+            factor = mesh_factor(np.sqrt(tip.radius * max(ind_k, 0.0)) / cell, nu, cell / tip.radius, calibration,
+                                 obj.height)
+            factors[k] = factor.kappa
+            extrapolated |= factor.extrapolated
         fn = fn / factors[k]
         force[k] = fn.sum()
         pressure[k] = sensel_pressure(pad_coordinates(pos - [x, y, zc], tip.radius), fn, tip, PATCH * fm.vertex_spacing)

@@ -19,6 +19,7 @@ models/flex_calibration.json holds one table per cell size (cell / tip radius); 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -99,8 +100,22 @@ def load_calibration(path: Path | str = CALIBRATION_PATH) -> dict:
     return {"tables": out, "measured_with": raw.get("measured_with", {})}
 
 
+@dataclass(frozen=True)
+class MeshFactor:
+    """The mesh correction at one point of a press.
+
+    Attributes:
+        kappa: F_flex / F_continuum, the factor the contact forces are divided by.
+        extrapolated: True if the cell size is over 5% from the table's, or the point lies outside what was
+            measured (the table's end value is used).
+    """
+
+    kappa: float
+    extrapolated: bool
+
+
 def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: float, calibration: dict,
-                thickness: float) -> tuple[float, bool]:
+                thickness: float) -> MeshFactor:
     """kappa at contact radius / cell ``contact_over_cell``, ``poisson`` and block ``thickness`` (m) for cells of
     ``cell_over_radius``.
 
@@ -108,8 +123,7 @@ def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: floa
     ends.
 
     Returns:
-        (kappa, extrapolated): extrapolated is True if the cell size is over 5% from the table's, or the point
-        lies outside what was measured.
+        The factor and whether it is extrapolated.
     """
     tables = calibration["tables"]
     t = min(tables, key=lambda tb: abs(np.log(tb["cell_over_radius"] / cell_over_radius)))
@@ -121,4 +135,4 @@ def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: floa
     reach = float(np.interp(poisson, nu, [np.interp(np.log(thickness), lh, row) for row in t["measured_to"]]))
     outside = (abs(t["cell_over_radius"] / cell_over_radius - 1.0) > 0.05 or not nu[0] <= poisson <= nu[-1]
                or not hs[0] * 0.95 <= thickness <= hs[-1] * 1.05 or contact_over_cell > reach * 1.05)
-    return kappa, bool(outside)
+    return MeshFactor(kappa, bool(outside))

@@ -85,17 +85,17 @@ def test_shipped_calibration_is_valid_and_interpolates():
     # thicker than the validity table's thinnest layers
     usable = ac >= 0.25
     assert np.all(t["factor"][:, 2:, usable] > 1.0)
-    k, extra = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3])
-    assert k == pytest.approx(t["factor"][1, 3, 8]) and not extra
+    at = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3])
+    assert at.kappa == pytest.approx(t["factor"][1, 3, 8]) and not at.extrapolated
     mid = 0.5 * (ac[8] + ac[9])
-    k_mid, _ = mesh_factor(mid, t["poisson"][1], c_r, cal, hs[3])
+    k_mid = mesh_factor(mid, t["poisson"][1], c_r, cal, hs[3]).kappa
     assert min(t["factor"][1, 3, 8:10]) <= k_mid <= max(t["factor"][1, 3, 8:10])
     # between two calibrated thicknesses: between their factors (linear in log thickness)
-    k_h, _ = mesh_factor(ac[8], t["poisson"][1], c_r, cal, float(np.sqrt(hs[3] * hs[4])))
+    k_h = mesh_factor(ac[8], t["poisson"][1], c_r, cal, float(np.sqrt(hs[3] * hs[4]))).kappa
     assert k_h == pytest.approx(0.5 * (t["factor"][1, 3, 8] + t["factor"][1, 4, 8]))
-    assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal, hs[3])[1]  # another cell size: flagged
-    assert mesh_factor(0.5, 0.3, c_r, cal, 2.0 * hs[-1])[1]  # thicker than measured: flagged
-    assert mesh_factor(1.2, 0.3, c_r, cal, hs[0])[1]  # deeper than the thin block was pressed: flagged
+    assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal, hs[3]).extrapolated  # another cell size: flagged
+    assert mesh_factor(0.5, 0.3, c_r, cal, 2.0 * hs[-1]).extrapolated  # thicker than measured: flagged
+    assert mesh_factor(1.2, 0.3, c_r, cal, hs[0]).extrapolated  # deeper than the thin block was pressed: flagged
 
 
 _TABLE = {"cell_over_radius": 0.6, "poisson": [0.3], "thickness": [0.02], "contact_over_cell": [0.5],
