@@ -57,6 +57,12 @@ SOFT_RING_POWER = 0.5
 MATRIX_RINGS = 8
 
 
+def _ring() -> np.ndarray:
+    """(AZIMUTHS, 2) unit vectors at the middle of each azimuthal sector."""
+    theta = (np.arange(AZIMUTHS) + 0.5) * 2.0 * np.pi / AZIMUTHS
+    return np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+
+
 def _power_part(rel: np.ndarray, take: np.ndarray, count: np.ndarray, power: float) -> np.ndarray:
     """Per ring, the power mean of ``rel`` over the sectors in ``take``, the others counting as 1 (the matrix)."""
     if power == 0.0:
@@ -67,9 +73,8 @@ def _power_part(rel: np.ndarray, take: np.ndarray, count: np.ndarray, power: flo
 def matrix_moduli(lookup, depths: np.ndarray, reach: float) -> np.ndarray:
     """The matrix E (Pa) at each of ``depths`` (m): of the materials inside the object within ``reach`` m of the
     press axis at that depth, the one covering the most area (sampled on MATRIX_RINGS rings of AZIMUTHS sectors)."""
-    theta = (np.arange(AZIMUTHS) + 0.5) * 2.0 * np.pi / AZIMUTHS
     radii = reach * (np.arange(MATRIX_RINGS) + 0.5) / MATRIX_RINGS
-    offsets = (radii[:, None, None] * np.stack([np.cos(theta), np.sin(theta)], axis=-1)[None]).reshape(-1, 2)
+    offsets = (radii[:, None, None] * _ring()[None]).reshape(-1, 2)
     e, _, inside = lookup(np.tile(offsets, (len(depths), 1)), np.repeat(depths, len(offsets)))
     e = e.reshape(len(depths), -1)
     weight = np.where(inside.reshape(len(depths), -1), np.repeat(radii, AZIMUTHS)[None, :], 0.0)
@@ -86,8 +91,7 @@ def azimuthal_materials(lookup, power: float = RING_POWER, soft_power: float = S
     axis (see the module docstring); ``power``, ``soft_power``: of the ring's power means of E over the sectors
     stiffer and softer than the depth's matrix (1 arithmetic, 0 geometric, -1 harmonic;
     benchmarks/fe_offaxis_mixing.py compares them). The matrix is sampled out to the largest r of each call."""
-    theta = (np.arange(AZIMUTHS) + 0.5) * 2.0 * np.pi / AZIMUTHS
-    ring = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+    ring = _ring()
 
     def materials(r: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r = np.asarray(r, dtype=float)
@@ -123,8 +127,7 @@ def free_side(lookup, reach: float, breaks_r=()) -> float:
     Sampled every reach / 256 and at ``breaks_r``: the last radius with material on some azimuth.
     """
     r = np.union1d(np.linspace(0.0, reach, 257), [b for b in breaks_r if 0.0 < b <= reach])
-    theta = (np.arange(AZIMUTHS) + 0.5) * 2.0 * np.pi / AZIMUTHS
-    offsets = (r[:, None, None] * np.stack([np.cos(theta), np.sin(theta)], axis=-1)[None]).reshape(-1, 2)
+    offsets = (r[:, None, None] * _ring()[None]).reshape(-1, 2)
     _, _, inside = lookup(offsets, np.full(len(offsets), 1e-7))
     none = ~inside.reshape(len(r), AZIMUTHS).any(axis=1)
     if not none.any():

@@ -126,7 +126,8 @@ def column_stack(lookup, thickness: float, breaks: list[float], base: str = "bon
 
 @dataclass(frozen=True)
 class ReachProbe:
-    """The material sampled where a press reaches (what :func:`varies_laterally` decides on).
+    """The material sampled where a press reaches (whether it varies decides the law's path, and its fingerprint
+    keys the cached law).
 
     Attributes:
         young, poisson: E (Pa) and nu at each probe point: rings of 16 points out to REACH_A a + depth, at the
@@ -165,11 +166,6 @@ def reach_probe(lookup, thickness: float, breaks: list[float], contact_radius: f
     axis_e, axis_nu, _ = lookup(np.zeros((len(mid), 2)), mid)
     return ReachProbe(np.asarray(young, float), np.asarray(poisson, float), np.asarray(inside, bool),
                       np.repeat(axis_e, len(unit)), np.repeat(axis_nu, len(unit)))
-
-
-def varies_laterally(lookup, thickness: float, breaks: list[float], contact_radius: float) -> bool:
-    """True if some depth is not one material across the disc of radius REACH_A a + depth (edges count)."""
-    return reach_probe(lookup, thickness, breaks, contact_radius).varies()
 
 
 def point_law(lookup, thickness: float, breaks: list[float], tip_radius: float, max_depth: float, *,
