@@ -292,4 +292,3 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
         regions=regions0, cycle_posteriors=tuple(cycles), snapshots=tuple(snapshots), grid=grid, post=post,
         truth=truth, true_materials=tuple(sorted({scenario.materials[m.name].like for m in entry.spec.materials()})),
         clear_of_walls=clear_of_walls(entry, scenario, geometry, contact_radius(scenario)))
-

@@ -106,9 +106,10 @@ def clear_of_walls(entry: ObjectEntry, scenario: Scenario, geometry: MapGeometry
     nx, ny = geometry.plane_shape
     centres = geometry.cell_centres().reshape(-1, 2)
     rings = radius * _RING_FRACTIONS[:, None]
-    offsets = np.column_stack([(rings * np.cos(_RING_ANGLES)).ravel(), (rings * np.sin(_RING_ANGLES)).ravel()])
+    # the centre first, then the rings: one lookup for all
+    offsets = np.vstack([np.zeros((1, 2)), np.column_stack([(rings * np.cos(_RING_ANGLES)).ravel(),
+                                                             (rings * np.sin(_RING_ANGLES)).ravel()])])
     points = (centres[:, None, :] + offsets[None, :, :]).reshape(-1, 2)
     z = np.full(len(points), entry.spec.height - scenario.exploration.depth / 2)
-    around = ground_truth_cells(entry, scenario, points, z).reshape(len(centres), len(offsets))
-    centre = ground_truth_cells(entry, scenario, centres, z[: len(centres)])
-    return ((around == centre[:, None]) | (around < 0)).all(axis=1).reshape(ny, nx)
+    truth = ground_truth_cells(entry, scenario, points, z).reshape(len(centres), len(offsets))
+    return ((truth == truth[:, :1]) | (truth < 0)).all(axis=1).reshape(ny, nx)
