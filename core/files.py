@@ -17,6 +17,8 @@ import stat
 import tomllib
 from pathlib import Path
 
+import numpy as np
+
 from palpate.core import limits
 from palpate.core.errors import ValidationError
 
@@ -177,3 +179,17 @@ def read_toml(path: str | Path, what: str) -> dict:
         raise ValidationError(f"{path}: {what}: nesting too deep to read") from None
     except ValueError as exc:  # Python's limit on integer digits
         raise ValidationError(f"{path}: {what}: {str(exc)[:120]}") from None
+
+
+def number_array(value, where: str, ndim: int, max_size: int | None = None) -> np.ndarray:
+    """``value`` (read from a file) as a float array of ``ndim`` dimensions, non-empty, finite and at most
+    ``max_size`` numbers when given; else a ValidationError naming ``where`` (e.g. "FILE: key")."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValidationError(f"{where} must be numbers") from None
+    size = f"1 to {max_size}" if max_size is not None else "at least one"
+    if (arr.ndim != ndim or arr.size == 0 or (max_size is not None and arr.size > max_size)
+            or not np.all(np.isfinite(arr))):
+        raise ValidationError(f"{where} must be a {ndim}-D array of {size} finite numbers")
+    return arr

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.files import number_array
 from palpate.core.world.resources import models_dir
 
 #: The shipped table.
@@ -40,13 +41,7 @@ MAX_BYTES = 1_000_000
 
 
 def _numbers(path: Path, key: str, value, ndim: int) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValidationError(f"{path}: {key} must be numbers") from None
-    if arr.ndim != ndim or arr.size == 0 or not np.all(np.isfinite(arr)):
-        raise ValidationError(f"{path}: {key} must be a non-empty {ndim}-D array of finite numbers")
-    return arr
+    return number_array(value, f"{path}: {key}", ndim)
 
 
 def load_calibration(path: Path | str = CALIBRATION_PATH) -> dict:

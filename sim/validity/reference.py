@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.files import read_json
+from palpate.core.files import number_array, read_json
 from palpate.core.world.resources import models_dir
 from palpate.sim.reference.fe import fe_press
 from palpate.sim.validity.cases import TIP_RADIUS, ValidityCase
@@ -53,13 +53,7 @@ def compute_reference(cases: list[ValidityCase], *, refinement: float = REFINEME
 
 
 def _array(path: Path, key: str, value) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValidationError(f"{path}: {key} must be a list of numbers") from None
-    if arr.ndim != 1 or arr.size == 0 or arr.size > 1000 or not np.all(np.isfinite(arr)):
-        raise ValidationError(f"{path}: {key} must be 1 to 1000 finite numbers")
-    return arr
+    return number_array(value, f"{path}: {key}", 1, max_size=1000)
 
 
 def read_document(path: Path | str, what: str, fmt: str, version: int, missing: str) -> dict:
