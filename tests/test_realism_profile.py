@@ -71,6 +71,8 @@ def test_a_file_lists_only_what_departs_from_ideal():
     ({"finger": {"compliant": "yes"}}, "finger.compliant"),
     ({"press": {"tilt_deg": 45.0}}, "press.tilt_deg"),
     ({"taxels": {"activation_kpa": -1.0}}, "taxels.activation_kpa"),
+    ({"taxels": {"activation_cv": 3.5}}, "taxels.activation_cv"),
+    ({"finger": {"pressure_exponent": 0.2}}, "finger.pressure_exponent"),
     ({"press": {"speed_cv": 0.7}}, "press.speed_cv"),
     ({"pose": {"latency_ms": "3"}}, "pose.latency_ms"),
     ({"material": {"relaxation_time_s": 0.0}}, "material.relaxation_time_s"),

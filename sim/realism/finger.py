@@ -11,7 +11,8 @@ person's hand), turned into the object's indentation with a Hertz law through th
 (:func:`planning_modulus`, from the fidelity's ``depth_for_force``), the physics runs on that, and afterwards the
 pose is put back on the bone with the compression the physics' *actual* force gives, and the pad's pressure is
 spread over the larger patch of two deforming bodies, a^2 = R (d + area_factor delta), keeping the physics' force
-(Hertz's distribution over that patch, centred where the tilted finger meets the object).
+(Hertz's distribution over that patch, more peaked the more of the approach the pulp takes,
+:mod:`palpate.sim.realism.patch`; centred where the tilted finger meets the object).
 """
 
 from __future__ import annotations
@@ -22,10 +23,9 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import FingertipSpec
-from palpate.sim.analytic import hertz_sensel_pressure
 from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import sensel_bounds
-from palpate.sim.hertz import hertz_force
+from palpate.sim.realism.patch import patch_sensel_pressure, press_exponent
 from palpate.sim.realism.profile import FingerPulp
 from palpate.sim.trace import PhysicsTrace
 
@@ -120,7 +120,8 @@ def finger_trace(trace: PhysicsTrace, profile: PressProfile, pulp: FingerPulp, s
 
     Returns:
         a new trace: tip_position on the bone (moved by the compression along -normal), sensel_pressure spread
-        over the patch a^2 = R (d + area_factor delta) centred at the tilted contact point, same force and
+        over the patch a^2 = R (d + area_factor delta) centred at the tilted contact point (its shape:
+        :func:`~palpate.sim.realism.patch.press_exponent`), same force and
         indentation (the object's), meta["finger"] saying what was applied.
     """
     radius = tip.radius
@@ -133,9 +134,9 @@ def finger_trace(trace: PhysicsTrace, profile: PressProfile, pulp: FingerPulp, s
     pressure = np.zeros_like(trace.sensel_pressure)
     touching = (force > 0) & (patch > 0)
     if touching.any():
-        # Hertz's shape for a patch of radius sqrt(R patch), scaled to carry the physics' force
-        shape = hertz_sensel_pressure(patch[touching], 1.0, radius, sensel_bounds(tip), centre)
-        pressure[touching] = shape * (force[touching] / hertz_force(1.0, radius, patch[touching]))[:, None, None]
+        exponent = press_exponent(pulp.pressure_exponent, trace.indentation[touching], delta[touching])
+        pressure[touching] = patch_sensel_pressure(patch[touching], force[touching], exponent, radius,
+                                                   sensel_bounds(tip), np.broadcast_to(centre, (2,)))
     meta = dict(trace.meta, finger={"compliant": pulp.compliant, "max_compression_m": float(np.max(delta)),
                                     "stiffness_scale": float(stiffness_scale),
                                     "pad_offset_m": [float(c) for c in np.broadcast_to(centre, (2,))]})

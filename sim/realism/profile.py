@@ -51,6 +51,10 @@ class FingerPulp:
             flattening of a soft shell over bone; fingertip areas of ~1 cm^2 at 1 N, Serina et al. 1998, give 2-3).
         stiffness_cv: press-to-press coefficient of variation of b (finger pitch and which part of the pulp
             touches; Serina: stiffness depends on the contact angle).
+        pressure_exponent: k of the pad's pressure p ~ (1 - r^2/a^2)^k when the pulp takes the whole approach
+            (a stiff object): 1/2 is Hertz's half-space, 1 a thin compressible layer, 2 a thin incompressible
+            layer bonded to bone (Johnson 1985, section 5.9); a press's exponent goes from 1/2 towards it with the
+            pulp's share of the approach (:mod:`palpate.sim.realism.patch`). 1/2: Hertz's on every object.
     """
 
     compliant: bool = False
@@ -58,11 +62,13 @@ class FingerPulp:
     stiffening: float = 1000.0
     area_factor: float = 2.0
     stiffness_cv: float = 0.0
+    pressure_exponent: float = 0.5
 
     def __post_init__(self) -> None:
         _check("FingerPulp", {"stiffness": (self.stiffness, 1.0, 1e6), "stiffening": (self.stiffening, 0.0, 1e5),
                               "area_factor": (self.area_factor, 0.0, 10.0),
-                              "stiffness_cv": (self.stiffness_cv, 0.0, 2.0)})
+                              "stiffness_cv": (self.stiffness_cv, 0.0, 2.0),
+                              "pressure_exponent": (self.pressure_exponent, 0.5, 3.0)})
 
     def compression(self, force: np.ndarray, stiffness_scale: float = 1.0) -> np.ndarray:
         """Pulp compression delta, m, under contact force F (N, clipped at 0); 0 everywhere when rigid."""
@@ -93,9 +99,13 @@ class TaxelRealism:
             conductance grows sub-linearly with load).
         crosstalk: fraction of each sensel's output that reads on each of its four neighbours (row/column
             ghosting of the matrix scan).
-        activation: pressure a sensel needs before its ink conducts, Pa: it reports max(p - activation, 0)
-            (resistive sensors have a turn-on pressure; a soft object's low rim pressure leaves sensels silent that
-            the patch covers, so the active area lags the patch most on the softest materials).
+        activation: mean pressure a sensel needs before its ink conducts, Pa: below it the sensel reads nothing,
+            above it its whole pressure (resistive sensors have a turn-on pressure; a soft object's low rim pressure
+            leaves sensels silent that the patch covers, so the active area lags the patch most on soft materials).
+        activation_cv: coefficient of variation of the turn-on pressure across sensels (log-normal, mean
+            ``activation``), drawn once per session: ink thickness and local pre-load differ from sensel to sensel,
+            so the number of active sensels grows gradually with pressure instead of all at one pressure. 0: one
+            turn-on pressure for the whole pad.
     """
 
     sensitivity: float = 1.0
@@ -106,10 +116,12 @@ class TaxelRealism:
     nonlinearity: float = 0.0
     crosstalk: float = 0.0
     activation: float = 0.0
+    activation_cv: float = 0.0
 
     def __post_init__(self) -> None:
         _check("TaxelRealism", {"sensitivity": (self.sensitivity, 0.01, 100.0),
                                 "activation": (self.activation, 0.0, 1e5),
+                                "activation_cv": (self.activation_cv, 0.0, 3.0),
                                 "gain_spread": (self.gain_spread, 0.0, 0.5), "gain_drift": (self.gain_drift, 0.0, 0.5),
                                 "hysteresis": (self.hysteresis, 0.0, 0.5), "creep": (self.creep, 0.0, 0.5),
                                 "nonlinearity": (self.nonlinearity, 0.0, 5.0),
@@ -118,8 +130,9 @@ class TaxelRealism:
     @property
     def active(self) -> bool:
         """True when any non-ideality is on."""
+        # a spread of the turn-on pressure changes nothing without a turn-on pressure
         return self.sensitivity != 1.0 or any(getattr(self, f.name) > 0 for f in fields(self)
-                                              if f.name != "sensitivity")
+                                              if f.name not in ("sensitivity", "activation_cv"))
 
 
 @dataclass(frozen=True)

@@ -13,11 +13,13 @@ is an error naming the file and the key (``x.toml: press.tilt_deg: must be <= 29
     stiffening_per_mm = 1.0
     area_factor = 2.0
     stiffness_cv = 0.2
+    pressure_exponent = 0.5
 
     [press]          # speed_cv, depth_cv, lateral_mm, hold_s, smooth, tilt_deg, slip, tremor_mm, force_scale
     tilt_deg = 5.0
 
-    [taxels]         # sensitivity, gain_spread, gain_drift, hysteresis, creep, nonlinearity, crosstalk, activation_kpa
+    [taxels]         # sensitivity, gain_spread, gain_drift, hysteresis, creep, nonlinearity, crosstalk,
+                     # activation_kpa, activation_cv
     [pose]           # latency_ms, clock_offset_ms, clock_wander_ms
     [material]       # relaxation, relaxation_time_s, softening, softening_presses
     [provenance]     # free record (strings, numbers, arrays, tables): references, or the calibration's fit
@@ -105,6 +107,7 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
             stiffening=f.number("stiffening_per_mm", d.stiffening * 1e-3, lo=0.0) * 1e3,
             area_factor=f.number("area_factor", d.area_factor, lo=0.0),
             stiffness_cv=f.number("stiffness_cv", d.stiffness_cv, lo=0.0),
+            pressure_exponent=f.number("pressure_exponent", d.pressure_exponent, lo=0.5, hi=2.99),
         )
         f.finish()
         pr = top.sub("press")
@@ -124,7 +127,8 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
         taxels = TaxelRealism(sensitivity=tx.number("sensitivity", 1.0, lo=0.01, hi=100.0),
                               **{k: tx.number(k, 0.0, lo=0.0) for k in
                                  ("gain_spread", "gain_drift", "hysteresis", "creep", "nonlinearity", "crosstalk")},
-                              activation=tx.number("activation_kpa", 0.0, lo=0.0, hi=100.0) * 1e3)
+                              activation=tx.number("activation_kpa", 0.0, lo=0.0, hi=100.0) * 1e3,
+                              activation_cv=tx.number("activation_cv", 0.0, lo=0.0, hi=2.99))
         tx.finish()
         po = top.sub("pose")
         pose = PoseRealism(latency=po.number("latency_ms", 0.0) * 1e-3,
@@ -181,13 +185,14 @@ def profile_tables(profile: RealismProfile) -> dict:
         "profile": {"name": profile.name, "description": profile.description},
         "finger": {"compliant": f.compliant, "stiffness_n_per_mm": f.stiffness * 1e-3,
                    "stiffening_per_mm": f.stiffening * 1e-3, "area_factor": f.area_factor,
-                   "stiffness_cv": f.stiffness_cv},
+                   "stiffness_cv": f.stiffness_cv, "pressure_exponent": f.pressure_exponent},
         "press": {"speed_cv": p.speed_cv, "depth_cv": p.depth_cv, "lateral_mm": p.lateral_std * 1e3,
                   "hold_s": p.hold_std, "smooth": p.smooth, "tilt_deg": float(np.rad2deg(p.tilt_std)),
                   "slip": p.slip_std, "tremor_mm": p.tremor * 1e3, "force_scale": p.force_scale},
         "taxels": {"sensitivity": t.sensitivity, "gain_spread": t.gain_spread, "gain_drift": t.gain_drift,
                    "hysteresis": t.hysteresis, "creep": t.creep, "nonlinearity": t.nonlinearity,
-                   "crosstalk": t.crosstalk, "activation_kpa": t.activation * 1e-3},
+                   "crosstalk": t.crosstalk, "activation_kpa": t.activation * 1e-3,
+                   "activation_cv": t.activation_cv},
         "pose": {"latency_ms": o.latency * 1e3, "clock_offset_ms": o.clock_offset_std * 1e3,
                  "clock_wander_ms": o.clock_wander * 1e3},
         "material": {"relaxation": m.relaxation, "relaxation_time_s": m.relaxation_time, "softening": m.softening,

@@ -28,7 +28,7 @@ from palpate.sim.controller import PressProfile
 from palpate.sim.realism.finger import SeriesLaw, finger_trace, object_profile, planning_modulus, series_law
 from palpate.sim.realism.material import material_trace
 from palpate.sim.realism.profile import RealismProfile
-from palpate.sim.realism.taxels import TaxelResponse, gain_map
+from palpate.sim.realism.taxels import TaxelResponse, activation_map, gain_map, lognormal
 from palpate.sim.trace import PhysicsTrace
 
 #: spawn_key of a session's seed stream (the presses' streams are SeedSequence([seed, press index])).
@@ -37,14 +37,6 @@ SESSION_STREAM = 0x5E55
 PLANNING_FORCE = 5.0
 #: A press counts as "at the same spot" as an earlier one within this many tip radii (for softening).
 SAME_SPOT_RADII = 1.0
-
-
-def _lognormal(rng: np.random.Generator, cv: float) -> float:
-    """A log-normal factor with mean 1 and coefficient of variation ``cv`` (1 for cv = 0)."""
-    if cv <= 0:
-        return 1.0
-    s = np.sqrt(np.log1p(cv * cv))
-    return float(np.exp(s * rng.standard_normal() - 0.5 * s * s))
 
 
 @dataclass(frozen=True)
@@ -136,6 +128,8 @@ class RealismSession:
         self.full_scale = 255.0 / taxels.gain
         self.gains = gain_map(profile.taxels, (tip.rows, tip.cols), rng)
         self.clock_offset = profile.pose.clock_offset_std * float(rng.standard_normal())
+        # drawn after the older session draws, so a profile without a spread keeps its draws
+        self.activation = activation_map(profile.taxels, (tip.rows, tip.cols), rng)
         self.drift = 1.0
         self.spots: list[tuple[str, float, float]] = []
 
@@ -157,9 +151,9 @@ class RealismSession:
         p = self.profile
         softening = p.material.softening_factor(self.earlier_presses(obj_name, x, y))
         self.spots.append((obj_name, float(x), float(y)))
-        stiffness_scale = _lognormal(rng, p.finger.stiffness_cv)
+        stiffness_scale = float(lognormal(rng, p.finger.stiffness_cv))
         if p.taxels.gain_drift > 0:
-            self.drift *= _lognormal(rng, p.taxels.gain_drift)
+            self.drift *= float(lognormal(rng, p.taxels.gain_drift))
         clock = self.clock_offset + (p.pose.clock_wander * float(rng.standard_normal()) if p.pose.clock_wander
                                      else 0.0)
 
@@ -170,5 +164,6 @@ class RealismSession:
         if p.finger.compliant:
             e_star = planning_modulus(softened, self.tip.radius, PLANNING_FORCE)
             law = series_law(e_star, self.tip.radius, p.finger, stiffness_scale, reach)
-        response = (TaxelResponse(p.taxels, self.gains * self.drift, self.full_scale) if p.taxels.active else None)
+        response = (TaxelResponse(p.taxels, self.gains * self.drift, self.full_scale, self.activation)
+                    if p.taxels.active else None)
         return PressRealism(p, law, softened, stiffness_scale, softening, response, clock, self.tip)

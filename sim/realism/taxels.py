@@ -4,7 +4,8 @@
 *reports* (Pa), before :func:`palpate.sim.sensors.taxel_counts` applies the gain, noise, 8-bit rounding, saturation
 and threshold. In order:
 
-0. activation: a sensel's ink conducts only above a turn-on pressure; it reports max(p - activation, 0);
+0. activation: a sensel's ink conducts only above its turn-on pressure (one per sensel, :func:`activation_map`);
+   below it the sensel reads nothing, above it its whole pressure;
 1. gain: the pad's sensitivity times each sensel's gain after equilibration (a session-long map) times the pad's
    drift for this press;
 2. creep: under load the output rises by ``creep`` per decade of the time the sensel has been loaded
@@ -27,12 +28,28 @@ from palpate.sim.realism.profile import TaxelRealism
 CREEP_REFERENCE_S = 1.0
 
 
+def lognormal(rng: np.random.Generator, cv: float, shape: tuple[int, ...] = ()) -> np.ndarray:
+    """Log-normal factors of mean 1 and coefficient of variation ``cv`` (ones, and nothing drawn, for cv <= 0)."""
+    if cv <= 0:
+        return np.ones(shape)
+    s = np.sqrt(np.log1p(cv * cv))
+    return np.exp(s * rng.standard_normal(shape) - 0.5 * s * s)
+
+
 def gain_map(realism: TaxelRealism, shape: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
     """Per-sensel gains left after equilibration: log-normal, mean 1, coefficient of variation ``gain_spread``."""
-    if realism.gain_spread <= 0:
-        return np.ones(shape)
-    s = np.sqrt(np.log1p(realism.gain_spread**2))
-    return np.exp(s * rng.standard_normal(shape) - 0.5 * s * s)
+    return lognormal(rng, realism.gain_spread, shape)
+
+
+def activation_map(realism: TaxelRealism, shape: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
+    """Per-sensel turn-on pressures, Pa: log-normal, mean ``activation``, coefficient of variation ``activation_cv``.
+
+    With no spread every sensel has the pad's one turn-on pressure and nothing is drawn (so a profile without a
+    spread replays the draws it made before the spread existed).
+    """
+    if realism.activation <= 0:
+        return np.zeros(shape)
+    return realism.activation * lognormal(rng, realism.activation_cv, shape)
 
 
 @dataclass(frozen=True)
@@ -43,17 +60,20 @@ class TaxelResponse:
         realism: the non-idealities.
         gains: (rows, cols) gain of each sensel for this press (equilibration map x drift).
         full_scale: pressure at which the counts saturate, Pa (255 / gain).
+        activation: (rows, cols) turn-on pressure of each sensel, Pa (None: the pad's one ``realism.activation``).
     """
 
     realism: TaxelRealism
     gains: np.ndarray
     full_scale: float
+    activation: np.ndarray | None = None
 
     def __call__(self, t: np.ndarray, pressure: np.ndarray) -> np.ndarray:
         """Reported pressure, Pa, shape (n, rows, cols), of true mean sensel pressures (n, rows, cols) at times t."""
         r = self.realism
         p = np.maximum(np.asarray(pressure, dtype=float), 0.0)
-        p = np.where(p > r.activation, p, 0.0) * (r.sensitivity * self.gains)[None]
+        turn_on = r.activation if self.activation is None else self.activation[None]
+        p = np.where(p > turn_on, p, 0.0) * (r.sensitivity * self.gains)[None]
         loaded = p > 0
         if r.creep > 0:
             p = p * (1.0 + r.creep * np.log10(1.0 + _loaded_time(t, loaded) / CREEP_REFERENCE_S))
