@@ -38,6 +38,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from clairvoyant import clairvoyant_run  # noqa: E402
 from family_runs import OF_CEILING, ROWS, Run, offline_run, physics_run  # noqa: E402
 from scene_families import FAMILIES, REPORT_SEEDS, TUNING_SEEDS, scene  # noqa: E402
 
@@ -45,6 +46,8 @@ from palpate.core.mapping.calibration import reliability_table  # noqa: E402
 
 ABSOLUTE = 0.95
 TARGETS = {"median": 0.35, "worst": 0.7}
+#: Rows beyond the policies: the clairvoyant reference (benchmarks/clairvoyant.py), offline only.
+REFERENCE_ROWS = ("clairvoyant",)
 
 
 def _count(run: Run, level: float) -> int:
@@ -69,7 +72,10 @@ def scene_rows(fs, rows: list[str], physics: bool) -> dict:
             continue
         # offline runs stop once both counts are known (95% absolute only matters where raster gets there)
         stop = ABSOLUTE if out["to_absolute"]["raster"] is not None else target
-        run = physics_run(fs, row) if physics else offline_run(fs, row, stop_at=stop)
+        if row in REFERENCE_ROWS:
+            run = clairvoyant_run(fs, stop_at=stop)
+        else:
+            run = physics_run(fs, row) if physics else offline_run(fs, row, stop_at=stop)
         out["runs"][row] = run
         out["to_ceiling"][row] = _count(run, target)
         out["to_absolute"][row] = run.presses_to(ABSOLUTE)
@@ -124,7 +130,14 @@ def print_table(title: str, results: list[dict], rows: list[str]) -> dict:
         # percentile) says whether a FAIL is one unlucky scene or a tail, and compares with max_entropy's.
         print("tail: " + "; ".join(
             f"{row} {int(np.sum(allq[row] > TARGETS['worst']))}/{allq[row].size} scenes above {TARGETS['worst']}, "
-            f"95th percentile {np.percentile(allq[row], 95):.2f}" for row in ("info_gain", "max_entropy")))
+            f"95th percentile {np.percentile(allq[row], 95):.2f}" for row in ("info_gain", "max_entropy",
+                                                                               *REFERENCE_ROWS) if row in allq))
+        if "clairvoyant" in allq:
+            # a tail scene the clairvoyant reference also needs many presses for is hard for any planner
+            tail = np.flatnonzero(q > TARGETS["worst"])
+            print("info_gain's scenes above the target, info_gain / clairvoyant: " + (", ".join(
+                f"{results[i]['seed']} {results[i]['family']} {q[i]:.2f} / {allq['clairvoyant'][i]:.2f}"
+                for i in tail) or "none"))
         print(f"targets (info_gain): median {np.median(q):.3f} <= {TARGETS['median']} "
               f"{'PASS' if np.median(q) <= TARGETS['median'] else 'FAIL'}; families worse than max_entropy: "
               f"{', '.join(worse) or 'none'} {'FAIL' if worse else 'PASS'}; worst {np.max(q):.2f} <= "
@@ -186,17 +199,20 @@ def main() -> None:
     parser.add_argument("--split", default="both", choices=("tuning", "report", "both"))
     parser.add_argument("--physics", type=int, default=0, help="also run this many scenes per split with physics")
     parser.add_argument("--policies", default="max_entropy,info_gain",
-                        help=f"comma-separated rows (known: {','.join(ROWS)}); raster is always run")
+                        help=f"comma-separated rows (known: {','.join((*ROWS, *REFERENCE_ROWS))}); raster is always "
+                             "run; clairvoyant (a greedy planner that knows every press's reading: "
+                             "benchmarks/clairvoyant.py) is offline only")
     parser.add_argument("--confused", action="store_true", help="a memory that confuses soft with 'firm'")
     parser.add_argument("--figure", default="/tmp/palpate_reliability.png", help="reliability figure (physics)")
     parser.add_argument("--json", default=None, help="write the tables as JSON here")
     parser.add_argument("--verbose", action="store_true", help="one line per scene")
     args = parser.parse_args()
     chosen = [p.strip() for p in args.policies.split(",") if p.strip()]
-    unknown = sorted(set(chosen) - set(ROWS))
+    known = (*ROWS, *REFERENCE_ROWS)
+    unknown = sorted(set(chosen) - set(known))
     if unknown:
-        parser.error(f"unknown policies {unknown}; known: {', '.join(ROWS)}")
-    rows = [r for r in ROWS if r in chosen or r == "raster"]
+        parser.error(f"unknown policies {unknown}; known: {', '.join(known)}")
+    rows = [r for r in known if r in chosen or r == "raster"]
     splits = [("tuning", TUNING_SEEDS), ("report", REPORT_SEEDS)]
     splits = [s for s in splits if args.split in ("both", s[0])]
 
@@ -205,11 +221,12 @@ def main() -> None:
     for physics, n in ((False, args.scenes), (True, args.physics)):
         if n <= 0:
             continue
+        split_rows = [r for r in rows if not (physics and r in REFERENCE_ROWS)]
         for name, seeds in splits:
             results = []
             for s in seeds[:n]:
                 fs = scene(s).with_confusion() if args.confused else scene(s)
-                r = scene_rows(fs, rows, physics)
+                r = scene_rows(fs, split_rows, physics)
                 results.append(r)
                 if args.verbose:
                     print(f"{name} {s} {r['family']:<10} {r['cells']:4d} cells ceiling {r['ceiling']:.3f} "
@@ -217,10 +234,10 @@ def main() -> None:
             mode = "physics (analytic)" if physics else "offline"
             title = f"{name} seeds {seeds[0]}-{seeds[0] + n - 1}, {mode}{', confused memory' if args.confused else ''}"
             key = f"{name}_{'physics' if physics else 'offline'}"
-            report[key] = {"tables": print_table(title, results, rows),
+            report[key] = {"tables": print_table(title, results, split_rows),
                            "scenes": [{k: v for k, v in r.items() if k != "runs"} for r in results]}
             if physics:
-                tables = calibration_report(title, results, rows)
+                tables = calibration_report(title, results, split_rows)
                 report[key]["calibration"] = {row: t.to_dict() for row, t in tables.items()}
                 if name == "report" or args.split == "tuning":
                     reliability_figure(args.figure, tables, f"reliability, {title}")

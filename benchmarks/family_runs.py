@@ -108,9 +108,32 @@ def felt_cells(fs: FamilyScene) -> np.ndarray:
     return out
 
 
-def _calibration_sample(post_p: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    conf, right, _ = calibration_sample(post_p, truth)
-    return conf, right
+class RunTrace:
+    """What a run records as it goes: the post-processed map's accuracy after each press (:meth:`accuracy`), and
+    its (confidence, right) per cell at :data:`CALIBRATION_AT` (:meth:`calibration`); :meth:`run` builds the Run."""
+
+    def __init__(self, truth: np.ndarray) -> None:
+        self.truth = truth
+        self.checkpoints = {max(1, int(round(f * truth.size))) for f in CALIBRATION_AT}
+        self.acc: list[float] = []
+        self.confs: list[np.ndarray] = []
+        self.rights: list[np.ndarray] = []
+
+    def accuracy(self, post_p) -> float:
+        """Record (and return) the accuracy of the map after the next press (before any press first)."""
+        self.acc.append(map_accuracy(post_p, self.truth) or 0.0)
+        return self.acc[-1]
+
+    def calibration(self, k: int, post_p) -> None:
+        """Sample the map's calibration if ``k`` presses is one of the checkpoints."""
+        if k in self.checkpoints:
+            conf, right, _ = calibration_sample(np.asarray(post_p), self.truth)
+            self.confs.append(conf)
+            self.rights.append(right)
+
+    def run(self) -> Run:
+        return Run(np.array(self.acc), np.concatenate(self.confs) if self.confs else np.zeros(0),
+                   np.concatenate(self.rights) if self.rights else np.zeros(0, bool))
 
 
 def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memory=None, answers=None,
@@ -134,17 +157,13 @@ def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memo
     grid = new_map(geom)
     rng = np.random.default_rng(fs.seed + 7000)
     n = truth.size
-    checkpoints = {max(1, int(round(f * n))) for f in CALIBRATION_AT}
-    acc, confs, rights = [], [], []
+    trace = RunTrace(truth)
     last = None
     post = grid.postprocessed(certainty=cal.extrapolation_certainty)
     for k in range(n + 1):
-        acc.append(map_accuracy(post.probabilities, truth) or 0.0)
-        if k in checkpoints:
-            c, r = _calibration_sample(np.asarray(post.probabilities), truth)
-            confs.append(c)
-            rights.append(r)
-        if k == n or (stop_at is not None and acc[-1] >= stop_at):
+        got = trace.accuracy(post.probabilities)
+        trace.calibration(k, post.probabilities)
+        if k == n or (stop_at is not None and got >= stop_at):
             break
         t = policy.next_target(grid, post, last)
         if t is None:
@@ -152,8 +171,7 @@ def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memo
         grid.update_cell(t.ix, t.iy, cal.evidence(answers[felt[t.iy, t.ix], rng.integers(answers.shape[1])]))
         last = (t.ix, t.iy)
         post = grid.postprocessed(certainty=cal.extrapolation_certainty)
-    return Run(np.array(acc), np.concatenate(confs) if confs else np.zeros(0),
-               np.concatenate(rights) if rights else np.zeros(0, bool))
+    return trace.run()
 
 
 def felt_cells_cached(fs: FamilyScene) -> np.ndarray:
@@ -182,11 +200,9 @@ def physics_run(fs: FamilyScene, row: str, seed: int = 0, budget: int | None = N
     truth = res.truth
     cal = sc.exploration.calibration
     certainty = cal.extrapolation_certainty
-    acc = [map_accuracy(new_map(res.geometry).postprocessed().probabilities, truth) or 0.0]
-    acc += [s.accuracy_postprocessed or 0.0 for s in res.steps]
-    n = truth.size
-    checkpoints = {max(1, int(round(f * n))) for f in CALIBRATION_AT}
-    confs, rights = [], []
+    trace = RunTrace(truth)
+    trace.accuracy(new_map(res.geometry).postprocessed().probabilities)
+    trace.acc += [s.accuracy_postprocessed or 0.0 for s in res.steps]
     # the run's map after each press, rebuilt from what each press fused (the run keeps only the last one)
     grid = new_map(res.geometry)
     for s in res.steps:
@@ -195,9 +211,6 @@ def physics_run(fs: FamilyScene, row: str, seed: int = 0, budget: int | None = N
                 grid.update(*s.result.location, cal.evidence(s.posterior))
             except ValidationError:  # the finger slipped off the grid: the run updated the planned cell
                 grid.update(*s.target, cal.evidence(s.posterior))
-        if s.k in checkpoints:
-            c, r = _calibration_sample(np.asarray(grid.postprocessed(certainty=certainty).probabilities), truth)
-            confs.append(c)
-            rights.append(r)
-    return Run(np.array(acc), np.concatenate(confs) if confs else np.zeros(0),
-               np.concatenate(rights) if rights else np.zeros(0, bool))
+        if s.k in trace.checkpoints:
+            trace.calibration(s.k, grid.postprocessed(certainty=certainty).probabilities)
+    return trace.run()
