@@ -102,6 +102,10 @@ class Variability:
             held against a light load, Elble & Koller 1990). 0 for none.
         force_scale: the force a person actually stops at, relative to the instructed limit (people palpating
             soft objects press far more lightly than a stated "up to 10 N"; 1 for a robot).
+        push_force: a press to a depth goes on past it until the object pushes back with at least this force,
+            N, as a person pressing a sponge does (0: stop at the depth, as a robot does); the force limit still
+            stops it first.
+        push_depth_scale: how far past the depth that may go, as a multiple of the press's depth (>= 1).
     """
 
     speed_cv: float = 0.15
@@ -113,6 +117,8 @@ class Variability:
     slip_std: float = 0.0
     tremor: float = 0.0
     force_scale: float = 1.0
+    push_force: float = 0.0
+    push_depth_scale: float = 2.0
 
     def __post_init__(self) -> None:
         for name in ("speed_cv", "depth_cv", "lateral_std", "hold_std", "tilt_std", "slip_std", "tremor"):
@@ -123,6 +129,10 @@ class Variability:
             raise ValidationError("Variability.speed_cv and depth_cv must stay below 0.5 (a press cannot reverse)")
         if not (np.isfinite(self.force_scale) and 0.01 <= self.force_scale <= 10.0):
             raise ValidationError(f"Variability.force_scale must be in [0.01, 10], got {self.force_scale!r}")
+        if not (np.isfinite(self.push_force) and self.push_force >= 0):
+            raise ValidationError(f"Variability.push_force must be a finite force >= 0 N, got {self.push_force!r}")
+        if not (np.isfinite(self.push_depth_scale) and self.push_depth_scale >= 1.0):
+            raise ValidationError(f"Variability.push_depth_scale must be >= 1, got {self.push_depth_scale!r}")
         if self.tilt_std >= np.deg2rad(30.0):
             raise ValidationError("Variability.tilt_std must stay below 30 deg (the pad would leave the contact)")
 
@@ -189,6 +199,11 @@ def press_profile(
     if target.depth is not None:
         depth = target.depth * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
         force_target = None
+        if v.push_force > 0 and depth_for_force is not None:
+            # on past the depth until the object pushes back (a soft one is pressed deeper), within a cap
+            pushed = float(depth_for_force(v.push_force))
+            if np.isfinite(pushed) and pushed > depth:
+                depth = min(pushed, v.push_depth_scale * depth)
         if target.force is not None and depth_for_force is not None:
             # Depth and force limit: stop at whichever comes first, as a person pressing a hard sample does.
             force_limit = float(target.force) * v.force_scale * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)

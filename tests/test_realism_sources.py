@@ -6,6 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from palpate.core.errors import ValidationError
 from palpate.core.perception.press import perceive_press
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, PoseSensorSpec, Scene, TaxelSensorSpec
@@ -244,3 +245,46 @@ def test_tremor_oscillates_in_the_physiological_band_with_its_amplitude():
     freq = np.fft.rfftfreq(len(wobble), 0.001)
     assert 8.0 <= freq[np.argmax(spectrum)] <= 12.0
     assert shaky.z[0] == calm.z[0] and shaky.z[-1] == pytest.approx(calm.z[-1])
+
+
+def _hertz_depth_for_force(e_star: float, radius: float = 0.008):
+    """Hertz's indentation, m, for a force, N, on a block of plane-strain modulus e_star, Pa."""
+    return lambda f: (3.0 * f / (4.0 * e_star * np.sqrt(radius))) ** (2.0 / 3.0)
+
+
+def _bottom_depth(profile) -> float:
+    return float(profile.surface_z + profile.meta["radius"] - profile.z.min())
+
+
+def test_a_person_presses_a_soft_object_on_until_it_pushes_back_within_the_cap():
+    target = PressTarget(0.0, 0.0, depth=2.5e-3, force=10.0, speed=0.01)
+    kw = dict(radius=0.008, timestep=0.001, seed=3)
+    soft, stiff = _hertz_depth_for_force(10e3), _hertz_depth_for_force(500e3)
+    person = replace(ROBOT, push_force=1.0, push_depth_scale=2.0)
+    # a robot stops at the depth whatever the material
+    assert _bottom_depth(press_profile(target, 0.04, variability=ROBOT, depth_for_force=soft, **kw)) == \
+        pytest.approx(2.5e-3)
+    # on 500 kPa 2.5 mm already carries more than 1 N: the person stops at the depth too
+    assert stiff(1.0) < 2.5e-3
+    assert _bottom_depth(press_profile(target, 0.04, variability=person, depth_for_force=stiff, **kw)) == \
+        pytest.approx(2.5e-3)
+    # on 10 kPa 1 N needs more than twice the depth: the press goes on to the cap
+    assert soft(1.0) > 5e-3
+    assert _bottom_depth(press_profile(target, 0.04, variability=person, depth_for_force=soft, **kw)) == \
+        pytest.approx(5e-3)
+    # where the push force is reached inside the cap, the press stops there
+    mid = _hertz_depth_for_force(20e3)
+    assert 2.5e-3 < mid(0.4) < 5e-3
+    got = press_profile(target, 0.04, variability=replace(person, push_force=0.4), depth_for_force=mid, **kw)
+    assert _bottom_depth(got) == pytest.approx(mid(0.4))
+    # the force limit still stops a press first
+    capped = press_profile(PressTarget(0.0, 0.0, depth=2.5e-3, force=0.2, speed=0.01), 0.04, variability=person,
+                           depth_for_force=soft, **kw)
+    assert _bottom_depth(capped) == pytest.approx(soft(0.2))
+
+
+@pytest.mark.parametrize("field, value", [("push_force", -1.0), ("push_force", float("nan")),
+                                          ("push_depth_scale", 0.9)])
+def test_bad_push_settings_are_refused(field, value):
+    with pytest.raises(ValidationError, match=f"Variability.{field}"):
+        replace(ROBOT, **{field: value})

@@ -90,6 +90,7 @@ FREE_PARAMETERS = {p.key: p for p in (
     FreeParameter("press.slip", 0.0, 0.3),
     FreeParameter("press.tremor_mm", 0.0, 0.3),
     FreeParameter("press.force_scale", 0.05, 1.0, log=True),
+    FreeParameter("press.push_force_n", 0.0, 2.0),
     FreeParameter("taxels.sensitivity", 0.5, 100.0, log=True),
     FreeParameter("taxels.gain_spread", 0.0, 0.3),
     FreeParameter("taxels.gain_drift", 0.0, 0.08),

@@ -15,7 +15,8 @@ is an error naming the file and the key (``x.toml: press.tilt_deg: must be <= 29
     stiffness_cv = 0.2
     pressure_exponent = 0.5
 
-    [press]          # speed_cv, depth_cv, lateral_mm, hold_s, smooth, tilt_deg, slip, tremor_mm, force_scale
+    [press]          # speed_cv, depth_cv, lateral_mm, hold_s, smooth, tilt_deg, slip, tremor_mm, force_scale,
+                     # push_force_n, push_depth_scale
     tilt_deg = 5.0
 
     [taxels]         # sensitivity, gain_spread, gain_drift, hysteresis, creep, nonlinearity, crosstalk,
@@ -121,6 +122,8 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
             slip_std=pr.number("slip", 0.0, lo=0.0),
             tremor=pr.number("tremor_mm", 0.0, lo=0.0) * 1e-3,
             force_scale=pr.number("force_scale", 1.0, lo=0.01, hi=10.0),
+            push_force=pr.number("push_force_n", 0.0, lo=0.0, hi=50.0),
+            push_depth_scale=pr.number("push_depth_scale", 2.0, lo=1.0, hi=10.0),
         )
         pr.finish()
         tx = top.sub("taxels")
@@ -188,7 +191,8 @@ def profile_tables(profile: RealismProfile) -> dict:
                    "stiffness_cv": f.stiffness_cv, "pressure_exponent": f.pressure_exponent},
         "press": {"speed_cv": p.speed_cv, "depth_cv": p.depth_cv, "lateral_mm": p.lateral_std * 1e3,
                   "hold_s": p.hold_std, "smooth": p.smooth, "tilt_deg": float(np.rad2deg(p.tilt_std)),
-                  "slip": p.slip_std, "tremor_mm": p.tremor * 1e3, "force_scale": p.force_scale},
+                  "slip": p.slip_std, "tremor_mm": p.tremor * 1e3, "force_scale": p.force_scale,
+                  "push_force_n": p.push_force, "push_depth_scale": p.push_depth_scale},
         "taxels": {"sensitivity": t.sensitivity, "gain_spread": t.gain_spread, "gain_drift": t.gain_drift,
                    "hysteresis": t.hysteresis, "creep": t.creep, "nonlinearity": t.nonlinearity,
                    "crosstalk": t.crosstalk, "activation_kpa": t.activation * 1e-3,
