@@ -17,22 +17,26 @@ def thesis(tmp_path_factory):
     return scenario, run_scenario(scenario, tmp_path_factory.mktemp("thesis"))
 
 
-# Known failure since the contact law feels finite thickness, layers and edges (issue 12): Material_1's cutaneous
-# features (a1 1.5 against the rubber's 3.4; the seed's real presses: 3.0 and 2.9) separate it from the other
-# materials by ~6 SD, so it is never misread (0.999998 against Table 6.7's 0.82). docs/realism.md, "What keeps
-# Material_1 from ever being confused", has the diagnosis and the refits that did not fix it. strict: when a realism
-# profile makes this pass, the marker must go.
-@pytest.mark.xfail(strict=True, reason="Material_1's leave-one-out saturates on the edge-aware contact law "
-                   "(docs/realism.md: the pad is fully active half-way through the sponge's 5 mm press)")
-def test_leave_one_out_reads_every_reference_material_mostly_as_itself(thesis):
+def test_leave_one_out_reads_every_reference_material_mostly_as_itself_and_the_stiff_ones_surely(thesis):
     _, summary = thesis
-    # Table 6.7's reading: the mean leave-one-out posterior favours the true material on every row; with the
-    # realism profile the presses are hard enough that some are misread (the seed's real data: 0.82 for Material_1)
+    # Table 6.7's reading: the mean leave-one-out posterior favours the true material on every row, and the rubber
+    # and the hard foam are read as themselves (>= 0.95): their a1 differ as the seed's do (2.9 and 10.9)
     mean_post = np.asarray(summary["crossval"]["mean_posterior"])
     assert np.all(mean_post.argmax(axis=1) == np.arange(3))
-    assert np.all(np.diag(mean_post) < 0.999), mean_post  # no longer saturated at 1 as without realism
+    assert np.all(np.diag(mean_post)[1:] >= 0.95), mean_post
     confusion = np.asarray(summary["crossval"]["confusion"])
     assert np.all(np.diag(confusion) >= 0.7), confusion
+
+
+# Known failure: Material_1's cutaneous features (a1 ~2 against the rubber's ~5; the seed's real presses: 3.0 and
+# 2.9) still separate it from the rubber, so it is never misread (1.0 against Table 6.7's 0.82). docs/realism.md has
+# the diagnosis and what was tried. strict: when a realism profile makes this pass, the marker must go.
+@pytest.mark.xfail(strict=True, reason="Material_1's leave-one-out stays at 1.0: its a1 is below the rubber's "
+                   "(docs/realism.md)")
+def test_leave_one_out_reads_material_1_as_table_6_7_does(thesis):
+    _, summary = thesis
+    mean_post = np.asarray(summary["crossval"]["mean_posterior"])
+    assert 0.76 <= mean_post[0, 0] <= 0.88, mean_post
 
 
 def _region_truths(entry, obj, scenario):
@@ -85,9 +89,9 @@ def test_the_run_reports_its_training_presses_against_the_seeds_tables(thesis):
     m = report["materials"]
     assert set(m) == {"Material_1", "Material_2", "Material_3"}
     assert 0.7 <= m["Material_1"]["cv_ratio_n1"] <= 1.3
-    assert 0.7 <= m["Material_1"]["cv_ratio_a1"] <= 1.3
     assert 0.7 <= m["Material_3"]["cv_ratio_n1"] <= 1.3
-    for name in ("Material_1", "Material_2"):
-        assert abs(m[name]["negative_n2_per_10_difference"]) <= 2
+    for name in ("Material_1", "Material_2", "Material_3"):
+        assert 0.7 <= m[name]["cv_ratio_a1"] <= 1.3, name
+        assert abs(m[name]["negative_n2_per_10_difference"]) <= 2, name
     # the simulated spread of n1 is now of the real one's order on every material (it was a third to a sixth)
     assert all(e["cv_ratio_n1"] > 0.5 for e in m.values())
