@@ -11,6 +11,7 @@ from palpate.core.perception.press import perceive_press
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, PoseSensorSpec, Scene, TaxelSensorSpec
 from palpate.sim.controller import ROBOT, press_profile
+from palpate.sim.hertz import hertz_depth_for_force
 from palpate.sim.realism.finger import series_law
 from palpate.sim.realism.material import relax_force
 from palpate.sim.realism.profile import IDEAL, FingerPulp, MaterialRealism, PoseRealism, TaxelRealism
@@ -249,7 +250,7 @@ def test_tremor_oscillates_in_the_physiological_band_with_its_amplitude():
 
 def _hertz_depth_for_force(e_star: float, radius: float = 0.008):
     """Hertz's indentation, m, for a force, N, on a block of plane-strain modulus e_star, Pa."""
-    return lambda f: (3.0 * f / (4.0 * e_star * np.sqrt(radius))) ** (2.0 / 3.0)
+    return lambda f: hertz_depth_for_force(e_star, radius, f)
 
 
 def _bottom_depth(profile) -> float:
