@@ -108,9 +108,9 @@ class Variability:
             stops it first.
         push_depth_scale: how far past the depth that may go, as a multiple of the press's depth (>= 1).
         tail_dof: degrees of freedom of a careless press (0: off, every press as careful as the others). Each
-            press draws one scale w = sqrt(nu / chi2_nu) (at most :data:`TAIL_SCALE_MAX`) that multiplies all its
-            deviations (depth or force, speeds, hold, press point, tilt, slip; the realism stage also the pulp's
-            stiffness): the deviations are then Student-t with ``tail_dof`` degrees of freedom, a scale mixture of
+            press draws one scale w = sqrt(nu / chi2_nu) (at most :data:`TAIL_SCALE_MAX`) that multiplies its
+            deviations of where and how deep it goes (depth or force, press point, tilt, slip; the realism stage
+            also the pulp's stiffness; not its pace: speeds and hold): the deviations are then Student-t with ``tail_dof`` degrees of freedom, a scale mixture of
             normals, so most presses are tight and a few are far off (docs/realism.md). >= 1 when on.
     """
 
@@ -252,9 +252,11 @@ def press_profile(
         depth = float(depth_for_force(force_target))
         if not (np.isfinite(depth) and depth > 0):
             raise ValidationError(f"press_profile: depth_for_force({force_target}) gave {depth!r}, expected > 0 m")
-    speed_in = target.speed * max(1.0 + v.speed_cv * normal(), 0.2)
-    speed_out = target.speed * max(1.0 + v.speed_cv * normal(), 0.2)
-    hold = max(target.hold + v.hold_std * normal(), 0.0) if v.hold_std > 0 else target.hold
+    # a careless press lands elsewhere, deeper and tilted, but keeps the person's pace (speed and hold): the rigid
+    # drive could not follow a hard foam's ~15 um indentation at twice the speed either (PressShortfall)
+    speed_in = target.speed * max(1.0 + v.speed_cv * rng.standard_normal(), 0.2)
+    speed_out = target.speed * max(1.0 + v.speed_cv * rng.standard_normal(), 0.2)
+    hold = max(target.hold + v.hold_std * rng.standard_normal(), 0.0) if v.hold_std > 0 else target.hold
     dx, dy = (v.lateral_std * normal(2)) if v.lateral_std > 0 else (0.0, 0.0)
     # drawn after the others, and only when asked for, so a press without them replays exactly as before
     tilt = v.tilt_std * normal(2) if v.tilt_std > 0 else None

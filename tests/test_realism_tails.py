@@ -58,14 +58,17 @@ def test_the_deviations_are_students_t_with_the_given_degrees_of_freedom():
     np.testing.assert_allclose(nearly_off, careful[:200], rtol=0.15, atol=0.02)
 
 
-def test_one_scale_widens_every_deviation_of_a_press():
+def test_one_scale_widens_where_and_how_deep_a_press_goes():
     v = replace(HUMAN, tilt_std=0.05, slip_std=0.05)
     seed = next(s for s in range(200) if tail_scale(2.0, s) > 2.0)
     w = tail_scale(2.0, seed)
     old = press_profile(TARGET, 0.04, variability=v, seed=seed, **KW)
     new = press_profile(TARGET, 0.04, variability=replace(v, tail_dof=2.0), seed=seed, **KW)
     assert new.meta["tail_scale"] == w
-    assert new.meta["speed_in"] / TARGET.speed - 1 == pytest.approx(w * (old.meta["speed_in"] / TARGET.speed - 1))
+    assert new.meta["depth"] / TARGET.depth - 1 == pytest.approx(w * (old.meta["depth"] / TARGET.depth - 1))
+    # the person's pace is not widened
+    assert (new.meta["speed_in"], new.meta["speed_out"], new.meta["hold"]) == \
+        (old.meta["speed_in"], old.meta["speed_out"], old.meta["hold"])
     assert new.x == pytest.approx(w * old.x) and new.y == pytest.approx(w * old.y)
     np.testing.assert_allclose(new.meta["slip"], w * np.asarray(old.meta["slip"]))
     np.testing.assert_allclose(new.meta["tilt"], np.clip(w * np.asarray(old.meta["tilt"]), -np.pi / 6, np.pi / 6))
