@@ -110,8 +110,9 @@ class Variability:
         tail_dof: degrees of freedom of a careless press (0: off, every press as careful as the others). Each
             press draws one scale w = sqrt(nu / chi2_nu) (at most :data:`TAIL_SCALE_MAX`) that multiplies its
             deviations of where and how deep it goes (depth or force, press point, tilt, slip; the realism stage
-            also the pulp's stiffness; not its pace: speeds and hold): the deviations are then Student-t with ``tail_dof`` degrees of freedom, a scale mixture of
-            normals, so most presses are tight and a few are far off (docs/realism.md). >= 1 when on.
+            also the pulp's stiffness; not its pace: speeds and hold): those deviations are then Student-t with
+            ``tail_dof`` degrees of freedom, a scale mixture of normals, so most presses are tight and a few are
+            far off (docs/realism.md). >= 1 when on.
     """
 
     speed_cv: float = 0.15
