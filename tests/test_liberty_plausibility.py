@@ -1,8 +1,8 @@
 """Liberty records are checked before they become poses: frame counter and clock continuity (no wrap guessing),
-position and orientation a hand can reach from the neighbouring records. Through the emulator on a pty, truly
-random bytes on the line at a 1e-3 error rate and false record headers let no wrong pose through; a garbled top byte
-of one timestamp moves nothing; a fast hand loses no record; a silent device ends the recording command with a
-non-zero exit and a finished file."""
+the clock's phase, position and orientation a hand can reach from the neighbouring records. Through the emulator on
+a pty, truly random bytes on the line at a 1e-3 error rate and false record headers let no wrong pose through; a
+garbled top byte of one timestamp moves nothing; one moved by a single tick is caught by the clock's phase; a fast
+hand loses no record; a silent device ends the recording command with a non-zero exit and a finished file."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from palpate.core.io.mcap_reader import read_recording
 from palpate.hardware.polhemus.driver import LibertyDriver
 from palpate.hardware.polhemus.emulator import Faults
 from palpate.hardware.polhemus.fault_trial import run_trial
-from palpate.hardware.polhemus.plausibility import RecordGate
+from palpate.hardware.polhemus.plausibility import Plausibility, RecordGate
 from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, encode_binary
 
 
@@ -66,6 +66,50 @@ def test_a_garbled_top_byte_of_one_timestamp_is_one_rejected_record_not_a_49_day
     times = np.array([p.t for p in poses])
     assert len(poses) == n - 1 and drv.stats.rejected == {"timestamp": 1}
     np.testing.assert_allclose(times, np.delete(ts, 20) / 1000.0)
+
+
+def _stamped_stream(rate: float, n: int, start_ms: float = 10_003.4):
+    """A still sensor's records at ``rate`` Hz stamped by a frame-locked clock in whole ms, as the Liberty does."""
+    frames = np.arange(n) + 1
+    ms = np.round(start_ms + (frames - 1) * 1000.0 / rate).astype(int)
+    return frames, ms
+
+
+def _feed(gate: RecordGate, frames, ms) -> list[int]:
+    pos, q = np.array([0.2, 0.0, 0.3]), np.array([1.0, 0, 0, 0])
+    out = []
+    for k, (f, m) in enumerate(zip(frames, ms, strict=True)):
+        out += [r for _, r in gate.feed(1, pos, q, int(m), int(f), 0.0, k)]
+    return out + [r for _, r in gate.flush()]
+
+
+@pytest.mark.parametrize("rate", [30.0, 50.0, 120.0, 144.0, 240.0, 240.03])
+def test_a_frame_locked_clock_at_any_rate_loses_no_record_to_the_phase_check(rate):
+    frames, ms = _stamped_stream(rate, 3000)
+    gate = RecordGate()
+    assert _feed(gate, frames, ms) == list(range(len(frames))) and not gate.rejected
+
+
+@pytest.mark.parametrize("shift", [-1, 1])
+def test_a_stamp_moved_by_one_tick_is_rejected_unless_it_lands_on_the_edge_of_the_clock_phase(shift):
+    # At 240 Hz whole-ms stamps step 4 or 5 ms in a pattern of 6 frames: a record moved by 1 ms mostly makes steps
+    # of 5 or 4 ms that a check within time_slack cannot tell from true ones; the clock's phase can, except for the
+    # record whose phase is already the earliest (moved later) or the latest (moved earlier): 1 of the 6.
+    caught, caught_by_steps = [], []
+    for k in range(600, 606):
+        frames, ms = _stamped_stream(240.0, 700)
+        ms[k] += shift
+        gate = RecordGate()
+        accepted = _feed(gate, frames, ms)
+        if k not in accepted:
+            caught.append(k)
+            assert gate.rejected == {"timestamp": 1} and len(accepted) == len(frames) - 1, dict(gate.rejected)
+        else:
+            assert not gate.rejected  # the one it cannot see costs no true neighbour
+        if k not in _feed(RecordGate(Plausibility(frame_locked_clock=False)), frames, ms):
+            caught_by_steps.append(k)
+    assert len(caught) == 5 and set(caught_by_steps) <= set(caught) and len(caught_by_steps) <= 2, \
+        (caught, caught_by_steps)
 
 
 def test_a_device_that_goes_silent_ends_the_command_with_an_error_and_a_finished_file(tmp_path, capsys):

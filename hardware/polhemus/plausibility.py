@@ -7,6 +7,11 @@ records before it becomes a pose:
 - **sequence**: the frame counter (item 9) moves forward by 1..``max_skip`` frames, and the device clock (item 8)
   by as many frame periods (within ``time_slack``), both modulo 2^32, so a genuine wrap of the 32-bit clock is
   simply a small step forward and a garbled top byte is a jump no device makes;
+- **clock phase**: the Liberty stamps each frame with its own clock in whole ms, and its frames are exactly one
+  period apart on that clock, so the stamps of a station's recent frames, less their frame count times the period,
+  lie within one tick of each other. A stamp moved by a tick or two (a damaged low byte) fits a single step within
+  ``time_slack`` but breaks that phase; with ``frame_locked_clock`` off (a tracker that stamps by host time) only
+  the steps are checked;
 - **motion**: a record is held until the next good one arrives, then its position must lie on the path between
   its neighbours: the interpolation error of a hand's path with acceleration at most ``max_accel`` is at most
   ``max_accel / 2 * (t - t0) * (t1 - t)``, plus the tracker's noise; its orientation likewise with
@@ -21,7 +26,7 @@ record of delay per station (4 ms at 240 Hz).
 from __future__ import annotations
 
 import math
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,6 +35,9 @@ import numpy as np
 LOCK_SKIP = 3
 #: Reasons a record is rejected (StreamStats.rejected keys).
 REASONS = ("frame counter", "timestamp", "position jump", "orientation jump", "speed", "no lock")
+#: How many of a station's latest good records the clock phase is checked against: enough to hold every phase of
+#: the ms rounding at 240 Hz (it repeats every 6 frames) twice.
+PHASE_FRAMES = 12
 
 
 @dataclass(frozen=True)
@@ -46,6 +54,9 @@ class Plausibility:
         max_skip: most frames between two records of a station that are still one stream.
         time_slack: how far the clock step may differ from the frame step times the period, s (1 ms ticks).
         relock_after: a station without a good record for this long starts again from three agreeing records, s.
+        frame_locked_clock: the device stamps frames by a clock its frame rate is locked to (the Liberty's), so
+            the clock phase is checked (module docstring).
+        clock_tick: the timestamp's resolution, s.
     """
 
     max_speed: float = 5.0
@@ -57,6 +68,8 @@ class Plausibility:
     max_skip: int = 1000
     time_slack: float = 0.0015
     relock_after: float = 0.5
+    frame_locked_clock: bool = True
+    clock_tick: float = 0.001
 
 
 @dataclass
@@ -75,8 +88,9 @@ class _Station:
     accepted: list = field(default_factory=list)  # the last accepted poses (at most 2)
     pending: list = field(default_factory=list)  # sequence-checked, not yet motion-checked
     period: float | None = None  # s per frame, from the first and the latest accepted record
-    period_error: float = 0.0  # its uncertainty, s per frame (1 ms ticks at both ends over the frames between)
+    period_error: float = 0.0  # its bound, s per frame: the two ends' rounding differs by less than a tick
     first: _Pose | None = None  # the first accepted record since lock-in
+    recent: deque = field(default_factory=lambda: deque(maxlen=PHASE_FRAMES))  # (frame, t) of the latest good ones
 
 
 class RecordGate:
@@ -106,6 +120,7 @@ class RecordGate:
             st.accepted.clear()
             st.pending.clear()
             st.period, st.first = None, None
+            st.recent.clear()
         if st.accepted:
             # the sequence is checked against the last record known good, never against one still held
             pose.t, why = self._sequence(st, st.accepted[-1], timestamp_ms, frame, t_host)
@@ -156,7 +171,24 @@ class RecordGate:
         if df is not None and st.period is not None and \
                 abs(dt - df * st.period) > lim.time_slack + df * st.period_error:
             return 0.0, "timestamp"
+        if df is not None and lim.frame_locked_clock and not self._in_phase(st, frame, ref.t + dt):
+            return 0.0, "timestamp"
         return ref.t + dt, None
+
+    def _in_phase(self, st: _Station, frame: int, t: float) -> bool:
+        """Whether a record's stamp keeps the station's recent stamps within one tick of one clock phase."""
+        if st.period is None or st.first is None or not st.recent:
+            return True
+        frames = np.array([f for f, _ in st.recent] + [frame], dtype=np.int64)
+        times = np.array([s for _, s in st.recent] + [t])
+        counted = (frames - st.first.frame) % (1 << 32)
+        phase = times - counted * st.period
+        # Rounded to whole ticks, one clock's stamps spread over less than a tick (nearly one when the rate is
+        # nearly a whole number of ticks per frame); a stamp moved by a tick spreads them over a tick plus its
+        # distance from the earliest phase, so it is caught unless it is that earliest (or latest) one. The
+        # period's own error tilts the phases over the frames spanned.
+        tilt = (counted.max() - counted.min()) * st.period_error
+        return float(phase.max() - phase.min()) <= self.limits.clock_tick + tilt
 
     def _learn_period(self, st: _Station, a: _Pose, b: _Pose) -> None:
         """The frame period over the longest baseline known: first accepted record to ``b``."""
@@ -164,10 +196,12 @@ class RecordGate:
             return
         if st.first is None:
             st.first = a
+            st.recent.append((a.frame, a.t))
+        st.recent.append((b.frame, b.t))
         df = (b.frame - st.first.frame) % (1 << 32)
         if df:
             st.period = (b.t - st.first.t) / df
-            st.period_error = 0.002 / df
+            st.period_error = self.limits.clock_tick / df
 
 
     # ---- motion --------------------------------------------------------------------------------------------
