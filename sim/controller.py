@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.stats import chi2
 
 from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget
@@ -106,6 +107,12 @@ class Variability:
             N, as a person pressing a sponge does (0: stop at the depth, as a robot does); the force limit still
             stops it first.
         push_depth_scale: how far past the depth that may go, as a multiple of the press's depth (>= 1).
+        tail_dof: degrees of freedom of a careless press (0: off, every press as careful as the others). Each
+            press draws one scale w = sqrt(nu / chi2_nu) (at most :data:`TAIL_SCALE_MAX`) that multiplies its
+            deviations of where and how deep it goes (depth or force, press point, tilt, slip; the realism stage
+            also the pulp's stiffness; not its pace: speeds and hold): those deviations are then Student-t with
+            ``tail_dof`` degrees of freedom, a scale mixture of normals, so most presses are tight and a few are
+            far off (docs/realism.md). >= 1 when on.
     """
 
     speed_cv: float = 0.15
@@ -119,6 +126,7 @@ class Variability:
     force_scale: float = 1.0
     push_force: float = 0.0
     push_depth_scale: float = 2.0
+    tail_dof: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("speed_cv", "depth_cv", "lateral_std", "hold_std", "tilt_std", "slip_std", "tremor"):
@@ -133,17 +141,40 @@ class Variability:
             raise ValidationError(f"Variability.push_force must be a finite force >= 0 N, got {self.push_force!r}")
         if not (np.isfinite(self.push_depth_scale) and self.push_depth_scale >= 1.0):
             raise ValidationError(f"Variability.push_depth_scale must be >= 1, got {self.push_depth_scale!r}")
+        if not (np.isfinite(self.tail_dof) and (self.tail_dof == 0 or self.tail_dof >= 1.0)):
+            raise ValidationError(f"Variability.tail_dof must be 0 (off) or a finite value >= 1, got {self.tail_dof!r}")
         if self.tilt_std >= np.deg2rad(30.0):
             raise ValidationError("Variability.tilt_std must stay below 30 deg (the pad would leave the contact)")
 
 
+#: Largest tilt of a careless press's finger, rad (the pad leaves the contact beyond).
+MAX_TILT = float(np.deg2rad(30.0))
+
 #: Frequency band of physiological finger tremor, Hz (Elble & Koller 1990: 8-12 Hz).
 TREMOR_BAND_HZ = (8.0, 12.0)
+
+#: spawn_key of a press's careless-press stream (its own, so the press's other draws stay as they were).
+TAIL_STREAM = 0x7A11
+#: Largest careless-press scale: a person's worst press is at most this many times as far off as a usual one
+#: (the Student-t's far tail would otherwise put a press off the object or reverse it).
+TAIL_SCALE_MAX = 4.0
 
 #: An exact robot press: no variability, constant speed.
 ROBOT = Variability(speed_cv=0.0, depth_cv=0.0, lateral_std=0.0, hold_std=0.0, smooth=False)
 #: A human-like press with the default variability.
 HUMAN = Variability()
+
+
+def tail_scale(dof: float, seed: int) -> float:
+    """A press's careless-press scale w = sqrt(nu / chi2_nu) for ``dof`` = nu (1 when 0: off), <= TAIL_SCALE_MAX.
+
+    Drawn by inverting chi2's distribution at one uniform of the press's own stream (``seed``), so a fit that
+    changes ``dof`` moves each press's scale smoothly (common random numbers), and w -> 1 as nu grows.
+    """
+    if dof <= 0:
+        return 1.0
+    u = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(TAIL_STREAM,))).uniform()
+    return float(min(np.sqrt(dof / chi2.ppf(u, dof)), TAIL_SCALE_MAX))
 
 
 def _ramp(n: int, smooth: bool) -> np.ndarray:
@@ -195,9 +226,14 @@ def press_profile(
     nrm = nrm / np.linalg.norm(nrm)
     rng = np.random.default_rng(seed)
     v = variability
+    w = tail_scale(v.tail_dof, seed)
+
+    def normal(size=None):
+        # a careless press's deviations are w times a careful one's (w is exactly 1 when off: the same draws)
+        return w * rng.standard_normal(size)
 
     if target.depth is not None:
-        depth = target.depth * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
+        depth = target.depth * max(1.0 + v.depth_cv * normal(), 0.2)
         force_target = None
         if v.push_force > 0 and depth_for_force is not None:
             # on past the depth until the object pushes back (a soft one is pressed deeper), within a cap
@@ -206,24 +242,28 @@ def press_profile(
                 depth = min(pushed, v.push_depth_scale * depth)
         if target.force is not None and depth_for_force is not None:
             # Depth and force limit: stop at whichever comes first, as a person pressing a hard sample does.
-            force_limit = float(target.force) * v.force_scale * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
+            force_limit = float(target.force) * v.force_scale * max(1.0 + v.depth_cv * normal(), 0.2)
             depth_at_limit = float(depth_for_force(force_limit))
             if np.isfinite(depth_at_limit) and 0 < depth_at_limit < depth:
                 depth, force_target = depth_at_limit, force_limit
     else:
         if depth_for_force is None:
             raise ValidationError("press_profile: a force target needs depth_for_force (force N -> depth m)")
-        force_target = float(target.force) * v.force_scale * max(1.0 + v.depth_cv * rng.standard_normal(), 0.2)
+        force_target = float(target.force) * v.force_scale * max(1.0 + v.depth_cv * normal(), 0.2)
         depth = float(depth_for_force(force_target))
         if not (np.isfinite(depth) and depth > 0):
             raise ValidationError(f"press_profile: depth_for_force({force_target}) gave {depth!r}, expected > 0 m")
+    # a careless press lands elsewhere, deeper and tilted, but keeps the person's pace (speed and hold): the rigid
+    # drive could not follow a hard foam's ~15 um indentation at twice the speed either (PressShortfall)
     speed_in = target.speed * max(1.0 + v.speed_cv * rng.standard_normal(), 0.2)
     speed_out = target.speed * max(1.0 + v.speed_cv * rng.standard_normal(), 0.2)
     hold = max(target.hold + v.hold_std * rng.standard_normal(), 0.0) if v.hold_std > 0 else target.hold
-    dx, dy = (v.lateral_std * rng.standard_normal(2)) if v.lateral_std > 0 else (0.0, 0.0)
+    dx, dy = (v.lateral_std * normal(2)) if v.lateral_std > 0 else (0.0, 0.0)
     # drawn after the others, and only when asked for, so a press without them replays exactly as before
-    tilt = v.tilt_std * rng.standard_normal(2) if v.tilt_std > 0 else None
-    slip = v.slip_std * rng.standard_normal(2) if v.slip_std > 0 else None
+    tilt = v.tilt_std * normal(2) if v.tilt_std > 0 else None
+    if tilt is not None and w != 1.0:
+        tilt = np.clip(tilt, -MAX_TILT, MAX_TILT)  # a careless press still keeps the pad on the contact
+    slip = v.slip_std * normal(2) if v.slip_std > 0 else None
     tremor = (rng.uniform(*TREMOR_BAND_HZ), rng.uniform(0.0, 2.0 * np.pi)) if v.tremor > 0 else None
 
     # a minimum-jerk move peaks at 1.875x its mean speed; scale its duration so the peak matches the command
@@ -273,6 +313,8 @@ def press_profile(
             "retract": [float(t_lift), float(t[-1])],
         },
     }
+    if v.tail_dof > 0:
+        meta["tail_scale"] = w
     if tilt is not None:
         meta["tilt"] = [float(a) for a in tilt]
     if slip is not None:

@@ -268,4 +268,4 @@ class SimSource:
 
         planned = target.depth if target.depth is not None else planning_depth(target.force)
         return self._session.press(obj.name, point.x, point.y, planning_depth, 2.0 * planned + 0.01,
-                                   np.random.default_rng(stream))
+                                   np.random.default_rng(stream), tail_scale=point.meta.get("tail_scale", 1.0))

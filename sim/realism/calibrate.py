@@ -55,12 +55,17 @@ FAILED = 1e6
 
 @dataclass(frozen=True)
 class FreeParameter:
-    """One fitted parameter: its key in the profile file (``section.key``, file units) and its search box."""
+    """One fitted parameter: its key in the profile file (``section.key``, file units) and its search box.
+
+    ``off``: a value outside the box that turns the parameter off (``press.tail_dof`` = 0); a start there begins
+    at the box's end nearest to off (``hi``: the gentlest tail).
+    """
 
     key: str
     lo: float
     hi: float
     log: bool = False
+    off: float | None = None
 
     def value(self, u: float) -> float:
         """The parameter at position u in [0, 1] of its box."""
@@ -71,6 +76,8 @@ class FreeParameter:
 
     def position(self, v: float) -> float:
         """The position in [0, 1] of the value v (clipped into the box)."""
+        if self.off is not None and v == self.off:
+            return 1.0
         v = float(np.clip(v, self.lo, self.hi))
         if self.log:
             return float((np.log(v) - np.log(self.lo)) / (np.log(self.hi) - np.log(self.lo)))
@@ -91,6 +98,7 @@ FREE_PARAMETERS = {p.key: p for p in (
     FreeParameter("press.tremor_mm", 0.0, 0.3),
     FreeParameter("press.force_scale", 0.05, 1.0, log=True),
     FreeParameter("press.push_force_n", 0.0, 2.0),
+    FreeParameter("press.tail_dof", 1.5, 50.0, log=True, off=0.0),
     FreeParameter("taxels.sensitivity", 0.5, 100.0, log=True),
     FreeParameter("taxels.gain_spread", 0.0, 0.3),
     FreeParameter("taxels.gain_drift", 0.0, 0.08),

@@ -16,7 +16,7 @@ is an error naming the file and the key (``x.toml: press.tilt_deg: must be <= 29
     pressure_exponent = 0.5
 
     [press]          # speed_cv, depth_cv, lateral_mm, hold_s, smooth, tilt_deg, slip, tremor_mm, force_scale,
-                     # push_force_n, push_depth_scale
+                     # push_force_n, push_depth_scale, tail_dof
     tilt_deg = 5.0
 
     [taxels]         # sensitivity, gain_spread, gain_drift, hysteresis, creep, nonlinearity, crosstalk,
@@ -124,6 +124,7 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
             force_scale=pr.number("force_scale", 1.0, lo=0.01, hi=10.0),
             push_force=pr.number("push_force_n", 0.0, lo=0.0, hi=50.0),
             push_depth_scale=pr.number("push_depth_scale", 2.0, lo=1.0, hi=10.0),
+            tail_dof=_tail_dof(pr),
         )
         pr.finish()
         tx = top.sub("taxels")
@@ -154,6 +155,14 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
     _check_provenance(provenance, TableReader(file, provenance, "provenance"))
     top.finish()
     return RealismProfile(name, description, finger, press, taxels, pose, material, provenance)
+
+
+def _tail_dof(pr: TableReader) -> float:
+    """``press.tail_dof``: 0 (off) or the careless press's degrees of freedom, 1 (Cauchy) to 1000."""
+    dof = pr.number("tail_dof", 0.0, lo=0.0, hi=1000.0)
+    if 0.0 < dof < 1.0:
+        raise pr.err("tail_dof", f"must be 0 (off) or >= 1 degree of freedom, got {dof}")
+    return dof
 
 
 def _check_provenance(value, where: TableReader, depth: int = 0) -> None:
@@ -192,7 +201,8 @@ def profile_tables(profile: RealismProfile) -> dict:
         "press": {"speed_cv": p.speed_cv, "depth_cv": p.depth_cv, "lateral_mm": p.lateral_std * 1e3,
                   "hold_s": p.hold_std, "smooth": p.smooth, "tilt_deg": float(np.rad2deg(p.tilt_std)),
                   "slip": p.slip_std, "tremor_mm": p.tremor * 1e3, "force_scale": p.force_scale,
-                  "push_force_n": p.push_force, "push_depth_scale": p.push_depth_scale},
+                  "push_force_n": p.push_force, "push_depth_scale": p.push_depth_scale,
+                  "tail_dof": p.tail_dof},
         "taxels": {"sensitivity": t.sensitivity, "gain_spread": t.gain_spread, "gain_drift": t.gain_drift,
                    "hysteresis": t.hysteresis, "creep": t.creep, "nonlinearity": t.nonlinearity,
                    "crosstalk": t.crosstalk, "activation_kpa": t.activation * 1e-3,

@@ -139,7 +139,7 @@ class RealismSession:
         return sum(1 for name, px, py in self.spots if name == obj_name and np.hypot(px - x, py - y) <= r)
 
     def press(self, obj_name: str, x: float, y: float, depth_for_force, reach: float,
-              rng: np.random.Generator) -> PressRealism:
+              rng: np.random.Generator, tail_scale: float = 1.0) -> PressRealism:
         """Draw one press's realism at (x, y) m on ``obj_name``.
 
         Args:
@@ -147,11 +147,14 @@ class RealismSession:
             depth_for_force: the object's force (N) -> indentation (m) law (the fidelity's).
             reach: the deepest bone travel the press may plan, m (the series law is tabulated up to it).
             rng: this press's realism stream.
+            tail_scale: this press's careless-press scale (the press profile's ``meta["tail_scale"]``, drawn by
+                :func:`palpate.sim.controller.tail_scale`): it widens the pulp's stiffness draw as it widens the
+                press's own deviations (which part of the pulp touches is part of how the person presses).
         """
         p = self.profile
         softening = p.material.softening_factor(self.earlier_presses(obj_name, x, y))
         self.spots.append((obj_name, float(x), float(y)))
-        stiffness_scale = float(lognormal(rng, p.finger.stiffness_cv))
+        stiffness_scale = float(lognormal(rng, p.finger.stiffness_cv, spread=tail_scale))
         if p.taxels.gain_drift > 0:
             self.drift *= float(lognormal(rng, p.taxels.gain_drift))
         clock = self.clock_offset + (p.pose.clock_wander * float(rng.standard_normal()) if p.pose.clock_wander

@@ -28,12 +28,24 @@ from palpate.sim.realism.profile import TaxelRealism
 CREEP_REFERENCE_S = 1.0
 
 
-def lognormal(rng: np.random.Generator, cv: float, shape: tuple[int, ...] = ()) -> np.ndarray:
-    """Log-normal factors of mean 1 and coefficient of variation ``cv`` (ones, and nothing drawn, for cv <= 0)."""
+#: How far, in standard deviations of a careful draw, a careless press's log-normal factor may go.
+SPREAD_SIGMAS = 3.0
+
+
+def lognormal(rng: np.random.Generator, cv: float, shape: tuple[int, ...] = (), spread: float = 1.0) -> np.ndarray:
+    """Log-normal factors of mean 1 and coefficient of variation ``cv`` (ones, and nothing drawn, for cv <= 0).
+
+    ``spread`` multiplies the log-deviation (a careless press's scale, :func:`palpate.sim.controller.tail_scale`),
+    within :data:`SPREAD_SIGMAS` of a careful draw's (a finger's pulp is no softer or stiffer for being pressed
+    carelessly: the careless press only reaches the ends of its range more often); 1 draws exactly as without it.
+    """
     if cv <= 0:
         return np.ones(shape)
     s = np.sqrt(np.log1p(cv * cv))
-    return np.exp(s * rng.standard_normal(shape) - 0.5 * s * s)
+    z = rng.standard_normal(shape)
+    if spread != 1.0:
+        z = np.clip(spread * z, -SPREAD_SIGMAS, SPREAD_SIGMAS)
+    return np.exp(s * z - 0.5 * s * s)
 
 
 def gain_map(realism: TaxelRealism, shape: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
