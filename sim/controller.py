@@ -21,6 +21,10 @@ from scipy.stats import chi2
 from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget
 
+#: Largest tilt of the finger, rad: beyond it the pad leaves the contact (a careless press's tilt is clipped to it,
+#: a careful press's spread must stay below it).
+MAX_TILT = float(np.deg2rad(30.0))
+
 
 @dataclass
 class PressProfile:
@@ -143,12 +147,9 @@ class Variability:
             raise ValidationError(f"Variability.push_depth_scale must be >= 1, got {self.push_depth_scale!r}")
         if not (np.isfinite(self.tail_dof) and (self.tail_dof == 0 or self.tail_dof >= 1.0)):
             raise ValidationError(f"Variability.tail_dof must be 0 (off) or a finite value >= 1, got {self.tail_dof!r}")
-        if self.tilt_std >= np.deg2rad(30.0):
+        if self.tilt_std >= MAX_TILT:
             raise ValidationError("Variability.tilt_std must stay below 30 deg (the pad would leave the contact)")
 
-
-#: Largest tilt of a careless press's finger, rad (the pad leaves the contact beyond).
-MAX_TILT = float(np.deg2rad(30.0))
 
 #: Frequency band of physiological finger tremor, Hz (Elble & Koller 1990: 8-12 Hz).
 TREMOR_BAND_HZ = (8.0, 12.0)
