@@ -117,10 +117,7 @@ class RecordGate:
         if st.accepted and t_host - st.accepted[-1].host > self.limits.relock_after:
             # no good record for a while (a silent or restarted device): start again from agreeing records
             self.rejected["no lock"] += len(st.pending)
-            st.accepted.clear()
-            st.pending.clear()
-            st.period, st.first = None, None
-            st.recent.clear()
+            st = self._stations[station] = _Station()
         if st.accepted:
             # the sequence is checked against the last record known good, never against one still held
             pose.t, why = self._sequence(st, st.accepted[-1], timestamp_ms, frame, t_host)
