@@ -96,10 +96,11 @@ def felt_cells(fs: FamilyScene) -> np.ndarray:
     top = spec.height
     centres = geom.cell_centres()
     out = np.empty(centres.shape[:2], dtype=int)
+    laws: dict = {}  # one scene's cells share column stacks: each column's FE energy shares are solved once
     for iy in range(centres.shape[0]):
         for ix in range(centres.shape[1]):
             x, y = (float(v) for v in centres[iy, ix])
-            law = object_law(spec, x, y, top, radius, MAX_DEPTH_OVER_RADIUS * radius)
+            law = object_law(spec, x, y, top, radius, MAX_DEPTH_OVER_RADIUS * radius, cache=laws)
             force = sc.exploration.max_force
             reach = law.depth_for_force(force) if force < law.force[-1] else law.max_depth
             d = min(sc.exploration.depth, reach)
@@ -175,7 +176,8 @@ def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memo
 
 
 def felt_cells_cached(fs: FamilyScene) -> np.ndarray:
-    """:func:`felt_cells` of a scene, kept in CACHE_DIR (a few ms per cell to compute)."""
+    """:func:`felt_cells` of a scene, kept in CACHE_DIR (a cell with a wall within reach costs an axisymmetric FE
+    solve, so a scene takes up to a minute the first time)."""
     # keyed on the materials too: a variant of the same layout (--confused) feels different
     key = hashlib.sha1(repr(fs.materials).encode()).hexdigest()[:10]
     path = CACHE_DIR / f"felt_{fs.seed}_{key}.npy"
