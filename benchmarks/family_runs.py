@@ -24,6 +24,9 @@ import numpy as np
 from exploration import make_source_for
 from scene_families import GENERATOR_VERSION, REFERENCES, FamilyScene, scene
 
+import palpate.core.world.scene as world_scene
+import palpate.sim.contact as contact_package
+import palpate.sim.reference as reference_package
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import map_accuracy
 from palpate.core.mapping.calibration import calibration_sample
@@ -47,6 +50,18 @@ OF_CEILING = 0.95
 CACHE_DIR = Path(tempfile.gettempdir()) / f"palpate_families_v{GENERATOR_VERSION}_law"
 #: Fractions of a scene's cells pressed at which the map's calibration is sampled.
 CALIBRATION_AT = (0.2, 0.35, 0.5, 1.0)
+
+
+@cache
+def law_digest() -> str:
+    """A digest of the code felt cells come from (the contact law and its FE surrogate, the scene's material
+    lookup): a cache filled before that code changed must not answer for it."""
+    files = [*sorted(Path(contact_package.__file__).parent.glob("*.py")),
+             *sorted(Path(reference_package.__file__).parent.glob("*.py")), Path(world_scene.__file__)]
+    h = hashlib.sha1()
+    for f in files:
+        h.update(f.read_bytes())
+    return h.hexdigest()[:10]
 
 
 @dataclass(frozen=True)
@@ -178,8 +193,8 @@ def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memo
 def felt_cells_cached(fs: FamilyScene) -> np.ndarray:
     """:func:`felt_cells` of a scene, kept in CACHE_DIR (a cell with a wall within reach costs an axisymmetric FE
     solve, so a scene takes up to a minute the first time)."""
-    # keyed on the materials too: a variant of the same layout (--confused) feels different
-    key = hashlib.sha1(repr(fs.materials).encode()).hexdigest()[:10]
+    # keyed on the materials (a variant of the same layout, --confused, feels different) and on the law's code
+    key = hashlib.sha1((repr(fs.materials) + law_digest()).encode()).hexdigest()[:10]
     path = CACHE_DIR / f"felt_{fs.seed}_{key}.npy"
     if path.is_file():
         got = np.load(path, allow_pickle=False)
