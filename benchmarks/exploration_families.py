@@ -23,7 +23,11 @@ soft's), so the memory names the wrong one of the two in about a fifth of presse
 gracefully and stay the best policy.
 
 Run: .venv/bin/python benchmarks/exploration_families.py [--scenes N] [--split tuning|report|both] [--physics K]
-     [--policies a,b] [--confused] [--figure PNG] [--json PATH]
+     [--policies a,b] [--confused] [--figure PNG] [--json PATH] [--store-felt]
+
+Felt cells cost FE solves (up to a minute a scene); they are cached in the temp folder and read from the committed
+benchmarks/data/felt_cells.npz, both keyed on the contact law's code, so a changed law recomputes them;
+--store-felt writes the archive after a run.
 """
 
 from __future__ import annotations
@@ -39,7 +43,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from clairvoyant import clairvoyant_run  # noqa: E402
-from family_runs import OF_CEILING, ROWS, Run, offline_run, physics_run  # noqa: E402
+from family_runs import (  # noqa: E402
+    FELT_ARCHIVE,
+    OF_CEILING,
+    ROWS,
+    Run,
+    offline_run,
+    physics_run,
+    store_felt_archive,
+)
 from scene_families import FAMILIES, REPORT_SEEDS, TUNING_SEEDS, scene  # noqa: E402
 
 from palpate.core.mapping.calibration import reliability_table  # noqa: E402
@@ -206,6 +218,9 @@ def main() -> None:
     parser.add_argument("--figure", default="/tmp/palpate_reliability.png", help="reliability figure (physics)")
     parser.add_argument("--json", default=None, help="write the tables as JSON here")
     parser.add_argument("--verbose", action="store_true", help="one line per scene")
+    parser.add_argument("--store-felt", action="store_true",
+                        help=f"after the run, write the felt cells of today's contact law to {FELT_ARCHIVE.name} "
+                             "(committed: a fresh machine then skips their FE solves)")
     args = parser.parse_args()
     chosen = [p.strip() for p in args.policies.split(",") if p.strip()]
     known = (*ROWS, *REFERENCE_ROWS)
@@ -246,6 +261,8 @@ def main() -> None:
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1, default=float))
         print(f"tables: {args.json}")
+    if args.store_felt:
+        print(f"felt cells of {store_felt_archive()} scenes in {FELT_ARCHIVE}")
 
 
 if __name__ == "__main__":
