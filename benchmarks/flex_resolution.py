@@ -25,7 +25,7 @@ from palpate.sim.contact.law import solve_contact_law
 from palpate.sim.flex import reference_press
 from palpate.sim.flex_calibrate import loading_ratio, measure_calibration
 from palpate.sim.flex_calibration import CAL_YOUNG, CALIBRATION_PATH
-from palpate.sim.flex_model import DEFAULT_RESOLUTION, DEFAULT_WINDOW
+from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW
 from palpate.sim.reference.sample import AxisymmetricSample
 
 RADIUS = 0.008
@@ -54,13 +54,14 @@ def main() -> None:
     args = ap.parse_args()
     if args.calibrate:
         table = measure_calibration(DEFAULT_RESOLUTION, radius=RADIUS, window=DEFAULT_WINDOW, path=CALIBRATION_PATH,
-                                    progress=lambda nu, h: print(f"  measured nu {nu} H {h * 1e3:g} mm", flush=True))
+                                    progress=lambda sides, nu, h: print(f"  measured {sides} nu {nu} H {h * 1e3:g} mm",
+                                                                        flush=True))
         print(f"wrote {CALIBRATION_PATH}")
-        t = table["tables"][0]
-        print("a/cell       " + " ".join(f"{v:5.2f}" for v in t["contact_over_cell"][::4]))
-        for nu, rows in zip(t["poisson"], t["factor"], strict=True):
-            for h, row in zip(t["thickness"], rows, strict=True):
-                print(f"nu {nu:4.2f} {h * 1e3:3.0f}mm " + " ".join(f"{v:5.3f}" for v in row[::4]))
+        for t in table["tables"]:
+            print(f"{t['sides']} sides, a/cell " + " ".join(f"{v:5.2f}" for v in t["contact_over_cell"][::4]))
+            for nu, rows in zip(t["poisson"], t["factor"], strict=True):
+                for h, row in zip(t["thickness"], rows, strict=True):
+                    print(f"nu {nu:4.2f} {h * 1e3:3.0f}mm " + " ".join(f"{v:5.3f}" for v in row[::4]))
     settings = [(DEFAULT_RESOLUTION, DEFAULT_WINDOW)]
     if args.full:
         settings += [(0.0075, 0.03), (0.005, 0.02), (0.005, 0.04), (0.0033, 0.03)]

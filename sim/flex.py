@@ -11,7 +11,8 @@ the surface patch of its vertex (side = vertex spacing) and is spread uniformly 
 averages over each sensel.
 
 The model is built once per window (a ``models`` dict the caller keeps, e.g. one per SimSource) and its state reset
-between presses. A cylinder is modelled by the square inscribed in it; meshes are not supported. Gravity is off so
+between presses. A cylinder narrow enough for the window is meshed whole (its curved side free), a wider one by
+the square inscribed in it; meshes are not supported. Gravity is off so
 that the undeformed top stays at the object's height.
 """
 
@@ -24,15 +25,8 @@ from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, Scene, material_index_at
 from palpate.sim.controller import press_profile
 from palpate.sim.flex_calibration import load_calibration, mesh_factor
-from palpate.sim.flex_model import (
-    CONTACT_SOLREF,
-    DEFAULT_RESOLUTION,
-    DEFAULT_WINDOW,
-    MAX_TIMESTEP,
-    VERTS_PER_CELL,
-    build_flex_model,
-    flex_grid,
-)
+from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW, flex_grid
+from palpate.sim.flex_model import CONTACT_SOLREF, MAX_TIMESTEP, VERTS_PER_CELL, build_flex_model
 from palpate.sim.stability import MAX_STEPS, check_depth, check_reached, check_resolves_press, check_step_budget
 from palpate.sim.trace import PhysicsTrace
 
@@ -187,6 +181,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     model.body_pos[fm.tip_body] = [x, y, z0]
     mujoco.mj_forward(model, data)
     cell = grid.finest
+    pinned_fraction = sum(grid.pinned) / len(grid.pinned)
     nu = _surface_poisson(obj, x, y)
     calibration = load_calibration() if calibrate else None
     qadr = model.jnt_qposadr[fm.tip_joint]
@@ -247,7 +242,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
                             "indentation", times[k], dt)
         if calibrate:
             factor = mesh_factor(np.sqrt(tip.radius * max(ind_k, 0.0)) / cell, nu, cell / tip.radius, calibration,
-                                 obj.height)
+                                 obj.height, pinned_fraction)
             factors[k] = factor.kappa
             extrapolated |= factor.extrapolated
         fn = fn / factors[k]
@@ -278,7 +273,8 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             "fidelity": "flex", "timestep": dt, "integrator": "discrete", "resolution": res,
             "cell": grid.finest, "cells": list(grid.cells),
             "window_lower": [float(v) for v in grid.lower], "window_size": [float(v) for v in grid.size],
-            "pinned_sides": list(grid.pinned), "mesh_factor_range": [float(factors.min()), float(factors.max())],
+            "pinned_sides": list(grid.pinned), "disc_radius": grid.disc_radius,
+            "mesh_factor_range": [float(factors.min()), float(factors.max())],
             "calibration_extrapolated": bool(extrapolated), "young_range": fm.meta["young_range"],
             "materials": sorted(set(fm.cell_material)), "vertex_patch": fm.vertex_spacing,
             "contact_solref": list(CONTACT_SOLREF), "kp": fm.kp, "max_contact_penetration": -min_dist,

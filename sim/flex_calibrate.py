@@ -11,8 +11,8 @@ import numpy as np
 from palpate.core.world.scene import Material
 from palpate.sim.contact.law import solve_contact_law
 from palpate.sim.flex import reference_press
-from palpate.sim.flex_calibration import CAL_HEIGHTS, CAL_YOUNG, FORMAT_VERSION
-from palpate.sim.flex_model import DEFAULT_WINDOW
+from palpate.sim.flex_calibration import CAL_HEIGHTS, CAL_YOUNG, FORMAT_VERSION, FREE_WINDOW_SCALE
+from palpate.sim.flex_grid import DEFAULT_WINDOW
 from palpate.sim.reference.sample import AxisymmetricSample
 
 #: Contact radius over cell edge at which the factor is tabulated (below the first the contact is one vertex): dense,
@@ -34,12 +34,33 @@ def loading_ratio(indentation: np.ndarray, force: np.ndarray, reference, depths:
 def measure_calibration(resolution: float, *, radius: float = 0.008, window: float = DEFAULT_WINDOW,
                         poissons=POISSONS, heights=CAL_HEIGHTS, path: Path | str | None = None,
                         progress=None) -> dict:
-    """Measure kappa on the calibration blocks for cells of ``resolution`` (m); write the file if ``path``.
+    """Measure kappa on the calibration blocks for cells of ``resolution`` (m), both kinds of sides (a "pinned"
+    table in ``window``, a "free" one in FREE_WINDOW_SCALE times it); write the file if ``path``.
 
     Each (poisson, thickness) is one uncalibrated press, as deep as a / cell reaches the table's end or the
     thickness allows; beyond the deepest measured a / cell the row repeats its last value (and a press there is
     flagged extrapolated).
     """
+    tables = [_measure_table(resolution, radius, w, sides, poissons, heights, progress)
+              for sides, w in (("pinned", window), ("free", FREE_WINDOW_SCALE * window))]
+    table = {
+        "version": FORMAT_VERSION,
+        "measured_with": {
+            "young": CAL_YOUNG, "heights": list(heights), "radius": radius, "window": window,
+            "free_window": FREE_WINDOW_SCALE * window,
+            "reference": "layered contact law of the same bonded block (palpate.sim.contact.law)",
+            "how": "benchmarks/flex_resolution.py --calibrate (palpate.sim.flex_calibrate.measure_calibration)",
+        },
+        "tables": tables,
+    }
+    if path is not None:
+        Path(path).write_text(json.dumps(table) + "\n")
+    return table
+
+
+def _measure_table(resolution: float, radius: float, window: float, sides: str, poissons, heights,
+                   progress) -> dict:
+    """One calibration table (see :func:`measure_calibration`), its presses in ``window`` (m)."""
     ac = np.array(CONTACT_OVER_CELL)
     factor, reach, cell = [], [], None
     for nu in poissons:
@@ -56,20 +77,9 @@ def measure_calibration(resolution: float, *, radius: float = 0.008, window: flo
                                                                    (inside * cell) ** 2 / radius)])
             ups.append(round(float(up), 4))
             if progress is not None:
-                progress(nu, h)
+                progress(sides, nu, h)
         factor.append(rows)
         reach.append(ups)
-    table = {
-        "version": FORMAT_VERSION,
-        "measured_with": {
-            "young": CAL_YOUNG, "heights": list(heights), "radius": radius, "window": window,
-            "reference": "layered contact law of the same bonded block (palpate.sim.contact.law)",
-            "how": "benchmarks/flex_resolution.py --calibrate (palpate.sim.flex_calibrate.measure_calibration)",
-        },
-        "tables": [{"cell_over_radius": round(cell / radius, 4), "cell": cell, "poisson": list(poissons),
-                    "thickness": list(heights), "contact_over_cell": list(CONTACT_OVER_CELL), "measured_to": reach,
-                    "factor": factor}],
-    }
-    if path is not None:
-        Path(path).write_text(json.dumps(table) + "\n")
-    return table
+    return {"sides": sides, "cell_over_radius": round(cell / radius, 4), "cell": cell, "poisson": list(poissons),
+            "thickness": list(heights), "contact_over_cell": list(CONTACT_OVER_CELL), "measured_to": reach,
+            "factor": factor}

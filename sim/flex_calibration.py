@@ -12,8 +12,15 @@ F_reference. A press divides its contact forces by kappa at its current contact 
 height. kappa is the mesh's alone (the reference of each block includes its own thickness), so a thinner block, a
 layer or an edge keeps the stiffening its own elasticity gives it.
 
-models/flex_calibration.json holds one table per cell size (cell / tip radius); ``benchmarks/flex_resolution.py
---calibrate`` remeasures it (:func:`palpate.sim.flex_calibrate.measure_calibration`).
+The window's pinned sides stiffen it too (a 20 mm block pressed 2-3 mm in the 30 mm window is ~20% stiffer than
+in a window three times as wide), and a table measured in the default window holds that stiffening as well as the
+mesh's. A window with free sides (a cylinder's whole disc, a small box) has no such stiffening, so there are two
+kinds of table (key ``sides``): "pinned", measured in the default window, and "free", measured in a window twice
+as wide (FREE_WINDOW_SCALE; wider changes kappa by under ~3% on a 20 mm block); a press uses kappa interpolated
+between them by the fraction of its window's sides that are pinned.
+
+models/flex_calibration.json holds one table per cell size (cell / tip radius) and kind of sides;
+``benchmarks/flex_resolution.py --calibrate`` remeasures it (:func:`palpate.sim.flex_calibrate.measure_calibration`).
 """
 
 from __future__ import annotations
@@ -35,7 +42,11 @@ CALIBRATION_PATH = models_dir() / "flex_calibration.json"
 CAL_HEIGHTS = (0.003, 0.007, 0.014, 0.03, 0.07, 0.15)
 #: Reference modulus of the calibration (the flex is E-invariant; this only fixes the units), Pa.
 CAL_YOUNG = 2.0e5
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
+#: The kinds of calibration table (see the module docstring).
+SIDES = ("pinned", "free")
+#: Width of the window a "free" table is measured in, in default windows.
+FREE_WINDOW_SCALE = 2.0
 #: Largest calibration file accepted, bytes.
 MAX_BYTES = 1_000_000
 
@@ -48,9 +59,9 @@ def load_calibration(path: Path | str = CALIBRATION_PATH) -> dict:
     """Read and validate a calibration file.
 
     Returns:
-        {"tables": [{"cell_over_radius": float, "poisson": (p,), "thickness": (h,) m, "contact_over_cell": (c,),
-        "measured_to": (p, h) largest a / cell measured, "factor": (p, h, c)}], "measured_with": dict}, tables
-        sorted by cell_over_radius.
+        {"tables": [{"sides": "pinned" or "free", "cell_over_radius": float, "poisson": (p,), "thickness": (h,) m,
+        "contact_over_cell": (c,), "measured_to": (p, h) largest a / cell measured, "factor": (p, h, c)}],
+        "measured_with": dict}, tables sorted by cell_over_radius.
 
     Raises:
         ValidationError: missing, too large, not JSON, wrong version or a bad key, naming the file and the key.
@@ -89,8 +100,10 @@ def load_calibration(path: Path | str = CALIBRATION_PATH) -> dict:
                 and hs[0] > 0 and np.all(fac > 0)):
             raise ValidationError(f"{path}: {key} needs cell_over_radius > 0, increasing poisson, thickness > 0 and "
                                   "contact_over_cell, and factors > 0")
-        out.append({"cell_over_radius": c_r, "poisson": nu, "thickness": hs, "contact_over_cell": ac, "factor": fac,
-                    "measured_to": upto})
+        if t.get("sides") not in SIDES:
+            raise ValidationError(f"{path}: {key}.sides must be one of {list(SIDES)}, got {t.get('sides')!r}")
+        out.append({"sides": t["sides"], "cell_over_radius": c_r, "poisson": nu, "thickness": hs,
+                    "contact_over_cell": ac, "factor": fac, "measured_to": upto})
     out.sort(key=lambda t: t["cell_over_radius"])
     return {"tables": out, "measured_with": raw.get("measured_with", {})}
 
@@ -109,19 +122,9 @@ class MeshFactor:
     extrapolated: bool
 
 
-def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: float, calibration: dict,
-                thickness: float) -> MeshFactor:
-    """kappa at contact radius / cell ``contact_over_cell``, ``poisson`` and block ``thickness`` (m) for cells of
-    ``cell_over_radius``.
-
-    Uses the table of the nearest cell size, linear in a / cell, log thickness and poisson, clamped at the table's
-    ends.
-
-    Returns:
-        The factor and whether it is extrapolated.
-    """
-    tables = calibration["tables"]
-    t = min(tables, key=lambda tb: abs(np.log(tb["cell_over_radius"] / cell_over_radius)))
+def _table_factor(t: dict, contact_over_cell: float, poisson: float, cell_over_radius: float,
+                  thickness: float) -> MeshFactor:
+    """kappa from one table: linear in a / cell, log thickness and poisson, clamped at the table's ends."""
     nu, hs, ac, fac = t["poisson"], t["thickness"], t["contact_over_cell"], t["factor"]
     lh = np.log(hs)
     per = np.array([[np.interp(contact_over_cell, ac, row) for row in rows] for rows in fac])  # (p, h)
@@ -131,3 +134,31 @@ def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: floa
     outside = (abs(t["cell_over_radius"] / cell_over_radius - 1.0) > 0.05 or not nu[0] <= poisson <= nu[-1]
                or not hs[0] * 0.95 <= thickness <= hs[-1] * 1.05 or contact_over_cell > reach * 1.05)
     return MeshFactor(kappa, bool(outside))
+
+
+def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: float, calibration: dict,
+                thickness: float, pinned_fraction: float = 1.0) -> MeshFactor:
+    """kappa at contact radius / cell ``contact_over_cell``, ``poisson`` and block ``thickness`` (m) for cells of
+    ``cell_over_radius`` in a window with ``pinned_fraction`` (0 to 1) of its sides pinned.
+
+    Uses, of each kind of sides, the table of the nearest cell size (linear in a / cell, log thickness and poisson,
+    clamped at the table's ends), and interpolates linearly between the kinds by ``pinned_fraction``.
+
+    Returns:
+        The factor and whether it is extrapolated (also when a kind the press needs has no table).
+    """
+    if not 0.0 <= pinned_fraction <= 1.0:
+        raise ValidationError(f"flex: pinned_fraction must be in [0, 1], got {pinned_fraction!r}")
+    found = {}
+    for sides in SIDES:
+        tables = [tb for tb in calibration["tables"] if tb["sides"] == sides]
+        if tables:
+            t = min(tables, key=lambda tb: abs(np.log(tb["cell_over_radius"] / cell_over_radius)))
+            found[sides] = _table_factor(t, contact_over_cell, poisson, cell_over_radius, thickness)
+    weight = {"pinned": pinned_fraction, "free": 1.0 - pinned_fraction}
+    missing = any(weight[k] > 0 and k not in found for k in SIDES)
+    if len(found) < len(SIDES):
+        only = next(iter(found.values()))
+        return MeshFactor(only.kappa, only.extrapolated or missing)
+    kappa = sum(weight[k] * found[k].kappa for k in SIDES)
+    return MeshFactor(float(kappa), any(found[k].extrapolated for k in SIDES if weight[k] > 0))

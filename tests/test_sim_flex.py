@@ -11,7 +11,7 @@ pytest.importorskip("mujoco")
 
 from palpate.core.errors import ValidationError  # noqa: E402
 from palpate.core.world.scene import FingertipSpec, Layer, Material, ObjectSpec, Scene  # noqa: E402
-from palpate.sim import flex, flex_model  # noqa: E402
+from palpate.sim import flex, flex_element, flex_grid, flex_model  # noqa: E402
 from palpate.sim.contact.law import solve_contact_law  # noqa: E402
 from palpate.sim.flex_calibrate import loading_ratio  # noqa: E402
 from palpate.sim.flex_calibration import load_calibration, mesh_factor  # noqa: E402
@@ -30,13 +30,13 @@ def _press_part(tr):
 
 def test_grid_centres_a_node_under_the_press_and_pins_cut_faces():
     obj = ObjectSpec("b", "box", (0.1, 0.04, 0.02), (0.0, 0.0), Material("m", 1e5))
-    g = flex_model.flex_grid(obj, 0.0, 0.0, resolution=0.0065, window=0.04)
+    g = flex_grid.flex_grid(obj, 0.0, 0.0, resolution=0.0065, window=0.04)
     assert g.cells[0] % 2 == 0 and g.cells[1] % 2 == 0
     np.testing.assert_allclose(g.lower[:2] + g.size[:2] / 2, [0.0, 0.0])
     # 100 mm long in x: the 40 mm window cuts through the material there; y edges are the object's free faces
     assert g.pinned == (True, True, False, False)
     # near the +x edge the window is clipped to stay inside the object
-    g2 = flex_model.flex_grid(obj, 0.049, 0.0, resolution=0.0065, window=0.04)
+    g2 = flex_grid.flex_grid(obj, 0.049, 0.0, resolution=0.0065, window=0.04)
     assert g2.lower[0] + g2.size[0] == pytest.approx(0.05)
     assert g2.pinned[1] is False
     c = g.cell_centres()
@@ -48,9 +48,9 @@ def test_grid_centres_a_node_under_the_press_and_pins_cut_faces():
 def test_mesh_objects_are_refused_with_a_clear_error():
     obj = ObjectSpec("m", "mesh", (1, 1, 1), (0, 0), Material("m", 1e5), mesh_path="x.stl")
     with pytest.raises(ValidationError, match="'box' and 'cylinder'"):
-        flex_model.flex_grid(obj, 0, 0)
+        flex_grid.flex_grid(obj, 0, 0)
     with pytest.raises(ValidationError, match="resolution"):
-        flex_model.flex_grid(ObjectSpec("b", "box", (0.04, 0.04, 0.02), (0, 0), Material("m", 1e5)), 0, 0, -1.0)
+        flex_grid.flex_grid(ObjectSpec("b", "box", (0.04, 0.04, 0.02), (0, 0), Material("m", 1e5)), 0, 0, -1.0)
 
 
 def test_pad_coordinates_wrap_by_arc_length():
@@ -79,7 +79,7 @@ def test_each_contact_force_covers_its_vertex_patch_and_is_conserved():
 
 def test_shipped_calibration_is_valid_and_interpolates():
     cal = load_calibration()
-    t = cal["tables"][0]
+    t, free = (next(tb for tb in cal["tables"] if tb["sides"] == sides) for sides in ("pinned", "free"))
     c_r, ac, hs = t["cell_over_radius"], t["contact_over_cell"], t["thickness"]
     # the trilinear grid is stiffer than the continuum wherever a press is allowed (a >= 0.25 cells) on a block
     # thicker than the validity table's thinnest layers
@@ -96,9 +96,17 @@ def test_shipped_calibration_is_valid_and_interpolates():
     assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal, hs[3]).extrapolated  # another cell size: flagged
     assert mesh_factor(0.5, 0.3, c_r, cal, 2.0 * hs[-1]).extrapolated  # thicker than measured: flagged
     assert mesh_factor(1.2, 0.3, c_r, cal, hs[0]).extrapolated  # deeper than the thin block was pressed: flagged
+    # a window with free sides: the free table's factor; half its sides pinned: halfway
+    assert mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3], 0.0).kappa == pytest.approx(free["factor"][1, 3, 8])
+    half = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3], 0.5).kappa
+    assert half == pytest.approx(0.5 * (t["factor"][1, 3, 8] + free["factor"][1, 3, 8]))
+    # the pinned window's sides stiffen a 30 mm block pressed over a cell wide: the free factor is smaller
+    assert free["factor"][1, 3, -1] < t["factor"][1, 3, -1]
+    with pytest.raises(ValidationError, match="pinned_fraction"):
+        mesh_factor(0.5, 0.3, c_r, cal, hs[3], 1.5)
 
 
-_TABLE = {"cell_over_radius": 0.6, "poisson": [0.3], "thickness": [0.02], "contact_over_cell": [0.5],
+_TABLE = {"sides": "pinned", "cell_over_radius": 0.6, "poisson": [0.3], "thickness": [0.02], "contact_over_cell": [0.5],
           "measured_to": [[0.5]]}
 
 
@@ -106,12 +114,13 @@ _TABLE = {"cell_over_radius": 0.6, "poisson": [0.3], "thickness": [0.02], "conta
     "content, match",
     [
         ("{not json", "not valid JSON"),
-        (json.dumps({"version": 2, "points": []}), "version"),
-        (json.dumps({"version": 3, "tables": []}), "tables"),
-        (json.dumps({"version": 3, "tables": [{**_TABLE, "factor": [[[1.5, 2.0]]]}]}),
+        (json.dumps({"version": 3, "tables": []}), "version"),
+        (json.dumps({"version": 4, "tables": []}), "tables"),
+        (json.dumps({"version": 4, "tables": [{**_TABLE, "sides": "open", "factor": [[[1.5]]]}]}), "sides must be"),
+        (json.dumps({"version": 4, "tables": [{**_TABLE, "factor": [[[1.5, 2.0]]]}]}),
          r"tables\[0\].factor must be 1 x 1 x 1"),
-        (json.dumps({"version": 3, "tables": [{**_TABLE, "factor": [[1.5]]}]}), r"tables\[0\].factor must be a .*3-D"),
-        (json.dumps({"version": 3, "tables": [{**_TABLE, "factor": [[[-1.0]]]}]}), "factors > 0"),
+        (json.dumps({"version": 4, "tables": [{**_TABLE, "factor": [[1.5]]}]}), r"tables\[0\].factor must be a .*3-D"),
+        (json.dumps({"version": 4, "tables": [{**_TABLE, "factor": [[[-1.0]]]}]}), "factors > 0"),
     ],
 )
 def test_bad_calibration_files_name_the_problem(tmp_path, content, match):
@@ -123,35 +132,18 @@ def test_bad_calibration_files_name_the_problem(tmp_path, content, match):
         load_calibration(tmp_path / "missing.json")
 
 
-def test_reduced_volumetric_integration_removes_the_locking_mode():
-    """The centre-point volumetric block has rank 1 (one pressure per cell): a cell can change shape at constant
-    volume without volumetric energy, which the 2x2x2 block forbids (it has rank > 1)."""
-    lam_full, lam_centre, dev = flex_model.cell_bases(np.array([0.005, 0.005, 0.004]))
-    assert np.linalg.matrix_rank(lam_centre, tol=1e-9 * np.abs(lam_full).max()) == 1
-    assert np.linalg.matrix_rank(lam_full, tol=1e-9 * np.abs(lam_full).max()) > 4
-    # both integrate a uniform dilatation exactly
-    u = np.zeros(24)
-    node = 0
-    for i in range(2):
-        for j in range(2):
-            for k in range(2):
-                u[3 * node:3 * node + 3] = [i * 0.005, j * 0.005, k * 0.004]
-                node += 1
-    assert u @ lam_full @ u == pytest.approx(u @ lam_centre @ u, rel=1e-12)
-
-
 def test_layer_cells_get_their_own_lame_stiffness_and_pins_hold_the_bottom():
     soft, hard = Material("soft", 2e4, 0.3), Material("hard", 2e6, 0.45)
     # a 10 mm skin on 10 mm cells: each cell one material
     obj = ObjectSpec("b", "box", (0.04, 0.04, 0.02), (0, 0), hard, layers=(Layer(soft, 0.01),))
-    g = flex_model.flex_grid(obj, 0, 0, resolution=0.01, window=0.02)
+    g = flex_grid.flex_grid(obj, 0, 0, resolution=0.01, window=0.02)
     fm = flex_model.build_flex_model(Scene((obj,)), obj, g, timestep=0.005)
     ncell = int(np.prod(g.cells))
     stiff = fm.model.flex_stiffness[:ncell * 576].reshape(ncell, 24, 24)
-    _, lam_centre, dev = flex_model.cell_bases(g.cell_edges()[0])
+    _, lam_centre, dev = flex_element.hex_bases(g.cell_corners()[0])
     mats = {"soft": soft, "hard": hard}
     for c, name in enumerate(fm.cell_material):
-        lam, mu = flex_model._lame(mats[name].young, mats[name].poisson)
+        lam, mu = flex_element.lame(mats[name].young, mats[name].poisson)
         np.testing.assert_allclose(stiff[c], lam * lam_centre + mu * dev, rtol=1e-9, atol=1e-12 * mu)
     assert fm.cell_material[:2] == ["hard", "soft"]  # z is the fastest cell index
     # pinned nodes carry no joint: the free nodes' 3 dofs and the tip's one are all there is
@@ -165,7 +157,7 @@ def test_graded_grid_is_fine_at_the_press_and_mujoco_uses_its_cells():
     import mujoco
 
     obj = ObjectSpec("b", "box", (0.1, 0.1, 0.02), (0, 0), Material("m", 2e5, 0.3))
-    g = flex_model.flex_grid(obj, 0.0021, 0.0, resolution=0.002, window=0.03, core=0.004, growth=1.6)
+    g = flex_grid.flex_grid(obj, 0.0021, 0.0, resolution=0.002, window=0.03, core=0.004, growth=1.6)
     dx = np.diff(g.x)
     assert g.finest == pytest.approx(0.002) and dx.max() > 2.5 * dx.min()
     assert 0.002 in np.round(g.x, 9) and g.z[-1] == pytest.approx(0.02)  # a node column under the (snapped) press
@@ -182,8 +174,8 @@ def test_graded_grid_is_fine_at_the_press_and_mujoco_uses_its_cells():
         d.qpos[m.jnt_qposadr[m.body_jntadr[body[n]]]:][:3] = u[n]
     mujoco.mj_forward(m, d)
     K = np.zeros((nodes.size, nodes.size))
-    _, lam_centre, dev = flex_model.cell_bases(g.cell_edges())
-    lam, mu = flex_model._lame(2e5, 0.3)
+    _, lam_centre, dev = flex_element.hex_bases(g.cell_corners())
+    lam, mu = flex_element.lame(2e5, 0.3)
     nx, ny, nz = g.cells
     c = 0
     for i in range(nx):
@@ -204,7 +196,7 @@ def test_graded_grid_is_fine_at_the_press_and_mujoco_uses_its_cells():
 def test_a_skin_thinner_than_a_cell_mixes_into_it_in_series():
     soft, hard = Material("soft", 2e4, 0.3), Material("hard", 2e6, 0.3)
     obj = ObjectSpec("b", "box", (0.04, 0.04, 0.02), (0, 0), hard, layers=(Layer(soft, 0.0025),))
-    g = flex_model.flex_grid(obj, 0, 0, resolution=0.01, window=0.02)  # top cells 10 mm tall, a quarter skin
+    g = flex_grid.flex_grid(obj, 0, 0, resolution=0.01, window=0.02)  # top cells 10 mm tall, a quarter skin
     young, poisson = flex_model.cell_moduli(obj, g)
     top = young[1::2]
     np.testing.assert_allclose(top, 1.0 / (0.25 / 2e4 + 0.75 / 2e6), rtol=1e-12)

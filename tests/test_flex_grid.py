@@ -1,0 +1,119 @@
+"""The `flex` window's grid (node planes on material interfaces, a cylinder's whole disc) and its element
+(the general hexahedron and its incompatible bending modes)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from palpate.core.errors import ValidationError
+from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec
+from palpate.sim import flex_element, flex_grid
+
+BASE = Material("base", 1e5, 0.45)
+STIFF = Material("stiff", 2e6, 0.4)
+SOFT = Material("soft", 2e4, 0.3)
+
+
+def _box(**kw) -> ObjectSpec:
+    return ObjectSpec("b", "box", (0.2, 0.2, 0.03), (0.0, 0.0), BASE, **kw)
+
+
+def test_a_stiff_skin_gets_node_planes_and_bending_cells_and_a_soft_one_is_mixed():
+    g = flex_grid.flex_grid(_box(layers=(Layer(STIFF, 0.002),)), 0.0, 0.0)
+    # the skin's bottom is a node plane, LAYER_CELLS cells through it, and only those cells bend
+    np.testing.assert_allclose(g.z[-flex_grid.LAYER_CELLS - 1:], np.linspace(0.028, 0.03, flex_grid.LAYER_CELLS + 1))
+    np.testing.assert_array_equal(g.bending, np.arange(g.cells[2]) >= g.cells[2] - flex_grid.LAYER_CELLS)
+    assert g.bending_cells().sum() == g.cells[0] * g.cells[1] * flex_grid.LAYER_CELLS
+    # a soft skin is squeezed, not bent: no plane of its own (the series mix of its cell is exact for a squeeze)
+    soft = flex_grid.flex_grid(_box(layers=(Layer(SOFT, 0.002),)), 0.0, 0.0)
+    assert not np.any(np.isclose(soft.z, 0.028)) and not soft.bending.any()
+    np.testing.assert_allclose(np.diff(soft.z), 0.005)
+
+
+def test_an_interface_near_a_node_moves_it_instead_of_cutting_a_sliver():
+    nodes = np.array([0.0, 0.005, 0.010, 0.015, 0.020])
+    out = flex_grid.with_planes(nodes, [0.0106, 0.0178, 0.03], fixed=(0.015,), snap=0.00125)
+    # 0.0106 is 0.6 mm from 0.010: moved; 0.0178 is 2.2 mm from 0.020 (an end) and 2.8 from 0.015 (fixed): inserted
+    np.testing.assert_allclose(out, [0.0, 0.005, 0.0106, 0.015, 0.0178, 0.020])
+
+
+def test_only_a_layer_stiffer_than_what_lies_under_it_gets_a_plane():
+    """A stiff 2 mm skin over a soft 4 mm layer over the base: the skin's bottom is a plane (it bends on the soft
+    layer), the soft layer's is not (it is squeezed between two stiffer ones); a lump gets none (mixed cells)."""
+    lump = Inclusion(STIFF, "sphere", (0.0, 0.0, 0.0165), (0.004,))
+    g = flex_grid.flex_grid(_box(layers=(Layer(STIFF, 0.002), Layer(SOFT, 0.004)), inclusions=(lump,)), 0.0, 0.0)
+    assert np.any(np.isclose(g.z, 0.028)) and not np.any(np.isclose(g.z, 0.024))
+    for planes in (0.0125, 0.0205):
+        assert not np.any(np.isclose(g.z, planes))
+    assert not np.any(np.isclose(np.abs(g.x), 0.004))
+    assert g.bending.sum() == flex_grid.LAYER_CELLS
+
+
+def test_a_narrow_cylinder_is_meshed_to_its_free_curved_side():
+    obj = ObjectSpec("c", "cylinder", (0.006, 0.02), (0.01, -0.02), BASE)
+    g = flex_grid.flex_grid(obj, 0.01, -0.02)
+    assert g.disc_radius == pytest.approx(0.006) and g.pinned == (False, False, False, False)
+    nodes = g.nodes().reshape(g.cells[0] + 1, g.cells[1] + 1, g.cells[2] + 1, 3)
+    r = np.hypot(nodes[..., 0] - 0.01, nodes[..., 1] + 0.02)
+    ring = np.zeros(r.shape, dtype=bool)
+    ring[[0, -1], :, :] = ring[:, [0, -1], :] = True
+    np.testing.assert_allclose(r[ring], 0.006, rtol=1e-12)  # the grid's sides lie on the curved side
+    assert np.all(r[~ring] < 0.006)
+    assert np.min(r) == pytest.approx(0.0, abs=1e-12)  # a node column on the axis
+    # the cells fill the disc: their volumes add up to the cylinder's (to the polygon's chords)
+    vol = flex_element.hex_volumes(g.cell_corners()).sum()
+    assert vol == pytest.approx(np.pi * 0.006**2 * 0.02, rel=0.06) and vol < np.pi * 0.006**2 * 0.02
+    # the bottom is pinned and nothing else
+    assert len(g.pinned_nodes()) == (g.cells[0] + 1) * (g.cells[1] + 1)
+    # a cylinder too wide for the window keeps the square inscribed in it, cut (pinned) by the window
+    wide = flex_grid.flex_grid(ObjectSpec("w", "cylinder", (0.05, 0.02), (0.0, 0.0), BASE), 0.0, 0.0)
+    assert wide.disc_radius == 0.0 and all(wide.pinned)
+
+
+def test_the_general_hexahedron_is_the_box_cell_and_an_inverted_cell_is_refused():
+    """On an axis-aligned cell the isoparametric element reduces to the closed form: the (div u)^2 part of a
+    uniform dilatation u = x is vol * 9 (trace 3), the centre-point part has rank 1, the 2 e:e part of a shear
+    u_x = y is vol * 1 (2 * 2 * (1/2)^2)."""
+    h = np.array([0.005, 0.004, 0.002])
+    c = flex_element.box_corners(h)
+    vol_full, vol_centre, ee = (-k for k in flex_element.hex_bases(c))
+    dilate, shear = c.ravel(), np.column_stack([c[:, 1], 0 * c[:, 1], 0 * c[:, 1]]).ravel()
+    assert dilate @ vol_full @ dilate == pytest.approx(9.0 * h.prod(), rel=1e-12)
+    assert dilate @ vol_centre @ dilate == pytest.approx(9.0 * h.prod(), rel=1e-12)
+    assert shear @ ee @ shear == pytest.approx(h.prod(), rel=1e-12)
+    assert np.linalg.matrix_rank(vol_centre, tol=1e-9 * np.abs(vol_full).max()) == 1
+    # a distorted cell integrates to its own volume; one turned inside out is an error, not a negative stiffness
+    bent = c.copy()
+    bent[7] += [0.001, 0.0005, 0.0003]
+    assert flex_element.hex_volumes(bent[None])[0] > h.prod()
+    flipped = c.copy()
+    flipped[:, 2] *= -1
+    with pytest.raises(ValidationError, match="inverted"):
+        flex_element.hex_bases(flipped)
+
+
+def test_incompatible_modes_bend_a_thin_cell_exactly_and_keep_its_rigid_and_linear_fields():
+    """Pure bending u_x = x z, u_z = -x^2 / 2 (centred) has 2 e:e = 2 z^2, energy 2 hx hy hz^3 / 12 per unit mu:
+    the enriched cell gives it exactly; the plain trilinear cell adds spurious shear (locking), several times more
+    on a cell five times wider than thick. Rigid motions cost nothing and a linear field (the patch test) costs
+    exactly its energy, also on a distorted cell."""
+    h = np.array([0.005, 0.005, 0.001])
+    c = flex_element.box_corners(h) - h / 2.0
+    plain = -flex_element.hex_bases(c)[2]
+    enriched = -flex_element.bending_ee(c[None])[0]
+    x, z = c[:, 0], c[:, 2]
+    u = np.column_stack([x * z, 0 * x, -x**2 / 2.0]).ravel()
+    exact = 2.0 * h[0] * h[1] * h[2] ** 3 / 12.0
+    assert u @ enriched @ u == pytest.approx(exact, rel=1e-9)
+    assert u @ plain @ u > 5.0 * exact
+    rng = np.random.default_rng(3)
+    distorted = c + rng.uniform(-2e-4, 2e-4, c.shape)
+    k = -flex_element.bending_ee(distorted[None])[0]
+    a = rng.normal(size=(3, 3))
+    e = (a + a.T) / 2.0
+    vol = flex_element.hex_volumes(distorted[None])[0]
+    linear = (distorted @ a.T).ravel()
+    assert linear @ k @ linear == pytest.approx(2.0 * vol * np.sum(e * e), rel=1e-9)
+    spin = np.cross([0.3, -0.2, 1.0], distorted).ravel() + np.tile([1.0, 2.0, 3.0], 8)
+    assert abs(spin @ k @ spin) < 1e-9 * np.abs(k).max()
