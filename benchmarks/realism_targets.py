@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core.errors import ValidationError
 from palpate.core.perception.param_stats import column_stats, table_from_csv
 from palpate.core.world.scenario import Scenario
 from palpate.core.world.scenario_file import load_scenario
@@ -45,13 +46,14 @@ SCENARIO_KEYS = {
 
 def with_scenario_values(scenario: Scenario, pairs: list[tuple[str, float]]) -> Scenario:
     """The scenario with the pad's geometry or the training press changed (keys of SCENARIO_KEYS, values in mm)."""
+    changes: dict[str, dict[str, float]] = {}
     for key, value in pairs:
         if key not in SCENARIO_KEYS:
             raise ValueError(f"--scenario-set: unknown key {key!r}; known: {', '.join(SCENARIO_KEYS)}")
         section, attribute = SCENARIO_KEYS[key]
-        # the section's own checks (e.g. sensel no larger than the pitch) run on the new value
-        scenario = replace(scenario, **{section: replace(getattr(scenario, section), **{attribute: value * 1e-3})})
-    return scenario
+        changes.setdefault(section, {})[attribute] = value * 1e-3
+    # one replace per section, so its checks (a sensel no larger than the pitch) see all of its new values at once
+    return replace(scenario, **{s: replace(getattr(scenario, s), **kw) for s, kw in changes.items()})
 
 
 def _pairs(items: list[str], option: str) -> list[tuple[str, float]]:
@@ -75,8 +77,8 @@ def main() -> int:
     try:
         sets, scenario_sets = _pairs(args.set, "--set"), _pairs(args.scenario_set, "--scenario-set")
         scenario = with_scenario_values(load_scenario(args.scenario), scenario_sets)
-    except ValueError as err:
-        print(err, file=sys.stderr)
+    except (ValueError, ValidationError) as err:
+        print(f"realism_targets: {err}", file=sys.stderr)
         return 2
     if scenario.realism.real_params is None:
         print("the scenario names no [realism] real_params", file=sys.stderr)
