@@ -86,7 +86,9 @@ def footprint_rings(radius: float, rings: int, sectors: int) -> FootprintCells:
 def equivalent_radius(clearance: np.ndarray, radius: float) -> np.ndarray:
     """Radius (m) at which a flat top has ``clearance`` (m) under a sphere of ``radius``; inf past the equator."""
     h = np.asarray(clearance, dtype=float)
-    return np.where(h < radius, np.sqrt(np.maximum(2.0 * radius * h - h * h, 0.0)), np.inf)
+    # clip before squaring: an infinite clearance (a pad cell beyond the tip's rim) would give inf - inf
+    hc = np.minimum(h, radius)
+    return np.where(h < radius, np.sqrt(np.maximum(2.0 * radius * hc - hc * hc, 0.0)), np.inf)
 
 
 def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray) -> np.ndarray:
