@@ -100,6 +100,35 @@ def test_local_pool_runs_the_rest_and_keeps_a_finished_run(tmp_path):
     assert all(0.0 <= r["map_accuracy"] <= 1.0 for r in rows[1:])
 
 
+def _group_alive(pgid: int) -> bool:
+    """Whether a process of group ``pgid`` still runs (zombies do not count: they hold no files)."""
+    proc = Path("/proc")
+    if not proc.is_dir():
+        try:
+            os.killpg(pgid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+    for stat in proc.glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue  # gone meanwhile
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            return True
+    return False
+
+
+def _wait_group_gone(pgid: int, limit: float = 60.0) -> None:
+    """Wait until every process of the killed group is gone: a forked worker shares the sweep's lock file and
+    holds its lock until the kernel has torn it down, which on a loaded machine is after the parent's wait."""
+    deadline = time.monotonic() + limit
+    while _group_alive(pgid):
+        if time.monotonic() > deadline:
+            raise AssertionError(f"the killed sweep's processes were still there after {limit} s")
+        time.sleep(0.05)
+
+
 def test_killed_sweep_resumes_without_redoing_finished_runs(tmp_path):
     out = tmp_path / "out"
     cli = "import sys; from palpate.core.cli import main; sys.exit(main())"
@@ -117,6 +146,7 @@ def test_killed_sweep_resumes_without_redoing_finished_runs(tmp_path):
     assert done, "no run finished within 120 s"
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
+    _wait_group_gone(proc.pid)
     finished = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("runs/*/summary.json")}
     assert 1 <= len(finished) < 4, "the kill came too late to interrupt the sweep"
     rows = run_sweep(load_sweep(TINY), out, workers=1, log=lambda s: None)
