@@ -6,9 +6,10 @@ tip sphere and the block's surface vertices, and each contact's normal force. Wh
 object (bottom bonded to the table, cut sides pinned, free object edges free), the mesh correction (the coarse
 trilinear grid is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell
 and the block's thickness, measured against the reference of homogeneous blocks, :mod:`palpate.sim.flex_calibration`,
-so finite thickness, layers and edges come from the block itself), and the taxels: each contact force stands for
-the surface patch of its vertex (side = vertex spacing) and is spread uniformly over it on the pad, which then
-averages over each sensel.
+so finite thickness, layers and edges come from the block itself; a soft layer mixed into its cells is corrected by
+the exact layered law's ratio of the mixed column to the layers, :func:`palpate.sim.flex_model.mixing_correction`),
+and the taxels: each contact force stands for the surface patch of its vertex (side = vertex spacing) and is spread
+uniformly over it on the pad, which then averages over each sensel.
 
 The model is built once per window (a ``models`` dict the caller keeps, e.g. one per SimSource) and its state reset
 between presses. A cylinder narrow enough for the window is meshed whole (its curved side free), a wider one by
@@ -243,7 +244,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         if calibrate:
             factor = mesh_factor(np.sqrt(tip.radius * max(ind_k, 0.0)) / cell, nu, cell / tip.radius, calibration,
                                  obj.height, pinned_fraction)
-            factors[k] = factor.kappa
+            factors[k] = factor.kappa * (1.0 if fm.mixing is None else fm.mixing.at(max(ind_k, 0.0)))
             extrapolated |= factor.extrapolated
         fn = fn / factors[k]
         force[k] = fn.sum()
@@ -275,7 +276,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             "window_lower": [float(v) for v in grid.lower], "window_size": [float(v) for v in grid.size],
             "pinned_sides": list(grid.pinned), "disc_radius": grid.disc_radius,
             "mesh_factor_range": [float(factors.min()), float(factors.max())],
-            "calibration_extrapolated": bool(extrapolated), "young_range": fm.meta["young_range"],
+            "calibration_extrapolated": bool(extrapolated), "mixing_corrected": fm.mixing is not None, "young_range": fm.meta["young_range"],
             "materials": sorted(set(fm.cell_material)), "vertex_patch": fm.vertex_spacing,
             "contact_solref": list(CONTACT_SOLREF), "kp": fm.kp, "max_contact_penetration": -min_dist,
             "dofs": int(model.nv), "seed": int(seed),

@@ -117,3 +117,29 @@ def test_incompatible_modes_bend_a_thin_cell_exactly_and_keep_its_rigid_and_line
     assert linear @ k @ linear == pytest.approx(2.0 * vol * np.sum(e * e), rel=1e-9)
     spin = np.cross([0.3, -0.2, 1.0], distorted).ravel() + np.tile([1.0, 2.0, 3.0], 8)
     assert abs(spin @ k @ spin) < 1e-9 * np.abs(k).max()
+
+
+def test_the_mixing_correction_is_the_layered_law_of_the_mixed_column_over_the_layers():
+    from palpate.sim.contact.law import solve_contact_law
+    from palpate.sim.flex_model import SUBCELL, mixing_correction
+    from palpate.sim.reference.sample import AxisymmetricSample
+
+    base = Material("base", 2e5, 0.45)
+    obj = ObjectSpec("b", "box", (0.2, 0.2, 0.03), (0.0, 0.0), base, layers=(Layer(SOFT, 0.001),))
+    mix = mixing_correction(obj, flex_grid.flex_grid(obj, 0.0, 0.0), 0.008)
+    # by hand: the top 5 mm cell samples SUBCELL points down its column, one of them (0.625 mm down) in the skin
+    n_skin = 1
+    assert SUBCELL == 4
+    young = 1.0 / (n_skin / SUBCELL / SOFT.young + (SUBCELL - n_skin) / SUBCELL / base.young)
+    nu = (n_skin * SOFT.poisson + (SUBCELL - n_skin) * base.poisson) / SUBCELL
+    depths = np.array([0.2, 0.5, 1.0, 2.0, 4.0]) * 1e-3
+    mixed = solve_contact_law(AxisymmetricSample(base, 0.03, layers=(Layer(Material("m", young, nu), 0.005),)),
+                              0.008, 0.006).force_at(depths)
+    true = solve_contact_law(AxisymmetricSample(base, 0.03, layers=obj.layers), 0.008, 0.006).force_at(depths)
+    np.testing.assert_allclose([mix.at(d) for d in depths], mixed / true, rtol=0.01)
+    # the mix is stiffer than the skin under a contact narrower than the cell
+    assert mix.at(0.5e-3) > 1.1
+    # no correction where no cell mixes: a homogeneous block, a stiff skin (node planes), a skin one cell thick
+    for layers in ((), (Layer(STIFF, 0.002),), (Layer(SOFT, 0.005),)):
+        o = ObjectSpec("b", "box", (0.2, 0.2, 0.03), (0.0, 0.0), base, layers=layers)
+        assert mixing_correction(o, flex_grid.flex_grid(o, 0.0, 0.0), 0.008) is None
