@@ -14,6 +14,7 @@ from palpate.core.world.scenario_file import load_scenario
 from palpate.sim.realism.calibrate import (
     MOMENTS,
     SCALES,
+    SCALES_WITH_A2_SIGN,
     calibrate,
     current_values,
     free_parameters,
@@ -53,6 +54,12 @@ def test_the_seed_tables_moments_include_table_6_7():
     shifted = m.copy()
     shifted[0, 0] += SCALES[0]
     assert objective(shifted, m) == pytest.approx(1.0)
+    # a2's sign weighs only when asked for (--fit-a2-sign), with n2's tolerance
+    flipped = m.copy()
+    flipped[1, MOMENTS.index("negative_a2")] += 0.3
+    assert objective(flipped, m) == 0.0
+    assert objective(flipped, m, SCALES_WITH_A2_SIGN) == pytest.approx((0.3 / 0.15) ** 2)
+    assert objective(shifted, m, SCALES_WITH_A2_SIGN) == pytest.approx(1.0)
 
 
 def test_free_parameters_are_set_in_file_units_and_validated():

@@ -56,6 +56,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "refine the start profile with Nelder-Mead only)")
     r.add_argument("--fidelity", default=None, choices=("analytic", "rigid", "flex", "auto"),
                    help="fidelity of the simulated presses (default: the scenario's)")
+    r.add_argument("--fit-a2-sign", action="store_true",
+                   help="fit the share of presses with a2 < 0 too (default: reported only, as the shipped fits)")
     r.add_argument("--name", default=None, help="the profile's name (default: the output file's stem)")
     r.add_argument("--quick", action="store_true",
                    help="a smoke run: budget 6, two tuning and two report seeds, analytic fidelity")
@@ -98,7 +100,7 @@ def run_calibrate_realism(args: argparse.Namespace) -> int:
           f"{len(free)} free parameters, budget {budget}, tuning seeds {tune}, report seeds {report}", file=sys.stderr)
     result = calibrate(table, scenario, start, free, tune_seeds=tune, report_seeds=report, budget=budget,
                        fidelity=fidelity, name=args.name or args.out.stem, table_name=args.table.name,
-                       design=args.design,
+                       design=args.design, fit_a2_sign=args.fit_a2_sign,
                        log=lambda s: print(s, file=sys.stderr, flush=True))
     try:
         args.out.parent.mkdir(parents=True, exist_ok=True)

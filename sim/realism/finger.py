@@ -71,17 +71,22 @@ class SeriesLaw:
 
 
 def series_law(e_star: float, radius: float, pulp: FingerPulp, stiffness_scale: float,
-               reach: float) -> SeriesLaw:
+               reach: float, plateau: float = 0.0) -> SeriesLaw:
     """Tabulate the series law of a Hertz object (E* Pa, tip radius m) and the pulp up to a bone travel ``reach`` m.
 
     The force range grows until the bone travel at its top exceeds ``reach`` (a press never needs more).
+    ``plateau``: the indentation, m, past which the object's stress stays on a plateau (0: none): beyond it
+    F = 4/3 E* sqrt(R) d^1.5 sqrt(plateau / d) (:func:`palpate.sim.realism.material.plateau_factor`).
     """
     if not (np.isfinite(e_star) and e_star > 0):
         raise ValidationError(f"finger: the object's modulus must be > 0 Pa, got {e_star!r}")
     f_max = 100.0
     while True:
         force = np.concatenate([[0.0], np.geomspace(1e-6, f_max, _TABLE_POINTS - 1)])
-        depth = (3.0 * force / (4.0 * e_star * np.sqrt(radius))) ** (2.0 / 3.0)
+        k = 4.0 * e_star * np.sqrt(radius) / 3.0
+        depth = (force / k) ** (2.0 / 3.0)
+        if plateau > 0:
+            depth = np.where(depth > plateau, force / (k * np.sqrt(plateau)), depth)
         law = SeriesLaw(force, depth, pulp.compression(force, stiffness_scale))
         if law.bone_depth[-1] >= reach or f_max >= _MAX_TABLE_FORCE:
             return law

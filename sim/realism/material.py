@@ -1,4 +1,15 @@
-"""What real foams and rubbers add to an elastic contact: relaxation under load, softening over repeated presses.
+"""What real foams and rubbers add to an elastic contact: a foam's stress plateau, relaxation under load, softening
+over repeated presses.
+
+A cellular material (a sponge, an open-cell foam) is linear-elastic only up to a small strain, ~5%: then its cell
+walls buckle and the stress stays on a plateau until the cells close (densification, at strains of 0.5-0.9 that no
+palpation reaches; Gibson & Ashby, Cellular Solids, 2nd ed. 1997, ch. 5). Under a sphere of radius R the mean strain
+of the contact is ~0.2 a / R (Tabor's representative strain), with a = sqrt(R d) the contact radius at indentation
+d; Hertz's mean pressure grows in proportion to it. Past the plateau strain eps_p, i.e. past the indentation
+d_p = R (eps_p / 0.2)^2 (:func:`plateau_depth`), the mean pressure stays at the plateau's (a foam indented by a
+sphere has a hardness equal to its plateau stress: it crushes under the indenter, with no lateral spread), so the
+force grows as the contact area: F = F_el(d) sqrt(d_p / d) (:func:`plateau_factor`), as d instead of Hertz's
+d^1.5. The plateau applies to the elastic force the physics computed, before relaxation.
 
 Relaxation is a standard linear solid (one Prony term) applied to the elastic force history the physics computed:
 
@@ -19,6 +30,44 @@ import numpy as np
 
 from palpate.sim.realism.profile import MaterialRealism
 from palpate.sim.trace import PhysicsTrace
+
+#: Tabor's representative strain of a sphere's contact: mean strain = TABOR_STRAIN * a / R.
+TABOR_STRAIN = 0.2
+
+
+def plateau_depth(strain: float, radius: float) -> float:
+    """The indentation, m, at which a sphere of ``radius`` m reaches a mean contact strain ``strain`` (0: none)."""
+    return float(radius * (strain / TABOR_STRAIN) ** 2)
+
+
+def plateau_factor(indentation: np.ndarray, depth: float) -> np.ndarray:
+    """The force past a stress plateau reached at indentation ``depth`` m, relative to the elastic force.
+
+    1 up to ``depth`` (and everywhere when ``depth`` is 0: no plateau), sqrt(depth / d) beyond: the mean pressure
+    stays at the plateau's while the contact area grows.
+    """
+    d = np.asarray(indentation, dtype=float)
+    if depth <= 0:
+        return np.ones_like(d)
+    return np.sqrt(depth / np.maximum(d, depth))
+
+
+def plateau_depth_for_force(depth_for_force, force: float, depth: float, iterations: int = 40) -> float:
+    """The indentation, m, at which a material with a plateau from ``depth`` m pushes back with ``force`` N.
+
+    ``depth_for_force`` is its elastic law. Solves F_el(d) plateau_factor(d) = F by fixed-point iteration
+    d <- depth_for_force(F / plateau_factor(d)), monotonic from the elastic depth; on a Hertz-like law the error
+    shrinks threefold per step.
+    """
+    d = float(depth_for_force(force))
+    if depth <= 0 or not np.isfinite(d):
+        return d
+    for _ in range(iterations):
+        nxt = float(depth_for_force(force / float(plateau_factor(np.array(d), depth))))
+        if not np.isfinite(nxt) or abs(nxt - d) <= 1e-12 + 1e-9 * d:
+            return nxt
+        d = nxt
+    return d
 
 
 def relax_force(t: np.ndarray, elastic: np.ndarray, relaxation: float, tau: float) -> np.ndarray:
@@ -43,19 +92,27 @@ def relax_force(t: np.ndarray, elastic: np.ndarray, relaxation: float, tau: floa
     return np.maximum((1.0 - relaxation) * f + relaxation * memory, 0.0)
 
 
-def material_trace(trace: PhysicsTrace, material: MaterialRealism, softening: float) -> PhysicsTrace:
-    """The trace with the material's softening (a factor on the force) and relaxation applied to force and pressure.
+def material_trace(trace: PhysicsTrace, material: MaterialRealism, softening: float,
+                   plateau: float = 0.0) -> PhysicsTrace:
+    """The trace with the material's plateau and softening (factors on the force) and relaxation applied to force
+    and pressure (the pressure in proportion, so the pad carries the force).
 
     Args:
         trace: the physics' (elastic) trace.
         material: relaxation parameters.
         softening: this press's stiffness factor (1 for a fresh spot).
+        plateau: the indentation at which this press's material reaches its stress plateau, m (0: none;
+            :func:`plateau_depth`).
     """
     elastic = np.asarray(trace.force, dtype=float) * softening
+    if plateau > 0:
+        elastic = elastic * plateau_factor(np.maximum(trace.indentation, 0.0), plateau)
     force = relax_force(trace.t, elastic, material.relaxation, material.relaxation_time)
     base = np.asarray(trace.force, dtype=float)
     ratio = np.divide(force, base, out=np.zeros_like(force), where=base > 0)
-    meta = dict(trace.meta, material_realism={"softening_factor": float(softening),
-                                              "relaxation": float(material.relaxation),
-                                              "relaxation_time_s": float(material.relaxation_time)})
+    record = {"softening_factor": float(softening), "relaxation": float(material.relaxation),
+              "relaxation_time_s": float(material.relaxation_time)}
+    if plateau > 0:
+        record["plateau_depth_m"] = float(plateau)
+    meta = dict(trace.meta, material_realism=record)
     return replace(trace, force=force, sensel_pressure=trace.sensel_pressure * ratio[:, None, None], meta=meta)

@@ -11,7 +11,8 @@ and a Polhemus-like tracker (see docs/realism.md for each parameter's physics an
   scenario's ``[sensors.taxels]``);
 - :class:`PoseRealism`: tracker latency and the clock offset NTP leaves between the two computers (noise, rate
   and jitter stay in ``[sensors.pose]``);
-- :class:`MaterialRealism`: viscoelastic relaxation and softening on repeated presses.
+- :class:`MaterialRealism`: viscoelastic relaxation, softening on repeated presses, and a cellular material's stress
+  plateau.
 
 Presets (:data:`PRESETS`) go from ``ideal`` (the simulation as it was: default human-like press, rigid finger,
 ideal sensors, elastic materials; for debugging algorithms) through ``sensors`` (real sensors only) to ``lab``
@@ -172,18 +173,37 @@ class MaterialRealism:
         softening: stiffness lost after many presses at one spot, relative (Mullins effect, foam cell-wall
             buckling; recovers over minutes, i.e. not within a session).
         softening_presses: presses over which most of it appears (1 - e^{-k / softening_presses} of it after k).
+        plateau_strain: the strain at which a cellular material's cell walls buckle and its stress stops rising
+            (open-cell elastomeric foams: ~0.05, Gibson & Ashby, Cellular Solids, ch. 5); past it, under a sphere,
+            the mean contact pressure stays at the plateau's and the force grows as the contact area
+            (:func:`palpate.sim.realism.material.plateau_factor`). 0: linear-elastic (off).
+        plateau_materials: the names of the materials that have the plateau (cellular ones: a sponge, not a
+            rubber); the others stay linear-elastic.
     """
 
     relaxation: float = 0.0
     relaxation_time: float = 0.5
     softening: float = 0.0
     softening_presses: float = 3.0
+    plateau_strain: float = 0.0
+    plateau_materials: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         _check("MaterialRealism", {"relaxation": (self.relaxation, 0.0, 0.95),
                                    "relaxation_time": (self.relaxation_time, 1e-3, 1e3),
                                    "softening": (self.softening, 0.0, 0.9),
-                                   "softening_presses": (self.softening_presses, 0.1, 1e4)})
+                                   "softening_presses": (self.softening_presses, 0.1, 1e4),
+                                   "plateau_strain": (self.plateau_strain, 0.0, 0.5)})
+        if not all(isinstance(m, str) and m for m in self.plateau_materials):
+            raise ValidationError(f"MaterialRealism.plateau_materials must be material names, "
+                                  f"got {self.plateau_materials!r}")
+        if self.plateau_strain > 0 and not self.plateau_materials:
+            raise ValidationError("MaterialRealism.plateau_strain > 0 needs plateau_materials: the cellular materials "
+                                  "that have the plateau (a rubber has none)")
+
+    def plateau_of(self, material: str | None) -> float:
+        """The plateau strain of ``material`` (0: it has none)."""
+        return self.plateau_strain if material in self.plateau_materials else 0.0
 
     def softening_factor(self, earlier_presses: int) -> float:
         """Stiffness left after ``earlier_presses`` presses at the same spot (1 for none)."""
@@ -217,7 +237,8 @@ class RealismProfile:
     def is_ideal(self) -> bool:
         """True when the profile changes nothing the simulation did before profiles existed."""
         return (not self.finger.compliant and self.press == HUMAN and not self.taxels.active
-                and not self.pose.active and self.material.relaxation == 0 and self.material.softening == 0)
+                and not self.pose.active and self.material.relaxation == 0 and self.material.softening == 0
+                and self.material.plateau_strain == 0)
 
 
 IDEAL = RealismProfile("ideal", "the simulation without profiles: default human-like press, rigid finger, ideal "

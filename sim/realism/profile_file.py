@@ -22,7 +22,8 @@ is an error naming the file and the key (``x.toml: press.tilt_deg: must be <= 29
     [taxels]         # sensitivity, gain_spread, gain_drift, hysteresis, creep, nonlinearity, crosstalk,
                      # activation_kpa, activation_cv
     [pose]           # latency_ms, clock_offset_ms, clock_wander_ms
-    [material]       # relaxation, relaxation_time_s, softening, softening_presses
+    [material]       # relaxation, relaxation_time_s, softening, softening_presses, plateau_strain,
+                     # plateau_materials (an array of material names)
     [provenance]     # free record (strings, numbers, arrays, tables): references, or the calibration's fit
 
 ``palpate calibrate realism`` writes such files (:func:`profile_to_toml`).
@@ -146,7 +147,9 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
                                                              lo_open=True),
                                    softening=ma.number("softening", 0.0, lo=0.0),
                                    softening_presses=ma.number("softening_presses", dm.softening_presses, lo=0.0,
-                                                               lo_open=True))
+                                                               lo_open=True),
+                                   plateau_strain=_plateau_strain(ma),
+                                   plateau_materials=_names(ma, "plateau_materials"))
         ma.finish()
     except ValidationError as exc:
         msg = str(exc)
@@ -163,6 +166,25 @@ def _tail_dof(pr: TableReader) -> float:
     if 0.0 < dof < 1.0:
         raise pr.err("tail_dof", f"must be 0 (off) or >= 1 degree of freedom, got {dof}")
     return dof
+
+
+def _plateau_strain(ma: TableReader) -> float:
+    """``material.plateau_strain``: 0 (off) or a strain below 0.5 that some ``plateau_materials`` have."""
+    strain = ma.number("plateau_strain", 0.0, lo=0.0, hi=0.49)
+    if strain > 0 and not ma.table.get("plateau_materials"):
+        raise ma.err("plateau_materials", "plateau_strain > 0 needs the names of the cellular materials that have "
+                     "the plateau (a rubber has none)")
+    return strain
+
+
+def _names(table: TableReader, key: str) -> tuple[str, ...]:
+    """An array of distinct, non-empty names (``material.plateau_materials``)."""
+    names = table.get(key, list, [])
+    if not all(isinstance(n, str) and n for n in names):
+        raise table.err(key, f"must be an array of material names, got {names!r}")
+    if len(set(names)) != len(names):
+        raise table.err(key, f"names repeat: {names!r}")
+    return tuple(names)
 
 
 def _check_provenance(value, where: TableReader, depth: int = 0) -> None:
@@ -210,7 +232,8 @@ def profile_tables(profile: RealismProfile) -> dict:
         "pose": {"latency_ms": o.latency * 1e3, "clock_offset_ms": o.clock_offset_std * 1e3,
                  "clock_wander_ms": o.clock_wander * 1e3},
         "material": {"relaxation": m.relaxation, "relaxation_time_s": m.relaxation_time, "softening": m.softening,
-                     "softening_presses": m.softening_presses},
+                     "softening_presses": m.softening_presses, "plateau_strain": m.plateau_strain,
+                     "plateau_materials": list(m.plateau_materials)},
     }
     if profile.provenance:
         tables["provenance"] = profile.provenance

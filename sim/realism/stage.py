@@ -8,8 +8,8 @@ source applies around the physics:
    at a force felt through the pulp and the softened material), then :meth:`PressRealism.object_profile` takes
    the pulp's share out of every depth (:mod:`palpate.sim.realism.finger`);
 2. physics: the fidelity runs unchanged on the object's trajectory;
-3. :meth:`PressRealism.finish`: softening and relaxation (:mod:`~palpate.sim.realism.material`), then the bone's
-   pose, the pad's patch and the finger's lateral slip;
+3. :meth:`PressRealism.finish`: a cellular material's stress plateau, softening and relaxation
+   (:mod:`~palpate.sim.realism.material`), then the bone's pose, the pad's patch and the finger's lateral slip;
 4. sensors: :attr:`PressRealism.taxel_response` (:mod:`~palpate.sim.realism.taxels`) before the 8-bit counts, and
    the tracker's latency and clock offset (:meth:`PressRealism.pose_spec`, :attr:`PressRealism.latency`).
 
@@ -26,7 +26,7 @@ import numpy as np
 from palpate.core.world.scene import FingertipSpec, PoseSensorSpec, TaxelSensorSpec
 from palpate.sim.controller import PressProfile
 from palpate.sim.realism.finger import SeriesLaw, finger_trace, object_profile, planning_modulus, series_law
-from palpate.sim.realism.material import material_trace
+from palpate.sim.realism.material import material_trace, plateau_depth, plateau_depth_for_force
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.taxels import TaxelResponse, activation_map, gain_map, lognormal
 from palpate.sim.trace import PhysicsTrace
@@ -49,6 +49,7 @@ class PressRealism:
         depth_for_force: the object's own force -> depth law (the fidelity's), softened.
         stiffness_scale: this press's factor on the pulp's stiffness.
         softening: this press's factor on the material's stiffness.
+        plateau: the indentation, m, past which this press's material is on its stress plateau (0: none).
         taxel_response: the pad's response for this press (None when the pad is ideal).
         clock_offset: residual offset of the tracker's clock for this press, s.
         tip: the fingertip.
@@ -59,6 +60,7 @@ class PressRealism:
     depth_for_force: object
     stiffness_scale: float
     softening: float
+    plateau: float
     taxel_response: TaxelResponse | None
     clock_offset: float
     tip: FingertipSpec
@@ -66,7 +68,7 @@ class PressRealism:
     def bone_depth_for_force(self, force: float) -> float:
         """Bone travel past first contact, m, at which the contact force reaches ``force`` N."""
         if self.law is None:
-            return float(self.depth_for_force(force))
+            return plateau_depth_for_force(self.depth_for_force, force, self.plateau)
         return self.law.bone_depth_for_force(force)
 
     def object_profile(self, profile: PressProfile) -> PressProfile:
@@ -76,8 +78,8 @@ class PressRealism:
     def finish(self, trace: PhysicsTrace, profile: PressProfile) -> PhysicsTrace:
         """The physics' trace with the material, the finger and the slip applied (``profile``: the bone's press)."""
         m = self.profile.material
-        if m.relaxation > 0 or self.softening != 1.0:
-            trace = material_trace(trace, m, self.softening)
+        if m.relaxation > 0 or self.softening != 1.0 or self.plateau > 0:
+            trace = material_trace(trace, m, self.softening, self.plateau)
         tilt = profile.meta.get("tilt")
         if self.profile.finger.compliant or tilt is not None:
             trace = finger_trace(trace, profile, self.profile.finger, self.stiffness_scale, self.tip,
@@ -139,7 +141,7 @@ class RealismSession:
         return sum(1 for name, px, py in self.spots if name == obj_name and np.hypot(px - x, py - y) <= r)
 
     def press(self, obj_name: str, x: float, y: float, depth_for_force, reach: float,
-              rng: np.random.Generator, tail_scale: float = 1.0) -> PressRealism:
+              rng: np.random.Generator, tail_scale: float = 1.0, material: str | None = None) -> PressRealism:
         """Draw one press's realism at (x, y) m on ``obj_name``.
 
         Args:
@@ -150,6 +152,7 @@ class RealismSession:
             tail_scale: this press's careless-press scale (the press profile's ``meta["tail_scale"]``, drawn by
                 :func:`palpate.sim.controller.tail_scale`): it widens the pulp's stiffness draw as it widens the
                 press's own deviations (which part of the pulp touches is part of how the person presses).
+            material: the name of the material under the press point (whether it has a stress plateau).
         """
         p = self.profile
         softening = p.material.softening_factor(self.earlier_presses(obj_name, x, y))
@@ -163,10 +166,12 @@ class RealismSession:
         def softened(force: float) -> float:
             return float(depth_for_force(force / softening))
 
+        plateau = plateau_depth(p.material.plateau_of(material), self.tip.radius)
         law = None
         if p.finger.compliant:
+            # the planning modulus is the elastic one: the series law adds the plateau itself
             e_star = planning_modulus(softened, self.tip.radius, PLANNING_FORCE)
-            law = series_law(e_star, self.tip.radius, p.finger, stiffness_scale, reach)
+            law = series_law(e_star, self.tip.radius, p.finger, stiffness_scale, reach, plateau)
         response = (TaxelResponse(p.taxels, self.gains * self.drift, self.full_scale, self.activation)
                     if p.taxels.active else None)
-        return PressRealism(p, law, softened, stiffness_scale, softening, response, clock, self.tip)
+        return PressRealism(p, law, softened, stiffness_scale, softening, plateau, response, clock, self.tip)
