@@ -149,10 +149,15 @@ def law_sensel_pressure(law: ContactLaw, depth: np.ndarray, bounds: np.ndarray, 
     return np.maximum(out, 0.0)
 
 
+def material_under(obj: ObjectSpec, x: float, y: float, surface_z: float) -> Material | None:
+    """The material just under the surface at (x, y) m, top at ``surface_z`` m: the one a tip presses first (None
+    outside the object)."""
+    return material_at(obj, np.array([[x, y, surface_z - 1e-6]]))[0]
+
+
 def local_material(obj: ObjectSpec, x: float, y: float, surface_z: float) -> Material:
     """Material just under the surface at (x, y): the one the tip presses first."""
-    probe = np.array([[x, y, surface_z - 1e-5]])
-    mat = material_at(obj, probe)[0]
+    mat = material_under(obj, x, y, surface_z)
     if mat is None:
         raise ValidationError(f"object {obj.name!r} has no material under ({x:.4f}, {y:.4f}) m; press on the object")
     return mat

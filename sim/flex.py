@@ -23,7 +23,8 @@ import numpy as np
 
 from palpate.core.errors import SimulationDiverged, ValidationError
 from palpate.core.session.sources import PressTarget
-from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, Scene, material_index_at
+from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, Scene
+from palpate.sim.analytic import material_under
 from palpate.sim.controller import press_profile
 from palpate.sim.flex_calibration import load_calibration, mesh_factor
 from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW, flex_grid
@@ -183,7 +184,8 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     mujoco.mj_forward(model, data)
     cell = grid.finest
     pinned_fraction = sum(grid.pinned) / len(grid.pinned)
-    nu = _surface_poisson(obj, x, y)
+    under = material_under(obj, x, y, obj.height)
+    nu = float((under or obj.materials()[0]).poisson)
     calibration = load_calibration() if calibrate else None
     qadr = model.jnt_qposadr[fm.tip_joint]
     gid = fm.tip_geom
@@ -269,7 +271,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         force=force,
         indentation=indentation,
         surface_z=surface_z,
-        material=_material_under(obj, x, y),
+        material=None if under is None else under.name,
         meta={
             "fidelity": "flex", "timestep": dt, "integrator": "discrete", "resolution": res,
             "cell": grid.finest, "cells": list(grid.cells),
@@ -315,19 +317,6 @@ def _check_force_order(t: np.ndarray, force: np.ndarray, indentation: np.ndarray
             f"{indentation[: k + 1][order][i] * 1e3:.2f} mm (timestep {dt} s): the tip is sinking between the "
             "surface vertices; press less deep, or use fidelity 'analytic' or 'rigid'"
         )
-
-
-def _material_under(obj: ObjectSpec, x: float, y: float) -> str | None:
-    """Name of the material just under the surface at (x, y), None if outside."""
-    mats = obj.materials()
-    i = int(material_index_at(obj, np.array([[x, y, obj.height - 1e-6]]), [m.name for m in mats])[0])
-    return mats[i].name if i >= 0 else None
-
-
-def _surface_poisson(obj: ObjectSpec, x: float, y: float) -> float:
-    mats = obj.materials()
-    i = int(material_index_at(obj, np.array([[x, y, obj.height - 1e-6]]), [m.name for m in mats])[0])
-    return float(mats[max(i, 0)].poisson)
 
 
 def reference_press(*, young: float, poisson: float = 0.3, height: float = 0.02, radius: float = 0.008,

@@ -19,8 +19,8 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
-from palpate.core.world.scene import ObjectSpec, Scene, material_at
-from palpate.sim.analytic import run_analytic_press
+from palpate.core.world.scene import ObjectSpec, Scene
+from palpate.sim.analytic import material_under, run_analytic_press
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profile
 from palpate.sim.flex import run_flex_press
@@ -267,7 +267,7 @@ class SimSource:
             return law.max_depth * (force / law.force[-1]) ** (2.0 / 3.0)
 
         planned = target.depth if target.depth is not None else planning_depth(target.force)
-        under = material_at(obj, np.array([[point.x, point.y, point.surface_z - 1e-6]]))[0]
+        under = material_under(obj, point.x, point.y, point.surface_z)
         return self._session.press(obj.name, point.x, point.y, planning_depth, 2.0 * planned + 0.01,
                                    np.random.default_rng(stream), tail_scale=point.meta.get("tail_scale", 1.0),
                                    material=None if under is None else under.name)

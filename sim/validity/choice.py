@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.world.scene import ObjectSpec, material_index_at
+from palpate.sim.analytic import material_under
 from palpate.sim.validity.table import ValidityRow, ValidityTable
 
 ORDER = ("analytic", "rigid", "flex")
@@ -130,9 +131,7 @@ def situation(obj: ObjectSpec, x: float, y: float, surface_z: float, depth: floa
     edge_value = skin = lump = None
     excluded: dict[str, str] = {}
     notes: list[str] = []
-    mats = obj.materials()
-    under = material_index_at(obj, np.array([[x, y, surface_z - 1e-6]]), [m.name for m in mats])[0]
-    poisson = float(mats[max(int(under), 0)].poisson)
+    poisson = float((material_under(obj, x, y, surface_z) or obj.materials()[0]).poisson)
     if obj.shape == "mesh":
         excluded["analytic"] = "a mesh top is curved or faceted"
         excluded["flex"] = "flex models boxes and cylinders only"
