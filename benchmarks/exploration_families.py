@@ -23,7 +23,7 @@ soft's), so the memory names the wrong one of the two in about a fifth of presse
 gracefully and stay the best policy.
 
 Run: .venv/bin/python benchmarks/exploration_families.py [--scenes N] [--split tuning|report|both] [--physics K]
-     [--policies a,b] [--confused] [--figure PNG] [--json PATH] [--store-felt]
+     [--policies a,b] [--confused] [--figure PNG] [--json PATH] [--store-felt] [--info-gain FIELD=VALUE ...]
 
 Felt cells cost FE solves (up to a minute a scene); they are cached in the temp folder and read from the committed
 benchmarks/data/felt_cells.npz, both keyed on the contact law's code, so a changed law recomputes them;
@@ -33,6 +33,7 @@ benchmarks/data/felt_cells.npz, both keyed on the contact law's code, so a chang
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -55,6 +56,7 @@ from family_runs import (  # noqa: E402
 from scene_families import FAMILIES, REPORT_SEEDS, TUNING_SEEDS, scene  # noqa: E402
 
 from palpate.core.mapping.calibration import reliability_table  # noqa: E402
+from palpate.core.planning.info_gain import InfoGain  # noqa: E402
 
 ABSOLUTE = 0.95
 TARGETS = {"median": 0.35, "worst": 0.7}
@@ -67,8 +69,9 @@ def _count(run: Run, level: float) -> int:
     return k if k is not None else run.accuracy.size  # never: one more than the presses made (<= cells)
 
 
-def scene_rows(fs, rows: list[str], physics: bool) -> dict:
-    """Every row's presses on one scene, the ceiling and the runs (for calibration)."""
+def scene_rows(fs, rows: list[str], physics: bool, settings: dict | None = None) -> dict:
+    """Every row's presses on one scene, the ceiling and the runs (for calibration); ``settings`` replaces fields of
+    the info_gain rows' policy (offline only)."""
     if physics:
         raster = physics_run(fs, "raster")
     else:
@@ -87,7 +90,8 @@ def scene_rows(fs, rows: list[str], physics: bool) -> dict:
         if row in REFERENCE_ROWS:
             run = clairvoyant_run(fs, stop_at=stop)
         else:
-            run = physics_run(fs, row) if physics else offline_run(fs, row, stop_at=stop)
+            mine = settings if ROWS[row][0] == "info_gain" else None
+            run = physics_run(fs, row) if physics else offline_run(fs, row, stop_at=stop, settings=mine)
         out["runs"][row] = run
         out["to_ceiling"][row] = _count(run, target)
         out["to_absolute"][row] = run.presses_to(ABSOLUTE)
@@ -205,6 +209,23 @@ def reliability_figure(path: str, tables: dict, title: str) -> None:
     plt.close(fig)
 
 
+def parse_settings(parser: argparse.ArgumentParser, items: list[str]) -> dict:
+    """``FIELD=VALUE`` items as info_gain fields (numbers; a typo or a non-field is a usage error)."""
+    # the numeric fields: the memory, objective and switches are not swept
+    fields = {f.name for f in dataclasses.fields(InfoGain) if f.init} - {"memory", "objective", "lateral",
+                                                                          "incremental"}
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or key not in fields:
+            parser.error(f"--info-gain takes FIELD=VALUE with FIELD one of {', '.join(sorted(fields))}; got {item!r}")
+        try:
+            out[key] = int(value) if value.lstrip("-").isdigit() else float(value)
+        except ValueError:
+            parser.error(f"--info-gain {key}: {value!r} is not a number")
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", type=int, default=72, help="offline scenes per split (default 72: 8 per family)")
@@ -221,7 +242,13 @@ def main() -> None:
     parser.add_argument("--store-felt", action="store_true",
                         help=f"after the run, write the felt cells of today's contact law to {FELT_ARCHIVE.name} "
                              "(committed: a fresh machine then skips their FE solves)")
+    parser.add_argument("--info-gain", action="append", default=[], metavar="FIELD=VALUE",
+                        help="offline runs: replace a field of the info_gain policy (e.g. entropy_weight=4), "
+                             "repeatable; for sweeps on the tuning seeds (--split tuning)")
     args = parser.parse_args()
+    settings = parse_settings(parser, args.info_gain)
+    if settings and args.physics:
+        parser.error("--info-gain applies to offline runs only (physics runs read their policy from the scenario)")
     chosen = [p.strip() for p in args.policies.split(",") if p.strip()]
     known = (*ROWS, *REFERENCE_ROWS)
     unknown = sorted(set(chosen) - set(known))
@@ -241,7 +268,7 @@ def main() -> None:
             results = []
             for s in seeds[:n]:
                 fs = scene(s).with_confusion() if args.confused else scene(s)
-                r = scene_rows(fs, split_rows, physics)
+                r = scene_rows(fs, split_rows, physics, settings)
                 results.append(r)
                 if args.verbose:
                     print(f"{name} {s} {r['family']:<10} {r['cells']:4d} cells ceiling {r['ceiling']:.3f} "

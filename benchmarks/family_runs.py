@@ -13,6 +13,7 @@ with every cell pressed once (the attainable accuracy), and a run's presses are 
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import tempfile
@@ -153,9 +154,10 @@ class RunTrace:
 
 
 def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memory=None, answers=None,
-                felt=None, policy_kwargs: dict | None = None) -> Run:
+                felt=None, settings: dict | None = None) -> Run:
     """One policy on one scene with presses answered offline (module docstring); stops once the accuracy reaches
-    ``stop_at`` (None: after one press per cell)."""
+    ``stop_at`` (None: after one press per cell). ``settings`` replaces fields of the built policy (e.g. info_gain's
+    ``entropy_weight``), for sweeps on the tuning seeds."""
     kind, objective = ROWS[row]
     sc = fs.scenario(kind, objective=objective)
     entry = sc.objects[0]
@@ -168,8 +170,9 @@ def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memo
     regions = [(c - 1, r - 1) for c, r in entry.regions]
     cal = ex.calibration
     policy = make_policy(kind, cells=regions, seed=fs.seed, memory=memory, objective=ex.objective,
-                         feature_size=ex.feature_size, certainty=cal.extrapolation_certainty,
-                         **(policy_kwargs or {}))
+                         feature_size=ex.feature_size, certainty=cal.extrapolation_certainty)
+    if settings:
+        policy = dataclasses.replace(policy, **settings)
     grid = new_map(geom)
     rng = np.random.default_rng(fs.seed + 7000)
     n = truth.size
