@@ -11,7 +11,7 @@ pytest.importorskip("mujoco")
 
 from palpate.core.errors import ValidationError  # noqa: E402
 from palpate.core.world.scene import FingertipSpec, Layer, Material, ObjectSpec, Scene  # noqa: E402
-from palpate.sim import flex, flex_element, flex_grid, flex_model  # noqa: E402
+from palpate.sim import flex, flex_element, flex_grid, flex_mixing, flex_model  # noqa: E402
 from palpate.sim.contact.law import solve_contact_law  # noqa: E402
 from palpate.sim.flex_calibrate import loading_ratio  # noqa: E402
 from palpate.sim.flex_calibration import load_calibration, mesh_factor  # noqa: E402
@@ -197,7 +197,7 @@ def test_a_skin_thinner_than_a_cell_mixes_into_it_in_series():
     soft, hard = Material("soft", 2e4, 0.3), Material("hard", 2e6, 0.3)
     obj = ObjectSpec("b", "box", (0.04, 0.04, 0.02), (0, 0), hard, layers=(Layer(soft, 0.0025),))
     g = flex_grid.flex_grid(obj, 0, 0, resolution=0.01, window=0.02)  # top cells 10 mm tall, a quarter skin
-    young, poisson = flex_model.cell_moduli(obj, g)
+    young, poisson = flex_mixing.cell_moduli(obj, g)
     top = young[1::2]
     np.testing.assert_allclose(top, 1.0 / (0.25 / 2e4 + 0.75 / 2e6), rtol=1e-12)
     np.testing.assert_allclose(young[0::2], 2e6)
