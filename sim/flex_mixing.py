@@ -9,9 +9,9 @@ materials they hold. The press divides its force by F_continuum(window's cells) 
 - :func:`lateral_mixing_correction` where the object varies laterally (an inclusion, a haptic-material map): the
   window's cells and the object, each averaged around the press axis as the contact law averages an object
   (:func:`palpate.sim.contact.axisymmetric.azimuthal_materials`), solved on one coarse axisymmetric FE mesh, whose
-  own error cancels in the ratio (as in :func:`palpate.sim.contact.axisymmetric.axisymmetric_law`). A sphere 1 mm
-  under the top of the validity table's 5 mm cells is spread over four cells whose mix is 20-25% too soft (hard
-  lump) or too stiff (soft lump) under a contact narrower than them.
+  own error cancels in the ratio (as in :func:`palpate.sim.contact.axisymmetric.axisymmetric_law`). A sphere just
+  under the top is spread over the cells around the press axis, whose mix is softer than a hard lump (stiffer than a
+  soft one) under a contact narrower than them (docs/architecture.md, issue 12, has the measurements).
 """
 
 from __future__ import annotations
@@ -170,7 +170,7 @@ def lateral_mixing_correction(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray
     """F(window's cells) / F(object) for a press at (x, y) (m) on an object that varies laterally (see the module
     docstring): both averaged around the press axis, solved on one coarse axisymmetric mesh whose lines hold both
     the object's interfaces and the cells' faces. ``young``, ``poisson``: the cells' moduli (:func:`cell_moduli`).
-    Nothing is fitted; two factorisations (~0.2 s)."""
+    Nothing is fitted; it costs two factorisations of the coarse mesh."""
     depth = LATERAL_DEPTHS * tip_radius
     top = obj.height
     cells = cell_lookup(obj, grid, young, poisson, x, y)
