@@ -84,26 +84,28 @@ def test_shipped_calibration_is_valid_and_interpolates():
     # the trilinear grid is stiffer than the continuum wherever a press is allowed (a >= 0.25 cells) on a block
     # thicker than the validity table's thinnest layers
     usable = ac >= 0.25
-    assert np.all(t["factor"][:, 2:, usable] > 1.0)
-    at = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3])
-    assert at.kappa == pytest.approx(t["factor"][1, 3, 8]) and not at.extrapolated
+    assert np.all(t["factor"][:, hs >= 0.014][:, :, usable] > 1.0)
+    j = int(np.argmin(np.abs(hs - 0.03)))  # the 30 mm block, and the 70 mm one after it
+    assert hs[j] == pytest.approx(0.03) and hs[j + 1] == pytest.approx(0.07)
+    at = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[j])
+    assert at.kappa == pytest.approx(t["factor"][1, j, 8]) and not at.extrapolated
     mid = 0.5 * (ac[8] + ac[9])
-    k_mid = mesh_factor(mid, t["poisson"][1], c_r, cal, hs[3]).kappa
-    assert min(t["factor"][1, 3, 8:10]) <= k_mid <= max(t["factor"][1, 3, 8:10])
+    k_mid = mesh_factor(mid, t["poisson"][1], c_r, cal, hs[j]).kappa
+    assert min(t["factor"][1, j, 8:10]) <= k_mid <= max(t["factor"][1, j, 8:10])
     # between two calibrated thicknesses: between their factors (linear in log thickness)
-    k_h = mesh_factor(ac[8], t["poisson"][1], c_r, cal, float(np.sqrt(hs[3] * hs[4]))).kappa
-    assert k_h == pytest.approx(0.5 * (t["factor"][1, 3, 8] + t["factor"][1, 4, 8]))
-    assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal, hs[3]).extrapolated  # another cell size: flagged
+    k_h = mesh_factor(ac[8], t["poisson"][1], c_r, cal, float(np.sqrt(hs[j] * hs[j + 1]))).kappa
+    assert k_h == pytest.approx(0.5 * (t["factor"][1, j, 8] + t["factor"][1, j + 1, 8]))
+    assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal, hs[j]).extrapolated  # another cell size: flagged
     assert mesh_factor(0.5, 0.3, c_r, cal, 2.0 * hs[-1]).extrapolated  # thicker than measured: flagged
     assert mesh_factor(1.2, 0.3, c_r, cal, hs[0]).extrapolated  # deeper than the thin block was pressed: flagged
     # a window with free sides: the free table's factor; half its sides pinned: halfway
-    assert mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3], 0.0).kappa == pytest.approx(free["factor"][1, 3, 8])
-    half = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3], 0.5).kappa
-    assert half == pytest.approx(0.5 * (t["factor"][1, 3, 8] + free["factor"][1, 3, 8]))
+    assert mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[j], 0.0).kappa == pytest.approx(free["factor"][1, j, 8])
+    half = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[j], 0.5).kappa
+    assert half == pytest.approx(0.5 * (t["factor"][1, j, 8] + free["factor"][1, j, 8]))
     # the pinned window's sides stiffen a 30 mm block pressed over a cell wide: the free factor is smaller
-    assert free["factor"][1, 3, -1] < t["factor"][1, 3, -1]
+    assert free["factor"][1, j, -1] < t["factor"][1, j, -1]
     with pytest.raises(ValidationError, match="pinned_fraction"):
-        mesh_factor(0.5, 0.3, c_r, cal, hs[3], 1.5)
+        mesh_factor(0.5, 0.3, c_r, cal, hs[j], 1.5)
 
 
 _TABLE = {"sides": "pinned", "cell_over_radius": 0.6, "poisson": [0.3], "thickness": [0.02], "contact_over_cell": [0.5],

@@ -194,3 +194,12 @@ def test_flex_is_within_ten_percent_of_the_fe_reference_on_lumps_near_the_top(na
     vertices over the soft pocket, a ripple the mesh correction of homogeneous blocks does not hold."""
     err = _flex_error(name, depths)
     assert np.all(np.abs(err) < 0.10), err
+
+
+@pytest.mark.physics
+@pytest.mark.parametrize("name", ["thick_2mm_nu0.45", "thick_2mm_nu0.49"])
+def test_flex_is_within_ten_percent_of_the_fe_reference_on_a_thin_nearly_incompressible_block(name):
+    """Issue 12: a 2 mm block pressed 0.5 and 1 mm, thinner than the 3 mm calibration block whose mesh correction it
+    used to get (-10% and -16% at 1 mm); the 1.7 mm calibration block puts it between two measured thicknesses."""
+    err = _flex_error(name, (0.5e-3, 1e-3))
+    assert np.all(np.abs(err) < 0.10), err
