@@ -178,9 +178,11 @@ def lateral_mixing_correction(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray
     cells = cell_lookup(obj, grid, young, poisson, x, y)
     own = object_lookup(obj, x, y, top)
     breaks_z = sorted(set(object_breaks(obj, top)) | {round(float(top - z), 9) for z in grid.z[1:-1]})
-    lines = np.abs(np.concatenate([grid.x - (x if grid.disc_radius == 0 else grid.lower[0] + grid.size[0] / 2),
-                                   grid.y - (y if grid.disc_radius == 0 else grid.lower[1] + grid.size[1] / 2)]))
+    # the cells' faces as radial mesh lines: distances from the press point (a disc's rings: radii from its centre)
+    axis = grid.lower[:2] + grid.size[:2] / 2.0 if grid.disc_radius > 0 else np.array([x, y])
+    lines = np.abs(np.concatenate([grid.x - axis[0], grid.y - axis[1]]))
     breaks_r = sorted(set(object_radial_breaks(obj, x, y)) | {round(float(v), 9) for v in lines if v > 1e-9})
+    # a rim within the contact's reach is a free side, found as the contact law finds it
     rim = axisymmetric.free_side(own, 1.3 * 1.15 * math.sqrt(tip_radius * float(depth[-1])), breaks_r)
     sample = AxisymmetricSample(bulk=obj.material, thickness=top)
     solve = dict(refinement=axisymmetric.REFINEMENT, growth=axisymmetric.GROWTH,
