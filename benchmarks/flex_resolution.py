@@ -4,7 +4,8 @@ Each row is one robot press-and-release (3.2 mm deep, 10 mm/s) at the centre of 
 to the table (200 kPa) under an 8 mm tip, on one core: cells (nx, ny, nz), degrees of freedom, wall time, the
 real-time factor (simulated seconds per wall second, measured in the same run), and the force against the
 reference (the layered contact law of the same block, which agrees with the FE reference within ~1%) at 0.5, 1, 2
-and 3 mm. The mesh correction was measured on 3/7/14/30/70/150 mm blocks (tuning); the 10, 20 and 40 mm blocks report.
+and 3 mm. The mesh correction was measured on 1.7/3/7/14/30/70/150 mm blocks (tuning); the 10, 20 and 40 mm blocks
+report.
 
     .venv/bin/python benchmarks/flex_resolution.py             # default resolution and window, 3 thicknesses
     .venv/bin/python benchmarks/flex_resolution.py --full      # also other resolutions/windows (uncalibrated ones

@@ -7,7 +7,8 @@
 The FE reference is checked against closed forms in tests/test_fe_reference.py and its mesh convergence is
 printed here (the force change of three cases at refinement 0.5 and 1 against 2). What was tuned on what: the
 contact law has nothing tuned (it is exact for layers; its axisymmetric averaging of lateral variation is exact on
-the axis); flex's mesh correction was measured on homogeneous 3/7/14/30/70/150 mm blocks, none of which is a case here.
+the axis); flex's mesh correction was measured on homogeneous 1.7/3/7/14/30/70/150 mm blocks, none of which is a
+case here.
 """
 
 from __future__ import annotations

@@ -6,8 +6,8 @@ tip sphere and the block's surface vertices, and each contact's normal force. Wh
 object (bottom bonded to the table, cut sides pinned, free object edges free), the mesh correction (the coarse
 trilinear grid is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell
 and the block's thickness, measured against the reference of homogeneous blocks, :mod:`palpate.sim.flex_calibration`,
-so finite thickness, layers and edges come from the block itself; a soft layer mixed into its cells is corrected by
-the exact layered law's ratio of the mixed column to the layers, :func:`palpate.sim.flex_model.mixing_correction`),
+so finite thickness, layers and edges come from the block itself; cells holding two materials (a soft skin, part of
+a lump) are corrected by the continuum's ratio of the mixed cells to the object, :mod:`palpate.sim.flex_mixing`),
 and the taxels: each contact force stands for the surface patch of its vertex (side = vertex spacing) and is spread
 uniformly over it on the pad, which then averages over each sensel.
 
@@ -28,7 +28,7 @@ from palpate.sim.analytic import material_under
 from palpate.sim.controller import press_profile
 from palpate.sim.flex_calibration import load_calibration, mesh_factor
 from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW, flex_grid
-from palpate.sim.flex_model import CONTACT_SOLREF, MAX_TIMESTEP, VERTS_PER_CELL, build_flex_model
+from palpate.sim.flex_model import CONTACT_SOLREF, MAX_TIMESTEP, VERTS_PER_CELL, build_flex_model, mixing_at
 from palpate.sim.stability import MAX_STEPS, check_depth, check_reached, check_resolves_press, check_step_budget
 from palpate.sim.trace import PhysicsTrace
 
@@ -187,6 +187,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     under = material_under(obj, x, y, obj.height)
     nu = float((under or obj.materials()[0]).poisson)
     calibration = load_calibration() if calibrate else None
+    mixing = mixing_at(fm, obj, x, y, tip.radius) if calibrate else None
     qadr = model.jnt_qposadr[fm.tip_joint]
     gid = fm.tip_geom
     warn = data.warning
@@ -246,7 +247,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         if calibrate:
             factor = mesh_factor(np.sqrt(tip.radius * max(ind_k, 0.0)) / cell, nu, cell / tip.radius, calibration,
                                  obj.height, pinned_fraction)
-            factors[k] = factor.kappa * (1.0 if fm.mixing is None else fm.mixing.at(max(ind_k, 0.0)))
+            factors[k] = factor.kappa * (1.0 if mixing is None else mixing.at(max(ind_k, 0.0)))
             extrapolated |= factor.extrapolated
         fn = fn / factors[k]
         force[k] = fn.sum()
@@ -278,7 +279,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             "window_lower": [float(v) for v in grid.lower], "window_size": [float(v) for v in grid.size],
             "pinned_sides": list(grid.pinned), "disc_radius": grid.disc_radius,
             "mesh_factor_range": [float(factors.min()), float(factors.max())],
-            "calibration_extrapolated": bool(extrapolated), "mixing_corrected": fm.mixing is not None,
+            "calibration_extrapolated": bool(extrapolated), "mixing_corrected": mixing is not None,
             "young_range": fm.meta["young_range"],
             "materials": sorted(set(fm.cell_material)), "vertex_patch": fm.vertex_spacing,
             "contact_solref": list(CONTACT_SOLREF), "kp": fm.kp, "max_contact_penetration": -min_dist,

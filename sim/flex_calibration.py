@@ -38,8 +38,11 @@ from palpate.core.world.resources import models_dir
 #: The shipped table.
 CALIBRATION_PATH = models_dir() / "flex_calibration.json"
 #: Thicknesses of the calibration blocks, m (chosen between the validity table's 2/5/10/20/50/100 mm, so that every
-#: row of the table reports on a thickness the correction was not measured on).
-CAL_HEIGHTS = (0.003, 0.007, 0.014, 0.03, 0.07, 0.15)
+#: row of the table reports on a thickness the correction was not measured on). The thinnest is under 2 mm because
+#: a thin block's factor falls steeply with thickness where the contact is over half a cell (a / cell 0.57: 0.78 on
+#: 3 mm, 0.62 on 2 mm, nu 0.49), so a 2 mm block must be interpolated, not given 3 mm's; 1.7 mm because its deepest
+#: press (0.62 of it) then reaches that contact radius.
+CAL_HEIGHTS = (0.0017, 0.003, 0.007, 0.014, 0.03, 0.07, 0.15)
 #: Reference modulus of the calibration (the flex is E-invariant; this only fixes the units), Pa.
 CAL_YOUNG = 2.0e5
 FORMAT_VERSION = 4

@@ -12,7 +12,8 @@
   LAYER_CELLS cells through it, and its cells are marked ``bending``: a stiff skin carries load by bending, which
   a cell mixing it with its base cannot, and which a thin trilinear cell cannot either without the incompatible
   modes :func:`palpate.sim.flex_element.bending_ee` gives it. Other cells holding two materials (a soft skin, a
-  lump) get their mix (:func:`palpate.sim.flex_model.cell_moduli`). Node planes on a lump's top, bottom and sides
+  lump) get their mix (:func:`palpate.sim.flex_mixing.cell_moduli`), which the press corrects by the continuum's
+  answer to it (:mod:`palpate.sim.flex_mixing`). Node planes on a lump's top, bottom and sides
   were tried and dropped: on lump_hard_3mm and lump_soft_3mm they left as many rows beyond 10% (one) for two more
   layers of cells.
 """
@@ -160,12 +161,12 @@ def graded_nodes(lo: float, hi: float, focus: float, fine: float, core: float, g
     return nodes
 
 
-def with_planes(nodes: np.ndarray, planes, fixed, snap: float) -> np.ndarray:
+def with_planes(nodes: np.ndarray, planes, snap: float) -> np.ndarray:
     """``nodes`` (m, increasing) with a node on each of ``planes`` strictly inside them: the nearest node moved
-    onto a plane within ``snap`` m of it (unless it is an end, in ``fixed`` or already on another plane), else the
-    plane inserted."""
+    onto a plane within ``snap`` m of it (unless it is an end or already on another plane), else the plane
+    inserted."""
     out = np.array(nodes, dtype=float)
-    held = {round(float(v), 9) for v in (out[0], out[-1], *fixed)}
+    held = {round(float(out[0]), 9), round(float(out[-1]), 9)}
     for p in sorted({round(float(v), 9) for v in planes}):
         if not out[0] < p < out[-1]:
             continue
@@ -236,7 +237,7 @@ def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_R
                               f"not {obj.shape!r}; use fidelity 'rigid' or 'analytic' for meshes")
     bands = _stiff_layers(obj)
     zs = with_planes(graded_nodes(0.0, obj.height, obj.height, resolution, core, growth),
-                     [bottom for bottom, _ in bands], (), SNAP_PLANE * resolution)
+                     [bottom for bottom, _ in bands], SNAP_PLANE * resolution)
     zs = _split_thin(zs, bands, resolution, LAYER_CELLS)
     if len(zs) - 1 < MIN_LAYERS:
         zs = np.linspace(0.0, obj.height, MIN_LAYERS + 1)

@@ -17,24 +17,29 @@ reused (see :mod:`palpate.sim.flex` for the press that runs it).
   200 kPa) and the tip's drive with the stiffest: a homogeneous block of any modulus then runs the same dynamics,
   and the force scales with E exactly (E-invariance), with the same contact softness (the direct solref is an
   acceleration).
-- The mixing correction (:func:`mixing_correction`): a layer thinner than a cell that is not given node planes (a
-  soft skin) is mixed into its cells, which the continuum answers differently from the layer itself; the ratio of
-  the exact layered law of the mixed column to that of the real layers divides the contact force.
+- The mixing correction (:mod:`palpate.sim.flex_mixing`): a layer thinner than a cell that is not given node planes
+  (a soft skin) or part of an inclusion is mixed into its cells, which the continuum answers differently from the
+  materials themselves; the continuum's ratio of the mixed cells to the object divides the contact force
+  (:func:`mixing_at`: per window for layers, per press point for an object that varies laterally).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.world.scene import Layer, Material, ObjectSpec, Scene, material_index_at
-from palpate.sim.contact.law import solve_contact_law
-from palpate.sim.flex_element import UNIT_CORNERS, bending_ee, box_corners, hex_bases, hex_volumes, lame
+from palpate.core.world.scene import ObjectSpec, Scene, material_index_at
+from palpate.sim.flex_element import bending_ee, box_corners, hex_bases, hex_volumes, lame
 from palpate.sim.flex_grid import FlexGrid
-from palpate.sim.reference.sample import AxisymmetricSample
-from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS
+from palpate.sim.flex_mixing import (
+    MixingCorrection,
+    cell_moduli,
+    lateral_mixing_correction,
+    mixing_correction,
+    varies_laterally,
+)
 
 #: Longest physics step, s (the default is the shorter of this and a twelfth of the press phase).
 MAX_TIMESTEP = 0.01
@@ -49,98 +54,6 @@ DENSITY = 1000.0
 NAME = "obj"
 
 
-#: Sub-points per cell edge at which the material is sampled (a cell holding two materials gets their mix).
-SUBCELL = 4
-
-
-def cell_moduli(obj: ObjectSpec, grid: FlexGrid) -> tuple[np.ndarray, np.ndarray]:
-    """Young's modulus (Pa) and Poisson ratio of each cell (MuJoCo's cell order), from SUBCELL^3 points inside it:
-    E in series down each vertical sub-column (harmonic mean: exact for the squeeze of a layered cell), the
-    sub-columns in parallel (mean: a lump filling part of the cell carries its share); the mean Poisson ratio. A
-    cell of one material gets exactly its own; the grid puts node planes on layer and inclusion interfaces
-    (:func:`palpate.sim.flex_grid.flex_grid`), so only a curved inclusion's cells mix."""
-    mats = obj.materials()
-    names = [m.name for m in mats]
-    young = np.array([m.young for m in mats])
-    poisson = np.array([m.poisson for m in mats])
-    frac = (np.arange(SUBCELL) + 0.5) / SUBCELL
-    sub = np.stack(np.meshgrid(frac, frac, frac, indexing="ij"), axis=-1).reshape(-1, 3)
-    # trilinear weights of each sub-point on the 8 corners (so a disc's distorted cells are sampled inside)
-    weights = np.prod(np.where(UNIT_CORNERS[None, :, :] > 0, sub[:, None, :], 1.0 - sub[:, None, :]), axis=2)
-    pts = np.einsum("sa,nai->nsi", weights, grid.cell_corners())
-    idx = material_index_at(obj, pts.reshape(-1, 3), names).reshape(len(pts), -1)
-    centre = material_index_at(obj, grid.cell_centres(), names)
-    idx = np.where(idx >= 0, idx, np.maximum(centre, 0)[:, None])
-    # sub-points are ordered (x, y, z) with z fastest: series down each sub-column, parallel across them
-    columns = 1.0 / np.mean(1.0 / young[idx].reshape(len(pts), SUBCELL * SUBCELL, SUBCELL), axis=2)
-    return np.mean(columns, axis=1), np.mean(poisson[idx], axis=1)
-
-
-#: Indentations, in tip radii, at which the mixing correction is tabulated (to the deepest press allowed).
-MIXING_DEPTHS = np.geomspace(1e-3, MAX_DEPTH_OVER_RADIUS, 60)
-
-
-@dataclass(frozen=True)
-class MixingCorrection:
-    """How much stiffer (or softer) the window's column of mixed cells is than the object's layers, as a continuum.
-
-    Attributes:
-        depth: (n,) indentations, m, increasing.
-        ratio: (n,) F_law(mixed column) / F_law(layers) at each indentation (both exact layered contact laws).
-    """
-
-    depth: np.ndarray
-    ratio: np.ndarray
-
-    def at(self, depth: float) -> float:
-        """The ratio at an indentation ``depth`` (m), held at the table's ends."""
-        return float(np.interp(depth, self.depth, self.ratio))
-
-
-def mixing_correction(obj: ObjectSpec, grid: FlexGrid, tip_radius: float) -> MixingCorrection | None:
-    """The continuum's answer to the window's mixing of thin layers into cells (None where no cell mixes layers).
-
-    A soft layer thinner than a cell is mixed into it (:func:`cell_moduli`; a stiff one gets node planes and cells
-    of its own, :func:`palpate.sim.flex_grid.flex_grid`). The series mix is exact for a cell squeezed uniformly,
-    but a contact narrower than the cell strains the cell's top, where the soft layer is, more than its bottom: the
-    mixed column is stiffer than the layers (+33% at 0.2 mm and +14% at 0.5 mm on a 2 mm skin of 20 kPa on 200
-    kPa in 5 mm cells), which the mesh correction, measured on homogeneous blocks, does not know. This is that
-    ratio from the exact layered law (:func:`palpate.sim.contact.law.solve_contact_law`) of the window's column of
-    cells (layers only; an inclusion is not laterally uniform and keeps its mix) against that of the object's layers,
-    so the press divides its force by it as it does by the mesh correction.
-    """
-    if not obj.layers:
-        return None
-    layered = replace(obj, inclusions=())
-    h = grid.finest / 2.0
-    cx, cy = grid.lower[:2] + grid.size[:2] / 2.0
-    column = FlexGrid(x=np.array([cx - h, cx + h]), y=np.array([cy - h, cy + h]), z=grid.z,
-                      pinned=(False, False, False, False))
-    young, poisson = cell_moduli(layered, column)
-    own = np.array([[m.young, m.poisson] for m in layered.materials()])
-    mixed = ~np.any(np.all(np.isclose(np.stack([young, poisson], axis=1)[:, None, :], own[None]), axis=2), axis=1)
-    if not mixed.any():
-        return None
-    cells = []  # top down, neighbouring cells of one mix merged
-    for k in range(len(young) - 1, -1, -1):
-        dz = float(grid.z[k + 1] - grid.z[k])
-        if cells and np.isclose(cells[-1][0], young[k]) and np.isclose(cells[-1][1], poisson[k]):
-            cells[-1][2] += dz
-        else:
-            cells.append([float(young[k]), float(poisson[k]), dz])
-    mats = [Material(f"cell{i}", e, nu) for i, (e, nu, _) in enumerate(cells)]
-    column_stack = AxisymmetricSample(mats[-1], obj.height,
-                                      layers=tuple(Layer(m, c[2]) for m, c in zip(mats[:-1], cells[:-1], strict=True)))
-    depth = MIXING_DEPTHS * tip_radius
-    deepest = float(depth[-1])
-    ratio = (solve_contact_law(column_stack, tip_radius, deepest).force_at(depth)
-             / solve_contact_law(AxisymmetricSample(obj.material, obj.height, layers=obj.layers), tip_radius,
-                                 deepest).force_at(depth))
-    if not np.all(np.isfinite(ratio) & (ratio > 0)):
-        raise ValidationError(f"flex: the mixing correction of {obj.name!r} is not a finite positive ratio")
-    return MixingCorrection(depth=depth, ratio=ratio)
-
-
 @dataclass
 class FlexModel:
     """A compiled flex window and what a press needs of it (built once, reused by every press in the window).
@@ -149,7 +62,10 @@ class FlexModel:
         model: the MuJoCo model; grid: its window; tip_joint, tip_body, tip_geom: MuJoCo ids;
         cell_material: per-cell material name; young_max: the stiffest modulus (Pa), which scales mass and drive;
         kp: drive stiffness, N/m; vertex_spacing: collision vertex spacing on the top, m;
-        mixing: the mixing correction (:func:`mixing_correction`), None where no cell mixes layers.
+        mixing: the layers' mixing correction (:func:`palpate.sim.flex_mixing.mixing_correction`), None where no
+            cell mixes layers or where the object varies laterally (then :func:`mixing_at` gives it per point);
+        cell_young, cell_poisson: (n,) each cell's mixed moduli (Pa; MuJoCo's cell order);
+        lateral: the object varies laterally; points: lateral corrections computed so far, by press point.
     """
 
     model: object
@@ -163,6 +79,10 @@ class FlexModel:
     vertex_spacing: float
     mixing: MixingCorrection | None = None
     meta: dict = field(default_factory=dict)
+    cell_young: np.ndarray | None = None
+    cell_poisson: np.ndarray | None = None
+    lateral: bool = False
+    points: dict = field(default_factory=dict)
 
 
 def flexcomp_xml(grid: FlexGrid, *, verts_per_cell: int, mass: float, damping: float, timestep: float) -> str:
@@ -278,6 +198,26 @@ def build_flex_model(scene: Scene, obj: ObjectSpec, grid: FlexGrid, *, timestep:
     return FlexModel(
         model=model, grid=grid, tip_joint=model.joint("tip_z").id, tip_body=model.body("tip").id,
         tip_geom=model.geom("tip").id, cell_material=[names[i] for i in idx], young_max=float(young_max),
-        kp=float(kp), vertex_spacing=grid.finest / verts_per_cell, mixing=mixing_correction(obj, grid, tip_r),
+        kp=float(kp), vertex_spacing=grid.finest / verts_per_cell,
+        mixing=None if varies_laterally(obj) else mixing_correction(obj, grid, tip_r),
         meta={"young_range": [float(young_cell.min()), young_max], "mass_scale": float(scale)},
+        cell_young=young_cell, cell_poisson=poisson_cell, lateral=varies_laterally(obj),
     )
+
+
+#: Press points this close (m) share a lateral mixing correction.
+POINT_SNAP = 1e-4
+
+
+def mixing_at(fm: FlexModel, obj: ObjectSpec, x: float, y: float, tip_radius: float) -> MixingCorrection | None:
+    """The mixing correction of a press at (x, y) (m) in window ``fm`` of ``obj``: the window's own (layers), or,
+    where the object varies laterally, the press point's (:func:`palpate.sim.flex_mixing.lateral_mixing_correction`),
+    computed once per point (POINT_SNAP) and kept in ``fm.points``."""
+    if not fm.lateral:
+        return fm.mixing
+    key = (round(x / POINT_SNAP), round(y / POINT_SNAP), float(tip_radius))
+    if key not in fm.points:
+        if len(fm.points) > 256:  # a long run pressing everywhere must not grow without bound
+            fm.points.clear()
+        fm.points[key] = lateral_mixing_correction(obj, fm.grid, fm.cell_young, fm.cell_poisson, tip_radius, x, y)
+    return fm.points[key]

@@ -33,9 +33,10 @@ def test_a_stiff_skin_gets_node_planes_and_bending_cells_and_a_soft_one_is_mixed
 
 def test_an_interface_near_a_node_moves_it_instead_of_cutting_a_sliver():
     nodes = np.array([0.0, 0.005, 0.010, 0.015, 0.020])
-    out = flex_grid.with_planes(nodes, [0.0106, 0.0178, 0.03], fixed=(0.015,), snap=0.00125)
-    # 0.0106 is 0.6 mm from 0.010: moved; 0.0178 is 2.2 mm from 0.020 (an end) and 2.8 from 0.015 (fixed): inserted
-    np.testing.assert_allclose(out, [0.0, 0.005, 0.0106, 0.015, 0.0178, 0.020])
+    out = flex_grid.with_planes(nodes, [0.0106, 0.0178, 0.0152, 0.03], snap=0.00125)
+    # 0.0106 is 0.6 mm from 0.010: moved; 0.0178 is 2.2 mm from its nearest node, 0.020 (an end): inserted; 0.0152
+    # is 0.2 mm from 0.015: moved; 0.03 is outside: ignored
+    np.testing.assert_allclose(out, [0.0, 0.005, 0.0106, 0.0152, 0.0178, 0.020])
 
 
 def test_only_a_layer_stiffer_than_what_lies_under_it_gets_a_plane():
@@ -121,7 +122,7 @@ def test_incompatible_modes_bend_a_thin_cell_exactly_and_keep_its_rigid_and_line
 
 def test_the_mixing_correction_is_the_layered_law_of_the_mixed_column_over_the_layers():
     from palpate.sim.contact.law import solve_contact_law
-    from palpate.sim.flex_model import SUBCELL, mixing_correction
+    from palpate.sim.flex_mixing import SUBCELL, mixing_correction
     from palpate.sim.reference.sample import AxisymmetricSample
 
     base = Material("base", 2e5, 0.45)
@@ -143,3 +144,41 @@ def test_the_mixing_correction_is_the_layered_law_of_the_mixed_column_over_the_l
     for layers in ((), (Layer(STIFF, 0.002),), (Layer(SOFT, 0.005),)):
         o = ObjectSpec("b", "box", (0.2, 0.2, 0.03), (0.0, 0.0), base, layers=layers)
         assert mixing_correction(o, flex_grid.flex_grid(o, 0.0, 0.0), 0.008) is None
+
+
+@pytest.mark.parametrize("obj", [_box(), ObjectSpec("c", "cylinder", (0.01, 0.02), (0.003, -0.002), BASE)])
+def test_the_cells_lookup_finds_each_cell_from_its_centre_also_through_the_disc_map(obj):
+    from palpate.sim.flex_mixing import cell_lookup
+
+    grid = flex_grid.flex_grid(obj, 0.004, -0.001)
+    n = int(np.prod(grid.cells))
+    young, poisson = np.arange(1.0, n + 1.0), np.linspace(0.1, 0.4, n)
+    x, y = 0.004, -0.001
+    centres = grid.cell_centres()  # mapped onto the disc, if any
+    e, nu, inside = cell_lookup(obj, grid, young, poisson, x, y)(centres[:, :2] - [x, y], obj.height - centres[:, 2])
+    np.testing.assert_array_equal(e, young)
+    np.testing.assert_allclose(nu, poisson)
+    assert inside.all()
+
+
+def test_the_lateral_mixing_correction_is_one_where_cells_hold_the_lump_and_not_under_a_shallow_sphere():
+    """An inclusion whose faces lie on the cells' faces is not mixed (its cells are the object): no correction. A
+    5 mm sphere 1 mm under the top is spread over the four 5 mm cells around the axis, and their mix is softer than
+    a hard sphere (stiffer than a soft one) under a contact narrower than a cell, by less once the contact spans
+    the cells."""
+    from palpate.sim.flex_mixing import cell_moduli, lateral_mixing_correction
+
+    aligned = _box(inclusions=(Inclusion(STIFF, "box", (0.0, 0.0, 0.0225), (0.01, 0.01, 0.005)),))
+    grid = flex_grid.flex_grid(aligned, 0.0, 0.0)
+    young, poisson = cell_moduli(aligned, grid)
+    stiff = np.isclose(young, STIFF.young)
+    assert stiff.sum() == 4 and np.all(stiff | np.isclose(young, BASE.young))
+    corr = lateral_mixing_correction(aligned, grid, young, poisson, 0.008, 0.0, 0.0)
+    np.testing.assert_allclose(corr.ratio, 1.0, rtol=1e-9)
+    for lump, below in ((STIFF, True), (Material("pocket", 1e4, 0.3), False)):
+        obj = _box(inclusions=(Inclusion(lump, "sphere", (0.0, 0.0, 0.024), (0.005,)),))
+        grid = flex_grid.flex_grid(obj, 0.0, 0.0)
+        corr = lateral_mixing_correction(obj, grid, *cell_moduli(obj, grid), 0.008, 0.0, 0.0)
+        shallow, deep = corr.at(0.5e-3), corr.at(4e-3)
+        assert (shallow < 0.9) if below else (shallow > 1.1)
+        assert abs(deep - 1.0) < abs(shallow - 1.0)

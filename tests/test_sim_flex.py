@@ -11,7 +11,7 @@ pytest.importorskip("mujoco")
 
 from palpate.core.errors import ValidationError  # noqa: E402
 from palpate.core.world.scene import FingertipSpec, Layer, Material, ObjectSpec, Scene  # noqa: E402
-from palpate.sim import flex, flex_element, flex_grid, flex_model  # noqa: E402
+from palpate.sim import flex, flex_element, flex_grid, flex_mixing, flex_model  # noqa: E402
 from palpate.sim.contact.law import solve_contact_law  # noqa: E402
 from palpate.sim.flex_calibrate import loading_ratio  # noqa: E402
 from palpate.sim.flex_calibration import load_calibration, mesh_factor  # noqa: E402
@@ -84,26 +84,28 @@ def test_shipped_calibration_is_valid_and_interpolates():
     # the trilinear grid is stiffer than the continuum wherever a press is allowed (a >= 0.25 cells) on a block
     # thicker than the validity table's thinnest layers
     usable = ac >= 0.25
-    assert np.all(t["factor"][:, 2:, usable] > 1.0)
-    at = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3])
-    assert at.kappa == pytest.approx(t["factor"][1, 3, 8]) and not at.extrapolated
+    assert np.all(t["factor"][:, hs >= 0.014][:, :, usable] > 1.0)
+    j = int(np.argmin(np.abs(hs - 0.03)))  # the 30 mm block, and the 70 mm one after it
+    assert hs[j] == pytest.approx(0.03) and hs[j + 1] == pytest.approx(0.07)
+    at = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[j])
+    assert at.kappa == pytest.approx(t["factor"][1, j, 8]) and not at.extrapolated
     mid = 0.5 * (ac[8] + ac[9])
-    k_mid = mesh_factor(mid, t["poisson"][1], c_r, cal, hs[3]).kappa
-    assert min(t["factor"][1, 3, 8:10]) <= k_mid <= max(t["factor"][1, 3, 8:10])
+    k_mid = mesh_factor(mid, t["poisson"][1], c_r, cal, hs[j]).kappa
+    assert min(t["factor"][1, j, 8:10]) <= k_mid <= max(t["factor"][1, j, 8:10])
     # between two calibrated thicknesses: between their factors (linear in log thickness)
-    k_h = mesh_factor(ac[8], t["poisson"][1], c_r, cal, float(np.sqrt(hs[3] * hs[4]))).kappa
-    assert k_h == pytest.approx(0.5 * (t["factor"][1, 3, 8] + t["factor"][1, 4, 8]))
-    assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal, hs[3]).extrapolated  # another cell size: flagged
+    k_h = mesh_factor(ac[8], t["poisson"][1], c_r, cal, float(np.sqrt(hs[j] * hs[j + 1]))).kappa
+    assert k_h == pytest.approx(0.5 * (t["factor"][1, j, 8] + t["factor"][1, j + 1, 8]))
+    assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal, hs[j]).extrapolated  # another cell size: flagged
     assert mesh_factor(0.5, 0.3, c_r, cal, 2.0 * hs[-1]).extrapolated  # thicker than measured: flagged
     assert mesh_factor(1.2, 0.3, c_r, cal, hs[0]).extrapolated  # deeper than the thin block was pressed: flagged
     # a window with free sides: the free table's factor; half its sides pinned: halfway
-    assert mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3], 0.0).kappa == pytest.approx(free["factor"][1, 3, 8])
-    half = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[3], 0.5).kappa
-    assert half == pytest.approx(0.5 * (t["factor"][1, 3, 8] + free["factor"][1, 3, 8]))
+    assert mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[j], 0.0).kappa == pytest.approx(free["factor"][1, j, 8])
+    half = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[j], 0.5).kappa
+    assert half == pytest.approx(0.5 * (t["factor"][1, j, 8] + free["factor"][1, j, 8]))
     # the pinned window's sides stiffen a 30 mm block pressed over a cell wide: the free factor is smaller
-    assert free["factor"][1, 3, -1] < t["factor"][1, 3, -1]
+    assert free["factor"][1, j, -1] < t["factor"][1, j, -1]
     with pytest.raises(ValidationError, match="pinned_fraction"):
-        mesh_factor(0.5, 0.3, c_r, cal, hs[3], 1.5)
+        mesh_factor(0.5, 0.3, c_r, cal, hs[j], 1.5)
 
 
 _TABLE = {"sides": "pinned", "cell_over_radius": 0.6, "poisson": [0.3], "thickness": [0.02], "contact_over_cell": [0.5],
@@ -197,7 +199,7 @@ def test_a_skin_thinner_than_a_cell_mixes_into_it_in_series():
     soft, hard = Material("soft", 2e4, 0.3), Material("hard", 2e6, 0.3)
     obj = ObjectSpec("b", "box", (0.04, 0.04, 0.02), (0, 0), hard, layers=(Layer(soft, 0.0025),))
     g = flex_grid.flex_grid(obj, 0, 0, resolution=0.01, window=0.02)  # top cells 10 mm tall, a quarter skin
-    young, poisson = flex_model.cell_moduli(obj, g)
+    young, poisson = flex_mixing.cell_moduli(obj, g)
     top = young[1::2]
     np.testing.assert_allclose(top, 1.0 / (0.25 / 2e4 + 0.75 / 2e6), rtol=1e-12)
     np.testing.assert_allclose(young[0::2], 2e6)
