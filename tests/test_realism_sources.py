@@ -273,6 +273,13 @@ def test_a_person_presses_a_soft_object_on_until_it_pushes_back_within_the_cap()
     assert soft(1.0) > 5e-3
     assert _bottom_depth(press_profile(target, 0.04, variability=person, depth_for_force=soft, **kw)) == \
         pytest.approx(5e-3)
+    # a wider cap lets the same press go deeper into the soft block, not into the stiff one
+    wider = replace(person, push_depth_scale=3.0)
+    assert soft(1.0) > 7.5e-3
+    assert _bottom_depth(press_profile(target, 0.04, variability=wider, depth_for_force=soft, **kw)) == \
+        pytest.approx(7.5e-3)
+    assert _bottom_depth(press_profile(target, 0.04, variability=wider, depth_for_force=stiff, **kw)) == \
+        pytest.approx(2.5e-3)
     # where the push force is reached inside the cap, the press stops there
     mid = _hertz_depth_for_force(20e3)
     assert 2.5e-3 < mid(0.4) < 5e-3

@@ -1,0 +1,97 @@
+"""Per-press anatomy of scenarios/thesis_ch6.toml's training presses: what sets each material's cutaneous a1.
+
+For each seed and reference material, every training press with its peak force (N), the object's indentation d and
+the pulp's compression delta at their deepest (mm), the perceived indentation c_D (mm) and contact area c_A (mm^2),
+the peak intensity c_P (counts), the active and saturated sensels of the peak frame, the fit's n1 and a1, and
+``a1 / (n1 (c_D / c_A)^1.5)``. When the patch covers the pad before the press ends, both fits end at the same c_P,
+so a1 / n1 is (c_D / c_A)^1.5 at the deepest point whatever the pad's gain, non-linearity or saturation and the
+material's modulus: the last column stays near 1 and a1 follows n1 and where the press stops (docs/realism.md,
+sixth round). The last lines give per material the means over the seeds.
+
+    .venv/bin/python benchmarks/realism_presses.py [--seeds 101,102,103,104] [--scenario S.toml]
+        [--profile NAME_OR_PATH] [--set KEY=VALUE ...] [--scenario-set training.depth_mm=1.8 ...] [--quiet]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from palpate.core.perception.press import perceive_press
+from palpate.core.session.sources import PressTarget
+from palpate.core.session.training import TRAINING_BLOCK, training_seeds
+from palpate.core.world.scenario_file import load_scenario
+from palpate.core.world.scene import ObjectSpec, Scene
+from palpate.sim.realism.calibrate import free_parameters, with_values
+from palpate.sim.realism.profile_file import resolve_profile
+from palpate.sim.source import SimSource
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from realism_targets import REPO, _pairs, with_scenario_values  # noqa: E402
+
+#: columns of one press's row (units in the module docstring)
+COLUMNS = ("force", "d", "delta", "c_D", "c_A", "c_P", "active", "saturated", "n1", "a1", "a1/identity")
+
+
+def press_rows(scenario, profile, seed: int, name: str) -> np.ndarray:
+    """One row of :data:`COLUMNS` per fitted training press of reference ``name`` with ``seed`` as scenario seed."""
+    sc = replace(scenario, seed=int(seed))
+    m = list(sc.references).index(name)
+    block = ObjectSpec(f"sample_{name}", "box", TRAINING_BLOCK, (0.0, 0.0), sc.materials[name].material)
+    tr = sc.training
+    source = SimSource(Scene((block,), sc.fingertip, sc.taxels, sc.pose), fidelity=sc.fidelity,
+                       seed=int(training_seeds(sc)[m]), variability=tr.variability, realism=profile)
+    rows = []
+    for k in range(tr.presses_per_material):
+        rec = source.press(PressTarget(0.0, 0.0, depth=tr.depth, force=tr.max_force, speed=tr.speed,
+                                       label=f"{name}#{k + 1}"))
+        res = perceive_press(rec)
+        if res.fit is None:
+            continue
+        counts = np.array([f.counts for f in rec.frames], dtype=float)
+        peak = counts[int(np.argmax(counts.sum(axis=(1, 2))))]
+        c_d, c_a = res.press.depth * 1e3, float(np.max(res.press.c_A)) * 1e6
+        finger = rec.meta["physics"].get("finger", {})
+        rows.append([float(np.max(rec.truth.force)), float(np.max(rec.truth.indentation)) * 1e3,
+                     finger.get("max_compression_m", 0.0) * 1e3, c_d, c_a, peak.sum(), (peak > 0).sum(),
+                     (peak >= 255).sum(), res.fit.n1, res.fit.a1, res.fit.a1 / (res.fit.n1 * (c_d / c_a) ** 1.5)])
+    return np.array(rows)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenario", type=Path, default=REPO / "scenarios" / "thesis_ch6.toml")
+    ap.add_argument("--seeds", default="101,102,103,104")
+    ap.add_argument("--profile", help="realism profile instead of the scenario's (name or .toml)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--scenario-set", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--quiet", action="store_true", help="only the means")
+    args = ap.parse_args()
+    sets = _pairs(args.set, "--set")
+    scenario = with_scenario_values(load_scenario(args.scenario), _pairs(args.scenario_set, "--scenario-set"))
+    profile = resolve_profile(args.profile or scenario.realism.profile)
+    if sets:
+        profile = with_values(profile, free_parameters([k for k, _ in sets]), [v for _, v in sets])
+    means = {}
+    for name in scenario.references:
+        rows = []
+        for seed in (int(s) for s in args.seeds.split(",")):
+            r = press_rows(scenario, profile, seed, name)
+            rows.append(r)
+            if not args.quiet:
+                print(f"{name} seed {seed}: " + " ".join(f"{c:>8}" for c in COLUMNS))
+                for row in r:
+                    print(" " * (len(name) + len(str(seed)) + 7) + " ".join(f"{v:8.3g}" for v in row))
+        means[name] = np.mean(np.vstack(rows), axis=0)
+    print("means over the seeds' presses: " + " ".join(f"{c:>8}" for c in COLUMNS))
+    for name, m in means.items():
+        print(f"  {name:<28}" + " ".join(f"{v:8.3g}" for v in m))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
