@@ -183,7 +183,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     model.body_pos[fm.tip_body] = [x, y, z0]
     mujoco.mj_forward(model, data)
     cell = grid.finest
-    pinned_fraction = sum(grid.pinned) / len(grid.pinned)
+    pinned_fraction = 0.0 if grid.far_sides else sum(grid.pinned) / len(grid.pinned)
     under = material_under(obj, x, y, obj.height)
     nu = float((under or obj.materials()[0]).poisson)
     calibration = load_calibration() if calibrate else None
@@ -277,7 +277,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             "fidelity": "flex", "timestep": dt, "integrator": "discrete", "resolution": res,
             "cell": grid.finest, "cells": list(grid.cells),
             "window_lower": [float(v) for v in grid.lower], "window_size": [float(v) for v in grid.size],
-            "pinned_sides": list(grid.pinned), "disc_radius": grid.disc_radius,
+            "pinned_sides": list(grid.pinned), "far_sides": grid.far_sides, "disc_radius": grid.disc_radius,
             "mesh_factor_range": [float(factors.min()), float(factors.max())],
             "calibration_extrapolated": bool(extrapolated), "mixing_corrected": mixing is not None,
             "young_range": fm.meta["young_range"],

@@ -42,6 +42,14 @@ MIN_LAYERS = 2
 SNAP_PLANE = 0.25
 #: Cells through a stiff layer thinner than a cell.
 LAYER_CELLS = 2
+#: A window over a stiff layer (a plate) is this many default windows wide, graded laterally: cells of the
+#: resolution within PLATE_CORE_CELLS cells of the press, then growing by PLATE_GROWTH per cell out to its sides.
+#: A plate spreads its load far wider than a block, so the default window's pinned sides stiffen it (+30% on
+#: skin_stiff_2mm at 4 mm); chosen on skin_stiff_2mm among windows 60-120 mm, cores 10-15 mm and growths 1.5-4
+#: (docs/architecture.md, issue 12).
+PLATE_WINDOW_SCALE = 3.0
+PLATE_CORE_CELLS = 2
+PLATE_GROWTH = 2.0
 
 
 @dataclass(frozen=True)
@@ -54,6 +62,8 @@ class FlexGrid:
         pinned: which side faces are pinned, order (x-, x+, y-, y+) (the bottom is always pinned).
         disc_radius: radius of the disc the x-y square is mapped onto (a cylinder's whole disc), m; 0: no mapping.
         bending: (nz,) which layers of cells lie in a stiff layer thinner than a cell (their cells must bend).
+        far_sides: the pinned sides are as far from the press as in the "free" calibration table's window or
+            farther (a plate's wide window), so the mesh correction is that table's.
     """
 
     x: np.ndarray
@@ -62,6 +72,7 @@ class FlexGrid:
     pinned: tuple[bool, bool, bool, bool]
     disc_radius: float = 0.0
     bending: np.ndarray | None = None
+    far_sides: bool = False
 
     def bending_cells(self) -> np.ndarray:
         """(n,) which cells (MuJoCo's order) lie in a stiff layer thinner than a cell."""
@@ -123,7 +134,7 @@ class FlexGrid:
     def key(self) -> tuple:
         """A hashable identity (for model caches)."""
         return (tuple(tuple(np.round(a, 9)) for a in (self.x, self.y, self.z))
-                + (self.pinned, self.disc_radius, tuple(self.bending_cells()[: self.cells[2]])))
+                + (self.pinned, self.disc_radius, tuple(self.bending_cells()[: self.cells[2]]), self.far_sides))
 
 
 def disc_map(uv: np.ndarray) -> np.ndarray:
@@ -217,15 +228,19 @@ def _stiff_layers(obj: ObjectSpec) -> list[tuple[float, float]]:
 
 
 def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_RESOLUTION,
-              window: float = DEFAULT_WINDOW, core: float | None = None, growth: float = GROWTH) -> FlexGrid:
+              window: float = DEFAULT_WINDOW, core: float | None = None, growth: float = GROWTH,
+              plate: bool = True) -> FlexGrid:
     """The window of ``obj`` for a press at (x, y) (m, snapped to SNAP; see the module docstring), meshed with
     cells of ``resolution`` m within ``core`` m of the press (laterally and down from the top) growing by ``growth``
-    per cell beyond (a node column stands under the press). ``core`` None (the default): a uniform grid.
+    per cell beyond (a node column stands under the press). ``core`` None (the default): a uniform grid, except
+    over a stiff layer with ``plate`` (a box, or a cylinder wider than the window): laterally PLATE_WINDOW_SCALE
+    times ``window`` wide, graded by PLATE_CORE_CELLS and PLATE_GROWTH, its mesh correction the free table's.
 
     A graded grid resolves the contact better for its node count, but the discrete integrator solves M + K
     iteratively each step and its cost grows with the node count and the grading's ill-conditioning: 1.5 mm cells
     graded to the 30 mm window (14 x 14 x 10 cells) run several times slower than the uniform 5 mm default, which
     is why the default stays uniform."""
+    uniform = core is None
     core = max(window, obj.height, resolution) if core is None else core
     for name, v in (("resolution", resolution), ("window", window), ("core", core)):
         if not (np.isfinite(v) and v > 0):
@@ -248,6 +263,10 @@ def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_R
         n = 2 * int(np.ceil(r / resolution - 1e-9))
         return FlexGrid(x=np.linspace(cx - r, cx + r, n + 1), y=np.linspace(cy - r, cy + r, n + 1), z=zs,
                         pinned=(False, False, False, False), disc_radius=r, bending=bending)
+    lateral_core, lateral_growth, far = core, growth, False
+    if plate and bands and uniform:
+        window, lateral_core, lateral_growth = PLATE_WINDOW_SCALE * window, PLATE_CORE_CELLS * resolution, PLATE_GROWTH
+        far = True
     if obj.shape == "box":
         half = np.array(obj.size[:2], dtype=float) / 2.0
         edges_free = True
@@ -266,5 +285,5 @@ def flex_grid(obj: ObjectSpec, x: float, y: float, resolution: float = DEFAULT_R
         bool(lo[0] > lo_obj[0] + eps or not edges_free), bool(hi[0] < hi_obj[0] - eps or not edges_free),
         bool(lo[1] > lo_obj[1] + eps or not edges_free), bool(hi[1] < hi_obj[1] - eps or not edges_free),
     )
-    xs, ys = (graded_nodes(lo[a], hi[a], focus[a], resolution, core, growth) for a in range(2))
-    return FlexGrid(x=xs, y=ys, z=zs, pinned=pinned, bending=bending)
+    xs, ys = (graded_nodes(lo[a], hi[a], focus[a], resolution, lateral_core, lateral_growth) for a in range(2))
+    return FlexGrid(x=xs, y=ys, z=zs, pinned=pinned, bending=bending, far_sides=far)

@@ -31,6 +31,33 @@ def test_a_stiff_skin_gets_node_planes_and_bending_cells_and_a_soft_one_is_mixed
     np.testing.assert_allclose(np.diff(soft.z), 0.005)
 
 
+def test_a_stiff_skin_gets_a_wide_graded_window_and_other_objects_keep_the_default_one():
+    """A plate spreads its load far, so over a stiff layer the window is PLATE_WINDOW_SCALE times as wide (its sides
+    pinned, the free calibration table's), fine at the press and coarser out; a soft skin and a homogeneous block
+    keep the uniform default window, and plate=False gives a stiff skin that one too."""
+    skin = _box(layers=(Layer(STIFF, 0.002),))
+    res, win = flex_grid.DEFAULT_RESOLUTION, flex_grid.DEFAULT_WINDOW
+    g = flex_grid.flex_grid(skin, 0.0, 0.0)
+    for nodes in (g.x, g.y):
+        assert nodes[-1] - nodes[0] == pytest.approx(flex_grid.PLATE_WINDOW_SCALE * win)
+        steps = np.diff(nodes)
+        core = np.abs(nodes[:-1] + steps / 2.0) < flex_grid.PLATE_CORE_CELLS * res
+        np.testing.assert_allclose(steps[core], res)
+        assert core.sum() == 2 * flex_grid.PLATE_CORE_CELLS and np.all(steps[~core] > res)
+        assert np.all(np.diff(steps[nodes[:-1] >= 0.0]) >= 0.0)  # coarser away from the press, never finer
+    assert g.far_sides and all(g.pinned)
+    flat = flex_grid.flex_grid(skin, 0.0, 0.0, plate=False)
+    np.testing.assert_allclose(flat.z, g.z)
+    for obj, grid in ((skin, flat), (_box(layers=(Layer(SOFT, 0.002),)), None), (_box(), None)):
+        grid = flex_grid.flex_grid(obj, 0.0, 0.0) if grid is None else grid
+        assert not grid.far_sides and grid.size[0] == pytest.approx(win)
+        np.testing.assert_allclose(np.diff(grid.x), res)
+    # a cylinder narrow enough for the default window stays a whole disc, skin or not
+    disc = flex_grid.flex_grid(ObjectSpec("c", "cylinder", (0.01, 0.03), (0.0, 0.0), BASE,
+                                          layers=(Layer(STIFF, 0.002),)), 0.0, 0.0)
+    assert disc.disc_radius == pytest.approx(0.01) and not disc.far_sides
+
+
 def test_an_interface_near_a_node_moves_it_instead_of_cutting_a_sliver():
     nodes = np.array([0.0, 0.005, 0.010, 0.015, 0.020])
     out = flex_grid.with_planes(nodes, [0.0106, 0.0178, 0.0152, 0.03], snap=0.00125)
