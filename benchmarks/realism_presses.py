@@ -16,19 +16,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from palpate.core.perception.press import perceive_press
-from palpate.core.session.sources import PressTarget
-from palpate.core.session.training import TRAINING_BLOCK, training_seeds
+from palpate.core.session.progress import Progress
+from palpate.core.session.training import train_memory, training_seeds
 from palpate.core.world.scenario_file import load_scenario
-from palpate.core.world.scene import ObjectSpec, Scene
-from palpate.sim.realism.calibrate import free_parameters, with_values
+from palpate.sim.realism.calibrate import free_parameters, realism_source_maker, with_values
 from palpate.sim.realism.profile_file import resolve_profile
-from palpate.sim.source import SimSource
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from realism_targets import REPO, _pairs, with_scenario_values  # noqa: E402
@@ -37,29 +34,46 @@ from realism_targets import REPO, _pairs, with_scenario_values  # noqa: E402
 COLUMNS = ("force", "d", "delta", "c_D", "c_A", "c_P", "active", "saturated", "n1", "a1", "a1/identity")
 
 
-def press_rows(scenario, profile, seed: int, name: str) -> np.ndarray:
-    """One row of :data:`COLUMNS` per fitted training press of reference ``name`` with ``seed`` as scenario seed."""
+@dataclass(frozen=True)
+class _Keeping:
+    """A source that also keeps every recording it returns (the perceived press keeps no frames)."""
+
+    source: object
+    kept: list
+
+    def press(self, target):
+        rec = self.source.press(target)
+        self.kept.append(rec)
+        return rec
+
+
+def press_rows(scenario, profile, seed: int) -> dict[str, np.ndarray]:
+    """Per reference material, one row of :data:`COLUMNS` per fitted training press, the presses being those of
+    the run's own training loop (:func:`palpate.core.session.training.train_memory`) with ``seed`` as scenario
+    seed."""
     sc = replace(scenario, seed=int(seed))
-    m = list(sc.references).index(name)
-    block = ObjectSpec(f"sample_{name}", "box", TRAINING_BLOCK, (0.0, 0.0), sc.materials[name].material)
-    tr = sc.training
-    source = SimSource(Scene((block,), sc.fingertip, sc.taxels, sc.pose), fidelity=sc.fidelity,
-                       seed=int(training_seeds(sc)[m]), variability=tr.variability, realism=profile)
-    rows = []
-    for k in range(tr.presses_per_material):
-        rec = source.press(PressTarget(0.0, 0.0, depth=tr.depth, force=tr.max_force, speed=tr.speed,
-                                       label=f"{name}#{k + 1}"))
-        res = perceive_press(rec)
-        if res.fit is None:
-            continue
-        counts = np.array([f.counts for f in rec.frames], dtype=float)
-        peak = counts[int(np.argmax(counts.sum(axis=(1, 2))))]
-        c_d, c_a = res.press.depth * 1e3, float(np.max(res.press.c_A)) * 1e6
-        finger = rec.meta["physics"].get("finger", {})
-        rows.append([float(np.max(rec.truth.force)), float(np.max(rec.truth.indentation)) * 1e3,
-                     finger.get("max_compression_m", 0.0) * 1e3, c_d, c_a, peak.sum(), (peak > 0).sum(),
-                     (peak >= 255).sum(), res.fit.n1, res.fit.a1, res.fit.a1 / (res.fit.n1 * (c_d / c_a) ** 1.5)])
-    return np.array(rows)
+    kept: list = []
+    make = realism_source_maker(sc, profile, sc.fidelity)
+    result = train_memory(sc, lambda objects, s, variability: _Keeping(make(objects, s, variability), kept),
+                          training_seeds(sc), Progress(enabled=False))
+    recs = iter(kept)  # in press order: the references in order, each material's presses in order
+    out = {}
+    for name in sc.references:
+        rows = []
+        for res in result.presses[name]:
+            rec = next(recs)
+            if res.fit is None:
+                continue
+            counts = np.array([f.counts for f in rec.frames], dtype=float)
+            peak = counts[int(np.argmax(counts.sum(axis=(1, 2))))]
+            c_d, c_a = res.press.depth * 1e3, float(np.max(res.press.c_A)) * 1e6
+            finger = rec.meta["physics"].get("finger", {})
+            rows.append([float(np.max(rec.truth.force)), float(np.max(rec.truth.indentation)) * 1e3,
+                         finger.get("max_compression_m", 0.0) * 1e3, c_d, c_a, peak.sum(), (peak > 0).sum(),
+                         (peak >= 255).sum(), res.fit.n1, res.fit.a1,
+                         res.fit.a1 / (res.fit.n1 * (c_d / c_a) ** 1.5)])
+        out[name] = np.array(rows)
+    return out
 
 
 def main() -> int:
@@ -76,17 +90,15 @@ def main() -> int:
     profile = resolve_profile(args.profile or scenario.realism.profile)
     if sets:
         profile = with_values(profile, free_parameters([k for k, _ in sets]), [v for _, v in sets])
-    means = {}
-    for name in scenario.references:
-        rows = []
-        for seed in (int(s) for s in args.seeds.split(",")):
-            r = press_rows(scenario, profile, seed, name)
-            rows.append(r)
+    rows: dict[str, list[np.ndarray]] = {name: [] for name in scenario.references}
+    for seed in (int(s) for s in args.seeds.split(",")):
+        for name, r in press_rows(scenario, profile, seed).items():
+            rows[name].append(r)
             if not args.quiet:
                 print(f"{name} seed {seed}: " + " ".join(f"{c:>8}" for c in COLUMNS))
                 for row in r:
                     print(" " * (len(name) + len(str(seed)) + 7) + " ".join(f"{v:8.3g}" for v in row))
-        means[name] = np.mean(np.vstack(rows), axis=0)
+    means = {name: np.mean(np.vstack(r), axis=0) for name, r in rows.items()}
     print("means over the seeds' presses: " + " ".join(f"{c:>8}" for c in COLUMNS))
     for name, m in means.items():
         print(f"  {name:<28}" + " ".join(f"{v:8.3g}" for v in m))

@@ -220,15 +220,23 @@ class SeedRun:
     loo_self: np.ndarray
 
 
-def simulate_seed(scenario: Scenario, profile: RealismProfile, seed: int, fidelity: str) -> SeedRun:
-    """Train on the scenario's references as ``palpate run`` would with ``seed`` as the scenario seed."""
-    sc = replace(scenario, seed=int(seed))
+def realism_source_maker(scenario: Scenario, profile: RealismProfile, fidelity: str):
+    """``make(objects, seed, variability)`` of simulated sources on the scenario's fingertip and sensors with
+    ``profile`` (as :func:`palpate.core.session.sources.scenario_source_maker`, with a profile object instead of
+    the scenario's named one): what a candidate profile trains with."""
 
     def make_source(objects, s, variability):
         scene = Scene(objects, scenario.fingertip, scenario.taxels, scenario.pose)
         return SimSource(scene, fidelity=fidelity, seed=s, variability=variability, realism=profile)
 
-    result = train_memory(sc, make_source, training_seeds(sc), Progress(enabled=False))
+    return make_source
+
+
+def simulate_seed(scenario: Scenario, profile: RealismProfile, seed: int, fidelity: str) -> SeedRun:
+    """Train on the scenario's references as ``palpate run`` would with ``seed`` as the scenario seed."""
+    sc = replace(scenario, seed=int(seed))
+    result = train_memory(sc, realism_source_maker(scenario, profile, fidelity), training_seeds(sc),
+                          Progress(enabled=False))
     table = table_from_fits({name: [r.fit for r in rs] for name, rs in result.presses.items()})
     return SeedRun(int(seed), table, np.diag(result.crossval.mean_posterior).copy())
 
