@@ -49,7 +49,9 @@ class TableReader:
         return value
 
     def number(self, key: str, default: Any = REQUIRED, *, lo: float | None = None, hi: float | None = None,
-               lo_open: bool = False) -> float:
+               lo_open: bool = False) -> float | None:
+        """A finite number within [lo, hi] (``lo_open``: > lo); ``default`` as given when the key is absent (None
+        only for an optional key whose default is None)."""
         value = self.get(key, float, default)
         if value is None or value is default and default is not REQUIRED:
             return value
@@ -61,7 +63,9 @@ class TableReader:
             raise self.err(key, f"must be <= {hi}, got {value}")
         return value
 
-    def integer(self, key: str, default: Any = REQUIRED, *, lo: int | None = None, hi: int | None = None) -> int:
+    def integer(self, key: str, default: Any = REQUIRED, *, lo: int | None = None, hi: int | None = None) -> int | None:
+        """An integer within [lo, hi]; ``default`` as given when the key is absent (None only for an optional key
+        whose default is None)."""
         value = self.get(key, int, default)
         if value is None:  # an optional key left out (default None): nothing to bound
             return value
