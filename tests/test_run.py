@@ -83,6 +83,8 @@ def test_summary_follows_the_documented_schema(small_run):
     assert on_disk == json.loads(json.dumps(summary))
     assert summary["format"] == "palpate-run-summary" and summary["version"] == 1
     assert summary["materials"] == ["soft", "medium", "hard"]
+    # the iteration limit solver warnings were counted against: left out of the scenario, MuJoCo's default
+    assert summary["scenario"]["flex_iterations"] is None
     for key in ("scenario", "seed", "memory", "crossval", "training", "objects", "figures", "timing", "versions"):
         assert key in summary, key
     cv = summary["crossval"]

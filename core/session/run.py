@@ -201,6 +201,8 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         "version": SUMMARY_VERSION,
         "scenario": {"name": scenario.name, "file": str(scenario.path) if scenario.path else None,
                      "fidelity": scenario.fidelity, "fidelity_tolerance_pct": 100.0 * scenario.fidelity_tolerance,
+                     # None: MuJoCo's default iteration limit (what the solver warnings were counted against)
+                     "flex_iterations": scenario.flex_iterations,
                      "description": scenario.description},
         "actuator": scenario.actuator.kind,
         "seed": scenario.seed,
