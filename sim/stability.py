@@ -51,8 +51,8 @@ def check_dropped(data, *, timestep: float, context: str = "") -> None:
         name, number = raised
         raise SimulationDiverged(
             f"MuJoCo {name} warning {number}x at t={data.time:.4f} s{context}: contacts or constraints "
-            "were dropped, so the force is not the model's; press less deep or with fewer collision vertices per "
-            f"cell (timestep {timestep} s)"
+            "were dropped, so the force is not the model's; press less deep (fewer contacts) or use fidelity "
+            f"'analytic' or 'rigid' (timestep {timestep} s)"
         )
 
 
