@@ -268,8 +268,8 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             raise _diverged(f"the tip penetrates the flex surface by {pen * 1e3:.2f} mm at {ind_k * 1e3:.2f} mm "
                             "indentation", times[k], dt)
         if calibrate:
-            factor = mesh_factor(np.sqrt(tip.radius * max(ind_k, 0.0)) / cell, nu, cell / tip.radius, calibration,
-                                 obj.height, pinned_fraction)
+            contact = np.sqrt(tip.radius * max(ind_k, 0.0)) * (1.0 if mixing is None else mixing.contact_at(ind_k))
+            factor = mesh_factor(contact / cell, nu, cell / tip.radius, calibration, obj.height, pinned_fraction)
             factors[k] = factor.kappa * (1.0 if mixing is None else mixing.at(max(ind_k, 0.0)))
             extrapolated |= factor.extrapolated
         fn = fn / factors[k]
