@@ -26,7 +26,7 @@ from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, Scene
 from palpate.sim.analytic import material_under
 from palpate.sim.controller import press_profile
-from palpate.sim.flex_calibration import load_calibration, mesh_factor
+from palpate.sim.flex_calibration import load_calibration, mesh_curve
 from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW, flex_grid
 from palpate.sim.flex_model import (
     CONTACT_SOLREF,
@@ -210,7 +210,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     pinned_fraction = 0.0 if grid.far_sides else sum(grid.pinned) / len(grid.pinned)
     under = material_under(obj, x, y, obj.height)
     nu = float((under or obj.materials()[0]).poisson)
-    calibration = load_calibration() if calibrate else None
+    curve = mesh_curve(nu, cell / tip.radius, load_calibration(), obj.height, pinned_fraction) if calibrate else None
     mixing = mixing_at(fm, obj, x, y, tip.radius) if calibrate else None
     qadr = model.jnt_qposadr[fm.tip_joint]
     gid = fm.tip_geom
@@ -268,8 +268,8 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             raise _diverged(f"the tip penetrates the flex surface by {pen * 1e3:.2f} mm at {ind_k * 1e3:.2f} mm "
                             "indentation", times[k], dt)
         if calibrate:
-            factor = mesh_factor(np.sqrt(tip.radius * max(ind_k, 0.0)) / cell, nu, cell / tip.radius, calibration,
-                                 obj.height, pinned_fraction)
+            contact = np.sqrt(tip.radius * max(ind_k, 0.0)) * (1.0 if mixing is None else mixing.contact_at(ind_k))
+            factor = curve.at(contact / cell)
             factors[k] = factor.kappa * (1.0 if mixing is None else mixing.at(max(ind_k, 0.0)))
             extrapolated |= factor.extrapolated
         fn = fn / factors[k]

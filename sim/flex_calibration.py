@@ -8,9 +8,10 @@ cells the factor is 1.44 on 20 mm and 1.70 on 100 mm, nu 0.3) and on the Poisson
 it is tabulated densely in a / cell, not smoothed. It is measured on homogeneous blocks (CAL_HEIGHTS, none of the
 validity table's thicknesses, wider than the window, bonded to the table) against the reference for the same block
 (the layered contact law, which agrees with the FE reference within ~1%): kappa(a / cell, H, nu) = F_flex /
-F_reference. A press divides its contact forces by kappa at its current contact radius sqrt(R d) and its object's
-height. kappa is the mesh's alone (the reference of each block includes its own thickness), so a thinner block, a
-layer or an edge keeps the stiffening its own elasticity gives it.
+F_reference. A press divides its contact forces by kappa at its current contact radius sqrt(R d) (a soft skin's
+mixed cells: where the block's contact was as wide, :meth:`palpate.sim.flex_mixing.MixingCorrection.contact_at`) and
+its object's height. kappa is the mesh's alone (the reference of each block includes its own thickness), so a
+thinner block, a layer or an edge keeps the stiffening its own elasticity gives it.
 
 The window's pinned sides stiffen it too (a 20 mm block pressed 2-3 mm in the 30 mm window is ~20% stiffer than
 in a window three times as wide), and a table measured in the default window holds that stiffening as well as the
@@ -125,30 +126,58 @@ class MeshFactor:
     extrapolated: bool
 
 
-def _table_factor(t: dict, contact_over_cell: float, poisson: float, cell_over_radius: float,
-                  thickness: float) -> MeshFactor:
-    """kappa from one table: linear in a / cell, log thickness and poisson, clamped at the table's ends."""
-    nu, hs, ac, fac = t["poisson"], t["thickness"], t["contact_over_cell"], t["factor"]
-    lh = np.log(hs)
-    per = np.array([[np.interp(contact_over_cell, ac, row) for row in rows] for rows in fac])  # (p, h)
-    per_nu = np.array([np.interp(np.log(thickness), lh, row) for row in per])
-    kappa = float(np.interp(poisson, nu, per_nu))
-    reach = float(np.interp(poisson, nu, [np.interp(np.log(thickness), lh, row) for row in t["measured_to"]]))
+def _weights(x: float, nodes: np.ndarray) -> np.ndarray:
+    """Weights (n,) of linear interpolation at ``x`` on increasing ``nodes`` (n,), clamped at the ends (np.interp's
+    rule), so that interpolating values v (n,) is weights @ v."""
+    return np.array([np.interp(x, nodes, row) for row in np.eye(len(nodes))])
+
+
+@dataclass(frozen=True)
+class _SideCurve:
+    contact_over_cell: np.ndarray
+    factor: np.ndarray
+    reach: float
+    outside: bool
+
+
+def _side_curve(t: dict, poisson: float, cell_over_radius: float, thickness: float) -> _SideCurve:
+    """One table reduced to kappa against a / cell at ``poisson`` and ``thickness`` (linear in log thickness and
+    poisson, clamped at the table's ends; linear in a / cell is then one np.interp)."""
+    nu, hs = t["poisson"], t["thickness"]
+    w_nu, w_h = _weights(poisson, nu), _weights(float(np.log(thickness)), np.log(hs))
     outside = (abs(t["cell_over_radius"] / cell_over_radius - 1.0) > 0.05 or not nu[0] <= poisson <= nu[-1]
-               or not hs[0] * 0.95 <= thickness <= hs[-1] * 1.05 or contact_over_cell > reach * 1.05)
-    return MeshFactor(kappa, bool(outside))
+               or not hs[0] * 0.95 <= thickness <= hs[-1] * 1.05)
+    return _SideCurve(contact_over_cell=t["contact_over_cell"], factor=np.einsum("p,h,phc->c", w_nu, w_h, t["factor"]),
+                      reach=float(w_nu @ t["measured_to"] @ w_h), outside=bool(outside))
 
 
-def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: float, calibration: dict,
-                thickness: float, pinned_fraction: float = 1.0) -> MeshFactor:
-    """kappa at contact radius / cell ``contact_over_cell``, ``poisson`` and block ``thickness`` (m) for cells of
-    ``cell_over_radius`` in a window with ``pinned_fraction`` (0 to 1) of its sides pinned.
+@dataclass(frozen=True)
+class MeshCurve:
+    """The mesh correction of one press (its cells, Poisson ratio, thickness and sides fixed) against a / cell.
+
+    Attributes:
+        sides: the kinds of table the press uses, each with its weight (the fraction of pinned sides, or 1 minus it).
+        missing: a kind the press needs has no table.
+    """
+
+    sides: tuple[tuple[_SideCurve, float], ...]
+    missing: bool
+
+    def at(self, contact_over_cell: float) -> MeshFactor:
+        """kappa at contact radius / cell ``contact_over_cell`` and whether it is extrapolated."""
+        kappa = sum(w * float(np.interp(contact_over_cell, c.contact_over_cell, c.factor)) for c, w in self.sides)
+        outside = any(c.outside or contact_over_cell > c.reach * 1.05 for c, w in self.sides if w > 0)
+        return MeshFactor(float(kappa), bool(outside or self.missing))
+
+
+def mesh_curve(poisson: float, cell_over_radius: float, calibration: dict, thickness: float,
+               pinned_fraction: float = 1.0) -> MeshCurve:
+    """The mesh correction for cells of ``cell_over_radius``, ``poisson`` and block ``thickness`` (m) in a window with
+    ``pinned_fraction`` (0 to 1) of its sides pinned, as a function of a / cell (:meth:`MeshCurve.at`).
 
     Uses, of each kind of sides, the table of the nearest cell size (linear in a / cell, log thickness and poisson,
-    clamped at the table's ends), and interpolates linearly between the kinds by ``pinned_fraction``.
-
-    Returns:
-        The factor and whether it is extrapolated (also when a kind the press needs has no table).
+    clamped at the table's ends), and interpolates linearly between the kinds by ``pinned_fraction``. Reduced once
+    per press: a press reads it at every step.
     """
     if not 0.0 <= pinned_fraction <= 1.0:
         raise ValidationError(f"flex: pinned_fraction must be in [0, 1], got {pinned_fraction!r}")
@@ -157,11 +186,20 @@ def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: floa
         tables = [tb for tb in calibration["tables"] if tb["sides"] == sides]
         if tables:
             t = min(tables, key=lambda tb: abs(np.log(tb["cell_over_radius"] / cell_over_radius)))
-            found[sides] = _table_factor(t, contact_over_cell, poisson, cell_over_radius, thickness)
+            found[sides] = _side_curve(t, poisson, cell_over_radius, thickness)
     weight = {"pinned": pinned_fraction, "free": 1.0 - pinned_fraction}
     missing = any(weight[k] > 0 and k not in found for k in SIDES)
     if len(found) < len(SIDES):
-        only = next(iter(found.values()))
-        return MeshFactor(only.kappa, only.extrapolated or missing)
-    kappa = sum(weight[k] * found[k].kappa for k in SIDES)
-    return MeshFactor(float(kappa), any(found[k].extrapolated for k in SIDES if weight[k] > 0))
+        return MeshCurve(sides=((next(iter(found.values())), 1.0),), missing=missing)
+    return MeshCurve(sides=tuple((found[k], weight[k]) for k in SIDES), missing=False)
+
+
+def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: float, calibration: dict,
+                thickness: float, pinned_fraction: float = 1.0) -> MeshFactor:
+    """kappa at contact radius / cell ``contact_over_cell``, ``poisson`` and block ``thickness`` (m) for cells of
+    ``cell_over_radius`` in a window with ``pinned_fraction`` (0 to 1) of its sides pinned (:func:`mesh_curve`).
+
+    Returns:
+        The factor and whether it is extrapolated (also when a kind the press needs has no table).
+    """
+    return mesh_curve(poisson, cell_over_radius, calibration, thickness, pinned_fraction).at(contact_over_cell)

@@ -63,6 +63,9 @@ def cell_moduli(obj: ObjectSpec, grid: FlexGrid) -> tuple[np.ndarray, np.ndarray
 
 #: Indentations, in tip radii, at which the mixing correction is tabulated (to the deepest press allowed).
 MIXING_DEPTHS = np.geomspace(1e-3, MAX_DEPTH_OVER_RADIUS, 60)
+#: Young's modulus of the homogeneous block whose contact radius the window's is compared with, Pa (any: a
+#: homogeneous block's contact radius does not depend on it).
+CONTACT_BLOCK_YOUNG = 2.0e5
 
 
 @dataclass(frozen=True)
@@ -72,14 +75,26 @@ class MixingCorrection:
     Attributes:
         depth: (n,) indentations, m, increasing.
         ratio: (n,) F_law(mixed column) / F_law(layers) at each indentation (both exact layered contact laws).
+        contact: (n,) a(mixed column) / a(homogeneous block of the object's height and top Poisson ratio), the
+            contact radii of the two laws at each indentation, or None (the lateral correction has none): where
+            the window's contact stands against the calibration block's, see :meth:`contact_at`.
     """
 
     depth: np.ndarray
     ratio: np.ndarray
+    contact: np.ndarray | None = None
 
     def at(self, depth: float) -> float:
         """The ratio at an indentation ``depth`` (m), held at the table's ends."""
         return float(np.interp(depth, self.depth, self.ratio))
+
+    def contact_at(self, depth: float) -> float:
+        """How much wider the window's contact is at ``depth`` (m) than the calibration block's (1 without a
+        ``contact`` table; held at its ends). The mesh correction ripples as the contact's edge crosses the rings
+        of surface vertices, so the press reads it where the block's contact was as wide as the window's: at
+        sqrt(R d) times this (a soft skin's column, whose contact is 5-14% wider than a block's, was read 6-11%
+        off in a / cell and out of phase with that ripple; docs/architecture.md, issue 12)."""
+        return 1.0 if self.contact is None else float(np.interp(depth, self.depth, self.contact))
 
 
 def mixing_correction(obj: ObjectSpec, grid: FlexGrid, tip_radius: float) -> MixingCorrection | None:
@@ -118,12 +133,17 @@ def mixing_correction(obj: ObjectSpec, grid: FlexGrid, tip_radius: float) -> Mix
                                       layers=tuple(Layer(m, c[2]) for m, c in zip(mats[:-1], cells[:-1], strict=True)))
     depth = MIXING_DEPTHS * tip_radius
     deepest = float(depth[-1])
-    ratio = (solve_contact_law(column_stack, tip_radius, deepest).force_at(depth)
+    column_law = solve_contact_law(column_stack, tip_radius, deepest)
+    ratio = (column_law.force_at(depth)
              / solve_contact_law(AxisymmetricSample(obj.material, obj.height, layers=obj.layers), tip_radius,
                                  deepest).force_at(depth))
-    if not np.all(np.isfinite(ratio) & (ratio > 0)):
+    # the calibration block: homogeneous, the object's height, the Poisson ratio the press reads kappa at (its top's)
+    block = AxisymmetricSample(replace(obj.layers[0].material, young=CONTACT_BLOCK_YOUNG), obj.height)
+    block_law = solve_contact_law(block, tip_radius, deepest)
+    contact = column_law.contact_radius_at(depth) / block_law.contact_radius_at(depth)
+    if not np.all(np.isfinite(ratio) & (ratio > 0) & np.isfinite(contact) & (contact > 0)):
         raise ValidationError(f"flex: the mixing correction of {obj.name!r} is not a finite positive ratio")
-    return MixingCorrection(depth=depth, ratio=ratio)
+    return MixingCorrection(depth=depth, ratio=ratio, contact=contact)
 
 
 #: Indentations, in tip radii, at which the lateral mixing correction is tabulated, up to the deepest allowed; held

@@ -167,6 +167,15 @@ def test_the_mixing_correction_is_the_layered_law_of_the_mixed_column_over_the_l
     np.testing.assert_allclose([mix.at(d) for d in depths], mixed / true, rtol=0.01)
     # the mix is stiffer than the skin under a contact narrower than the cell
     assert mix.at(0.5e-3) > 1.1
+    # where the press reads the mesh correction: the mixed column's contact radius over that of a homogeneous block
+    # of the object's height and the skin's Poisson ratio (any modulus: a block's contact radius has none in it),
+    # wider than the block's (a softer top)
+    column = solve_contact_law(AxisymmetricSample(base, 0.03, layers=(Layer(Material("m", young, nu), 0.005),)),
+                               0.008, 0.006)
+    block = solve_contact_law(AxisymmetricSample(Material("h", 7e3, SOFT.poisson), 0.03), 0.008, 0.006)
+    np.testing.assert_allclose([mix.contact_at(d) for d in depths],
+                               column.contact_radius_at(depths) / block.contact_radius_at(depths), rtol=0.01)
+    assert min(mix.contact_at(d) for d in depths[1:]) > 1.02
     # no correction where no cell mixes: a homogeneous block, a stiff skin (node planes), a skin one cell thick
     for layers in ((), (Layer(STIFF, 0.002),), (Layer(SOFT, 0.005),)):
         o = ObjectSpec("b", "box", (0.2, 0.2, 0.03), (0.0, 0.0), base, layers=layers)

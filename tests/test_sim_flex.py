@@ -108,6 +108,27 @@ def test_shipped_calibration_is_valid_and_interpolates():
         mesh_factor(0.5, 0.3, c_r, cal, hs[j], 1.5)
 
 
+def test_the_mesh_correction_reduced_once_per_press_is_the_tables_trilinear_interpolation():
+    """A press reduces the tables to kappa against a / cell once (mesh_curve) and reads it at every step; off the
+    tables' points in a / cell, thickness and Poisson ratio, and past their ends, that is each table interpolated
+    linearly in a / cell, then log thickness, then Poisson ratio (clamped), weighted by the pinned fraction."""
+    from palpate.sim.flex_calibration import mesh_curve
+
+    cal = load_calibration()
+    tables = {tb["sides"]: tb for tb in cal["tables"]}
+
+    def by_hand(tb, c, nu, h):
+        per = [[np.interp(c, tb["contact_over_cell"], row) for row in rows] for rows in tb["factor"]]
+        return np.interp(nu, tb["poisson"], [np.interp(np.log(h), np.log(tb["thickness"]), row) for row in per])
+
+    rng = np.random.default_rng(7)
+    for nu, h, pinned in ((0.41, 0.021, 0.5), (0.2, 0.0012, 1.0), (0.495, 0.2, 0.25)):
+        curve = mesh_curve(nu, tables["pinned"]["cell_over_radius"], cal, h, pinned)
+        for c in rng.uniform(0.1, 1.5, 12):
+            want = pinned * by_hand(tables["pinned"], c, nu, h) + (1 - pinned) * by_hand(tables["free"], c, nu, h)
+            assert curve.at(c).kappa == pytest.approx(want, rel=1e-12)
+
+
 _TABLE = {"sides": "pinned", "cell_over_radius": 0.6, "poisson": [0.3], "thickness": [0.02], "contact_over_cell": [0.5],
           "measured_to": [[0.5]]}
 

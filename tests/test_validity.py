@@ -170,15 +170,25 @@ def _flex_error(name: str, depths) -> np.ndarray:
 
 @pytest.mark.physics
 @pytest.mark.parametrize("name, depths", [("skin_stiff_1mm", (0.5e-3, 1e-3, 2e-3)),
-                                          ("skin_soft_4mm", (0.5e-3, 1e-3, 2e-3)),
                                           ("edge_15mm", (0.5e-3, 1e-3, 2e-3, 3e-3))])
 def test_flex_is_within_ten_percent_of_the_fe_reference_on_held_out_skins_and_an_edge(name, depths):
     """Issue 12 on cases flex was not tuned on (tuned: skin_*_2mm, lump_*_3mm, edge_10mm), against the cached FE
     reference: a 1 mm stiff skin (it bends: its own cells with incompatible modes) from 0.5 to 2 mm (at 4 mm it is
-    +12.5% in the plate's wide window), a 4 mm soft skin mixed into its 5 mm cells from 0.5 to 2 mm
-    (+30% and +17% at 0.5 and 2 mm before the mixing correction), and a cylinder whose free side is 15 mm from the
-    press (meshed whole), from 0.5 to 3 mm."""
+    +12.5% in the plate's wide window), and a cylinder whose free side is 15 mm from the press (meshed whole), from
+    0.5 to 3 mm. The soft skins: the next test."""
     err = _flex_error(name, depths)
+    assert np.all(np.abs(err) < 0.10), err
+
+
+@pytest.mark.physics
+@pytest.mark.parametrize("name", ["skin_soft_1mm", "skin_soft_2mm", "skin_soft_4mm"])
+def test_flex_is_within_ten_percent_of_the_fe_reference_on_soft_skins_from_half_a_mm_to_four(name):
+    """Issue 12: a soft skin mixed into its 5 mm cells (the mixing correction: +30% and +17% at 0.5 and 2 mm on the
+    4 mm skin before it), with the mesh correction read where the window's contact is as wide as the calibration
+    block's (the mixed column's contact is 5-14% wider than a block's; read at sqrt(R d), the 1 and 2 mm skins were
+    -8.6 / -8.3% at 1 mm and -9.0 / -10.7% at 4 mm). Tuned on skin_soft_2mm (nothing fitted), the 1 and 4 mm skins
+    held out."""
+    err = _flex_error(name, (0.5e-3, 1e-3, 2e-3, 4e-3))
     assert np.all(np.abs(err) < 0.10), err
 
 
