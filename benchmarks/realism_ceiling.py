@@ -10,7 +10,8 @@ held seed by seed). Generators, side by side:
 
 - ``boot-kept``: a bootstrap resample of the population's presses, copies left in the leave-one-out memory (a copy of
   the held-out press trains the memory that reads it, which inflates the self posterior);
-- ``boot-out``: the same resamples, all copies of the held-out press held out with it (fewer distinct presses left);
+- ``boot-out``: the same resamples (the same draws), all copies of the held-out press held out with it (fewer
+  distinct presses left);
 - ``smooth``: a smoothed bootstrap (Silverman 1986, 6.4.1, shrunk so the variance stays the population's): each
   resampled press plus Gaussian noise of the population's covariance of [n1, n2, a1, a2] times Silverman's
   bandwidth, so no two presses are equal;
@@ -51,8 +52,8 @@ _PHI = (2, 5)  # Phi_N, Phi_A columns: fitted in log by ``gauss``
 
 @dataclass(frozen=True)
 class Draw:
-    """One synthetic seed: its table and, per material, the group of each press (presses copied from one
-    population press share a group; None: every press its own)."""
+    """One synthetic seed: its table and, for a bootstrap, per material the population press each press copies
+    (None: no copies)."""
 
     table: PressTable
     groups: tuple[np.ndarray, ...] | None
@@ -91,11 +92,12 @@ def draw_seed(population: PressTable, generator: str, rng: np.random.Generator, 
         tables.append(y)
         groups.append(pick)
     table = PressTable(population.materials, tuple(tables))
-    return Draw(table, tuple(groups) if generator == "boot-out" else None)
+    return Draw(table, tuple(groups) if generator in ("boot-kept", "boot-out") else None)
 
 
 def _loo_ready(groups: tuple[np.ndarray, ...] | None) -> bool:
-    """Whether holding out each group still leaves the memory MIN_SAMPLES presses of that material."""
+    """Whether holding out each group still leaves the memory MIN_SAMPLES presses of that material (asked of both
+    bootstraps, so that boot-kept and boot-out given one stream draw the same seeds)."""
     return groups is None or all(len(g) - np.bincount(g).max() >= MIN_SAMPLES for g in groups)
 
 
@@ -136,7 +138,7 @@ def ceiling(population: PressTable | Sequence[PressTable], real: PressTable, gen
         while not _loo_ready(d.groups):
             redrawn += 1
             d = draw_seed(tables[rng.integers(len(tables))], generator, rng)
-        loo = loo_self(d.table, materials, d.groups)
+        loo = loo_self(d.table, materials, d.groups if generator == "boot-out" else None)
         held[k] = check_targets(d.table, real, loo, materials).held
     return Ceiling(held, redrawn)
 
@@ -247,9 +249,10 @@ def main(argv: list[str] | None = None) -> int:
     # every population's band is compared with what the first simulated table's seeds held
     total = next((int(sim.held.sum()) for _, _, sim in populations if sim is not None), None)
     streams = np.random.SeedSequence(args.rng).spawn(len(populations) * len(GENERATORS))
+    # boot-out draws boot-kept's seeds: only the leave-one-out differs, so the copies' effect is seen alone
+    stream = {g: GENERATORS.index("boot-kept" if g == "boot-out" else g) for g in GENERATORS}
     for p, (name, pop, sim) in enumerate(populations):
-        results = {g: ceiling(pop, real, g, args.draws,
-                              np.random.default_rng(streams[p * len(GENERATORS) + GENERATORS.index(g)]))
+        results = {g: ceiling(pop, real, g, args.draws, np.random.default_rng(streams[p * len(GENERATORS) + stream[g]]))
                    for g in gens}
         _report(name, results, real, None if sim is None else sim.held, total)
     return 0
