@@ -39,7 +39,8 @@ from scipy.stats import binom
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.memory import MIN_SAMPLES
-from palpate.core.perception.param_stats import PARAM_INDEX, STAT_COLUMNS, PressTable, table_from_csv
+from palpate.core.perception.param_stats import PARAM_INDEX, PressTable, table_from_csv
+from palpate.core.perception.params_table import read_params_csv
 from palpate.core.perception.realism_targets import TARGETS, check_targets, loo_self
 
 REPO = Path(__file__).resolve().parent.parent
@@ -165,16 +166,23 @@ class Simulated:
 
 
 def read_simulated(simulated_csv: Path, real: PressTable) -> Simulated:
-    """The CSV's presses by seed, checked against ``real`` seed by seed (as realism_targets.py printed them)."""
-    data = np.genfromtxt(simulated_csv, delimiter=",", names=True, dtype=None, encoding="utf-8")
-    seeds = sorted({int(s) for s in np.atleast_1d(data["seed"])})
+    """The CSV's presses by seed, checked against ``real`` seed by seed (as realism_targets.py printed them).
+
+    Read as a per-press table (:func:`~palpate.core.perception.param_stats.table_from_csv`) with an integer ``seed``
+    column; ValidationError naming the file when it lacks one."""
+    table = table_from_csv(simulated_csv)
+    _, labels, extra = read_params_csv(simulated_csv)
+    seed_col = extra.get("seed")
+    if seed_col is None or seed_col.dtype.kind != "f" or np.any(seed_col != np.round(seed_col)):
+        raise ValidationError(f"{simulated_csv}: needs an integer 'seed' column (realism_targets.py --write-presses)")
+    seeds = sorted({int(v) for v in seed_col})
     materials = list(real.materials)
     held = np.zeros((len(materials), len(TARGETS)), dtype=int)
     tables = []
+    lab = np.asarray(labels)
     for seed in seeds:
-        on = data["seed"] == seed
-        rows = tuple(np.column_stack([data[c][on & (data["material"] == m)] for c in STAT_COLUMNS]).astype(float)
-                     for m in materials)
+        # table_from_csv keeps each material's rows in file order, as its seed column's are
+        rows = tuple(table.of(m)[seed_col[lab == m] == seed] for m in materials)
         tables.append(PressTable(tuple(materials), rows))
         held += check_targets(tables[-1], real, loo_self(tables[-1], materials), materials).held
     return Simulated(tuple(seeds), tuple(tables), held)

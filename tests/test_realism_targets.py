@@ -175,3 +175,14 @@ def test_a_bad_number_of_draws_is_refused(bad):
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 2
     assert "--draws" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_a_simulated_presses_file_without_seeds_is_refused(real, tmp_path):
+    with pytest.raises(ValidationError, match="'seed' column"):
+        read_simulated(REAL, real)
+    bad = tmp_path / "bad.csv"
+    bad.write_text(REAL.read_text().replace("material,run,", "material,seed,").replace("Material_1,1,",
+                                                                                         "Material_1,1.5,"))
+    out = subprocess.run([sys.executable, str(REPO / "benchmarks" / "realism_ceiling.py"), "--draws", "1",
+                          "--simulated", str(bad)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and "'seed' column" in out.stderr and "Traceback" not in out.stderr
