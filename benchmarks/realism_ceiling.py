@@ -4,9 +4,10 @@ Every target is checked on one seed's 10 presses per material, so even a simulat
 presses' own distribution misses some. This draws many synthetic "seeds" of 10 presses per material from a
 *population* of presses and runs the targets' own checks on each
 (:func:`palpate.core.perception.realism_targets.check_targets` against the real table, the leave-one-out as a run
-computes it). Populations: the real table (a perfect simulator) and, with ``--simulated``, presses a profile
-simulated, pooled over their seeds (the shipped profile with its own sampling noise, for comparison with what it
-held seed by seed). Generators, side by side:
+computes it). Populations: the real table (a perfect simulator) and, per ``--simulated`` file, the presses a
+profile simulated, pooled over their seeds (the profile with its own sampling noise, for comparison with what it held
+seed by seed), and each seed's own presses (a synthetic seed resamples one seed's; this regresses: a resample of 10
+presses holds fewer targets than the presses themselves). Generators, side by side:
 
 - ``boot-kept``: a bootstrap resample of the population's presses, copies left in the leave-one-out memory (a copy of
   the held-out press trains the memory that reads it, which inflates the self posterior);
@@ -23,7 +24,7 @@ with the 5-95% band of the 72 (the per-seed counts' distribution convolved 6 tim
 stay together). With ``--simulated``, the targets that table's own seeds held are printed too.
 
     .venv/bin/python benchmarks/realism_ceiling.py [--draws 2000] [--rng 0] [--real TABLE.csv]
-        [--simulated benchmarks/data/thesis_ch6_heldout_presses.csv]
+        [--simulated benchmarks/data/thesis_ch6_heldout_presses.csv ...] [--generators boot-out,gauss]
 """
 
 from __future__ import annotations
