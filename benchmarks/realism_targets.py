@@ -7,18 +7,21 @@ itself (target: Material_1 0.82 +- 0.06, the others >= 0.95). The last lines say
 
     .venv/bin/python benchmarks/realism_targets.py [--seeds 6,301,302,303,304,305] [--scenario S.toml]
         [--profile NAME_OR_PATH] [--set taxels.activation_kpa=2 --set taxels.activation_cv=0.5 ...]
-        [--scenario-set fingertip.pitch_mm=4 --scenario-set training.depth_mm=3 ...]
+        [--scenario-set fingertip.pitch_mm=4 --scenario-set training.depth_mm=3 ...] [--write-presses OUT.csv]
 
 ``--profile`` replaces the scenario's realism profile and ``--set`` changes one of its calibratable parameters (the
 keys of ``palpate calibrate realism --free``, file units), so a candidate is measured before it is fitted or shipped.
 ``--scenario-set`` changes the pad's geometry or the training press (the keys of :data:`SCENARIO_KEYS`, the scenario
-file's units). Each material's line also shows the mean a1 and a2 and the share of presses with a2 < 0 (real: 3.0 /
+file's units). ``--write-presses`` keeps every simulated press in a CSV (pooled over the seeds by
+benchmarks/realism_ceiling.py). The checks are :func:`palpate.core.perception.realism_targets.check_targets`. Each
+material's line also shows the mean a1 and a2 and the share of presses with a2 < 0 (real: 3.0 /
 2.9 / 10.9, +13.5 / +3.5 / -70 and 0 / 0.3 / 1.0); the last lines give them averaged over the seeds.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import sys
 import time
 from dataclasses import replace
@@ -27,14 +30,14 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.perception.param_stats import column_stats, table_from_csv
+from palpate.core.perception.param_stats import STAT_COLUMNS, table_from_csv
+from palpate.core.perception.realism_targets import TARGETS, check_targets
 from palpate.core.world.scenario import Scenario
 from palpate.core.world.scenario_file import load_scenario
 from palpate.sim.realism.calibrate import free_parameters, simulate_seed, with_values
 from palpate.sim.realism.profile_file import resolve_profile
 
 REPO = Path(__file__).resolve().parent.parent
-LOO_TARGETS = {0: (0.76, 0.88)}  # by reference index; the others >= 0.95
 #: ``--scenario-set`` keys (file units, mm) -> (the Scenario's section, its attribute); values are stored in m.
 SCENARIO_KEYS = {
     "fingertip.pitch_mm": ("fingertip", "pitch"),
@@ -56,6 +59,15 @@ def with_scenario_values(scenario: Scenario, pairs: list[tuple[str, float]]) -> 
     return replace(scenario, **{s: replace(getattr(scenario, s), **kw) for s, kw in changes.items()})
 
 
+def write_presses(path: Path, rows: list[list]) -> None:
+    """Every simulated press as a CSV row (seed, material, run, then :data:`STAT_COLUMNS`), which
+    :func:`~palpate.core.perception.param_stats.table_from_csv` reads back pooled over the seeds."""
+    with open(path, "w", encoding="utf-8", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(["seed", "material", "run", *STAT_COLUMNS])
+        out.writerows([[seed, name, k, *(repr(float(v)) for v in vals)] for seed, name, k, *vals in rows])
+
+
 def _pairs(items: list[str], option: str) -> list[tuple[str, float]]:
     """KEY=VALUE strings as (key, float) pairs; ValueError naming the option on a malformed one."""
     pairs = [item.split("=", 1) for item in items]
@@ -73,6 +85,8 @@ def main() -> int:
                     help="set a calibratable profile parameter, e.g. taxels.activation_cv=0.5 (repeatable)")
     ap.add_argument("--scenario-set", action="append", default=[], metavar="KEY=VALUE",
                     help=f"change the scenario, mm: {', '.join(SCENARIO_KEYS)} (repeatable)")
+    ap.add_argument("--write-presses", type=Path, metavar="CSV",
+                    help="write every simulated press (seed, material, run, n1 ... phi_a) to this CSV")
     args = ap.parse_args()
     try:
         sets, scenario_sets = _pairs(args.set, "--set"), _pairs(args.scenario_set, "--scenario-set")
@@ -94,34 +108,37 @@ def main() -> int:
     seeds = [int(s) for s in args.seeds.split(",")]
     print(f"profile {profile.name} (tuned on seeds {sorted(tuned) or 'n/a'}), scenario {scenario.name}, "
           f"fidelity {scenario.fidelity}")
-    passed: dict[str, int] = {}
+    refs = list(scenario.references)
+    passed = np.zeros((len(refs), len(TARGETS)), dtype=int)
     # per material, per seed: mean a1, mean a2, share of a2 < 0, leave-one-out self posterior
-    cutaneous: dict[str, list[list[float]]] = {name: [] for name in scenario.references}
+    cutaneous: dict[str, list[list[float]]] = {name: [] for name in refs}
+    rows = []
     for seed in seeds:
         t0 = time.perf_counter()
         run = simulate_seed(scenario, profile, seed, scenario.fidelity)
+        check = check_targets(run.table, real, run.loo_self, refs)
+        passed += check.held
         flags = []
-        for i, name in enumerate(scenario.references):
-            sim, ref = run.table.of(name), real.of(name)
-            cv = [column_stats(sim[:, j]).cv / column_stats(ref[:, j]).cv for j in (0, 3)]
-            neg = 10 * (np.mean(sim[:, 1] < 0) - np.mean(ref[:, 1] < 0))
-            lo, hi = LOO_TARGETS.get(i, (0.95, 1.0))
-            ok = {f"{name} cv n1": 0.7 <= cv[0] <= 1.3, f"{name} cv a1": 0.7 <= cv[1] <= 1.3,
-                  f"{name} n2<0": abs(neg) <= 2.0, f"{name} loo": lo <= run.loo_self[i] <= hi}
-            for k, v in ok.items():
-                passed[k] = passed.get(k, 0) + int(v)
+        for i, name in enumerate(refs):
+            sim = run.table.of(name)
+            rows += [[seed, name, k + 1, *row] for k, row in enumerate(sim)]
             cutaneous[name].append([np.mean(sim[:, 3]), np.mean(sim[:, 4]), np.mean(sim[:, 4] < 0),
                                     run.loo_self[i]])
-            flags.append(f"{name}: cv n1 x{cv[0]:.2f}{'' if ok[f'{name} cv n1'] else '!'} a1 x{cv[1]:.2f}"
-                         f"{'' if ok[f'{name} cv a1'] else '!'} n2<0 {neg:+.0f}{'' if ok[f'{name} n2<0'] else '!'} "
-                         f"loo {run.loo_self[i]:.2f}{'' if ok[f'{name} loo'] else '!'} | a1 {np.mean(sim[:, 3]):.2f} "
-                         f"a2 {np.mean(sim[:, 4]):+.0f} a2<0 {np.mean(sim[:, 4] < 0):.1f}")
+            miss = ["" if ok else "!" for ok in check.held[i]]
+            cv = check.cv_ratio[i]
+            flags.append(f"{name}: cv n1 x{cv[0]:.2f}{miss[0]} a1 x{cv[1]:.2f}{miss[1]} n2<0 "
+                         f"{check.negative_n2[i]:+.0f}{miss[2]} loo {run.loo_self[i]:.2f}{miss[3]} | "
+                         f"a1 {np.mean(sim[:, 3]):.2f} a2 {np.mean(sim[:, 4]):+.0f} a2<0 {np.mean(sim[:, 4] < 0):.1f}")
         mark = " (tuning seed)" if seed in tuned else ""
         print(f"seed {seed}{mark} [{time.perf_counter() - t0:.1f} s]\n  " + "\n  ".join(flags))
     print(f"targets held on {len(seeds)} seeds ('!' marks a miss):")
-    for k, v in passed.items():
-        print(f"  {k:<24} {v}/{len(seeds)}")
-    print(f"  {'all':<24} {sum(passed.values())}/{len(seeds) * len(passed)}")
+    for i, name in enumerate(refs):
+        for j, target in enumerate(TARGETS):
+            print(f"  {name + ' ' + target:<24} {passed[i, j]}/{len(seeds)}")
+    print(f"  {'all':<24} {passed.sum()}/{len(seeds) * passed.size}")
+    if args.write_presses:
+        write_presses(args.write_presses, rows)
+        print(f"wrote the {len(rows)} simulated presses to {args.write_presses}")
     print(f"mean over the {len(seeds)} seeds, simulated (real):")
     for name in scenario.references:
         a1, a2, neg, loo = np.mean(cutaneous[name], axis=0)

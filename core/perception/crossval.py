@@ -59,7 +59,7 @@ class CrossValidation:
         }
 
 
-def leave_one_out(params, labels: Sequence[str], **memory_kwargs) -> CrossValidation:
+def leave_one_out(params, labels: Sequence[str], groups=None, **memory_kwargs) -> CrossValidation:
     """Leave-one-out cross-validation of the haptic memory (seed 000, sec. 6.8.2, Table 6.7).
 
     Each press is held out in turn; a memory is trained on all the others (for its own material that is the
@@ -68,12 +68,18 @@ def leave_one_out(params, labels: Sequence[str], **memory_kwargs) -> CrossValida
     Args:
         params: (n, 4) [n1, n2, a1, a2].
         labels: n material names.
+        groups: None, or n integers: the presses of its material sharing the held-out press's group are held
+            out with it (copies of one press in a bootstrap resample, so no copy trains the memory that reads its
+            twin).
         **memory_kwargs: passed to :class:`HapticMemory` (materials, prior, min_eig, ddof, features).
 
-    Needs at least MIN_SAMPLES + 1 presses per material.
+    Needs at least MIN_SAMPLES + 1 presses per material, and MIN_SAMPLES left when a group is held out.
     """
     x = as_params(params)
     labs = as_labels(labels, x.shape[0])
+    group = np.arange(len(x)) if groups is None else np.asarray(groups).reshape(-1)
+    if group.shape != (len(x),) or group.dtype.kind not in "iu":
+        raise ValidationError(f"groups must be {len(x)} integers, one per press, got {np.asarray(groups)!r}")
     full = HapticMemory(**memory_kwargs).fit(x, labs)
     materials = full.materials
     truth = full.index_of(labs)
@@ -86,12 +92,14 @@ def leave_one_out(params, labels: Sequence[str], **memory_kwargs) -> CrossValida
     kwargs = dict(memory_kwargs)
     kwargs["materials"] = materials
     post = np.empty((len(x), len(materials)))
-    keep = np.ones(len(x), dtype=bool)
     for i in range(len(x)):
-        keep[i] = False
+        keep = (group != group[i]) | (truth != truth[i])
+        left = int(np.sum(keep & (truth == truth[i])))
+        if left < MIN_SAMPLES:
+            raise ValidationError(f"press {i} of {materials[truth[i]]!r}: holding out its group leaves {left} "
+                                  f"presses of it; the memory needs {MIN_SAMPLES}")
         mem = HapticMemory(**kwargs).fit(x[keep], [lab for lab, k in zip(labs, keep, strict=True) if k])
         post[i] = mem.predict_proba(x[i], features=mem.features)[0]
-        keep[i] = True
     m = len(materials)
     counts = np.zeros((m, m))
     np.add.at(counts, (truth, np.argmax(post, axis=1)), 1)

@@ -13,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from palpate.core.perception.param_stats import STAT_COLUMNS, ColumnStats, PressTable, column_stats, material_distance
+from palpate.core.perception.realism_targets import negative_difference_per_10
 
 DISTANCE = ("energy distance (Szekely & Rizzo) between the simulated and real [n1, n2, a1, a2] rows of one "
             "material, each column divided by the real table's standard deviation; 0 = same distribution")
@@ -38,8 +39,7 @@ def sim_to_real_summary(sim: PressTable, real: PressTable, real_file: str | Path
         for c in ("n1", "a1"):
             sim_cv, real_cv = cols[c]["sim"]["cv"], cols[c]["real"]["cv"]
             entry[f"cv_ratio_{c}"] = None if not (sim_cv and real_cv) else sim_cv / real_cv
-        entry["negative_n2_per_10_difference"] = round(10.0 * (cols["n2"]["sim"]["negative_fraction"]
-                                                               - cols["n2"]["real"]["negative_fraction"]), 9)
+        entry["negative_n2_per_10_difference"] = negative_difference_per_10(s[:, 1], r[:, 1])
         out["materials"][name] = entry
     return out
 

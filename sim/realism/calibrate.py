@@ -32,8 +32,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from palpate.core.errors import PalpateError, ValidationError
-from palpate.core.perception.crossval import leave_one_out
 from palpate.core.perception.param_stats import PressTable, table_from_fits
+from palpate.core.perception.realism_targets import loo_self
 from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory, training_seeds
 from palpate.core.world.scenario import Scenario
@@ -209,10 +209,7 @@ def table_moments(table: PressTable, materials: Sequence[str], loo_self: np.ndar
 
 def real_moments(table: PressTable, materials: Sequence[str]) -> np.ndarray:
     """:data:`MOMENTS` of the real table (leave-one-out as a run computes it: ddof 0)."""
-    params = np.vstack([table.of(m)[:, [0, 1, 3, 4]] for m in materials])
-    labels = [m for m in materials for _ in range(len(table.of(m)))]
-    cv = leave_one_out(params, labels, materials=list(materials))
-    return table_moments(table, materials, np.diag(cv.mean_posterior), smooth=False)
+    return table_moments(table, materials, loo_self(table, materials), smooth=False)
 
 
 @dataclass(frozen=True)
