@@ -14,7 +14,9 @@ a tail, so each table also prints the tail: how many scenes are above the worst-
 percentile, for info_gain and max_entropy (--scenes 288 gives 32 scenes per family where 72 gives 8).
 
 Offline (default), presses are answered from the memory's predicted outcomes for the material a press there feels
-(benchmarks/family_runs.py); --physics K adds K scenes per split with simulated presses (analytic fidelity), and
+(benchmarks/family_runs.py); --policies ...,clairvoyant,oracle_risk adds two offline references: a greedy planner
+that knows every reading (benchmarks/clairvoyant.py) and info_gain told where its map is wrong
+(benchmarks/oracle_risk.py). --physics K adds K scenes per split with simulated presses (analytic fidelity), and
 their maps' calibration: the expected calibration error (ECE) of the post-processed map's most probable material,
 pooled over cells and scenes at 20/35/50/100% of each scene's cells pressed, and a reliability figure (--figure).
 
@@ -53,6 +55,7 @@ from family_runs import (  # noqa: E402
     physics_run,
     store_felt_archive,
 )
+from oracle_risk import oracle_risk_run  # noqa: E402
 from scene_families import FAMILIES, REPORT_SEEDS, TUNING_SEEDS, scene  # noqa: E402
 
 from palpate.core.mapping.calibration import reliability_table  # noqa: E402
@@ -60,8 +63,9 @@ from palpate.core.planning.info_gain import InfoGain  # noqa: E402
 
 ABSOLUTE = 0.95
 TARGETS = {"median": 0.35, "worst": 0.7}
-#: Rows beyond the policies: the clairvoyant reference (benchmarks/clairvoyant.py), offline only.
-REFERENCE_ROWS = ("clairvoyant",)
+#: Rows beyond the policies, offline only: the clairvoyant reference (benchmarks/clairvoyant.py) and info_gain told
+#: where its map is wrong (benchmarks/oracle_risk.py).
+REFERENCE_ROWS = ("clairvoyant", "oracle_risk")
 
 
 def _count(run: Run, level: float) -> int:
@@ -87,8 +91,10 @@ def scene_rows(fs, rows: list[str], physics: bool, settings: dict | None = None)
             continue
         # offline runs stop once both counts are known (95% absolute only matters where raster gets there)
         stop = ABSOLUTE if out["to_absolute"]["raster"] is not None else target
-        if row in REFERENCE_ROWS:
+        if row == "clairvoyant":
             run = clairvoyant_run(fs, stop_at=stop)
+        elif row == "oracle_risk":
+            run = oracle_risk_run(fs, stop_at=stop, settings=settings)
         else:
             mine = settings if ROWS[row][0] == "info_gain" else None
             run = physics_run(fs, row) if physics else offline_run(fs, row, stop_at=stop, settings=mine)
@@ -148,12 +154,14 @@ def print_table(title: str, results: list[dict], rows: list[str]) -> dict:
             f"{row} {int(np.sum(allq[row] > TARGETS['worst']))}/{allq[row].size} scenes above {TARGETS['worst']}, "
             f"95th percentile {np.percentile(allq[row], 95):.2f}" for row in ("info_gain", "max_entropy",
                                                                                *REFERENCE_ROWS) if row in allq))
-        if "clairvoyant" in allq:
-            # a tail scene the clairvoyant reference also needs many presses for is hard for any planner
+        refs = [row for row in REFERENCE_ROWS if row in allq]
+        if refs:
+            # a tail scene the clairvoyant reference also needs many presses for is hard for greedy planners; one
+            # the oracle-risk reference finishes early needs a better estimate of where the map is wrong
             tail = np.flatnonzero(q > TARGETS["worst"])
-            print("info_gain's scenes above the target, info_gain / clairvoyant: " + (", ".join(
-                f"{results[i]['seed']} {results[i]['family']} {q[i]:.2f} / {allq['clairvoyant'][i]:.2f}"
-                for i in tail) or "none"))
+            print(f"info_gain's scenes above the target, info_gain / {' / '.join(refs)}: " + (", ".join(
+                f"{results[i]['seed']} {results[i]['family']} {q[i]:.2f} / "
+                + " / ".join(f"{allq[row][i]:.2f}" for row in refs) for i in tail) or "none"))
         print(f"targets (info_gain): median {np.median(q):.3f} <= {TARGETS['median']} "
               f"{'PASS' if np.median(q) <= TARGETS['median'] else 'FAIL'}; families worse than max_entropy: "
               f"{', '.join(worse) or 'none'} {'FAIL' if worse else 'PASS'}; worst {np.max(q):.2f} <= "
@@ -234,7 +242,8 @@ def main() -> None:
     parser.add_argument("--policies", default="max_entropy,info_gain",
                         help=f"comma-separated rows (known: {','.join((*ROWS, *REFERENCE_ROWS))}); raster is always "
                              "run; clairvoyant (a greedy planner that knows every press's reading: "
-                             "benchmarks/clairvoyant.py) is offline only")
+                             "benchmarks/clairvoyant.py) and oracle_risk (info_gain told where its map is wrong: "
+                             "benchmarks/oracle_risk.py) are offline only")
     parser.add_argument("--confused", action="store_true", help="a memory that confuses soft with 'firm'")
     parser.add_argument("--figure", default="/tmp/palpate_reliability.png", help="reliability figure (physics)")
     parser.add_argument("--json", default=None, help="write the tables as JSON here")
@@ -243,8 +252,8 @@ def main() -> None:
                         help=f"after the run, write the felt cells of today's contact law to {FELT_ARCHIVE.name} "
                              "(committed: a fresh machine then skips their FE solves)")
     parser.add_argument("--info-gain", action="append", default=[], metavar="FIELD=VALUE",
-                        help="offline runs: replace a field of the info_gain policy (e.g. entropy_weight=4), "
-                             "repeatable; for sweeps on the tuning seeds (--split tuning)")
+                        help="offline runs: replace a field of the info_gain policy (e.g. entropy_weight=4; the "
+                             "oracle_risk row's too), repeatable; for sweeps on the tuning seeds (--split tuning)")
     args = parser.parse_args()
     settings = parse_settings(parser, args.info_gain)
     if settings and args.physics:
