@@ -14,11 +14,12 @@ a tail, so each table also prints the tail: how many scenes are above the worst-
 percentile, for info_gain and max_entropy (--scenes 288 gives 32 scenes per family where 72 gives 8).
 
 Offline (default), presses are answered from the memory's predicted outcomes for the material a press there feels
-(benchmarks/family_runs.py); --policies ...,clairvoyant,oracle_risk adds two offline references: a greedy planner
-that knows every reading (benchmarks/clairvoyant.py) and info_gain told where its map is wrong
-(benchmarks/oracle_risk.py). --physics K adds K scenes per split with simulated presses (analytic fidelity), and
-their maps' calibration: the expected calibration error (ECE) of the post-processed map's most probable material,
-pooled over cells and scenes at 20/35/50/100% of each scene's cells pressed, and a reliability figure (--figure).
+(benchmarks/family_runs.py); --policies ...,clairvoyant,oracle_truth,oracle_readings adds offline references: a
+greedy planner that knows every reading (benchmarks/clairvoyant.py) and info_gain told where its map differs from
+the truth or from what a press would read (benchmarks/oracle_risk.py; --oracle-noise HIT,FALSE_ALARM).
+--physics K adds K scenes per split with simulated presses (analytic fidelity), and their maps' calibration: the
+expected calibration error (ECE) of the post-processed map's most probable material, pooled over cells and scenes at
+20/35/50/100% of each scene's cells pressed, and a reliability figure (--figure).
 
 --confused makes the "firm" reference feel almost like "soft" (18.7 kPa, Poisson 0.4: E / (1 - nu^2) 1.3% above
 soft's), so the memory names the wrong one of the two in about a fifth of presses: info_gain should still degrade
@@ -26,6 +27,7 @@ gracefully and stay the best policy.
 
 Run: .venv/bin/python benchmarks/exploration_families.py [--scenes N] [--split tuning|report|both] [--physics K]
      [--policies a,b] [--confused] [--figure PNG] [--json PATH] [--store-felt] [--info-gain FIELD=VALUE ...]
+     [--oracle-noise HIT,FALSE_ALARM]
 
 Felt cells cost FE solves (up to a minute a scene); they are cached in the temp folder and read from the committed
 benchmarks/data/felt_cells.npz, both keyed on the contact law's code, so a changed law recomputes them;
@@ -55,7 +57,7 @@ from family_runs import (  # noqa: E402
     physics_run,
     store_felt_archive,
 )
-from oracle_risk import oracle_risk_run  # noqa: E402
+from oracle_risk import oracle_run  # noqa: E402
 from scene_families import FAMILIES, REPORT_SEEDS, TUNING_SEEDS, scene  # noqa: E402
 
 from palpate.core.mapping.calibration import reliability_table  # noqa: E402
@@ -64,8 +66,8 @@ from palpate.core.planning.info_gain import InfoGain  # noqa: E402
 ABSOLUTE = 0.95
 TARGETS = {"median": 0.35, "worst": 0.7}
 #: Rows beyond the policies, offline only: the clairvoyant reference (benchmarks/clairvoyant.py) and info_gain told
-#: where its map is wrong (benchmarks/oracle_risk.py).
-REFERENCE_ROWS = ("clairvoyant", "oracle_risk")
+#: where its map differs from the truth or from the readings (benchmarks/oracle_risk.py).
+REFERENCE_ROWS = ("clairvoyant", "oracle_truth", "oracle_readings")
 
 
 def _count(run: Run, level: float) -> int:
@@ -73,9 +75,10 @@ def _count(run: Run, level: float) -> int:
     return k if k is not None else run.accuracy.size  # never: one more than the presses made (<= cells)
 
 
-def scene_rows(fs, rows: list[str], physics: bool, settings: dict | None = None) -> dict:
+def scene_rows(fs, rows: list[str], physics: bool, settings: dict | None = None,
+               oracle_noise: tuple[float, float] = (1.0, 0.0)) -> dict:
     """Every row's presses on one scene, the ceiling and the runs (for calibration); ``settings`` replaces fields of
-    the info_gain rows' policy (offline only)."""
+    the info_gain rows' policy (offline only); ``oracle_noise`` is the oracle rows' (hit, false alarm)."""
     if physics:
         raster = physics_run(fs, "raster")
     else:
@@ -93,8 +96,9 @@ def scene_rows(fs, rows: list[str], physics: bool, settings: dict | None = None)
         stop = ABSOLUTE if out["to_absolute"]["raster"] is not None else target
         if row == "clairvoyant":
             run = clairvoyant_run(fs, stop_at=stop)
-        elif row == "oracle_risk":
-            run = oracle_risk_run(fs, stop_at=stop, settings=settings)
+        elif row in ("oracle_truth", "oracle_readings"):
+            hit, false_alarm = oracle_noise
+            run = oracle_run(fs, row.split("_")[1], stop_at=stop, settings=settings, hit=hit, false_alarm=false_alarm)
         else:
             mine = settings if ROWS[row][0] == "info_gain" else None
             run = physics_run(fs, row) if physics else offline_run(fs, row, stop_at=stop, settings=mine)
@@ -234,6 +238,17 @@ def parse_settings(parser: argparse.ArgumentParser, items: list[str]) -> dict:
     return out
 
 
+def parse_noise(parser: argparse.ArgumentParser, text: str) -> tuple[float, float]:
+    """``HIT,FALSE_ALARM`` as two shares with 0 <= false alarm <= hit <= 1 (anything else is a usage error)."""
+    try:
+        hit, false_alarm = (float(v) for v in text.split(","))
+    except ValueError:
+        parser.error(f"--oracle-noise takes HIT,FALSE_ALARM (two numbers), got {text!r}")
+    if not (0 <= false_alarm <= hit <= 1):
+        parser.error(f"--oracle-noise needs 0 <= FALSE_ALARM <= HIT <= 1, got {text!r}")
+    return hit, false_alarm
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", type=int, default=72, help="offline scenes per split (default 72: 8 per family)")
@@ -242,8 +257,8 @@ def main() -> None:
     parser.add_argument("--policies", default="max_entropy,info_gain",
                         help=f"comma-separated rows (known: {','.join((*ROWS, *REFERENCE_ROWS))}); raster is always "
                              "run; clairvoyant (a greedy planner that knows every press's reading: "
-                             "benchmarks/clairvoyant.py) and oracle_risk (info_gain told where its map is wrong: "
-                             "benchmarks/oracle_risk.py) are offline only")
+                             "benchmarks/clairvoyant.py), oracle_truth and oracle_readings (info_gain told where its "
+                             "map differs from the truth or the readings: benchmarks/oracle_risk.py) are offline only")
     parser.add_argument("--confused", action="store_true", help="a memory that confuses soft with 'firm'")
     parser.add_argument("--figure", default="/tmp/palpate_reliability.png", help="reliability figure (physics)")
     parser.add_argument("--json", default=None, help="write the tables as JSON here")
@@ -253,9 +268,13 @@ def main() -> None:
                              "(committed: a fresh machine then skips their FE solves)")
     parser.add_argument("--info-gain", action="append", default=[], metavar="FIELD=VALUE",
                         help="offline runs: replace a field of the info_gain policy (e.g. entropy_weight=4; the "
-                             "oracle_risk row's too), repeatable; for sweeps on the tuning seeds (--split tuning)")
+                             "oracle rows' too), repeatable; for sweeps on the tuning seeds (--split tuning)")
+    parser.add_argument("--oracle-noise", default="1,0", metavar="HIT,FALSE_ALARM",
+                        help="the oracle rows mark this share of the cells their map gets wrong, and this share of "
+                             "the others (default 1,0: exact)")
     args = parser.parse_args()
     settings = parse_settings(parser, args.info_gain)
+    oracle_noise = parse_noise(parser, args.oracle_noise)
     if settings and args.physics:
         parser.error("--info-gain applies to offline runs only (physics runs read their policy from the scenario)")
     chosen = [p.strip() for p in args.policies.split(",") if p.strip()]
@@ -277,7 +296,7 @@ def main() -> None:
             results = []
             for s in seeds[:n]:
                 fs = scene(s).with_confusion() if args.confused else scene(s)
-                r = scene_rows(fs, split_rows, physics, settings)
+                r = scene_rows(fs, split_rows, physics, settings, oracle_noise)
                 results.append(r)
                 if args.verbose:
                     print(f"{name} {s} {r['family']:<10} {r['cells']:4d} cells ceiling {r['ceiling']:.3f} "

@@ -1,5 +1,6 @@
-"""The oracle-risk reference (benchmarks/oracle_risk.py): info_gain told where its map is wrong marks exactly the
-unpressed wrong cells, and goes to a hidden one-cell feature that info_gain itself does not press next."""
+"""The oracle references (benchmarks/oracle_risk.py): info_gain told where its map is wrong marks exactly the
+unpressed wrong cells and goes to a hidden one-cell feature that info_gain itself does not press next; a noisy
+oracle marks the shares of cells it is given, and a blind one chooses as info_gain."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 
-from oracle_risk import with_oracle, wrong_unpressed  # noqa: E402
+from oracle_risk import OracleRisk, with_oracle, wrong_unpressed  # noqa: E402
 
+from palpate.core.errors import ValidationError  # noqa: E402
 from palpate.core.mapping.accuracy import decided_labels  # noqa: E402
 from palpate.core.mapping.grids import Grid2D  # noqa: E402
 from palpate.core.planning.info_gain import InfoGain  # noqa: E402
@@ -65,3 +67,27 @@ def test_the_oracle_presses_the_hidden_feature_where_info_gain_does_not(pressed_
     # (refreshed only where the map changes) are the plain policy's
     assert b.score == a.score
     assert np.array_equal(oracle._terms[0], plain._terms[0])
+
+
+def test_a_noisy_oracle_marks_the_shares_it_is_given_and_a_blind_one_chooses_as_info_gain(pressed_map,
+                                                                                        three_material_memory):
+    grid, truth = pressed_map
+    post = grid.postprocessed()
+    plain = InfoGain(three_material_memory, spread_stride=1)
+    noisy = with_oracle(plain, truth, hit=0.6, false_alarm=0.3, seed=4)
+    wrong = wrong_unpressed(grid, post, truth) > 0
+    free = ~np.asarray(grid.explored)
+    want = (wrong & (noisy.draws < 0.6)) | (free & ~wrong & (noisy.draws < 0.3))
+    assert np.array_equal(noisy.marked(grid, post) > 0, want)
+    blind = with_oracle(plain, truth, hit=0.0, false_alarm=0.0, seed=4)
+    assert not blind.marked(grid, post).any()
+    a, b = plain.next_target(grid, post), blind.next_target(grid, post)
+    assert (a.ix, a.iy, a.score) == (b.ix, b.iy, b.score)
+
+
+@pytest.mark.parametrize("kwargs", [{"hit": 0.2, "false_alarm": 0.5}, {"hit": 1.5}, {"oracle_weight": -1.0},
+                                    {"hit": 0.5, "draws": None}, {"reference": None}])
+def test_bad_oracle_settings_are_refused(kwargs, three_material_memory):
+    base = {"reference": np.zeros((3, 3), dtype=int), "draws": np.zeros((3, 3))}
+    with pytest.raises(ValidationError):
+        OracleRisk(three_material_memory, **{**base, **kwargs})
