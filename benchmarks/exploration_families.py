@@ -14,9 +14,12 @@ a tail, so each table also prints the tail: how many scenes are above the worst-
 percentile, for info_gain and max_entropy (--scenes 288 gives 32 scenes per family where 72 gives 8).
 
 Offline (default), presses are answered from the memory's predicted outcomes for the material a press there feels
-(benchmarks/family_runs.py); --physics K adds K scenes per split with simulated presses (analytic fidelity), and
-their maps' calibration: the expected calibration error (ECE) of the post-processed map's most probable material,
-pooled over cells and scenes at 20/35/50/100% of each scene's cells pressed, and a reliability figure (--figure).
+(benchmarks/family_runs.py); --policies ...,clairvoyant,oracle_truth,oracle_readings adds offline references: a
+greedy planner that knows every reading (benchmarks/clairvoyant.py) and info_gain told where its map differs from
+the truth or from what a press would read (benchmarks/oracle_risk.py; --oracle-noise HIT,FALSE_ALARM).
+--physics K adds K scenes per split with simulated presses (analytic fidelity), and their maps' calibration: the
+expected calibration error (ECE) of the post-processed map's most probable material, pooled over cells and scenes at
+20/35/50/100% of each scene's cells pressed, and a reliability figure (--figure).
 
 --confused makes the "firm" reference feel almost like "soft" (18.7 kPa, Poisson 0.4: E / (1 - nu^2) 1.3% above
 soft's), so the memory names the wrong one of the two in about a fifth of presses: info_gain should still degrade
@@ -24,6 +27,7 @@ gracefully and stay the best policy.
 
 Run: .venv/bin/python benchmarks/exploration_families.py [--scenes N] [--split tuning|report|both] [--physics K]
      [--policies a,b] [--confused] [--figure PNG] [--json PATH] [--store-felt] [--info-gain FIELD=VALUE ...]
+     [--oracle-noise HIT,FALSE_ALARM]
 
 Felt cells cost FE solves (up to a minute a scene); they are cached in the temp folder and read from the committed
 benchmarks/data/felt_cells.npz, both keyed on the contact law's code, so a changed law recomputes them;
@@ -53,6 +57,7 @@ from family_runs import (  # noqa: E402
     physics_run,
     store_felt_archive,
 )
+from oracle_risk import oracle_run  # noqa: E402
 from scene_families import FAMILIES, REPORT_SEEDS, TUNING_SEEDS, scene  # noqa: E402
 
 from palpate.core.mapping.calibration import reliability_table  # noqa: E402
@@ -60,8 +65,9 @@ from palpate.core.planning.info_gain import InfoGain  # noqa: E402
 
 ABSOLUTE = 0.95
 TARGETS = {"median": 0.35, "worst": 0.7}
-#: Rows beyond the policies: the clairvoyant reference (benchmarks/clairvoyant.py), offline only.
-REFERENCE_ROWS = ("clairvoyant",)
+#: Rows beyond the policies, offline only: the clairvoyant reference (benchmarks/clairvoyant.py) and info_gain told
+#: where its map differs from the truth or from the readings (benchmarks/oracle_risk.py).
+REFERENCE_ROWS = ("clairvoyant", "oracle_truth", "oracle_readings")
 
 
 def _count(run: Run, level: float) -> int:
@@ -69,9 +75,10 @@ def _count(run: Run, level: float) -> int:
     return k if k is not None else run.accuracy.size  # never: one more than the presses made (<= cells)
 
 
-def scene_rows(fs, rows: list[str], physics: bool, settings: dict | None = None) -> dict:
+def scene_rows(fs, rows: list[str], physics: bool, settings: dict | None = None,
+               oracle_noise: tuple[float, float] = (1.0, 0.0)) -> dict:
     """Every row's presses on one scene, the ceiling and the runs (for calibration); ``settings`` replaces fields of
-    the info_gain rows' policy (offline only)."""
+    the info_gain rows' policy (offline only); ``oracle_noise`` is the oracle rows' (hit, false alarm)."""
     if physics:
         raster = physics_run(fs, "raster")
     else:
@@ -87,8 +94,11 @@ def scene_rows(fs, rows: list[str], physics: bool, settings: dict | None = None)
             continue
         # offline runs stop once both counts are known (95% absolute only matters where raster gets there)
         stop = ABSOLUTE if out["to_absolute"]["raster"] is not None else target
-        if row in REFERENCE_ROWS:
+        if row == "clairvoyant":
             run = clairvoyant_run(fs, stop_at=stop)
+        elif row in ("oracle_truth", "oracle_readings"):
+            hit, false_alarm = oracle_noise
+            run = oracle_run(fs, row.split("_")[1], stop_at=stop, settings=settings, hit=hit, false_alarm=false_alarm)
         else:
             mine = settings if ROWS[row][0] == "info_gain" else None
             run = physics_run(fs, row) if physics else offline_run(fs, row, stop_at=stop, settings=mine)
@@ -148,12 +158,14 @@ def print_table(title: str, results: list[dict], rows: list[str]) -> dict:
             f"{row} {int(np.sum(allq[row] > TARGETS['worst']))}/{allq[row].size} scenes above {TARGETS['worst']}, "
             f"95th percentile {np.percentile(allq[row], 95):.2f}" for row in ("info_gain", "max_entropy",
                                                                                *REFERENCE_ROWS) if row in allq))
-        if "clairvoyant" in allq:
-            # a tail scene the clairvoyant reference also needs many presses for is hard for any planner
+        refs = [row for row in REFERENCE_ROWS if row in allq]
+        if refs:
+            # a tail scene the clairvoyant reference also needs many presses for is hard for greedy planners; one
+            # the oracle-risk reference finishes early needs a better estimate of where the map is wrong
             tail = np.flatnonzero(q > TARGETS["worst"])
-            print("info_gain's scenes above the target, info_gain / clairvoyant: " + (", ".join(
-                f"{results[i]['seed']} {results[i]['family']} {q[i]:.2f} / {allq['clairvoyant'][i]:.2f}"
-                for i in tail) or "none"))
+            print(f"info_gain's scenes above the target, info_gain / {' / '.join(refs)}: " + (", ".join(
+                f"{results[i]['seed']} {results[i]['family']} {q[i]:.2f} / "
+                + " / ".join(f"{allq[row][i]:.2f}" for row in refs) for i in tail) or "none"))
         print(f"targets (info_gain): median {np.median(q):.3f} <= {TARGETS['median']} "
               f"{'PASS' if np.median(q) <= TARGETS['median'] else 'FAIL'}; families worse than max_entropy: "
               f"{', '.join(worse) or 'none'} {'FAIL' if worse else 'PASS'}; worst {np.max(q):.2f} <= "
@@ -226,6 +238,17 @@ def parse_settings(parser: argparse.ArgumentParser, items: list[str]) -> dict:
     return out
 
 
+def parse_noise(parser: argparse.ArgumentParser, text: str) -> tuple[float, float]:
+    """``HIT,FALSE_ALARM`` as two shares with 0 <= false alarm <= hit <= 1 (anything else is a usage error)."""
+    try:
+        hit, false_alarm = (float(v) for v in text.split(","))
+    except ValueError:
+        parser.error(f"--oracle-noise takes HIT,FALSE_ALARM (two numbers), got {text!r}")
+    if not (0 <= false_alarm <= hit <= 1):
+        parser.error(f"--oracle-noise needs 0 <= FALSE_ALARM <= HIT <= 1, got {text!r}")
+    return hit, false_alarm
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", type=int, default=72, help="offline scenes per split (default 72: 8 per family)")
@@ -234,7 +257,8 @@ def main() -> None:
     parser.add_argument("--policies", default="max_entropy,info_gain",
                         help=f"comma-separated rows (known: {','.join((*ROWS, *REFERENCE_ROWS))}); raster is always "
                              "run; clairvoyant (a greedy planner that knows every press's reading: "
-                             "benchmarks/clairvoyant.py) is offline only")
+                             "benchmarks/clairvoyant.py), oracle_truth and oracle_readings (info_gain told where its "
+                             "map differs from the truth or the readings: benchmarks/oracle_risk.py) are offline only")
     parser.add_argument("--confused", action="store_true", help="a memory that confuses soft with 'firm'")
     parser.add_argument("--figure", default="/tmp/palpate_reliability.png", help="reliability figure (physics)")
     parser.add_argument("--json", default=None, help="write the tables as JSON here")
@@ -243,10 +267,14 @@ def main() -> None:
                         help=f"after the run, write the felt cells of today's contact law to {FELT_ARCHIVE.name} "
                              "(committed: a fresh machine then skips their FE solves)")
     parser.add_argument("--info-gain", action="append", default=[], metavar="FIELD=VALUE",
-                        help="offline runs: replace a field of the info_gain policy (e.g. entropy_weight=4), "
-                             "repeatable; for sweeps on the tuning seeds (--split tuning)")
+                        help="offline runs: replace a field of the info_gain policy (e.g. entropy_weight=4; the "
+                             "oracle rows' too), repeatable; for sweeps on the tuning seeds (--split tuning)")
+    parser.add_argument("--oracle-noise", default="1,0", metavar="HIT,FALSE_ALARM",
+                        help="the oracle rows mark this share of the cells their map gets wrong, and this share of "
+                             "the others (default 1,0: exact)")
     args = parser.parse_args()
     settings = parse_settings(parser, args.info_gain)
+    oracle_noise = parse_noise(parser, args.oracle_noise)
     if settings and args.physics:
         parser.error("--info-gain applies to offline runs only (physics runs read their policy from the scenario)")
     chosen = [p.strip() for p in args.policies.split(",") if p.strip()]
@@ -268,7 +296,7 @@ def main() -> None:
             results = []
             for s in seeds[:n]:
                 fs = scene(s).with_confusion() if args.confused else scene(s)
-                r = scene_rows(fs, split_rows, physics, settings)
+                r = scene_rows(fs, split_rows, physics, settings, oracle_noise)
                 results.append(r)
                 if args.verbose:
                     print(f"{name} {s} {r['family']:<10} {r['cells']:4d} cells ceiling {r['ceiling']:.3f} "

@@ -154,10 +154,11 @@ class RunTrace:
 
 
 def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memory=None, answers=None,
-                felt=None, settings: dict | None = None) -> Run:
+                felt=None, settings: dict | None = None, policy_for=None) -> Run:
     """One policy on one scene with presses answered offline (module docstring); stops once the accuracy reaches
     ``stop_at`` (None: after one press per cell). ``settings`` replaces fields of the built policy (e.g. info_gain's
-    ``entropy_weight``), for sweeps on the tuning seeds."""
+    ``entropy_weight``), for sweeps on the tuning seeds; ``policy_for(policy, truth)``, when given, returns the
+    policy to run instead (a reference built on it, e.g. benchmarks/oracle_risk.py)."""
     kind, objective = ROWS[row]
     sc = fs.scenario(kind, objective=objective)
     entry = sc.objects[0]
@@ -173,6 +174,8 @@ def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memo
                          feature_size=ex.feature_size, certainty=cal.extrapolation_certainty)
     if settings:
         policy = dataclasses.replace(policy, **settings)
+    if policy_for is not None:
+        policy = policy_for(policy, truth)
     grid = new_map(geom)
     rng = np.random.default_rng(fs.seed + 7000)
     n = truth.size

@@ -1,5 +1,6 @@
 """The exploration-families benchmark's --info-gain FIELD=VALUE overrides: numbers for real fields of the policy,
-a usage error for anything else (benchmarks/exploration_families.py)."""
+a usage error for anything else; --oracle-noise HIT,FALSE_ALARM: two shares in order
+(benchmarks/exploration_families.py)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 
-from exploration_families import parse_settings  # noqa: E402
+from exploration_families import parse_noise, parse_settings  # noqa: E402
 
 from palpate.core.planning.info_gain import InfoGain  # noqa: E402
 
@@ -30,3 +31,11 @@ def test_anything_else_is_a_usage_error(item, capsys):
     with pytest.raises(SystemExit):
         parse_settings(argparse.ArgumentParser(prog="exploration_families.py"), [item])
     assert "--info-gain" in capsys.readouterr().err
+
+
+def test_oracle_noise_is_two_ordered_shares(capsys):
+    assert parse_noise(argparse.ArgumentParser(), "0.8,0.1") == (0.8, 0.1)
+    for bad in ("0.1,0.8", "1.2,0", "0.5", "a,b", "0.5,-0.1"):
+        with pytest.raises(SystemExit):
+            parse_noise(argparse.ArgumentParser(prog="exploration_families.py"), bad)
+        assert "--oracle-noise" in capsys.readouterr().err
