@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.core.session.sweep import is_finished, load_sweep, run_sweep, set_key
+from palpate.core.session.sweep import LOCK_FILE, is_finished, load_sweep, run_sweep, set_key
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ROOT / "scenarios" / "sweeps" / "tiny.toml"
@@ -101,7 +101,11 @@ def test_local_pool_runs_the_rest_and_keeps_a_finished_run(tmp_path):
 
 
 def _group_alive(pgid: int) -> bool:
-    """Whether a process of group ``pgid`` still runs (zombies do not count: they hold no files)."""
+    """Whether a thread of a process of group ``pgid`` still runs (zombies do not count: they hold no files).
+
+    Threads, not processes: a killed multi-threaded process's leader can show as a zombie while its other threads
+    are still exiting, and they share its open files, so the sweep's lock is held until the last of them is gone
+    (on a loaded machine the resumed sweep once found the lock still taken when only leaders were checked)."""
     proc = Path("/proc")
     if not proc.is_dir():
         try:
@@ -109,12 +113,12 @@ def _group_alive(pgid: int) -> bool:
         except ProcessLookupError:
             return False
         return True
-    for stat in proc.glob("[0-9]*/stat"):
+    for stat in proc.glob("[0-9]*/task/[0-9]*/stat"):
         try:
             fields = stat.read_text().rsplit(")", 1)[1].split()
         except (OSError, IndexError):
             continue  # gone meanwhile
-        if int(fields[2]) == pgid and fields[0] != "Z":
+        if int(fields[2]) == pgid and fields[0] not in ("Z", "X"):
             return True
     return False
 
@@ -127,6 +131,28 @@ def _wait_group_gone(pgid: int, limit: float = 60.0) -> None:
         if time.monotonic() > deadline:
             raise AssertionError(f"the killed sweep's processes were still there after {limit} s")
         time.sleep(0.05)
+
+
+def _wait_lock_released(out: Path, limit: float = 60.0) -> None:
+    """Wait until the killed sweep's lock can be taken (what resuming needs), failing after ``limit`` s: the OS
+    must release it once every holder is gone, however long a loaded machine takes to tear them down."""
+    import fcntl
+
+    deadline = time.monotonic() + limit
+    fd = os.open(out / LOCK_FILE, os.O_RDWR)
+    try:
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise AssertionError(f"the killed sweep's lock was still held after {limit} s") from None
+                time.sleep(0.05)
+                continue
+            fcntl.flock(fd, fcntl.LOCK_UN)
+            return
+    finally:
+        os.close(fd)
 
 
 def test_killed_sweep_resumes_without_redoing_finished_runs(tmp_path):
@@ -147,6 +173,7 @@ def test_killed_sweep_resumes_without_redoing_finished_runs(tmp_path):
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
     _wait_group_gone(proc.pid)
+    _wait_lock_released(out)
     finished = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("runs/*/summary.json")}
     assert 1 <= len(finished) < 4, "the kill came too late to interrupt the sweep"
     rows = run_sweep(load_sweep(TINY), out, workers=1, log=lambda s: None)
