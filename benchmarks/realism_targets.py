@@ -11,11 +11,12 @@ itself (target: Material_1 0.82 +- 0.06, the others >= 0.95). The last lines say
 
 ``--profile`` replaces the scenario's realism profile and ``--set`` changes one of its calibratable parameters (the
 keys of ``palpate calibrate realism --free``, file units), so a candidate is measured before it is fitted or shipped.
-``--scenario-set`` changes the pad's geometry or the training press (the keys of :data:`SCENARIO_KEYS`, the scenario
-file's units). ``--write-presses`` keeps every simulated press in a CSV (pooled over the seeds by
-benchmarks/realism_ceiling.py). The checks are :func:`palpate.core.perception.realism_targets.check_targets`. Each
-material's line also shows the mean a1 and a2 and the share of presses with a2 < 0 (real: 3.0 /
-2.9 / 10.9, +13.5 / +3.5 / -70 and 0 / 0.3 / 1.0); the last lines give them averaged over the seeds.
+``--scenario-set`` changes the pad's geometry, the training press or the tracker's noise (the keys of
+:data:`SCENARIO_KEYS`, the scenario file's units). ``--write-presses`` keeps every simulated press in a CSV
+(pooled over the seeds by benchmarks/realism_ceiling.py). The checks are
+:func:`palpate.core.perception.realism_targets.check_targets`. Each material's line also shows the mean a1 and a2
+and the share of presses with a2 < 0 (real: 3.0 / 2.9 / 10.9, +13.5 / +3.5 / -70 and 0 / 0.3 / 1.0); the last lines
+give them averaged over the seeds.
 """
 
 from __future__ import annotations
@@ -44,11 +45,13 @@ SCENARIO_KEYS = {
     "fingertip.sensel_mm": ("fingertip", "sensel_size"),
     "fingertip.radius_mm": ("fingertip", "radius"),
     "training.depth_mm": ("training", "depth"),
+    "sensors.pose.noise_mm": ("pose", "noise_std"),
 }
 
 
 def with_scenario_values(scenario: Scenario, pairs: list[tuple[str, float]]) -> Scenario:
-    """The scenario with the pad's geometry or the training press changed (keys of SCENARIO_KEYS, values in mm)."""
+    """The scenario with the pad's geometry, the training press or the tracker's noise changed (keys of
+    SCENARIO_KEYS, values in mm)."""
     changes: dict[str, dict[str, float]] = {}
     for key, value in pairs:
         if key not in SCENARIO_KEYS:

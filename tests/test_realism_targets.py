@@ -16,10 +16,12 @@ from palpate.core.perception.crossval import leave_one_out
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.param_stats import PressTable, table_from_csv
 from palpate.core.perception.realism_targets import check_targets, loo_self, negative_difference_per_10
+from palpate.core.world.scenario_file import load_scenario
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "benchmarks"))
 from realism_ceiling import GENERATORS, ceiling, draw_seed, read_simulated, seeds_band  # noqa: E402
+from realism_targets import with_scenario_values  # noqa: E402
 
 REAL = REPO / "models" / "realism" / "seed000_tables_6_3_to_6_5.csv"
 MATERIALS = ["Material_1", "Material_2", "Material_3"]
@@ -186,3 +188,13 @@ def test_a_simulated_presses_file_without_seeds_is_refused(real, tmp_path):
     out = subprocess.run([sys.executable, str(REPO / "benchmarks" / "realism_ceiling.py"), "--draws", "1",
                           "--simulated", str(bad)], capture_output=True, text=True, timeout=120)
     assert out.returncode == 2 and "'seed' column" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_the_tracker_noise_is_set_in_mm_and_nothing_else_moves():
+    base = load_scenario(REPO / "scenarios" / "thesis_ch6.toml")
+    changed = with_scenario_values(base, [("sensors.pose.noise_mm", 0.05)])
+    assert changed.pose.noise_std == pytest.approx(5e-5)
+    assert changed.pose.rate == base.pose.rate and changed.pose.jitter == base.pose.jitter
+    assert changed.fingertip == base.fingertip and changed.training == base.training
+    with pytest.raises(ValidationError, match="noise_std"):
+        with_scenario_values(base, [("sensors.pose.noise_mm", -0.1)])
