@@ -40,7 +40,7 @@ from scipy.stats import binom
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.memory import MIN_SAMPLES
-from palpate.core.perception.param_stats import PARAM_INDEX, PressTable, table_from_csv
+from palpate.core.perception.param_stats import PARAM_INDEX, PressTable, table_from_columns, table_from_csv
 from palpate.core.perception.params_table import read_params_csv
 from palpate.core.perception.realism_targets import TARGETS, check_targets, loo_self
 
@@ -169,10 +169,10 @@ class Simulated:
 def read_simulated(simulated_csv: Path, real: PressTable) -> Simulated:
     """The CSV's presses by seed, checked against ``real`` seed by seed (as realism_targets.py printed them).
 
-    Read as a per-press table (:func:`~palpate.core.perception.param_stats.table_from_csv`) with an integer ``seed``
-    column; ValidationError naming the file when it lacks one."""
-    table = table_from_csv(simulated_csv)
-    _, labels, extra = read_params_csv(simulated_csv)
+    Read once as a per-press table (:func:`~palpate.core.perception.param_stats.table_from_columns`) with an
+    integer ``seed`` column; ValidationError naming the file when it lacks one."""
+    params, labels, extra = read_params_csv(simulated_csv)
+    table = table_from_columns(simulated_csv, params, labels, extra)
     seed_col = extra.get("seed")
     if seed_col is None or seed_col.dtype.kind != "f" or np.any(seed_col != np.round(seed_col)):
         raise ValidationError(f"{simulated_csv}: needs an integer 'seed' column (realism_targets.py --write-presses)")

@@ -64,7 +64,13 @@ def table_from_fits(fits: Mapping[str, Sequence]) -> PressTable:
 
 def table_from_csv(path: str | Path) -> PressTable:
     """A table from a per-press CSV (``material,n1,n2,a1,a2`` and the residual columns ``phi_n,phi_a``)."""
-    params, labels, extra = read_params_csv(path)
+    return table_from_columns(path, *read_params_csv(path))
+
+
+def table_from_columns(path: str | Path, params: np.ndarray, labels: Sequence[str],
+                       extra: Mapping[str, np.ndarray]) -> PressTable:
+    """A table from what :func:`~palpate.core.perception.params_table.read_params_csv` read from ``path`` (named in
+    errors), for a caller that also needs the file's other columns."""
     missing = [c for c in ("phi_n", "phi_a") if c not in extra or extra[c].dtype.kind != "f"]
     if missing:
         raise ValidationError(f"{path}: the sim-to-real comparison needs numeric column(s) {missing} (the fits' "
