@@ -4,13 +4,14 @@
     .venv/bin/python benchmarks/validity.py               # measure every case, write models/validity_table.json
     .venv/bin/python benchmarks/validity.py --quick       # the CI subset, printed only
 
-The FE reference is checked against closed forms in tests/test_fe_reference.py and its mesh convergence is
-printed here (the force change of three cases at refinement 0.5 and 1 against 2). What was tuned on what: the
-contact law has nothing tuned (it is exact for layers; its axisymmetric averaging of lateral variation is exact on
-the axis); flex's mesh correction was measured on homogeneous 1.7/3/7/14/30/70/150 mm blocks, none of which is a
-case here. BLAS runs on one thread (unless OMP/OPENBLAS/MKL_NUM_THREADS say otherwise): on a busy machine its
-threads waited for cores and then spun beside the next press, which made the FE-backed rungs look slower
-(docs/architecture.md, issue 12).
+The FE reference is checked against closed forms in tests/test_fe_reference.py and its mesh convergence is printed here
+(the force change of three cases at refinement 0.5 and 1 against 2). What was tuned on what: the contact law has nothing
+tuned (it is exact for layers; its axisymmetric averaging of lateral variation is exact on the axis); flex's mesh
+correction was measured on homogeneous 1.7/3/7/14/30/70/150 mm blocks, none of which is a case here, and a stiff skin's
+on calibration plates (2-70x, 0.7-4.5 mm skins, 12-60 mm; benchmarks/flex_plate.py), none of which is a case here
+either. BLAS runs on one thread (unless OMP/OPENBLAS/MKL_NUM_THREADS say otherwise): on a busy machine its threads
+waited for cores and then spun beside the next press, which made the FE-backed rungs look slower (docs/architecture.md,
+issue 12).
 """
 
 from __future__ import annotations

@@ -1,14 +1,15 @@
 """The `flex` fidelity: a MuJoCo deformable block (trilinear flexcomp, linear elasticity) pressed by the tip.
 
-What MuJoCo computes: the block's elastic deformation (per-cell stiffness with the material at each cell: layers
-and inclusions, see :mod:`palpate.sim.flex_model`), the tip's drive dynamics, the frictionless contact between the
-tip sphere and the block's surface vertices, and each contact's normal force. What palpate adds: the window of the
-object (bottom bonded to the table, cut sides pinned, free object edges free), the mesh correction (the coarse
-trilinear grid is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell
-and the block's thickness, measured against the reference of homogeneous blocks, :mod:`palpate.sim.flex_calibration`,
-so finite thickness, layers and edges come from the block itself; cells holding two materials (a soft skin, part of
-a lump) are corrected by the continuum's ratio of the mixed cells to the object, :mod:`palpate.sim.flex_mixing`),
-and the taxels: each contact force stands for the surface patch of its vertex (side = vertex spacing) and is spread
+What MuJoCo computes: the block's elastic deformation (per-cell stiffness with the material at each cell: layers and
+inclusions, see :mod:`palpate.sim.flex_model`), the tip's drive dynamics, the frictionless contact between the tip
+sphere and the block's surface vertices, and each contact's normal force. What palpate adds: the window of the object
+(bottom bonded to the table, cut sides pinned, free object edges free), the mesh correction (the coarse trilinear grid
+is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell and the block's
+thickness, measured against the reference of homogeneous blocks, :mod:`palpate.sim.flex_calibration`, so finite
+thickness, layers and edges come from the block itself; a stiff top layer, a plate, by the block's factor times the
+plate's, measured on calibration plates, :mod:`palpate.sim.flex_plate`; cells holding two materials (a soft skin, part
+of a lump) are corrected by the continuum's ratio of the mixed cells to the object, :mod:`palpate.sim.flex_mixing`), and
+the taxels: each contact force stands for the surface patch of its vertex (side = vertex spacing) and is spread
 uniformly over it on the pad, which then averages over each sensel.
 
 The model is built once per window (a ``models`` dict the caller keeps, e.g. one per SimSource) and its state reset
@@ -36,6 +37,7 @@ from palpate.sim.flex_model import (
     build_flex_model,
     mixing_at,
 )
+from palpate.sim.flex_plate import load_plate_calibration, plate_curve, plate_skin
 from palpate.sim.stability import (
     MAX_STEPS,
     SolverWarnings,
@@ -212,6 +214,9 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     nu = float((under or obj.materials()[0]).poisson)
     curve = mesh_curve(nu, cell / tip.radius, load_calibration(), obj.height, pinned_fraction) if calibrate else None
     mixing = mixing_at(fm, obj, x, y, tip.radius) if calibrate else None
+    # a stiff top layer in the plate window: the block's kappa over-corrects a plate (flex_plate)
+    skin = plate_skin(obj) if calibrate and grid.far_sides else None
+    plate = None if skin is None else plate_curve(load_plate_calibration(), skin, obj.height, cell / tip.radius)
     qadr = model.jnt_qposadr[fm.tip_joint]
     gid = fm.tip_geom
     inertia_steps = 0
@@ -270,8 +275,9 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         if calibrate:
             contact = np.sqrt(tip.radius * max(ind_k, 0.0)) * (1.0 if mixing is None else mixing.contact_at(ind_k))
             factor = curve.at(contact / cell)
-            factors[k] = factor.kappa * (1.0 if mixing is None else mixing.at(max(ind_k, 0.0)))
-            extrapolated |= factor.extrapolated
+            factors[k] = (factor.kappa * (1.0 if mixing is None else mixing.at(max(ind_k, 0.0)))
+                          * (1.0 if plate is None else plate.at(contact / cell)))
+            extrapolated |= factor.extrapolated or (plate is not None and plate.extrapolated(contact / cell))
         fn = fn / factors[k]
         force[k] = fn.sum()
         pressure[k] = sensel_pressure(pad_coordinates(pos - [x, y, zc], tip.radius), fn, tip, PATCH * fm.vertex_spacing)
@@ -303,6 +309,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             "pinned_sides": list(grid.pinned), "far_sides": grid.far_sides, "disc_radius": grid.disc_radius,
             "mesh_factor_range": [float(factors.min()), float(factors.max())],
             "calibration_extrapolated": bool(extrapolated), "mixing_corrected": mixing is not None,
+            "plate_corrected": plate is not None,
             "young_range": fm.meta["young_range"],
             "materials": sorted(set(fm.cell_material)), "vertex_patch": fm.vertex_spacing,
             "contact_solref": list(CONTACT_SOLREF), "kp": fm.kp, "max_contact_penetration": -min_dist,

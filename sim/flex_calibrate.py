@@ -4,15 +4,34 @@ used): uncalibrated presses on a thick block, each compared with the reference f
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from palpate.core.world.scene import Material
+from palpate.core.errors import SimulationDiverged
+from palpate.core.world.scene import Layer, Material
 from palpate.sim.contact.law import solve_contact_law
 from palpate.sim.flex import reference_press
-from palpate.sim.flex_calibration import CAL_HEIGHTS, CAL_YOUNG, FORMAT_VERSION, FREE_WINDOW_SCALE
-from palpate.sim.flex_grid import DEFAULT_WINDOW
+from palpate.sim.flex_calibration import (
+    CAL_HEIGHTS,
+    CAL_YOUNG,
+    FORMAT_VERSION,
+    FREE_WINDOW_SCALE,
+    load_calibration,
+    mesh_curve,
+)
+from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW
+from palpate.sim.flex_plate import (
+    BASE_POISSON,
+    BASE_YOUNG,
+    PLATE_FORMAT,
+    PLATE_FORMAT_VERSION,
+    PLATE_HEIGHTS,
+    PLATE_RATIOS,
+    PLATE_SKINS,
+    SKIN_POISSON,
+)
 from palpate.sim.reference.sample import AxisymmetricSample
 
 #: Contact radius over cell edge at which the factor is tabulated (below the first the contact is one vertex): dense,
@@ -21,6 +40,12 @@ CONTACT_OVER_CELL = tuple(round(v, 3) for v in np.arange(0.2, 1.301, 0.025))
 POISSONS = (0.0, 0.3, 0.45, 0.49)
 #: Deepest calibration press, as a fraction of the block's thickness (the validity table presses to 0.6).
 MAX_DEPTH_OVER_HEIGHT = 0.62
+
+
+def deepest_press(resolution: float, radius: float, height: float) -> float:
+    """A calibration press's depth, m: as deep as a / cell reaches CONTACT_OVER_CELL's end, within 0.7 tip radii
+    and MAX_DEPTH_OVER_HEIGHT of the block's ``height``."""
+    return min((CONTACT_OVER_CELL[-1] * resolution * 1.02) ** 2 / radius, 0.7 * radius, MAX_DEPTH_OVER_HEIGHT * height)
 
 
 def loading_ratio(indentation: np.ndarray, force: np.ndarray, reference, depths: np.ndarray) -> np.ndarray:
@@ -66,7 +91,7 @@ def _measure_table(resolution: float, radius: float, window: float, sides: str, 
     for nu in poissons:
         rows, ups = [], []
         for h in heights:
-            depth_max = min((ac[-1] * resolution * 1.02) ** 2 / radius, 0.7 * radius, MAX_DEPTH_OVER_HEIGHT * h)
+            depth_max = deepest_press(resolution, radius, h)
             trace = reference_press(young=CAL_YOUNG, poisson=nu, height=h, radius=radius, resolution=resolution,
                                     window=window, width=4.0 * window, depth=depth_max, calibrate=False)
             cell = float(trace.meta["cell"])
@@ -83,3 +108,104 @@ def _measure_table(resolution: float, radius: float, window: float, sides: str, 
     return {"sides": sides, "cell_over_radius": round(cell / radius, 4), "cell": cell, "poisson": list(poissons),
             "thickness": list(heights), "contact_over_cell": list(CONTACT_OVER_CELL), "measured_to": reach,
             "factor": factor}
+
+
+def plate_sample(skin: float, ratio: float, height: float, *, skin_poisson: float = SKIN_POISSON,
+                 base_poisson: float = BASE_POISSON) -> AxisymmetricSample:
+    """A stiff-over-soft stack: a ``skin`` m thick layer ``ratio`` times as stiff as its base, ``height`` m in all."""
+    return AxisymmetricSample(Material("base", BASE_YOUNG, base_poisson), height,
+                              layers=(Layer(Material("skin", BASE_YOUNG * ratio, skin_poisson), skin),))
+
+
+@dataclass(frozen=True)
+class PlateRatio:
+    """One uncorrected flex press on a plate against its exact layered law.
+
+    Attributes:
+        contact_over_cell: (c,) a / cell = sqrt(R d) / cell of each depth read (held at the deepest reached).
+        raw: (c,) F_flex (uncorrected) / F_law.
+        block: (c,) the block's kappa the press reads there (the free table: the plate window's).
+        reach: the deepest a / cell the press reached (capped at the grid's end).
+        cell: the window's cell at the press point, m.
+    """
+
+    contact_over_cell: np.ndarray
+    raw: np.ndarray
+    block: np.ndarray
+    reach: float
+    cell: float
+
+
+def plate_ratio(sample: AxisymmetricSample, *, radius: float = 0.008, resolution: float = DEFAULT_RESOLUTION,
+                depth: float | None = None, calibration: dict | None = None) -> PlateRatio:
+    """Press ``sample`` (a layered stack) once by flex, uncorrected, at the centre of a box wider than the plate
+    window, to ``depth`` (m; default :func:`deepest_press`), and compare it with the stack's exact layered contact
+    law."""
+    ac = np.array(CONTACT_OVER_CELL)
+    h = sample.thickness
+    if depth is None:
+        depth = deepest_press(resolution, radius, h)
+    bulk = sample.bulk
+    trace = reference_press(young=bulk.young, poisson=bulk.poisson, height=h, radius=radius, resolution=resolution,
+                            depth=depth, width=max(0.2, 4.0 * (h + 0.02)), layers=sample.layers, calibrate=False)
+    cell = float(trace.meta["cell"])
+    law = solve_contact_law(sample, radius, 1.05 * depth)
+    up = min(ac[-1], np.sqrt(radius * 0.98 * float(trace.indentation.max())) / cell)
+    inside = np.minimum(ac, up)
+    raw = loading_ratio(trace.indentation, trace.force, law, (inside * cell) ** 2 / radius)
+    top = sample.layers[0].material if sample.layers else bulk
+    curve = mesh_curve(top.poisson, cell / radius, load_calibration() if calibration is None else calibration, h, 0.0)
+    block = np.array([curve.at(float(a)).kappa for a in inside])
+    return PlateRatio(contact_over_cell=ac, raw=raw, block=block, reach=float(up), cell=cell)
+
+
+def _plate_ratio_within(sample: AxisymmetricSample, radius: float, resolution: float, calibration: dict,
+                        tries: int = 4) -> PlateRatio:
+    """:func:`plate_ratio` to the default depth, or, where that press diverges (a thin skin 70x its base, after
+    its deepest point: the tip sinks between the surface vertices), 15% shallower each time (its row is then held
+    beyond the a / cell it reached, and a press there is flagged extrapolated)."""
+    depth = None
+    for _ in range(tries - 1):
+        try:
+            return plate_ratio(sample, radius=radius, resolution=resolution, depth=depth, calibration=calibration)
+        except SimulationDiverged:
+            depth = 0.85 * (deepest_press(resolution, radius, sample.thickness) if depth is None else depth)
+    return plate_ratio(sample, radius=radius, resolution=resolution, depth=depth, calibration=calibration)
+
+
+def measure_plate_calibration(*, radius: float = 0.008, resolution: float = DEFAULT_RESOLUTION,
+                              path: Path | str | None = None, progress=None) -> dict:
+    """Measure q = (F_flex / F_law) / kappa_block on the calibration plates (PLATE_RATIOS x PLATE_SKINS x
+    PLATE_HEIGHTS, :mod:`palpate.sim.flex_plate`), one uncorrected press each; write the file if ``path``."""
+    calibration = load_calibration()
+    factor, reach, cell = [], [], None
+    for ratio in PLATE_RATIOS:
+        f_r, u_r = [], []
+        for skin in PLATE_SKINS:
+            f_s, u_s = [], []
+            for h in PLATE_HEIGHTS:
+                m = _plate_ratio_within(plate_sample(skin, ratio, h), radius, resolution, calibration)
+                f_s.append([round(float(v), 4) for v in m.raw / m.block])
+                u_s.append(round(m.reach, 4))
+                cell = m.cell
+                if progress is not None:
+                    progress(ratio, skin, h)
+            f_r.append(f_s)
+            u_r.append(u_s)
+        factor.append(f_r)
+        reach.append(u_r)
+    table = {
+        "format": PLATE_FORMAT, "version": PLATE_FORMAT_VERSION,
+        "measured_with": {
+            "radius": radius, "cell": cell, "skin_poisson": SKIN_POISSON, "base_poisson": BASE_POISSON,
+            "reference": "layered contact law of the same stack (palpate.sim.contact.law)",
+            "block_table": "models/flex_calibration.json, free sides (remeasure this table when it changes)",
+            "how": "benchmarks/flex_plate.py --calibrate (palpate.sim.flex_calibrate.measure_plate_calibration)",
+        },
+        "cell_over_radius": round(cell / radius, 4), "contact_over_cell": list(CONTACT_OVER_CELL),
+        "modulus_ratio": list(PLATE_RATIOS), "skin": list(PLATE_SKINS), "height": list(PLATE_HEIGHTS),
+        "factor": factor, "measured_to": reach,
+    }
+    if path is not None:
+        Path(path).write_text(json.dumps(table) + "\n")
+    return table

@@ -8,7 +8,8 @@ cells the factor is 1.44 on 20 mm and 1.70 on 100 mm, nu 0.3) and on the Poisson
 it is tabulated densely in a / cell, not smoothed. It is measured on homogeneous blocks (CAL_HEIGHTS, none of the
 validity table's thicknesses, wider than the window, bonded to the table) against the reference for the same block
 (the layered contact law, which agrees with the FE reference within ~1%): kappa(a / cell, H, nu) = F_flex /
-F_reference. A press divides its contact forces by kappa at its current contact radius sqrt(R d) (a soft skin's
+F_reference. A press divides its contact forces by kappa (times, over a stiff top layer, the plate's q,
+:mod:`palpate.sim.flex_plate`) at its current contact radius sqrt(R d) (a soft skin's
 mixed cells: where the block's contact was as wide, :meth:`palpate.sim.flex_mixing.MixingCorrection.contact_at`) and
 its object's height. kappa is the mesh's alone (the reference of each block includes its own thickness), so a
 thinner block, a layer or an edge keeps the stiffening its own elasticity gives it.

@@ -4,7 +4,8 @@
   grid so nearby presses share a model), the object's full height, cells of about ``resolution``; where the window
   cuts through the object its sides are pinned; free object faces within it stay free.
 - Over a stiff layer (a plate, which spreads its load far wider than a block), the box's window is
-  PLATE_WINDOW_SCALE times as wide, fine at the press and coarser out, with the free calibration table: the
+  PLATE_WINDOW_SCALE times as wide, fine at the press and coarser out, with the free calibration table (times the
+  plate's q under a stiff top layer, :mod:`palpate.sim.flex_plate`): the
   default window's pinned sides stiffened stiff skins by +25 to +40% at 4 mm.
 - A cylinder whose disc fits the window (radius up to window / sqrt(2)): the whole disc, a tensor grid mapped onto
   it (:func:`disc_map`), so its curved side is free where it really is. A square inscribed in the disc with

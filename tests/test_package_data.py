@@ -37,6 +37,7 @@ def test_every_shipped_scenario_loads_with_its_models(tmp_path, monkeypatch):
         scenario = load_scenario(info.path)
         assert scenario.name and info.description, info.name
     assert (models_dir() / "flex_calibration.json").is_file()
+    assert (models_dir() / "flex_plate_calibration.json").is_file()
     assert (models_dir() / "fingers" / "planar2.toml").is_file()
 
 

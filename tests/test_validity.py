@@ -169,13 +169,13 @@ def _flex_error(name: str, depths) -> np.ndarray:
 
 
 @pytest.mark.physics
-@pytest.mark.parametrize("name, depths", [("skin_stiff_1mm", (0.5e-3, 1e-3, 2e-3)),
+@pytest.mark.parametrize("name, depths", [("skin_stiff_1mm", (0.5e-3, 1e-3, 2e-3, 4e-3)),
                                           ("edge_15mm", (0.5e-3, 1e-3, 2e-3, 3e-3))])
 def test_flex_is_within_ten_percent_of_the_fe_reference_on_held_out_skins_and_an_edge(name, depths):
     """Issue 12 on cases flex was not tuned on (tuned: skin_*_2mm, lump_*_3mm, edge_10mm), against the cached FE
-    reference: a 1 mm stiff skin (it bends: its own cells with incompatible modes) from 0.5 to 2 mm (at 4 mm it is
-    +12.5% in the plate's wide window), and a cylinder whose free side is 15 mm from the press (meshed whole), from
-    0.5 to 3 mm. The soft skins: the next test."""
+    reference: a 1 mm stiff skin (it bends: its own cells with incompatible modes) from 0.5 to 4 mm (at 4 mm it was
+    +12.5% in the plate's wide window before the plate's kappa), and a cylinder whose free side is 15 mm from the
+    press (meshed whole), from 0.5 to 3 mm. The soft skins: the next test."""
     err = _flex_error(name, depths)
     assert np.all(np.abs(err) < 0.10), err
 
@@ -193,16 +193,15 @@ def test_flex_is_within_ten_percent_of_the_fe_reference_on_soft_skins_from_half_
 
 
 @pytest.mark.physics
-def test_a_stiff_skin_pressed_deep_is_not_stiffened_by_its_window():
+@pytest.mark.parametrize("name", ["skin_stiff_1mm", "skin_stiff_2mm", "skin_stiff_4mm"])
+def test_a_stiff_skin_is_within_five_percent_from_half_a_mm_to_four(name):
     """Issue 12: the default 30 mm window's pinned sides stiffened a stiff skin (a plate spreads its load far) by
-    +25 / +30 / +40% at 4 mm on the 1 / 2 / 4 mm skins; in the plate's wide graded window (sim/flex_grid.py, chosen
-    on skin_stiff_2mm) the held-out 4 mm skin is within 10% at 2 and 4 mm (-12.7% at 1 mm: its shallow rows went
-    soft, the skin cells' own error the pinned window had hidden) and each skin's 4 mm row within 15%."""
-    err = _flex_error("skin_stiff_4mm", (2e-3, 4e-3))
-    assert np.all(np.abs(err) < 0.10), err
-    for name in ("skin_stiff_1mm", "skin_stiff_2mm"):
-        err = _flex_error(name, (4e-3,))
-        assert np.all(np.abs(err) < 0.15), (name, err)
+    +25 / +30 / +40% at 4 mm on the 1 / 2 / 4 mm skins; the plate's wide graded window (sim/flex_grid.py, chosen on
+    skin_stiff_2mm) left +12.5% at 4 mm on the 1 mm skin and -12.7% at 1 mm on the 4 mm one (the block's kappa
+    over-corrects a plate); with the plate's kappa (sim/flex_plate.py, measured on calibration plates, none of
+    them these three, which are all held out from it) each is within 3.6% at 0.5-4 mm."""
+    err = _flex_error(name, (0.5e-3, 1e-3, 2e-3, 4e-3))
+    assert np.all(np.abs(err) < 0.05), err
 
 
 @pytest.mark.physics
