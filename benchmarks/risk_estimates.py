@@ -15,13 +15,13 @@ scored). None of them reads the scene's family or generator: they model shapes f
   the nearest presses on both sides (or two presses on one side) read a material other than the map's label, so a
   line of it may pass here;
 * :func:`subset_risk` (c): the post-processing rerun on random subsets of the presses; risk = share of reruns
-  whose label differs from the map's.
+  whose label differs from the map's;
+* :func:`wall_risk` (d): walls as lines (or conics) fitted to the presses around each cell: where presses along
+  a wall have located it, the fit extrapolates it past the lattice presses that the map copies.
 
 The Potts field couples cells at most two apart, so a stripe seen at two presses four or more cells apart does not
 carry into the cells between them (its samples follow the nearer lattice press); :func:`line_risk` does.
-
-* :func:`wall_risk` (d): walls as lines (or conics) fitted to the presses around each cell: where presses along
-  a wall have located it, the fit extrapolates it past the lattice presses that the map copies.
+Measurements: docs/exploration.md, "Estimating where a press would read otherwise".
 """
 
 from __future__ import annotations
