@@ -13,8 +13,14 @@ Validation printed alongside (docs/realism.md, fifth round): each population's m
 seed-bootstrap s.e. and the difference per-seed - pooled with its own; ``--perfect N`` adds N synthetic seeds drawn
 from the real table (a perfect simulator, whose expectation realism_ceiling.py gives) as a population.
 
+A simulated seed's presses share session-level draws (the same pad and finger for a material's 10 presses), so
+pooling presses over seeds widens their spread beyond a seed's. ``--session-levels`` keeps that structure: each
+synthetic seed takes one seed's level of n1 and a1 (its mean logs, per material) and draws its 10 presses from every
+seed's presses moved to that level (their residuals from their own seed's level, inflated by sqrt(k / (k - 1)) for a
+level estimated from k presses), so only the within-seed spread is pooled.
+
     .venv/bin/python benchmarks/realism_expected.py --simulated SHIPPED.csv [--simulated OTHER.csv]
-        [--perfect 24] [--draws 1000] [--resamples 100] [--resample-draws 150] [--rng 0]
+        [--perfect 24] [--session-levels] [--draws 1000] [--resamples 100] [--resample-draws 150] [--rng 0]
 """
 
 from __future__ import annotations
@@ -72,16 +78,44 @@ def perfect_seeds(real: PressTable, seeds: int, rng: np.random.Generator) -> tup
     return tuple(out)
 
 
-def pooled_held(seeds: Sequence[SeedPresses], real: PressTable, uniforms: np.ndarray,
-                rng: np.random.Generator) -> np.ndarray:
+def _session_logs(seeds: Sequence[SeedPresses], i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Material ``i``'s pooled presses split into session levels and residuals, in log n1 and log a1: (S, 2) each
+    seed's mean logs, (n, 2) each press's logs, (n, 2) its residual from its own seed's level, inflated by
+    sqrt(k / (k - 1)) so that residuals from a mean of k presses keep the within-seed variance."""
+    logs, levels, resid = [], [], []
+    for s in seeds:
+        x = s.rows[i][:, [0, 3]]
+        if len(x) < 2 or not np.all(x > 0):
+            raise ValidationError("session levels need at least 2 presses per material and seed, n1 and a1 > 0")
+        lx = np.log(x)
+        logs.append(lx)
+        levels.append(lx.mean(axis=0))
+        resid.append((lx - levels[-1]) * np.sqrt(len(x) / (len(x) - 1.0)))
+    return np.array(levels), np.vstack(logs), np.vstack(resid)
+
+
+def _at_level(rows: np.ndarray, logs: np.ndarray, resid: np.ndarray, level: np.ndarray) -> np.ndarray:
+    """Presses moved to one session's level: n1 and a1 to exp(level + residual), n2 / a2 with them (a gain scales a
+    law's offset as its slope) and the residual sums Phi by the square."""
+    f = np.exp(level + resid - logs)
+    return rows * np.column_stack([f[:, 0], f[:, 0], f[:, 0] ** 2, f[:, 1], f[:, 1], f[:, 1] ** 2])
+
+
+def pooled_held(seeds: Sequence[SeedPresses], real: PressTable, uniforms: np.ndarray, rng: np.random.Generator,
+                sessions: np.ndarray | None = None) -> np.ndarray:
     """(D, M, 4) the targets held on D synthetic seeds drawn from ``seeds``' presses pooled.
 
     ``uniforms`` (D, M, PRESSES) in [0, 1) pick the presses (floor(u n) of a material's n pooled presses), so two
     pools of equal size given the same uniforms draw the same positions; a draw whose held-out groups would leave
-    fewer than MIN_SAMPLES presses is replaced by one from ``rng`` (never needed with distinct presses)."""
+    fewer than MIN_SAMPLES presses is replaced by one from ``rng`` (never needed with distinct presses).
+
+    ``sessions`` (D,) in [0, 1), optional: each synthetic seed takes one seed's session (floor(v S) of the S seeds)
+    and every drawn press is moved to that seed's level of n1 and a1 (:func:`_session_logs`), so a synthetic seed
+    keeps a seed's between-material levels and only the within-seed spread is pooled."""
     materials = list(real.materials)
     rows = [np.vstack([s.rows[i] for s in seeds]) for i in range(len(materials))]
     ids = [np.concatenate([s.ids[i] for s in seeds]) for i in range(len(materials))]
+    logs = None if sessions is None else [_session_logs(seeds, i) for i in range(len(materials))]
     held = np.empty((len(uniforms), len(materials), len(TARGETS)), dtype=bool)
     for k, u in enumerate(uniforms):
         while True:
@@ -90,7 +124,11 @@ def pooled_held(seeds: Sequence[SeedPresses], real: PressTable, uniforms: np.nda
             if all(len(g) - np.unique(g, return_counts=True)[1].max() >= MIN_SAMPLES for g in groups):
                 break
             u = rng.random(u.shape)
-        table = PressTable(real.materials, tuple(r[p] for r, p in zip(rows, picks, strict=True)))
+        drawn = [r[p] for r, p in zip(rows, picks, strict=True)]
+        if logs is not None:
+            s = min(int(sessions[k] * len(seeds)), len(seeds) - 1)
+            drawn = [_at_level(d, lg[1][p], lg[2][p], lg[0][s]) for d, lg, p in zip(drawn, logs, picks, strict=True)]
+        table = PressTable(real.materials, tuple(drawn))
         # ids as small integers per material: loo_self offsets them so that no group spans two materials
         small = [np.unique(g, return_inverse=True)[1] for g in groups]
         held[k] = check_targets(table, real, loo_self(table, materials, small), materials).held
@@ -141,9 +179,10 @@ def _corrected_se(values: np.ndarray, mc_var: np.ndarray) -> float:
 
 
 def expected_targets(populations: Sequence[Sequence[SeedPresses]], real: PressTable, draws: int, resamples: int,
-                     resample_draws: int, rng: np.random.Generator) -> Expected:
+                     resample_draws: int, rng: np.random.Generator, session_levels: bool = False) -> Expected:
     """The pooled expectation of each population (``draws`` draws) and ``resamples`` seed resamples of
-    ``resample_draws`` draws each; every population is resampled on the same seed indices with the same uniforms."""
+    ``resample_draws`` draws each; every population is resampled on the same seed indices with the same uniforms.
+    ``session_levels``: each synthetic seed at one seed's level (:func:`pooled_held`'s ``sessions``)."""
     n = {len(p) for p in populations}
     if len(n) != 1 or min(n) < 2:
         raise ValidationError(f"populations must have the same number of seeds (at least 2), got {sorted(n)}")
@@ -153,7 +192,8 @@ def expected_targets(populations: Sequence[Sequence[SeedPresses]], real: PressTa
     seeds, m = n.pop(), len(real.materials)
     streams = rng.spawn(3)
     u0 = streams[0].random((draws, m, PRESSES))
-    point = [pooled_held(pop, real, u0, streams[2]) for pop in populations]
+    v0 = streams[0].random(draws) if session_levels else None
+    point = [pooled_held(pop, real, u0, streams[2], v0) for pop in populations]
     probability = np.array([h.mean(axis=0) for h in point])
     all_held = np.array([h.reshape(draws, -1).all(axis=1).mean() for h in point])
     observed = np.array([np.mean([s.held.sum() for s in pop]) for pop in populations])
@@ -162,9 +202,10 @@ def expected_targets(populations: Sequence[Sequence[SeedPresses]], real: PressTa
     for b in range(resamples):
         pick = streams[1].integers(0, seeds, size=seeds)
         u = streams[1].random((resample_draws, m, PRESSES))
+        v = streams[1].random(resample_draws) if session_levels else None
         for p, pop in enumerate(populations):
             chosen = [pop[i] for i in pick]
-            counts[b, p] = pooled_held(chosen, real, u, streams[2]).reshape(resample_draws, -1).sum(axis=1)
+            counts[b, p] = pooled_held(chosen, real, u, streams[2], v).reshape(resample_draws, -1).sum(axis=1)
             per_seed[b, p] = np.mean([s.held.sum() for s in chosen])
     return Expected(probability, all_held, observed, counts, per_seed)
 
@@ -202,6 +243,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--draws", type=int, default=1000, help="pooled draws of the point estimate")
     ap.add_argument("--resamples", type=int, default=100, help="seed resamples of the bootstrap")
     ap.add_argument("--resample-draws", type=int, default=150, help="pooled draws per seed resample")
+    ap.add_argument("--session-levels", action="store_true",
+                    help="each synthetic seed at one seed's level of n1 and a1; only the within-seed spread pooled")
     ap.add_argument("--rng", type=int, default=0)
     ap.add_argument("--real", type=Path, default=REPO / "models" / "realism" / "seed000_tables_6_3_to_6_5.csv")
     args = ap.parse_args(argv)
@@ -223,11 +266,12 @@ def main(argv: list[str] | None = None) -> int:
             pops.append(perfect_seeds(real, args.perfect, np.random.default_rng([args.rng, 1])))
         if not pops:
             raise ValidationError("give --simulated CSV and/or --perfect N")
-        e = expected_targets(pops, real, args.draws, args.resamples, args.resample_draws, rng)
+        e = expected_targets(pops, real, args.draws, args.resamples, args.resample_draws, rng, args.session_levels)
     except (ValidationError, ValueError, OSError) as err:
         print(f"realism_expected: {err}", file=sys.stderr)
         return 2
-    print(f"expected targets per {SEEDS} seeds from pooled presses (boot-out), {args.draws} draws; s.e. over "
+    how = "at one seed's session level each" if args.session_levels else "pooled"
+    print(f"expected targets per {SEEDS} seeds from presses {how} (boot-out), {args.draws} draws; s.e. over "
           f"{args.resamples} seed resamples of {args.resample_draws} draws each; rng {args.rng}; "
           f"seeds {','.join(map(str, seed_lists[0])) if seed_lists else '-'}")
     _report(names, e, real)

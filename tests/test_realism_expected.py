@@ -99,3 +99,18 @@ def test_populations_of_different_sizes_or_too_few_draws_are_refused(real):
         expected_targets([a, b], real, 10, 2, 2, np.random.default_rng(0))
     with pytest.raises(ValidationError, match="resamples"):
         expected_targets([a], real, 10, 1, 2, np.random.default_rng(0))
+
+
+def test_session_levels_pool_only_the_within_seed_spread(real):
+    base = perfect_seeds(real, 3, np.random.default_rng(7))
+    # each seed's presses of every material scaled by its own session gain: n1, n2 by k, Phi_N by k^2
+    scaled = []
+    for s, k in zip(base, (0.5, 1.0, 2.0), strict=True):
+        f = np.array([k, k, k * k, 1.0, 1.0, 1.0])
+        scaled.append(SeedPresses(tuple(r * f for r in s.rows), s.ids, s.held))
+    kw = {"draws": 60, "resamples": 2, "resample_draws": 5}
+    pooled = expected_targets([base, scaled], real, rng=np.random.default_rng(8), **kw)
+    session = expected_targets([base, scaled], real, rng=np.random.default_rng(8), session_levels=True, **kw)
+    # pooled, the gains between seeds widen every material's n1; at one seed's level the CVs and signs are the same
+    assert np.all(pooled.probability[1, :, 0] < pooled.probability[0, :, 0])
+    np.testing.assert_array_equal(session.probability[1, :, :3], session.probability[0, :, :3])
