@@ -261,7 +261,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.draws} synthetic seeds of {PRESSES} presses per material per generator, rng {args.rng}; "
           f"targets against {args.real.name}")
     # every population's band is compared with what the first simulated table's seeds held
-    total = next((int(sim.held.sum()) for _, _, sim in populations if sim is not None), None)
+    # (per SEEDS seeds, rounded down, so that a file of 24 seeds is compared with the band of 6)
+    total = next((int(sim.held.sum()) * SEEDS // len(sim.seeds) for _, _, sim in populations if sim is not None),
+                 None)
     streams = np.random.SeedSequence(args.rng).spawn(len(populations) * len(GENERATORS))
     # boot-out draws boot-kept's seeds: only the leave-one-out differs, so the copies' effect is seen alone
     stream = {g: GENERATORS.index("boot-kept" if g == "boot-out" else g) for g in GENERATORS}
