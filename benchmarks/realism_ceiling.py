@@ -21,7 +21,8 @@ presses holds fewer targets than the presses themselves). Generators, side by si
 Per target it prints the probability of holding it, the expected number of the 6 seeds that hold it and its band
 (5-95% of Binomial(6, p)), and per generator the expected count of the 12 targets of a seed and of 72 over 6 seeds,
 with the 5-95% band of the 72 (the per-seed counts' distribution convolved 6 times, so targets that miss together
-stay together). With ``--simulated``, the targets that table's own seeds held are printed too.
+stay together) and the share of synthetic seeds holding all 12 (what one deterministic run is asked to hold). With
+``--simulated``, the targets that table's own seeds held are printed too.
 
     .venv/bin/python benchmarks/realism_ceiling.py [--draws 2000] [--rng 0] [--real TABLE.csv]
         [--simulated benchmarks/data/thesis_ch6_heldout_presses.csv ...] [--generators boot-out,gauss]
@@ -158,12 +159,17 @@ def seeds_band(counts: np.ndarray, seeds: int = SEEDS, size: int = 12) -> tuple[
 
 @dataclass(frozen=True)
 class Simulated:
-    """Presses a profile simulated (realism_targets.py --write-presses): per seed, its table; and how many of those
-    seeds held each target (M, 4)."""
+    """Presses a profile simulated (realism_targets.py --write-presses): per seed, its table and which targets it
+    held (S, M, 4)."""
 
     seeds: tuple[int, ...]
     tables: tuple[PressTable, ...]
-    held: np.ndarray
+    seed_held: np.ndarray
+
+    @property
+    def held(self) -> np.ndarray:
+        """(M, 4) how many of the seeds held each target."""
+        return self.seed_held.sum(axis=0)
 
 
 def read_simulated(simulated_csv: Path, real: PressTable) -> Simulated:
@@ -178,15 +184,14 @@ def read_simulated(simulated_csv: Path, real: PressTable) -> Simulated:
         raise ValidationError(f"{simulated_csv}: needs an integer 'seed' column (realism_targets.py --write-presses)")
     seeds = sorted({int(v) for v in seed_col})
     materials = list(real.materials)
-    held = np.zeros((len(materials), len(TARGETS)), dtype=int)
-    tables = []
+    held, tables = [], []
     lab = np.asarray(labels)
     for seed in seeds:
         # table_from_csv keeps each material's rows in file order, as its seed column's are
         rows = tuple(table.of(m)[seed_col[lab == m] == seed] for m in materials)
         tables.append(PressTable(tuple(materials), rows))
-        held += check_targets(tables[-1], real, loo_self(tables[-1], materials), materials).held
-    return Simulated(tuple(seeds), tuple(tables), held)
+        held.append(check_targets(tables[-1], real, loo_self(tables[-1], materials), materials).held)
+    return Simulated(tuple(seeds), tuple(tables), np.array(held, dtype=int))
 
 
 def _report(name: str, results: dict[str, Ceiling], real: PressTable, seen: np.ndarray | None,
@@ -213,7 +218,7 @@ def _report(name: str, results: dict[str, Ceiling], real: PressTable, seen: np.n
         extra = "" if total is None else f"; P(<= {total}) {pmf[:total + 1].sum():.3f}"
         print(f"  {g}: expected {c.mean():.2f} of {size} a seed, {SEEDS * c.mean():.1f} of {SEEDS * size} over "
               f"{SEEDS} seeds (Monte Carlo s.e. {se:.1f}; 5-95% of 6 seeds {lo:.0f}-{hi:.0f}{extra}); "
-              f"redrawn {results[g].redrawn}")
+              f"all {size} held on {np.mean(c == size):.3f} of seeds; redrawn {results[g].redrawn}")
 
 
 def _draws(text: str) -> int:
@@ -256,7 +261,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.draws} synthetic seeds of {PRESSES} presses per material per generator, rng {args.rng}; "
           f"targets against {args.real.name}")
     # every population's band is compared with what the first simulated table's seeds held
-    total = next((int(sim.held.sum()) for _, _, sim in populations if sim is not None), None)
+    # (per SEEDS seeds, rounded down, so that a file of 24 seeds is compared with the band of 6)
+    total = next((int(sim.held.sum()) * SEEDS // len(sim.seeds) for _, _, sim in populations if sim is not None),
+                 None)
     streams = np.random.SeedSequence(args.rng).spawn(len(populations) * len(GENERATORS))
     # boot-out draws boot-kept's seeds: only the leave-one-out differs, so the copies' effect is seen alone
     stream = {g: GENERATORS.index("boot-kept" if g == "boot-out" else g) for g in GENERATORS}
