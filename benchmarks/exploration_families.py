@@ -16,7 +16,9 @@ percentile, for info_gain and max_entropy (--scenes 288 gives 32 scenes per fami
 Offline (default), presses are answered from the memory's predicted outcomes for the material a press there feels
 (benchmarks/family_runs.py); --policies ...,clairvoyant,oracle_truth,oracle_readings adds offline references: a
 greedy planner that knows every reading (benchmarks/clairvoyant.py) and info_gain told where its map differs from
-the truth or from what a press would read (benchmarks/oracle_risk.py; --oracle-noise HIT,FALSE_ALARM).
+the truth or from what a press would read (benchmarks/oracle_risk.py; --oracle-noise HIT,FALSE_ALARM);
+--policies ...,gap_split adds a candidate, info_gain that presses inside the lattice's gaps first
+(benchmarks/gap_split.py; --gap FIELD=VALUE).
 --physics K adds K scenes per split with simulated presses (analytic fidelity), and their maps' calibration: the
 expected calibration error (ECE) of the post-processed map's most probable material, pooled over cells and scenes at
 20/35/50/100% of each scene's cells pressed, and a reliability figure (--figure).
@@ -27,7 +29,7 @@ gracefully and stay the best policy.
 
 Run: .venv/bin/python benchmarks/exploration_families.py [--scenes N] [--split tuning|report|both] [--physics K]
      [--policies a,b] [--confused] [--figure PNG] [--json PATH] [--store-felt] [--info-gain FIELD=VALUE ...]
-     [--oracle-noise HIT,FALSE_ALARM]
+     [--oracle-noise HIT,FALSE_ALARM] [--gap FIELD=VALUE ...]
 
 Felt cells cost FE solves (up to a minute a scene); they are cached in the temp folder and read from the committed
 benchmarks/data/felt_cells.npz, both keyed on the contact law's code, so a changed law recomputes them;
@@ -57,6 +59,7 @@ from family_runs import (  # noqa: E402
     physics_run,
     store_felt_archive,
 )
+from gap_split import GAP_FIELDS, gap_run  # noqa: E402
 from oracle_risk import oracle_run  # noqa: E402
 from scene_families import FAMILIES, REPORT_SEEDS, TUNING_SEEDS, scene  # noqa: E402
 
@@ -66,8 +69,9 @@ from palpate.core.planning.info_gain import InfoGain  # noqa: E402
 ABSOLUTE = 0.95
 TARGETS = {"median": 0.35, "worst": 0.7}
 #: Rows beyond the policies, offline only: the clairvoyant reference (benchmarks/clairvoyant.py) and info_gain told
-#: where its map differs from the truth or from the readings (benchmarks/oracle_risk.py).
-REFERENCE_ROWS = ("clairvoyant", "oracle_truth", "oracle_readings")
+#: where its map differs from the truth or from the readings (benchmarks/oracle_risk.py); gap_split, info_gain that
+#: presses inside the lattice's gaps first (benchmarks/gap_split.py), a candidate rather than a reference.
+REFERENCE_ROWS = ("clairvoyant", "oracle_truth", "oracle_readings", "gap_split")
 
 
 def _count(run: Run, level: float) -> int:
@@ -76,9 +80,10 @@ def _count(run: Run, level: float) -> int:
 
 
 def scene_rows(fs, rows: list[str], physics: bool, settings: dict | None = None,
-               oracle_noise: tuple[float, float] = (1.0, 0.0)) -> dict:
+               oracle_noise: tuple[float, float] = (1.0, 0.0), gap: dict | None = None) -> dict:
     """Every row's presses on one scene, the ceiling and the runs (for calibration); ``settings`` replaces fields of
-    the info_gain rows' policy (offline only); ``oracle_noise`` is the oracle rows' (hit, false alarm)."""
+    the info_gain rows' policy (offline only); ``oracle_noise`` is the oracle rows' (hit, false alarm); ``gap`` the
+    gap_split row's fields."""
     if physics:
         raster = physics_run(fs, "raster")
     else:
@@ -99,6 +104,8 @@ def scene_rows(fs, rows: list[str], physics: bool, settings: dict | None = None,
         elif row in ("oracle_truth", "oracle_readings"):
             hit, false_alarm = oracle_noise
             run = oracle_run(fs, row.split("_")[1], stop_at=stop, settings=settings, hit=hit, false_alarm=false_alarm)
+        elif row == "gap_split":
+            run = gap_run(fs, stop_at=stop, settings=settings, gap=gap)
         else:
             mine = settings if ROWS[row][0] == "info_gain" else None
             run = physics_run(fs, row) if physics else offline_run(fs, row, stop_at=stop, settings=mine)
@@ -226,15 +233,24 @@ def parse_settings(parser: argparse.ArgumentParser, items: list[str]) -> dict:
     # the numeric fields: the memory, objective and switches are not swept
     fields = {f.name for f in dataclasses.fields(InfoGain) if f.init} - {"memory", "objective", "lateral",
                                                                           "incremental"}
+    return _numbers(parser, items, sorted(fields), "--info-gain")
+
+
+def parse_gap(parser: argparse.ArgumentParser, items: list[str]) -> dict:
+    """``FIELD=VALUE`` items as the gap_split row's fields (benchmarks/gap_split.py; numbers)."""
+    return _numbers(parser, items, list(GAP_FIELDS), "--gap")
+
+
+def _numbers(parser: argparse.ArgumentParser, items: list[str], fields: list[str], flag: str) -> dict:
     out = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or key not in fields:
-            parser.error(f"--info-gain takes FIELD=VALUE with FIELD one of {', '.join(sorted(fields))}; got {item!r}")
+            parser.error(f"{flag} takes FIELD=VALUE with FIELD one of {', '.join(fields)}; got {item!r}")
         try:
             out[key] = int(value) if value.lstrip("-").isdigit() else float(value)
         except ValueError:
-            parser.error(f"--info-gain {key}: {value!r} is not a number")
+            parser.error(f"{flag} {key}: {value!r} is not a number")
     return out
 
 
@@ -272,8 +288,11 @@ def main() -> None:
     parser.add_argument("--oracle-noise", default="1,0", metavar="HIT,FALSE_ALARM",
                         help="the oracle rows mark this share of the cells their map gets wrong, and this share of "
                              "the others (default 1,0: exact)")
+    parser.add_argument("--gap", action="append", default=[], metavar="FIELD=VALUE",
+                        help=f"the gap_split row's fields ({', '.join(GAP_FIELDS)}), repeatable")
     args = parser.parse_args()
     settings = parse_settings(parser, args.info_gain)
+    gap = parse_gap(parser, args.gap)
     oracle_noise = parse_noise(parser, args.oracle_noise)
     if settings and args.physics:
         parser.error("--info-gain applies to offline runs only (physics runs read their policy from the scenario)")
@@ -296,7 +315,7 @@ def main() -> None:
             results = []
             for s in seeds[:n]:
                 fs = scene(s).with_confusion() if args.confused else scene(s)
-                r = scene_rows(fs, split_rows, physics, settings, oracle_noise)
+                r = scene_rows(fs, split_rows, physics, settings, oracle_noise, gap)
                 results.append(r)
                 if args.verbose:
                     print(f"{name} {s} {r['family']:<10} {r['cells']:4d} cells ceiling {r['ceiling']:.3f} "
