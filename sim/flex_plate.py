@@ -10,20 +10,20 @@ multiplies the block's kappa by q = kappa_plate / kappa_block, measured here:
     q(a / cell, nu_skin, nu_base, t, E_skin / E_base, H) = (F_flex / F_law) / kappa_block
 
 on calibration plates (PLATE_SKIN_POISSONS x PLATE_BASE_POISSONS x PLATE_RATIOS x PLATE_SKINS x PLATE_HEIGHTS, none
-of them a validity-table stack), each meshed exactly as the shipped plate window meshes it,
-pressed by flex uncorrected, against the exact layered contact law of the same stack (within 0.5% of the FE
-reference on the table's skins), over the free table's kappa_block at the press's contact radius, the Poisson ratio
-of the skin and the stack's height (what the press reads). q carries the block table's ripple in a / cell inverted
-(a plate's uncorrected force is smooth where a block's ripples), so it is tabulated on the same dense a / cell grid.
+of them a validity-table stack), each meshed exactly as the shipped plate window meshes it, pressed by flex
+uncorrected, against the exact layered contact law of the same stack (within 0.5% of the FE reference on the table's
+skins), over the free table's kappa_block at the press's contact radius, the Poisson ratio of the skin and the
+stack's height (what the press reads). q carries the block table's ripple in a / cell inverted (a plate's
+uncorrected force is smooth where a block's ripples), so it is tabulated on the same dense a / cell grid.
 
-Interpolation (chosen on calibration stacks like skin_stiff_2mm, 1.75 mm of 12x on 25 and 40 mm and 2.25 mm of 30x
-on 20 mm, not on the validity cases): linear in a / cell, log skin thickness, log modulus ratio and log height,
-clamped at the table's ends; linear in the skin's Poisson ratio and in log(K / G) of the base's (the plate window's
-pinned sides confine the base, more the less compressible it is; chosen over linear in nu on four stacks of bases
-at nu 0.4-0.48, docs/architecture.md). Below its first ratio (2x) q is that row's: the plate window's own
-difference from the free table's block (0.12-0.19 from 1 on bases of nu 0.3 and 0.45, 0.38-0.40 on nu 0.49: its
-coarse outer cells and pinned sides), which going to q = 1 at ratio 1 put 11% into a 1.3x skin on a base of nu 0.49
-(chosen on three skins of 1.2-1.5x, docs/architecture.md).
+Interpolation (chosen in the earlier 90 mm window, not rechosen, on calibration stacks like skin_stiff_2mm, 1.75 mm
+of 12x on 25 and 40 mm and 2.25 mm of 30x on 20 mm, not on the validity cases): linear in a / cell, log skin
+thickness, log modulus ratio and log height, clamped at the table's ends; linear in the skin's Poisson ratio and in
+log(K / G) of the base's (the plate window's pinned sides confine the base, more the less compressible it is; chosen
+over linear in nu on four stacks of bases at nu 0.4-0.48, docs/architecture.md). Below its first ratio (2x) q is
+that row's: the plate window's own difference from the free table's block (0.12-0.19 from 1 on bases of nu 0.3 and
+0.45, 0.38-0.40 on nu 0.49), which going to q = 1 at ratio 1 put 11% into a 1.3x skin on a base of nu 0.49 (chosen
+on three skins of 1.2-1.5x, docs/architecture.md).
 
 models/flex_plate_calibration.json holds the table for one cell size; ``benchmarks/flex_plate.py --calibrate``
 remeasures it (:func:`palpate.sim.flex_calibrate.measure_plate_calibration`); it depends on the block table, so it
