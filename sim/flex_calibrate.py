@@ -25,10 +25,12 @@ from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW
 from palpate.sim.flex_plate import (
     BASE_POISSON,
     BASE_YOUNG,
+    PLATE_BASE_POISSONS,
     PLATE_FORMAT,
     PLATE_FORMAT_VERSION,
     PLATE_HEIGHTS,
     PLATE_RATIOS,
+    PLATE_SKIN_POISSONS,
     PLATE_SKINS,
     SKIN_POISSON,
 )
@@ -175,34 +177,35 @@ def _plate_ratio_within(sample: AxisymmetricSample, radius: float, resolution: f
 
 def measure_plate_calibration(*, radius: float = 0.008, resolution: float = DEFAULT_RESOLUTION,
                               path: Path | str | None = None, progress=None) -> dict:
-    """Measure q = (F_flex / F_law) / kappa_block on the calibration plates (PLATE_RATIOS x PLATE_SKINS x
-    PLATE_HEIGHTS, :mod:`palpate.sim.flex_plate`), one uncorrected press each; write the file if ``path``."""
+    """Measure q = (F_flex / F_law) / kappa_block on the calibration plates (PLATE_SKIN_POISSONS x
+    PLATE_BASE_POISSONS x PLATE_RATIOS x PLATE_SKINS x PLATE_HEIGHTS, :mod:`palpate.sim.flex_plate`), one uncorrected
+    press each; write the file if ``path``. ``progress(skin_poisson, base_poisson, ratio, skin, height)`` after each."""
     calibration = load_calibration()
-    factor, reach, cell = [], [], None
-    for ratio in PLATE_RATIOS:
-        f_r, u_r = [], []
-        for skin in PLATE_SKINS:
-            f_s, u_s = [], []
-            for h in PLATE_HEIGHTS:
-                m = _plate_ratio_within(plate_sample(skin, ratio, h), radius, resolution, calibration)
-                f_s.append([round(float(v), 4) for v in m.raw / m.block])
-                u_s.append(round(m.reach, 4))
-                cell = m.cell
-                if progress is not None:
-                    progress(ratio, skin, h)
-            f_r.append(f_s)
-            u_r.append(u_s)
-        factor.append(f_r)
-        reach.append(u_r)
+    cell = None
+
+    def plate(nu_s, nu_b, ratio, skin, h):
+        nonlocal cell
+        sample = plate_sample(skin, ratio, h, skin_poisson=nu_s, base_poisson=nu_b)
+        m = _plate_ratio_within(sample, radius, resolution, calibration)
+        cell = m.cell
+        if progress is not None:
+            progress(nu_s, nu_b, ratio, skin, h)
+        return [round(float(v), 4) for v in m.raw / m.block], round(m.reach, 4)
+
+    rows = [[[[[plate(nu_s, nu_b, ratio, skin, h) for h in PLATE_HEIGHTS] for skin in PLATE_SKINS]
+              for ratio in PLATE_RATIOS] for nu_b in PLATE_BASE_POISSONS] for nu_s in PLATE_SKIN_POISSONS]
+    factor = [[[[[f for f, _ in hs] for hs in ss] for ss in ms] for ms in bs] for bs in rows]
+    reach = [[[[[u for _, u in hs] for hs in ss] for ss in ms] for ms in bs] for bs in rows]
     table = {
         "format": PLATE_FORMAT, "version": PLATE_FORMAT_VERSION,
         "measured_with": {
-            "radius": radius, "cell": cell, "skin_poisson": SKIN_POISSON, "base_poisson": BASE_POISSON,
+            "radius": radius, "cell": cell,
             "reference": "layered contact law of the same stack (palpate.sim.contact.law)",
             "block_table": "models/flex_calibration.json, free sides (remeasure this table when it changes)",
             "how": "benchmarks/flex_plate.py --calibrate (palpate.sim.flex_calibrate.measure_plate_calibration)",
         },
         "cell_over_radius": round(cell / radius, 4), "contact_over_cell": list(CONTACT_OVER_CELL),
+        "skin_poisson": list(PLATE_SKIN_POISSONS), "base_poisson": list(PLATE_BASE_POISSONS),
         "modulus_ratio": list(PLATE_RATIOS), "skin": list(PLATE_SKINS), "height": list(PLATE_HEIGHTS),
         "factor": factor, "measured_to": reach,
     }

@@ -49,9 +49,11 @@ LAYER_CELLS = 2
 #: A window over a stiff layer (a plate) is this many default windows wide, graded laterally: cells of the
 #: resolution within PLATE_CORE_CELLS cells of the press, then growing by PLATE_GROWTH per cell out to its sides.
 #: A plate spreads its load far wider than a block, so the default window's pinned sides stiffen it (+30% on
-#: skin_stiff_2mm at 4 mm); chosen on skin_stiff_2mm among windows 60-120 mm, cores 10-15 mm and growths 1.5-4
+#: skin_stiff_2mm at 4 mm). 60 mm (one 20 mm cell each side of the fine core, 6 x 6 cells) since the plate table
+#: is measured on this window with the base's Poisson ratio as an axis: half the cost of the 90 mm window (8 x 8)
+#: at the same error; a graded base or outer cells of 25 mm or more diverged on thin calibration plates
 #: (docs/architecture.md, issue 12).
-PLATE_WINDOW_SCALE = 3.0
+PLATE_WINDOW_SCALE = 2.0
 PLATE_CORE_CELLS = 2
 PLATE_GROWTH = 2.0
 

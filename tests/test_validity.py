@@ -199,7 +199,8 @@ def test_a_stiff_skin_is_within_five_percent_from_half_a_mm_to_four(name):
     +25 / +30 / +40% at 4 mm on the 1 / 2 / 4 mm skins; the plate's wide graded window (sim/flex_grid.py, chosen on
     skin_stiff_2mm) left +12.5% at 4 mm on the 1 mm skin and -12.7% at 1 mm on the 4 mm one (the block's kappa
     over-corrects a plate); with the plate's kappa (sim/flex_plate.py, measured on calibration plates, none of
-    them these three, which are all held out from it) each is within 3.6% at 0.5-4 mm."""
+    them these three, which are all held out from it) each is within 3.6% at 0.5-4 mm; in the 60 mm plate window
+    with the table remeasured on it (half the cost), within 2.3%."""
     err = _flex_error(name, (0.5e-3, 1e-3, 2e-3, 4e-3))
     assert np.all(np.abs(err) < 0.05), err
 
