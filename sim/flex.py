@@ -7,10 +7,11 @@ sphere and the block's surface vertices, and each contact's normal force. What p
 is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell and the block's
 thickness, measured against the reference of homogeneous blocks, :mod:`palpate.sim.flex_calibration`, so finite
 thickness, layers and edges come from the block itself; a stiff top layer, a plate, by the block's factor times the
-plate's, measured on calibration plates, :mod:`palpate.sim.flex_plate`; cells holding two materials (a soft skin, part
-of a lump) are corrected by the continuum's ratio of the mixed cells to the object, :mod:`palpate.sim.flex_mixing`), and
-the taxels: each contact force stands for the surface patch of its vertex (side = vertex spacing) and is spread
-uniformly over it on the pad, which then averages over each sensel.
+plate's, measured on calibration plates, :mod:`palpate.sim.flex_plate`; over a lump, by the factor its pocket's
+surface vertices add, measured on calibration lumps, :mod:`palpate.sim.flex_lump`; cells holding two materials (a
+soft skin, part of a lump) are corrected by the continuum's ratio of the mixed cells to the object,
+:mod:`palpate.sim.flex_mixing`), and the taxels: each contact force stands for the surface patch of its vertex (side =
+vertex spacing) and is spread uniformly over it on the pad, which then averages over each sensel.
 
 The model is built once per window (a ``models`` dict the caller keeps, e.g. one per SimSource) and its state reset
 between presses. A cylinder narrow enough for the window is meshed whole (its curved side free), a wider one by

@@ -58,7 +58,8 @@ LUMP_BULK_POISSON = 0.45
 LUMP_HEIGHT = 0.03
 SOFT_LUMP_POISSON = 0.3
 HARD_LUMP_POISSON = 0.4
-#: Indentations of the calibration presses, m (a / cell 0.36-1.13 on the 8 mm tip with 5 mm cells; held beyond).
+#: Indentations of the calibration presses, m (a / cell 0.36-1.13 on the 8 mm tip with 5 mm cells; r is held
+#: beyond both ends, flagged beyond the deep one).
 LUMP_DEPTHS = tuple(float(v) for v in np.geomspace(4.0e-4, 4.0e-3, 28))
 
 
@@ -141,9 +142,9 @@ class LumpCurve:
         return float(np.interp(contact_over_cell, self.contact_over_cell, self.factor))
 
     def extrapolated(self, contact_over_cell: float) -> bool:
-        """Whether r at ``contact_over_cell`` is read outside what was measured."""
-        return bool(self.outside or not self.contact_over_cell[0] * 0.95 <= contact_over_cell
-                    <= self.contact_over_cell[-1] * 1.05)
+        """Whether r at ``contact_over_cell`` is read outside what was measured: beyond its deepest press (every
+        press passes through the shallow end, where r is held as the lateral mixing correction is)."""
+        return bool(self.outside or contact_over_cell > self.contact_over_cell[-1] * 1.05)
 
 
 def lump_curve(table: LumpTable, moduli: np.ndarray, cell_over_radius: float) -> LumpCurve:
