@@ -108,7 +108,7 @@ def pocket_moduli(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: n
     """e1, e2 of a press at (x, y) (m): the mean Young's modulus over the bulk's of the four cells round the press
     axis (centres half a cell off it) in the window's top cell layer and in the one under it; ``young`` and
     ``poisson`` per cell (:func:`palpate.sim.flex_mixing.cell_moduli`). None where the lump correction does not
-    apply: no inclusion, a layer or a material map (the table holds no such window), or the four cells all bulk."""
+    apply: no inclusion, a layer or a material map (the table holds no such window), or all eight cells bulk."""
     if not obj.inclusions or obj.layers or obj.material_map is not None or len(grid.z) < 3:
         return None
     lookup = cell_lookup(obj, grid, young, poisson, x, y)
