@@ -7,10 +7,11 @@ sphere and the block's surface vertices, and each contact's normal force. What p
 is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell and the block's
 thickness, measured against the reference of homogeneous blocks, :mod:`palpate.sim.flex_calibration`, so finite
 thickness, layers and edges come from the block itself; a stiff top layer, a plate, by the block's factor times the
-plate's, measured on calibration plates, :mod:`palpate.sim.flex_plate`; cells holding two materials (a soft skin, part
-of a lump) are corrected by the continuum's ratio of the mixed cells to the object, :mod:`palpate.sim.flex_mixing`), and
-the taxels: each contact force stands for the surface patch of its vertex (side = vertex spacing) and is spread
-uniformly over it on the pad, which then averages over each sensel.
+plate's, measured on calibration plates, :mod:`palpate.sim.flex_plate`; over a lump, by the factor its pocket's
+surface vertices add, measured on calibration lumps, :mod:`palpate.sim.flex_lump`; cells holding two materials (a
+soft skin, part of a lump) are corrected by the continuum's ratio of the mixed cells to the object,
+:mod:`palpate.sim.flex_mixing`), and the taxels: each contact force stands for the surface patch of its vertex (side =
+vertex spacing) and is spread uniformly over it on the pad, which then averages over each sensel.
 
 The model is built once per window (a ``models`` dict the caller keeps, e.g. one per SimSource) and its state reset
 between presses. A cylinder narrow enough for the window is meshed whole (its curved side free), a wider one by
@@ -29,6 +30,7 @@ from palpate.sim.analytic import material_under
 from palpate.sim.controller import press_profile
 from palpate.sim.flex_calibration import load_calibration, mesh_curve
 from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW, flex_grid
+from palpate.sim.flex_lump import load_lump_calibration, lump_curve, pocket_moduli
 from palpate.sim.flex_model import (
     CONTACT_SOLREF,
     MAX_TIMESTEP,
@@ -217,6 +219,9 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     # a stiff top layer in the plate window: the block's kappa over-corrects a plate (flex_plate)
     skin = plate_skin(obj) if calibrate and grid.far_sides else None
     plate = None if skin is None else plate_curve(load_plate_calibration(), skin, obj.height, cell / tip.radius)
+    # a lump under the press: the surface vertices over its pocket, which neither kappa nor the mixing sees (flex_lump)
+    pocket = pocket_moduli(obj, grid, fm.cell_young, fm.cell_poisson, x, y) if calibrate and fm.lateral else None
+    lump = None if pocket is None else lump_curve(load_lump_calibration(), pocket, cell / tip.radius)
     qadr = model.jnt_qposadr[fm.tip_joint]
     gid = fm.tip_geom
     inertia_steps = 0
@@ -276,8 +281,10 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             contact = np.sqrt(tip.radius * max(ind_k, 0.0)) * (1.0 if mixing is None else mixing.contact_at(ind_k))
             factor = curve.at(contact / cell)
             factors[k] = (factor.kappa * (1.0 if mixing is None else mixing.at(max(ind_k, 0.0)))
-                          * (1.0 if plate is None else plate.at(contact / cell)))
-            extrapolated |= factor.extrapolated or (plate is not None and plate.extrapolated(contact / cell))
+                          * (1.0 if plate is None else plate.at(contact / cell))
+                          * (1.0 if lump is None else lump.at(contact / cell)))
+            extrapolated |= (factor.extrapolated or (plate is not None and plate.extrapolated(contact / cell))
+                             or (lump is not None and lump.extrapolated(contact / cell)))
         fn = fn / factors[k]
         force[k] = fn.sum()
         pressure[k] = sensel_pressure(pad_coordinates(pos - [x, y, zc], tip.radius), fn, tip, PATCH * fm.vertex_spacing)
@@ -309,7 +316,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
             "pinned_sides": list(grid.pinned), "far_sides": grid.far_sides, "disc_radius": grid.disc_radius,
             "mesh_factor_range": [float(factors.min()), float(factors.max())],
             "calibration_extrapolated": bool(extrapolated), "mixing_corrected": mixing is not None,
-            "plate_corrected": plate is not None,
+            "plate_corrected": plate is not None, "lump_corrected": lump is not None,
             "young_range": fm.meta["young_range"],
             "materials": sorted(set(fm.cell_material)), "vertex_patch": fm.vertex_spacing,
             "contact_solref": list(CONTACT_SOLREF), "kp": fm.kp, "max_contact_penetration": -min_dist,

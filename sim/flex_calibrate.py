@@ -9,10 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core.errors import SimulationDiverged
-from palpate.core.world.scene import Layer, Material
+from palpate.core.errors import SimulationDiverged, ValidationError
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, Scene
 from palpate.sim.contact.law import solve_contact_law
-from palpate.sim.flex import reference_press
+from palpate.sim.controller import press_profile
+from palpate.sim.flex import reference_press, run_flex_press
 from palpate.sim.flex_calibration import (
     CAL_HEIGHTS,
     CAL_YOUNG,
@@ -22,6 +24,21 @@ from palpate.sim.flex_calibration import (
     mesh_curve,
 )
 from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW
+from palpate.sim.flex_lump import (
+    HARD_LUMP_POISSON,
+    LUMP_BULK_POISSON,
+    LUMP_BULK_YOUNG,
+    LUMP_CONTRASTS,
+    LUMP_COVERS,
+    LUMP_DEPTHS,
+    LUMP_FORMAT,
+    LUMP_FORMAT_VERSION,
+    LUMP_HEIGHT,
+    LUMP_RADII,
+    SOFT_LUMP_POISSON,
+    pocket_moduli,
+)
+from palpate.sim.flex_model import mixing_at
 from palpate.sim.flex_plate import (
     BASE_POISSON,
     BASE_YOUNG,
@@ -34,7 +51,8 @@ from palpate.sim.flex_plate import (
     PLATE_SKINS,
     SKIN_POISSON,
 )
-from palpate.sim.reference.sample import AxisymmetricSample
+from palpate.sim.reference.fe import fe_press
+from palpate.sim.reference.sample import AxisInclusion, AxisymmetricSample
 
 #: Contact radius over cell edge at which the factor is tabulated (below the first the contact is one vertex): dense,
 #: because the factor ripples as the contact's edge crosses the rings of surface vertices.
@@ -208,6 +226,100 @@ def measure_plate_calibration(*, radius: float = 0.008, resolution: float = DEFA
         "skin_poisson": list(PLATE_SKIN_POISSONS), "base_poisson": list(PLATE_BASE_POISSONS),
         "modulus_ratio": list(PLATE_RATIOS), "skin": list(PLATE_SKINS), "height": list(PLATE_HEIGHTS),
         "factor": factor, "measured_to": reach,
+    }
+    if path is not None:
+        Path(path).write_text(json.dumps(table) + "\n")
+    return table
+
+
+
+def lump_sample(cover: float, radius: float, contrast: float) -> AxisymmetricSample:
+    """A calibration lump: a sphere of ``radius`` m, its top ``cover`` m down, ``contrast`` times the bulk's
+    Young's modulus, on the axis of the calibration block (:mod:`palpate.sim.flex_lump`)."""
+    nu = SOFT_LUMP_POISSON if contrast < 1.0 else HARD_LUMP_POISSON
+    return AxisymmetricSample(Material("bulk", LUMP_BULK_YOUNG, LUMP_BULK_POISSON), LUMP_HEIGHT,
+                              inclusion=AxisInclusion(Material("lump", LUMP_BULK_YOUNG * contrast, nu), "sphere",
+                                                      cover, radius))
+
+
+def lump_object(sample: AxisymmetricSample) -> ObjectSpec:
+    """A box wide enough that no side is in the window, with ``sample``'s sphere (if any) on the axis at (0, 0)."""
+    inclusions = ()
+    if sample.inclusion is not None:
+        inc = sample.inclusion
+        centre = (0.0, 0.0, sample.thickness - inc.depth - inc.radius)
+        inclusions = (Inclusion(inc.material, "sphere", centre, (inc.radius,)),)
+    width = max(0.2, 4.0 * (sample.thickness + 0.02))
+    return ObjectSpec("lump", "box", (width, width, sample.thickness), (0.0, 0.0), sample.bulk,
+                      inclusions=inclusions)
+
+
+@dataclass(frozen=True)
+class LumpPress:
+    """One uncorrected flex press of a lump sample: the force (N) at LUMP_DEPTHS on the loading branch, the lateral
+    mixing correction there, and e1, e2 of the window under the press (None without a lump)."""
+
+    force: np.ndarray
+    mixing: np.ndarray
+    moduli: np.ndarray | None
+
+
+def lump_press(sample: AxisymmetricSample, *, radius: float = 0.008,
+               resolution: float = DEFAULT_RESOLUTION) -> LumpPress:
+    """Press ``sample`` once by flex, uncorrected, at its centre to just past LUMP_DEPTHS' deepest."""
+    obj = lump_object(sample)
+    depths = np.array(LUMP_DEPTHS)
+    target = PressTarget(0.0, 0.0, depth=1.03 * depths[-1], speed=0.01)
+    profile = press_profile(target, obj.height, radius=radius, timestep=0.002)
+    models: dict = {}
+    trace = run_flex_press(Scene((obj,), fingertip=FingertipSpec(radius=radius)), obj, target, profile,
+                           resolution=resolution, calibrate=False, models=models)
+    fm = next(iter(models.values()))[0]
+    k = int(np.argmax(trace.indentation))
+    d, f = trace.indentation[: k + 1], trace.force[: k + 1]
+    keep = np.concatenate([[True], np.diff(d) > 0])
+    force = np.interp(depths, d[keep], f[keep])
+    mixing = mixing_at(fm, obj, 0.0, 0.0, radius)
+    mix = np.ones_like(depths) if mixing is None else np.array([mixing.at(float(v)) for v in depths])
+    return LumpPress(force=force, mixing=mix,
+                     moduli=pocket_moduli(obj, fm.grid, fm.cell_young, fm.cell_poisson, 0.0, 0.0))
+
+
+def measure_lump_calibration(*, radius: float = 0.008, resolution: float = DEFAULT_RESOLUTION,
+                             path: Path | str | None = None, progress=None) -> dict:
+    """Measure r = [F_flex(lump) / F_flex(block) / mixing] / [F_FE(lump) / F_FE(block)] on the calibration lumps
+    (LUMP_COVERS x LUMP_RADII x LUMP_CONTRASTS, :mod:`palpate.sim.flex_lump`), one uncorrected flex press and one FE
+    reference each; write the file if ``path``. ``progress(cover, radius, contrast)`` after each."""
+    depths = np.array(LUMP_DEPTHS)
+    block = lump_sample(LUMP_COVERS[0], LUMP_RADII[0], 1.0)
+    block = AxisymmetricSample(block.bulk, block.thickness)
+    flex_block = lump_press(block, radius=radius, resolution=resolution).force
+    fe_block = fe_press(block, radius, depths).force
+    moduli, factor = [], []
+    for cover in LUMP_COVERS:
+        for size in LUMP_RADII:
+            for contrast in LUMP_CONTRASTS:
+                sample = lump_sample(cover, size, contrast)
+                m = lump_press(sample, radius=radius, resolution=resolution)
+                r = m.force / flex_block / m.mixing / (fe_press(sample, radius, depths).force / fe_block)
+                if m.moduli is None or not np.all(np.isfinite(r) & (r > 0)):
+                    raise ValidationError(f"flex lump calibration: {sample.describe()} gave no finite ratio")
+                moduli.append([round(float(v), 6) for v in m.moduli])
+                factor.append([round(float(v), 4) for v in r])
+                if progress is not None:
+                    progress(cover, size, contrast)
+    table = {
+        "format": LUMP_FORMAT, "version": LUMP_FORMAT_VERSION,
+        "measured_with": {
+            "radius": radius, "cell": resolution,
+            "reference": "FE reference (palpate.sim.reference.fe, refinement 1) of each lump and of the block",
+            "how": "benchmarks/flex_lump.py --calibrate (palpate.sim.flex_calibrate.measure_lump_calibration)",
+            "lumps": "covers x radii x contrasts, row-major", "covers": list(LUMP_COVERS),
+            "radii": list(LUMP_RADII), "contrasts": list(LUMP_CONTRASTS),
+        },
+        "cell_over_radius": round(resolution / radius, 4),
+        "contact_over_cell": [round(float(v), 5) for v in np.sqrt(radius * depths) / resolution],
+        "moduli": moduli, "factor": factor,
     }
     if path is not None:
         Path(path).write_text(json.dumps(table) + "\n")

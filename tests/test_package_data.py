@@ -38,6 +38,7 @@ def test_every_shipped_scenario_loads_with_its_models(tmp_path, monkeypatch):
         assert scenario.name and info.description, info.name
     assert (models_dir() / "flex_calibration.json").is_file()
     assert (models_dir() / "flex_plate_calibration.json").is_file()
+    assert (models_dir() / "flex_lump_calibration.json").is_file()
     assert (models_dir() / "fingers" / "planar2.toml").is_file()
 
 

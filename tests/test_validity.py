@@ -206,17 +206,17 @@ def test_a_stiff_skin_is_within_five_percent_from_half_a_mm_to_four(name):
 
 
 @pytest.mark.physics
-@pytest.mark.parametrize("name, depths", [("lump_hard_1mm", (0.5e-3, 1e-3, 2e-3, 4e-3)),
-                                          ("lump_soft_1mm", (0.5e-3, 1e-3)),
-                                          ("lump_soft_3mm", (0.5e-3, 1e-3, 2e-3, 4e-3))])
-def test_flex_is_within_ten_percent_of_the_fe_reference_on_lumps_near_the_top(name, depths):
-    """Issue 12: a 5 mm sphere 1 or 3 mm under the top, mixed into the 5 mm cells around the press axis, against the
-    cached FE reference, with the lateral mixing correction (sim/flex_mixing.py, nothing fitted): without it flex
-    was -25 / -18 / -17 / -3% on the hard lump 1 mm down, +18 / +9% on the soft one and -12% on the soft one 3 mm
-    down at 0.5 mm. lump_soft_1mm at 2 mm (+20%) is left out: the contact's edge reaching the diagonal surface
-    vertices over the soft pocket, a ripple the mesh correction of homogeneous blocks does not hold."""
-    err = _flex_error(name, depths)
-    assert np.all(np.abs(err) < 0.10), err
+@pytest.mark.parametrize("name", ["lump_hard_1mm", "lump_hard_3mm", "lump_hard_6mm", "lump_soft_1mm",
+                                  "lump_soft_3mm"])
+def test_flex_is_within_seven_percent_of_the_fe_reference_on_every_lump_from_half_a_mm_to_four(name):
+    """Issue 12: a 5 mm sphere 1 to 6 mm under the top, mixed into the 5 mm cells around the press axis, against the
+    cached FE reference. The lateral mixing correction (sim/flex_mixing.py, nothing fitted) took the hard lump 1 mm
+    down from -25 / -18 / -17% at 0.5 / 1 / 2 mm and the soft one 3 mm down from -12% at 0.5 mm to within 10%, but
+    left lump_soft_1mm +15.6% at 2 mm (the contact's edge reaching the next ring of surface vertices over the soft
+    pocket); the lump correction (sim/flex_lump.py, measured on calibration lumps, none of these five, which are all
+    held out from it) puts every row within 5.7% at 0.5-4 mm (measured 2026-11-24)."""
+    err = _flex_error(name, (0.5e-3, 1e-3, 2e-3, 4e-3))
+    assert np.all(np.abs(err) < 0.07), err
 
 
 @pytest.mark.physics
