@@ -69,7 +69,7 @@ HARD_LUMP_POISSON = 0.4
 #: beyond both ends, flagged beyond the deep one).
 LUMP_DEPTHS = tuple(float(v) for v in np.geomspace(4.0e-4, 4.0e-3, 28))
 #: A press reads r ** (centring ** CENTRING_POWER) (:func:`pocket_centring`): r is measured on centred lumps only and
-#: did not help partly centred ones (box lumps 3 mm inside the press, docs/architecture.md, issue 12 off-axis), so it
+#: did not help partly centred ones (presses 3 mm inside a box lump's edge, docs/architecture.md, issue 12), so it
 #: fades steeply; 12 is the smallest power (of 1, 4, 6, 8, 12, 16) leaving no nu 0.45 case over 0.1% worse than
 #: r = 1 in mean |error|.
 CENTRING_POWER = 12
