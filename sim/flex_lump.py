@@ -19,6 +19,13 @@ window holding no lump (e1 = e2 = 1) at r = 1 (it is the block kappa was measure
 before any held-out lump was evaluated, on the calibration lumps alone (r at 2 mm falls monotonically with e1 over
 the soft ones, from +32% at e1 0.15 to +5% at 0.78; deep lumps with e1 = 1 differ by e2).
 
+Every calibration lump is centred on the press axis (the four cells alike in each layer). Off the axis r was
+measured against the 3-D FE reference beside box lumps (docs/architecture.md, issue 12, off the axis): neutral on
+average but no rule: with a lump's edge at or beside the axis (a bulk cell beside a lump cell) it made 14 of 32 cases
+worse (one depth by 9 points) and 18 better, 3 mm inside a lump's edge 8 of 16 worse. So a press reads
+r ** (centring ** :data:`CENTRING_POWER`), ``centring`` (:func:`pocket_centring`) 1 over a centred pocket and 0
+over a lump's edge: off the axis flex is as it was before r.
+
 Applied to objects with inclusions and neither layers nor a haptic-material map (the table holds no such window: a
 skin mixes into the top cells without a pocket). models/flex_lump_calibration.json holds the table for one cell
 size and tip; ``benchmarks/flex_lump.py --calibrate`` remeasures it
@@ -61,6 +68,11 @@ HARD_LUMP_POISSON = 0.4
 #: Indentations of the calibration presses, m (a / cell 0.36-1.13 on the 8 mm tip with 5 mm cells; r is held
 #: beyond both ends, flagged beyond the deep one).
 LUMP_DEPTHS = tuple(float(v) for v in np.geomspace(4.0e-4, 4.0e-3, 28))
+#: A press reads r ** (centring ** CENTRING_POWER) (:func:`pocket_centring`): r is measured on centred lumps only and
+#: did not help partly centred ones (presses 3 mm inside a box lump's edge, docs/architecture.md, issue 12), so it
+#: fades steeply; 12 is the smallest power (of 1, 4, 6, 8, 12, 16) leaving no nu 0.45 case over 0.1% worse than
+#: r = 1 in mean |error|.
+CENTRING_POWER = 12
 
 
 @dataclass(frozen=True)
@@ -103,12 +115,10 @@ def load_lump_calibration(path: Path | str = LUMP_CALIBRATION_PATH) -> LumpTable
         "contact_over_cell", "moduli", "factor")})
 
 
-def pocket_moduli(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: np.ndarray, x: float,
+def _pocket_cells(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: np.ndarray, x: float,
                   y: float) -> np.ndarray | None:
-    """e1, e2 of a press at (x, y) (m): the mean Young's modulus over the bulk's of the four cells round the press
-    axis (centres half a cell off it) in the window's top cell layer and in the one under it; ``young`` and
-    ``poisson`` per cell (:func:`palpate.sim.flex_mixing.cell_moduli`). None where the lump correction does not
-    apply: no inclusion, a layer or a material map (the table holds no such window), or all eight cells bulk."""
+    """(2, 4) Young's moduli over the bulk's of the four cells round the press axis in the top two cell layers, or
+    None where the lump correction does not apply (see :func:`pocket_moduli`)."""
     if not obj.inclusions or obj.layers or obj.material_map is not None or len(grid.z) < 3:
         return None
     lookup = cell_lookup(obj, grid, young, poisson, x, y)
@@ -116,10 +126,33 @@ def pocket_moduli(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: n
     offsets = np.array([[-h, -h], [-h, h], [h, -h], [h, h]] * 2)
     top, first, second = float(grid.z[-1]), float(grid.z[-2]), float(grid.z[-3])
     depths = np.repeat([(top - first) / 2.0, (top - first) + (first - second) / 2.0], 4)
-    e = lookup(offsets, depths)[0].reshape(2, 4).mean(axis=1) / obj.material.young
-    if not np.all(np.isfinite(e) & (e > 0)):
+    cells = lookup(offsets, depths)[0].reshape(2, 4) / obj.material.young
+    if not np.all(np.isfinite(cells) & (cells > 0)):
         raise ValidationError(f"flex: the cells under the press on {obj.name!r} have no positive modulus")
-    return None if np.allclose(e, 1.0, rtol=1e-9, atol=0.0) else e
+    return None if np.allclose(cells, 1.0, rtol=1e-9, atol=0.0) else cells
+
+
+def pocket_moduli(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: np.ndarray, x: float,
+                  y: float) -> np.ndarray | None:
+    """e1, e2 of a press at (x, y) (m): the mean Young's modulus over the bulk's of the four cells round the press
+    axis (centres half a cell off it) in the window's top cell layer and in the one under it; ``young`` and
+    ``poisson`` per cell (:func:`palpate.sim.flex_mixing.cell_moduli`). None where the lump correction does not
+    apply: no inclusion, a layer or a material map (the table holds no such window), or all eight cells bulk."""
+    cells = _pocket_cells(obj, grid, young, poisson, x, y)
+    return None if cells is None else cells.mean(axis=1)
+
+
+def pocket_centring(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: np.ndarray, x: float,
+                    y: float) -> float:
+    """How centred on the press axis the pocket of :func:`pocket_moduli` is, 0-1: per layer the smallest over the
+    largest |log modulus| of its four cells, summed over the two layers (1: the four cells alike in each layer, as
+    every calibration lump's; 0: a bulk cell beside a lump cell, a lump's edge off the axis). 1 where there is no
+    pocket. The press fades r with it (:func:`lump_curve`): off the axis r does not help (module docstring)."""
+    cells = _pocket_cells(obj, grid, young, poisson, x, y)
+    if cells is None:
+        return 1.0
+    d = np.abs(np.log(cells))
+    return float(np.clip(d.min(axis=1).sum() / d.max(axis=1).sum(), 0.0, 1.0))
 
 
 @dataclass(frozen=True)
@@ -147,13 +180,15 @@ class LumpCurve:
         return bool(self.outside or contact_over_cell > self.contact_over_cell[-1] * 1.05)
 
 
-def lump_curve(table: LumpTable, moduli: np.ndarray, cell_over_radius: float) -> LumpCurve:
+def lump_curve(table: LumpTable, moduli: np.ndarray, cell_over_radius: float, centring: float = 1.0) -> LumpCurve:
     """r for a press whose window holds ``moduli`` (e1, e2) with cells of ``cell_over_radius`` tip radii, reduced
-    once per press to a curve in a / cell (see the module docstring for the interpolation)."""
+    once per press to a curve in a / cell (see the module docstring for the interpolation), raised to ``centring`` **
+    :data:`CENTRING_POWER` (``centring`` from :func:`pocket_centring`, 0-1: 0 gives r = 1)."""
     e = np.asarray(moduli, dtype=float)
-    if e.shape != (2,) or not np.all(np.isfinite(e) & (e > 0)) or not cell_over_radius > 0:
-        raise ValidationError(f"flex: a lump needs two positive cell moduli and cells > 0, got {moduli!r}, "
-                              f"{cell_over_radius!r}")
+    if (e.shape != (2,) or not np.all(np.isfinite(e) & (e > 0)) or not cell_over_radius > 0
+            or not 0.0 <= centring <= 1.0):
+        raise ValidationError(f"flex: a lump needs two positive cell moduli, cells > 0 and a centring in [0, 1], got "
+                              f"{moduli!r}, {cell_over_radius!r}, {centring!r}")
     points = np.vstack([np.log(table.moduli), np.zeros((1, 2))])  # the window without a lump: the block, r = 1
     values = np.vstack([table.factor, np.ones((1, table.factor.shape[1]))])
     with one_blas_thread():  # the triangulation's small LAPACK calls would leave OpenBLAS threads spinning (sim.blas)
@@ -162,4 +197,6 @@ def lump_curve(table: LumpTable, moduli: np.ndarray, cell_over_radius: float) ->
     if outside:
         row = values[int(np.argmin(np.linalg.norm(points - np.log(e)[None], axis=1)))]
     outside |= abs(table.cell_over_radius / cell_over_radius - 1.0) > 0.05
-    return LumpCurve(contact_over_cell=table.contact_over_cell, factor=np.asarray(row, dtype=float), outside=outside)
+    fade = centring ** CENTRING_POWER
+    return LumpCurve(contact_over_cell=table.contact_over_cell, factor=np.asarray(row, dtype=float) ** fade,
+                     outside=outside)
