@@ -38,9 +38,10 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.files import number_array, read_json
+from palpate.core.files import number_array
 from palpate.core.world.resources import models_dir
 from palpate.core.world.scene import ObjectSpec
+from palpate.sim.validity.reference import read_document
 
 #: The shipped table.
 PLATE_CALIBRATION_PATH = models_dir() / "flex_plate_calibration.json"
@@ -97,12 +98,8 @@ def load_plate_calibration(path: Path | str = PLATE_CALIBRATION_PATH) -> PlateTa
             naming the file and the key.
     """
     path = Path(path)
-    if not path.exists():
-        raise ValidationError(f"{path}: flex plate calibration not found; regenerate it with "
-                              "`.venv/bin/python benchmarks/flex_plate.py --calibrate`")
-    raw = read_json(path, "flex plate calibration")
-    if not isinstance(raw, dict) or raw.get("format") != PLATE_FORMAT or raw.get("version") != PLATE_FORMAT_VERSION:
-        raise ValidationError(f"{path}: not a {PLATE_FORMAT} file of version {PLATE_FORMAT_VERSION}")
+    raw = read_document(path, "flex plate calibration", PLATE_FORMAT, PLATE_FORMAT_VERSION,
+                        "regenerate it with `.venv/bin/python benchmarks/flex_plate.py --calibrate`")
     arrays = {key: number_array(raw.get(key), f"{path}: {key}", ndim, max_size=100_000) for key, ndim in (
         ("cell_over_radius", 0), ("contact_over_cell", 1), ("skin_poisson", 1), ("base_poisson", 1),
         ("modulus_ratio", 1), ("skin", 1), ("height", 1), ("factor", 6), ("measured_to", 5))}
