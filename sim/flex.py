@@ -30,7 +30,7 @@ from palpate.sim.analytic import material_under
 from palpate.sim.controller import press_profile
 from palpate.sim.flex_calibration import load_calibration, mesh_curve
 from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW, flex_grid
-from palpate.sim.flex_lump import load_lump_calibration, lump_curve, pocket_centring, pocket_moduli
+from palpate.sim.flex_lump import load_lump_calibration, lump_curve, pocket_at
 from palpate.sim.flex_model import (
     CONTACT_SOLREF,
     MAX_TIMESTEP,
@@ -220,10 +220,10 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     skin = plate_skin(obj) if calibrate and grid.far_sides else None
     plate = None if skin is None else plate_curve(load_plate_calibration(), skin, obj.height, cell / tip.radius)
     # a lump under the press: the surface vertices over its pocket, which neither kappa nor the mixing sees (flex_lump)
-    pocket = pocket_moduli(obj, grid, fm.cell_young, fm.cell_poisson, x, y) if calibrate and fm.lateral else None
+    pocket = pocket_at(obj, grid, fm.cell_young, fm.cell_poisson, x, y) if calibrate and fm.lateral else None
     # r was measured on lumps centred on the axis; off it, it did not help (issue 12, off the axis): faded to 1
-    lump = None if pocket is None else lump_curve(load_lump_calibration(), pocket, cell / tip.radius, pocket_centring(
-        obj, grid, fm.cell_young, fm.cell_poisson, x, y))
+    lump = None if pocket is None else lump_curve(load_lump_calibration(), pocket.moduli, cell / tip.radius,
+                                                  pocket.centring)
     qadr = model.jnt_qposadr[fm.tip_joint]
     gid = fm.tip_geom
     inertia_steps = 0

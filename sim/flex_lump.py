@@ -132,14 +132,39 @@ def _pocket_cells(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: n
     return None if np.allclose(cells, 1.0, rtol=1e-9, atol=0.0) else cells
 
 
+@dataclass(frozen=True)
+class Pocket:
+    """The lump under a press, as its window's cells see it.
+
+    Attributes:
+        moduli: (2,) e1, e2: the mean Young's modulus over the bulk's of the four cells round the press axis in the
+            window's top cell layer and in the one under it.
+        centring: 0-1, how centred on the press axis the pocket is (:func:`pocket_centring`).
+    """
+
+    moduli: np.ndarray
+    centring: float
+
+
+def pocket_at(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: np.ndarray, x: float,
+              y: float) -> Pocket | None:
+    """The pocket of a press at (x, y) (m), its eight cells looked up once; ``young`` and ``poisson`` per cell
+    (:func:`palpate.sim.flex_mixing.cell_moduli`). None where the lump correction does not apply: no inclusion, a
+    layer or a material map (the table holds no such window), or all eight cells bulk."""
+    cells = _pocket_cells(obj, grid, young, poisson, x, y)
+    if cells is None:
+        return None
+    d = np.abs(np.log(cells))
+    return Pocket(moduli=cells.mean(axis=1),
+                  centring=float(np.clip(d.min(axis=1).sum() / d.max(axis=1).sum(), 0.0, 1.0)))
+
+
 def pocket_moduli(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: np.ndarray, x: float,
                   y: float) -> np.ndarray | None:
-    """e1, e2 of a press at (x, y) (m): the mean Young's modulus over the bulk's of the four cells round the press
-    axis (centres half a cell off it) in the window's top cell layer and in the one under it; ``young`` and
-    ``poisson`` per cell (:func:`palpate.sim.flex_mixing.cell_moduli`). None where the lump correction does not
-    apply: no inclusion, a layer or a material map (the table holds no such window), or all eight cells bulk."""
-    cells = _pocket_cells(obj, grid, young, poisson, x, y)
-    return None if cells is None else cells.mean(axis=1)
+    """e1, e2 of a press at (x, y) (m): :attr:`Pocket.moduli` of :func:`pocket_at`, or None where the lump
+    correction does not apply."""
+    pocket = pocket_at(obj, grid, young, poisson, x, y)
+    return None if pocket is None else pocket.moduli
 
 
 def pocket_centring(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: np.ndarray, x: float,
@@ -148,11 +173,8 @@ def pocket_centring(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson:
     largest |log modulus| of its four cells, summed over the two layers (1: the four cells alike in each layer, as
     every calibration lump's; 0: a bulk cell beside a lump cell, a lump's edge off the axis). 1 where there is no
     pocket. The press fades r with it (:func:`lump_curve`): off the axis r does not help (module docstring)."""
-    cells = _pocket_cells(obj, grid, young, poisson, x, y)
-    if cells is None:
-        return 1.0
-    d = np.abs(np.log(cells))
-    return float(np.clip(d.min(axis=1).sum() / d.max(axis=1).sum(), 0.0, 1.0))
+    pocket = pocket_at(obj, grid, young, poisson, x, y)
+    return 1.0 if pocket is None else pocket.centring
 
 
 @dataclass(frozen=True)
