@@ -256,6 +256,36 @@ def test_force_scales_with_the_modulus_exactly():
     np.testing.assert_allclose(f_hard, 100.0 * f_soft, rtol=5e-3)
 
 
+def test_a_press_reads_the_tables_it_is_given_and_a_source_reads_them_once(monkeypatch):
+    """The calibration tables a caller loaded once give the press it would read from disk, bit for bit (a stiff
+    skin in the plate window: block and plate tables both read); doubled kappa halves the force exactly as it is
+    divided (the drive sees the uncorrected force, so the motion is the same); a SimSource reads them once."""
+    from dataclasses import replace
+
+    from palpate.core.session.sources import PressTarget
+    from palpate.sim import flex_tables, source
+
+    kw = dict(young=1e5, poisson=0.45, height=0.03, width=0.2, depth=0.002,
+              layers=(Layer(Material("skin", 2e6, 0.4), 0.002),))
+    tables = flex_tables.load_flex_tables()
+    read = flex.reference_press(**kw)
+    given = flex.reference_press(**kw, tables=tables)
+    assert read.meta["plate_corrected"]
+    for name in ("force", "sensel_pressure", "indentation"):
+        np.testing.assert_array_equal(getattr(given, name), getattr(read, name))
+    doubled = replace(tables, mesh=replace(tables.mesh, tables=tuple(
+        replace(t, factor=2.0 * t.factor) for t in tables.mesh.tables)))
+    np.testing.assert_allclose(flex.reference_press(**kw, tables=doubled).force, read.force / 2.0, rtol=1e-12)
+
+    loads = []
+    monkeypatch.setattr(source, "load_flex_tables", lambda: loads.append(1) or tables)
+    obj = ObjectSpec("b", "box", (0.1, 0.1, 0.02), (0.0, 0.0), Material("m", 2e5, 0.3))
+    sim = source.SimSource(Scene((obj,), fingertip=FingertipSpec(radius=R)), fidelity="flex")
+    for x in (0.0, 0.01):
+        sim.press(PressTarget(x, 0.0, depth=0.002, speed=0.01))
+    assert len(loads) == 1
+
+
 # ---------------------------------------------------------------- physics (seconds each)
 
 
