@@ -23,10 +23,11 @@ import numpy as np
 from palpate.sim.contact.law import solve_contact_law
 from palpate.sim.flex import reference_press
 from palpate.sim.flex_calibrate import measure_plate_calibration, plate_sample
-from palpate.sim.flex_calibration import load_calibration, mesh_curve
+from palpate.sim.flex_calibration import MeshCalibration, load_calibration, mesh_curve
 from palpate.sim.flex_plate import (
     PLATE_CALIBRATION_PATH,
     PlateSkin,
+    PlateTable,
     load_plate_calibration,
     plate_curve,
 )
@@ -59,7 +60,8 @@ WEAK_STACKS = (
 )
 
 
-def errors(sample, reference: np.ndarray, calibration: dict, plates) -> tuple[np.ndarray, np.ndarray, float]:
+def errors(sample, reference: np.ndarray, calibration: MeshCalibration,
+           plates: PlateTable) -> tuple[np.ndarray, np.ndarray, float]:
     """Flex's error (%) at DEPTHS before and after the plate correction, and the press's wall time (s)."""
     t0 = time.perf_counter()
     bulk = sample.bulk

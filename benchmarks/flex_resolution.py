@@ -58,10 +58,10 @@ def main() -> None:
                                     progress=lambda sides, nu, h: print(f"  measured {sides} nu {nu} H {h * 1e3:g} mm",
                                                                         flush=True))
         print(f"wrote {CALIBRATION_PATH}")
-        for t in table["tables"]:
-            print(f"{t['sides']} sides, a/cell " + " ".join(f"{v:5.2f}" for v in t["contact_over_cell"][::4]))
-            for nu, rows in zip(t["poisson"], t["factor"], strict=True):
-                for h, row in zip(t["thickness"], rows, strict=True):
+        for t in table.tables:
+            print(f"{t.sides} sides, a/cell " + " ".join(f"{v:5.2f}" for v in t.contact_over_cell[::4]))
+            for nu, rows in zip(t.poisson, t.factor, strict=True):
+                for h, row in zip(t.thickness, rows, strict=True):
                     print(f"nu {nu:4.2f} {h * 1e3:3.0f}mm " + " ".join(f"{v:5.3f}" for v in row[::4]))
     settings = [(DEFAULT_RESOLUTION, DEFAULT_WINDOW)]
     if args.full:

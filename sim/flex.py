@@ -14,9 +14,9 @@ soft skin, part of a lump) are corrected by the continuum's ratio of the mixed c
 vertex spacing) and is spread uniformly over it on the pad, which then averages over each sensel.
 
 The model is built once per window (a ``models`` dict the caller keeps, e.g. one per SimSource) and its state reset
-between presses. A cylinder narrow enough for the window is meshed whole (its curved side free), a wider one by
-the square inscribed in it; meshes are not supported. Gravity is off so
-that the undeformed top stays at the object's height.
+between presses; the calibration tables are read once per run too (``tables``, :mod:`palpate.sim.flex_tables`). A
+cylinder narrow enough for the window is meshed whole (its curved side free), a wider one by the square inscribed in
+it; meshes are not supported. Gravity is off so that the undeformed top stays at the object's height.
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ from palpate.sim.flex_model import (
     mixing_at,
 )
 from palpate.sim.flex_plate import load_plate_calibration, plate_curve, plate_skin
+from palpate.sim.flex_tables import FlexTables
 from palpate.sim.stability import (
     MAX_STEPS,
     SolverWarnings,
@@ -146,7 +147,8 @@ def _model(scene: Scene, obj: ObjectSpec, grid, dt: float, verts_per_cell: int, 
 def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: float | None = None,
                    resolution: float | None = None, seed: int = 0, window: float = DEFAULT_WINDOW,
                    calibrate: bool = True, verts_per_cell: int = VERTS_PER_CELL, models: dict | None = None,
-                   max_steps: int = MAX_STEPS, iterations: int = SOLVER_ITERATIONS) -> PhysicsTrace:
+                   max_steps: int = MAX_STEPS, iterations: int = SOLVER_ITERATIONS,
+                   tables: FlexTables | None = None) -> PhysicsTrace:
     """Simulate one press-and-release of ``obj`` with a deformable flex block; return the physics-rate trace.
 
     Args:
@@ -163,6 +165,8 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         models: a dict the caller keeps to reuse built windows between presses.
         max_steps: step budget; a longer press is refused before it runs.
         iterations: MuJoCo's iteration limit (opt.iterations) for its M + K solve and its constraint solve.
+        tables: the calibration tables, read once by a caller that presses many times
+            (:func:`palpate.sim.flex_tables.load_flex_tables`); None reads the ones this press needs from disk.
 
     Returns:
         PhysicsTrace with sensel_pressure (n, rows, cols) Pa, force N (total normal contact force), indentation m
@@ -214,16 +218,20 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     pinned_fraction = 0.0 if grid.far_sides else sum(grid.pinned) / len(grid.pinned)
     under = material_under(obj, x, y, obj.height)
     nu = float((under or obj.materials()[0]).poisson)
-    curve = mesh_curve(nu, cell / tip.radius, load_calibration(), obj.height, pinned_fraction) if calibrate else None
+    curve = None
+    if calibrate:
+        mesh = load_calibration() if tables is None else tables.mesh
+        curve = mesh_curve(nu, cell / tip.radius, mesh, obj.height, pinned_fraction)
     mixing = mixing_at(fm, obj, x, y, tip.radius) if calibrate else None
     # a stiff top layer in the plate window: the block's kappa over-corrects a plate (flex_plate)
     skin = plate_skin(obj) if calibrate and grid.far_sides else None
-    plate = None if skin is None else plate_curve(load_plate_calibration(), skin, obj.height, cell / tip.radius)
+    plate = None if skin is None else plate_curve(load_plate_calibration() if tables is None else tables.plate, skin,
+                                                  obj.height, cell / tip.radius)
     # a lump under the press: the surface vertices over its pocket, which neither kappa nor the mixing sees (flex_lump)
     pocket = pocket_at(obj, grid, fm.cell_young, fm.cell_poisson, x, y) if calibrate and fm.lateral else None
     # r was measured on lumps centred on the axis; off it, it did not help (issue 12, off the axis): faded to 1
-    lump = None if pocket is None else lump_curve(load_lump_calibration(), pocket.moduli, cell / tip.radius,
-                                                  pocket.centring)
+    lump = None if pocket is None else lump_curve(load_lump_calibration() if tables is None else tables.lump,
+                                                  pocket.moduli, cell / tip.radius, pocket.centring)
     qadr = model.jnt_qposadr[fm.tip_joint]
     gid = fm.tip_geom
     inertia_steps = 0
@@ -365,11 +373,12 @@ def reference_press(*, young: float, poisson: float = 0.3, height: float = 0.02,
                     resolution: float = DEFAULT_RESOLUTION, timestep: float | None = None,
                     depth: float = 0.004, speed: float = 0.01, window: float = DEFAULT_WINDOW, width: float = 0.1,
                     calibrate: bool = True, damping: float = 0.0, layers: tuple = (), inclusions: tuple = (),
-                    models: dict | None = None) -> PhysicsTrace:
+                    models: dict | None = None, tables: FlexTables | None = None) -> PhysicsTrace:
     """One robot press at the centre of a ``width``-wide box of one material (calibration and benchmarks): the
     window's sides are pinned where it cuts the block, as in a press on a large object.
 
-    Args: moduli Pa, lengths m, speed m/s, timestep s; layers/inclusions as in :class:`ObjectSpec`.
+    Args: moduli Pa, lengths m, speed m/s, timestep s; layers/inclusions as in :class:`ObjectSpec`; models and
+    tables as in :func:`run_flex_press`.
     """
     mat = Material("bulk", young=young, poisson=poisson, damping=damping)
     obj = ObjectSpec(name="block", shape="box", size=(width, width, height), position=(0.0, 0.0),
@@ -378,4 +387,4 @@ def reference_press(*, young: float, poisson: float = 0.3, height: float = 0.02,
     target = PressTarget(x=0.0, y=0.0, depth=depth, speed=speed)
     profile = press_profile(target, height, radius=radius, timestep=min(timestep or 0.002, 0.002))
     return run_flex_press(scene, obj, target, profile, timestep=timestep, resolution=resolution,
-                          window=window, calibrate=calibrate, models=models)
+                          window=window, calibrate=calibrate, models=models, tables=tables)

@@ -20,6 +20,8 @@ from palpate.sim.flex_calibration import (
     CAL_YOUNG,
     FORMAT_VERSION,
     FREE_WINDOW_SCALE,
+    MeshCalibration,
+    calibration_from,
     load_calibration,
     mesh_curve,
 )
@@ -78,9 +80,10 @@ def loading_ratio(indentation: np.ndarray, force: np.ndarray, reference, depths:
 
 def measure_calibration(resolution: float, *, radius: float = 0.008, window: float = DEFAULT_WINDOW,
                         poissons=POISSONS, heights=CAL_HEIGHTS, path: Path | str | None = None,
-                        progress=None) -> dict:
+                        progress=None) -> MeshCalibration:
     """Measure kappa on the calibration blocks for cells of ``resolution`` (m), both kinds of sides (a "pinned"
-    table in ``window``, a "free" one in FREE_WINDOW_SCALE times it); write the file if ``path``.
+    table in ``window``, a "free" one in FREE_WINDOW_SCALE times it); write the file if ``path``; return the tables
+    as :func:`palpate.sim.flex_calibration.load_calibration` reads them.
 
     Each (poisson, thickness) is one uncalibrated press, as deep as a / cell reaches the table's end or the
     thickness allows; beyond the deepest measured a / cell the row repeats its last value (and a press there is
@@ -100,7 +103,7 @@ def measure_calibration(resolution: float, *, radius: float = 0.008, window: flo
     }
     if path is not None:
         Path(path).write_text(json.dumps(table) + "\n")
-    return table
+    return calibration_from(table, "measured flex calibration")
 
 
 def _measure_table(resolution: float, radius: float, window: float, sides: str, poissons, heights,
@@ -157,7 +160,7 @@ class PlateRatio:
 
 
 def plate_ratio(sample: AxisymmetricSample, *, radius: float = 0.008, resolution: float = DEFAULT_RESOLUTION,
-                depth: float | None = None, calibration: dict | None = None) -> PlateRatio:
+                depth: float | None = None, calibration: MeshCalibration | None = None) -> PlateRatio:
     """Press ``sample`` (a layered stack) once by flex, uncorrected, at the centre of a box wider than the plate
     window, to ``depth`` (m; default :func:`deepest_press`), and compare it with the stack's exact layered contact
     law."""
@@ -179,7 +182,7 @@ def plate_ratio(sample: AxisymmetricSample, *, radius: float = 0.008, resolution
     return PlateRatio(contact_over_cell=ac, raw=raw, block=block, reach=float(up), cell=cell)
 
 
-def _plate_ratio_within(sample: AxisymmetricSample, radius: float, resolution: float, calibration: dict,
+def _plate_ratio_within(sample: AxisymmetricSample, radius: float, resolution: float, calibration: MeshCalibration,
                         tries: int = 4) -> PlateRatio:
     """:func:`plate_ratio` to the default depth, or, where that press diverges (a thin skin 70x its base, after
     its deepest point: the tip sinks between the surface vertices), 15% shallower each time (its row is then held

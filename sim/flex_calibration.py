@@ -27,7 +27,6 @@ models/flex_calibration.json holds one table per cell size (cell / tip radius) a
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,6 +35,7 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.files import number_array
 from palpate.core.world.resources import models_dir
+from palpate.sim.validity.reference import read_document
 
 #: The shipped table.
 CALIBRATION_PATH = models_dir() / "flex_calibration.json"
@@ -52,65 +52,83 @@ FORMAT_VERSION = 4
 SIDES = ("pinned", "free")
 #: Width of the window a "free" table is measured in, in default windows.
 FREE_WINDOW_SCALE = 2.0
-#: Largest calibration file accepted, bytes.
-MAX_BYTES = 1_000_000
 
 
-def _numbers(path: Path, key: str, value, ndim: int) -> np.ndarray:
-    return number_array(value, f"{path}: {key}", ndim)
+@dataclass(frozen=True)
+class MeshTable:
+    """One calibration table: one cell size and kind of sides.
+
+    Attributes:
+        sides: "pinned" or "free" (SIDES).
+        cell_over_radius: cell edge / tip radius it was measured with.
+        poisson: (p,) Poisson ratios, increasing.
+        thickness: (h,) block thicknesses, m, increasing, > 0.
+        contact_over_cell: (c,) a / cell, increasing.
+        measured_to: (p, h) the largest a / cell each block was pressed to (beyond it its row is held).
+        factor: (p, h, c) kappa, > 0.
+    """
+
+    sides: str
+    cell_over_radius: float
+    poisson: np.ndarray
+    thickness: np.ndarray
+    contact_over_cell: np.ndarray
+    measured_to: np.ndarray
+    factor: np.ndarray
 
 
-def load_calibration(path: Path | str = CALIBRATION_PATH) -> dict:
-    """Read and validate a calibration file.
+@dataclass(frozen=True)
+class MeshCalibration:
+    """A loaded calibration file: its tables sorted by cell_over_radius (the file's ``measured_with`` record of how
+    it was measured is for people and is not kept)."""
 
-    Returns:
-        {"tables": [{"sides": "pinned" or "free", "cell_over_radius": float, "poisson": (p,), "thickness": (h,) m,
-        "contact_over_cell": (c,), "measured_to": (p, h) largest a / cell measured, "factor": (p, h, c)}],
-        "measured_with": dict}, tables sorted by cell_over_radius.
+    tables: tuple[MeshTable, ...]
+
+
+def load_calibration(path: Path | str = CALIBRATION_PATH) -> MeshCalibration:
+    """Read and validate a calibration file (bounded JSON, see :func:`palpate.core.files.read_json`).
 
     Raises:
         ValidationError: missing, too large, not JSON, wrong version or a bad key, naming the file and the key.
     """
     path = Path(path)
-    try:
-        if path.stat().st_size > MAX_BYTES:
-            raise ValidationError(f"{path}: {path.stat().st_size} bytes, over the {MAX_BYTES} a calibration may have")
-        raw = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValidationError(f"{path}: flex calibration table not found; regenerate it with "
-                              "`.venv/bin/python benchmarks/flex_resolution.py --calibrate`") from None
-    except json.JSONDecodeError as exc:
-        raise ValidationError(f"{path}: not valid JSON (line {exc.lineno}): {exc.msg}") from None
-    if not isinstance(raw, dict) or raw.get("version") != FORMAT_VERSION:
-        got = raw.get("version") if isinstance(raw, dict) else None
-        raise ValidationError(f"{path}: key 'version' must be {FORMAT_VERSION}, got {got!r}")
+    raw = read_document(path, "flex calibration table", None, FORMAT_VERSION,
+                        "regenerate it with `.venv/bin/python benchmarks/flex_resolution.py --calibrate`")
+    return calibration_from(raw, str(path))
+
+
+def calibration_from(raw: dict, source: str) -> MeshCalibration:
+    """A decoded calibration document (a file's, or :func:`palpate.sim.flex_calibrate.measure_calibration`'s)
+    validated; a ValidationError names ``source`` and the key."""
     tables = raw.get("tables")
     if not isinstance(tables, list) or not tables:
-        raise ValidationError(f"{path}: key 'tables' must be a non-empty list")
-    out = []
-    for i, t in enumerate(tables):
-        if not isinstance(t, dict):
-            raise ValidationError(f"{path}: tables[{i}] must be an object")
-        key = f"tables[{i}]"
-        c_r = float(_numbers(path, f"{key}.cell_over_radius", t.get("cell_over_radius"), 0))
-        nu = _numbers(path, f"{key}.poisson", t.get("poisson"), 1)
-        hs = _numbers(path, f"{key}.thickness", t.get("thickness"), 1)
-        ac = _numbers(path, f"{key}.contact_over_cell", t.get("contact_over_cell"), 1)
-        fac = _numbers(path, f"{key}.factor", t.get("factor"), 3)
-        upto = _numbers(path, f"{key}.measured_to", t.get("measured_to"), 2)
-        if fac.shape != (len(nu), len(hs), len(ac)) or upto.shape != (len(nu), len(hs)):
-            raise ValidationError(f"{path}: {key}.factor must be {len(nu)} x {len(hs)} x {len(ac)} and "
-                                  f"{key}.measured_to {len(nu)} x {len(hs)} (poisson x thickness x contact_over_cell)")
-        if not (c_r > 0 and np.all(np.diff(nu) > 0) and np.all(np.diff(ac) > 0) and np.all(np.diff(hs) > 0)
-                and hs[0] > 0 and np.all(fac > 0)):
-            raise ValidationError(f"{path}: {key} needs cell_over_radius > 0, increasing poisson, thickness > 0 and "
-                                  "contact_over_cell, and factors > 0")
-        if t.get("sides") not in SIDES:
-            raise ValidationError(f"{path}: {key}.sides must be one of {list(SIDES)}, got {t.get('sides')!r}")
-        out.append({"sides": t["sides"], "cell_over_radius": c_r, "poisson": nu, "thickness": hs,
-                    "contact_over_cell": ac, "factor": fac, "measured_to": upto})
-    out.sort(key=lambda t: t["cell_over_radius"])
-    return {"tables": out, "measured_with": raw.get("measured_with", {})}
+        raise ValidationError(f"{source}: key 'tables' must be a non-empty list")
+    out = [_table(source, f"tables[{i}]", t) for i, t in enumerate(tables)]
+    return MeshCalibration(tables=tuple(sorted(out, key=lambda t: t.cell_over_radius)))
+
+
+def _table(source: str, key: str, t) -> MeshTable:
+    """One table of a calibration document, validated."""
+    if not isinstance(t, dict):
+        raise ValidationError(f"{source}: {key} must be an object")
+
+    def numbers(name: str, ndim: int) -> np.ndarray:
+        return number_array(t.get(name), f"{source}: {key}.{name}", ndim)
+
+    c_r = float(numbers("cell_over_radius", 0))
+    nu, hs, ac = numbers("poisson", 1), numbers("thickness", 1), numbers("contact_over_cell", 1)
+    fac, upto = numbers("factor", 3), numbers("measured_to", 2)
+    if fac.shape != (len(nu), len(hs), len(ac)) or upto.shape != (len(nu), len(hs)):
+        raise ValidationError(f"{source}: {key}.factor must be {len(nu)} x {len(hs)} x {len(ac)} and "
+                              f"{key}.measured_to {len(nu)} x {len(hs)} (poisson x thickness x contact_over_cell)")
+    if not (c_r > 0 and np.all(np.diff(nu) > 0) and np.all(np.diff(ac) > 0) and np.all(np.diff(hs) > 0)
+            and hs[0] > 0 and np.all(fac > 0)):
+        raise ValidationError(f"{source}: {key} needs cell_over_radius > 0, increasing poisson, thickness > 0 and "
+                              "contact_over_cell, and factors > 0")
+    if t.get("sides") not in SIDES:
+        raise ValidationError(f"{source}: {key}.sides must be one of {list(SIDES)}, got {t.get('sides')!r}")
+    return MeshTable(sides=t["sides"], cell_over_radius=c_r, poisson=nu, thickness=hs, contact_over_cell=ac,
+                     measured_to=upto, factor=fac)
 
 
 @dataclass(frozen=True)
@@ -141,15 +159,15 @@ class _SideCurve:
     outside: bool
 
 
-def _side_curve(t: dict, poisson: float, cell_over_radius: float, thickness: float) -> _SideCurve:
+def _side_curve(t: MeshTable, poisson: float, cell_over_radius: float, thickness: float) -> _SideCurve:
     """One table reduced to kappa against a / cell at ``poisson`` and ``thickness`` (linear in log thickness and
     poisson, clamped at the table's ends; linear in a / cell is then one np.interp)."""
-    nu, hs = t["poisson"], t["thickness"]
+    nu, hs = t.poisson, t.thickness
     w_nu, w_h = _weights(poisson, nu), _weights(float(np.log(thickness)), np.log(hs))
-    outside = (abs(t["cell_over_radius"] / cell_over_radius - 1.0) > 0.05 or not nu[0] <= poisson <= nu[-1]
+    outside = (abs(t.cell_over_radius / cell_over_radius - 1.0) > 0.05 or not nu[0] <= poisson <= nu[-1]
                or not hs[0] * 0.95 <= thickness <= hs[-1] * 1.05)
-    return _SideCurve(contact_over_cell=t["contact_over_cell"], factor=np.einsum("p,h,phc->c", w_nu, w_h, t["factor"]),
-                      reach=float(w_nu @ t["measured_to"] @ w_h), outside=bool(outside))
+    return _SideCurve(contact_over_cell=t.contact_over_cell, factor=np.einsum("p,h,phc->c", w_nu, w_h, t.factor),
+                      reach=float(w_nu @ t.measured_to @ w_h), outside=bool(outside))
 
 
 @dataclass(frozen=True)
@@ -171,7 +189,7 @@ class MeshCurve:
         return MeshFactor(float(kappa), bool(outside or self.missing))
 
 
-def mesh_curve(poisson: float, cell_over_radius: float, calibration: dict, thickness: float,
+def mesh_curve(poisson: float, cell_over_radius: float, calibration: MeshCalibration, thickness: float,
                pinned_fraction: float = 1.0) -> MeshCurve:
     """The mesh correction for cells of ``cell_over_radius``, ``poisson`` and block ``thickness`` (m) in a window with
     ``pinned_fraction`` (0 to 1) of its sides pinned, as a function of a / cell (:meth:`MeshCurve.at`).
@@ -184,9 +202,9 @@ def mesh_curve(poisson: float, cell_over_radius: float, calibration: dict, thick
         raise ValidationError(f"flex: pinned_fraction must be in [0, 1], got {pinned_fraction!r}")
     found = {}
     for sides in SIDES:
-        tables = [tb for tb in calibration["tables"] if tb["sides"] == sides]
+        tables = [tb for tb in calibration.tables if tb.sides == sides]
         if tables:
-            t = min(tables, key=lambda tb: abs(np.log(tb["cell_over_radius"] / cell_over_radius)))
+            t = min(tables, key=lambda tb: abs(np.log(tb.cell_over_radius / cell_over_radius)))
             found[sides] = _side_curve(t, poisson, cell_over_radius, thickness)
     weight = {"pinned": pinned_fraction, "free": 1.0 - pinned_fraction}
     missing = any(weight[k] > 0 and k not in found for k in SIDES)
@@ -195,7 +213,7 @@ def mesh_curve(poisson: float, cell_over_radius: float, calibration: dict, thick
     return MeshCurve(sides=tuple((found[k], weight[k]) for k in SIDES), missing=False)
 
 
-def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: float, calibration: dict,
+def mesh_factor(contact_over_cell: float, poisson: float, cell_over_radius: float, calibration: MeshCalibration,
                 thickness: float, pinned_fraction: float = 1.0) -> MeshFactor:
     """kappa at contact radius / cell ``contact_over_cell``, ``poisson`` and block ``thickness`` (m) for cells of
     ``cell_over_radius`` in a window with ``pinned_fraction`` (0 to 1) of its sides pinned (:func:`mesh_curve`).

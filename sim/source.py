@@ -26,6 +26,7 @@ from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profile
 from palpate.sim.flex import run_flex_press
 from palpate.sim.flex_model import SOLVER_ITERATIONS
+from palpate.sim.flex_tables import FlexTables, load_flex_tables
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import resolve_profile
 from palpate.sim.realism.stage import RealismSession
@@ -116,6 +117,7 @@ class SimSource:
         self._meshes: dict = {}
         self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
         self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.run_flex_press)
+        self._flex_tables: FlexTables | None = None  # its calibration tables, read on the first flex press
         self._session = (None if self.realism.is_ideal else
                          RealismSession(self.realism, scene.fingertip, scene.taxels, self.seed))
 
@@ -237,9 +239,11 @@ class SimSource:
         else:
             # flex has its own default step (up to 10 ms, see palpate.sim.flex.default_timestep): the rigid
             # default of 2 ms would make it 5x slower for nothing (its elasticity is integrated implicitly)
+            if self._flex_tables is None:
+                self._flex_tables = load_flex_tables()
             trace = run_flex_press(self.scene, obj, target, physics_profile, timestep=self.timestep, seed=seed,
                                    models=self._flex_models, max_steps=self.max_steps,
-                                   iterations=self.flex_iterations)
+                                   iterations=self.flex_iterations, tables=self._flex_tables)
         pose_spec, latency, response = self.scene.pose, 0.0, None
         if real is not None:
             trace = real.finish(trace, profile)

@@ -79,31 +79,31 @@ def test_each_contact_force_covers_its_vertex_patch_and_is_conserved():
 
 def test_shipped_calibration_is_valid_and_interpolates():
     cal = load_calibration()
-    t, free = (next(tb for tb in cal["tables"] if tb["sides"] == sides) for sides in ("pinned", "free"))
-    c_r, ac, hs = t["cell_over_radius"], t["contact_over_cell"], t["thickness"]
+    t, free = (next(tb for tb in cal.tables if tb.sides == sides) for sides in ("pinned", "free"))
+    c_r, ac, hs = t.cell_over_radius, t.contact_over_cell, t.thickness
     # the trilinear grid is stiffer than the continuum wherever a press is allowed (a >= 0.25 cells) on a block
     # thicker than the validity table's thinnest layers
     usable = ac >= 0.25
-    assert np.all(t["factor"][:, hs >= 0.014][:, :, usable] > 1.0)
+    assert np.all(t.factor[:, hs >= 0.014][:, :, usable] > 1.0)
     j = int(np.argmin(np.abs(hs - 0.03)))  # the 30 mm block, and the 70 mm one after it
     assert hs[j] == pytest.approx(0.03) and hs[j + 1] == pytest.approx(0.07)
-    at = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[j])
-    assert at.kappa == pytest.approx(t["factor"][1, j, 8]) and not at.extrapolated
+    at = mesh_factor(ac[8], t.poisson[1], c_r, cal, hs[j])
+    assert at.kappa == pytest.approx(t.factor[1, j, 8]) and not at.extrapolated
     mid = 0.5 * (ac[8] + ac[9])
-    k_mid = mesh_factor(mid, t["poisson"][1], c_r, cal, hs[j]).kappa
-    assert min(t["factor"][1, j, 8:10]) <= k_mid <= max(t["factor"][1, j, 8:10])
+    k_mid = mesh_factor(mid, t.poisson[1], c_r, cal, hs[j]).kappa
+    assert min(t.factor[1, j, 8:10]) <= k_mid <= max(t.factor[1, j, 8:10])
     # between two calibrated thicknesses: between their factors (linear in log thickness)
-    k_h = mesh_factor(ac[8], t["poisson"][1], c_r, cal, float(np.sqrt(hs[j] * hs[j + 1]))).kappa
-    assert k_h == pytest.approx(0.5 * (t["factor"][1, j, 8] + t["factor"][1, j + 1, 8]))
+    k_h = mesh_factor(ac[8], t.poisson[1], c_r, cal, float(np.sqrt(hs[j] * hs[j + 1]))).kappa
+    assert k_h == pytest.approx(0.5 * (t.factor[1, j, 8] + t.factor[1, j + 1, 8]))
     assert mesh_factor(0.5, 0.3, 2.0 * c_r, cal, hs[j]).extrapolated  # another cell size: flagged
     assert mesh_factor(0.5, 0.3, c_r, cal, 2.0 * hs[-1]).extrapolated  # thicker than measured: flagged
     assert mesh_factor(1.2, 0.3, c_r, cal, hs[0]).extrapolated  # deeper than the thin block was pressed: flagged
     # a window with free sides: the free table's factor; half its sides pinned: halfway
-    assert mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[j], 0.0).kappa == pytest.approx(free["factor"][1, j, 8])
-    half = mesh_factor(ac[8], t["poisson"][1], c_r, cal, hs[j], 0.5).kappa
-    assert half == pytest.approx(0.5 * (t["factor"][1, j, 8] + free["factor"][1, j, 8]))
+    assert mesh_factor(ac[8], t.poisson[1], c_r, cal, hs[j], 0.0).kappa == pytest.approx(free.factor[1, j, 8])
+    half = mesh_factor(ac[8], t.poisson[1], c_r, cal, hs[j], 0.5).kappa
+    assert half == pytest.approx(0.5 * (t.factor[1, j, 8] + free.factor[1, j, 8]))
     # the pinned window's sides stiffen a 30 mm block pressed over a cell wide: the free factor is smaller
-    assert free["factor"][1, j, -1] < t["factor"][1, j, -1]
+    assert free.factor[1, j, -1] < t.factor[1, j, -1]
     with pytest.raises(ValidationError, match="pinned_fraction"):
         mesh_factor(0.5, 0.3, c_r, cal, hs[j], 1.5)
 
@@ -115,15 +115,15 @@ def test_the_mesh_correction_reduced_once_per_press_is_the_tables_trilinear_inte
     from palpate.sim.flex_calibration import mesh_curve
 
     cal = load_calibration()
-    tables = {tb["sides"]: tb for tb in cal["tables"]}
+    tables = {tb.sides: tb for tb in cal.tables}
 
     def by_hand(tb, c, nu, h):
-        per = [[np.interp(c, tb["contact_over_cell"], row) for row in rows] for rows in tb["factor"]]
-        return np.interp(nu, tb["poisson"], [np.interp(np.log(h), np.log(tb["thickness"]), row) for row in per])
+        per = [[np.interp(c, tb.contact_over_cell, row) for row in rows] for rows in tb.factor]
+        return np.interp(nu, tb.poisson, [np.interp(np.log(h), np.log(tb.thickness), row) for row in per])
 
     rng = np.random.default_rng(7)
     for nu, h, pinned in ((0.41, 0.021, 0.5), (0.2, 0.0012, 1.0), (0.495, 0.2, 0.25)):
-        curve = mesh_curve(nu, tables["pinned"]["cell_over_radius"], cal, h, pinned)
+        curve = mesh_curve(nu, tables["pinned"].cell_over_radius, cal, h, pinned)
         for c in rng.uniform(0.1, 1.5, 12):
             want = pinned * by_hand(tables["pinned"], c, nu, h) + (1 - pinned) * by_hand(tables["free"], c, nu, h)
             assert curve.at(c).kappa == pytest.approx(want, rel=1e-12)
@@ -254,6 +254,36 @@ def test_force_scales_with_the_modulus_exactly():
     f_soft = np.interp(d, *_press_part(soft))
     f_hard = np.interp(d, *_press_part(hard))
     np.testing.assert_allclose(f_hard, 100.0 * f_soft, rtol=5e-3)
+
+
+def test_a_press_reads_the_tables_it_is_given_and_a_source_reads_them_once(monkeypatch):
+    """The calibration tables a caller loaded once give the press it would read from disk, bit for bit (a stiff
+    skin in the plate window: block and plate tables both read); doubled kappa halves the force exactly as it is
+    divided (the drive sees the uncorrected force, so the motion is the same); a SimSource reads them once."""
+    from dataclasses import replace
+
+    from palpate.core.session.sources import PressTarget
+    from palpate.sim import flex_tables, source
+
+    kw = dict(young=1e5, poisson=0.45, height=0.03, width=0.2, depth=0.002,
+              layers=(Layer(Material("skin", 2e6, 0.4), 0.002),))
+    tables = flex_tables.load_flex_tables()
+    read = flex.reference_press(**kw)
+    given = flex.reference_press(**kw, tables=tables)
+    assert read.meta["plate_corrected"]
+    for name in ("force", "sensel_pressure", "indentation"):
+        np.testing.assert_array_equal(getattr(given, name), getattr(read, name))
+    doubled = replace(tables, mesh=replace(tables.mesh, tables=tuple(
+        replace(t, factor=2.0 * t.factor) for t in tables.mesh.tables)))
+    np.testing.assert_allclose(flex.reference_press(**kw, tables=doubled).force, read.force / 2.0, rtol=1e-12)
+
+    loads = []
+    monkeypatch.setattr(source, "load_flex_tables", lambda: loads.append(1) or tables)
+    obj = ObjectSpec("b", "box", (0.1, 0.1, 0.02), (0.0, 0.0), Material("m", 2e5, 0.3))
+    sim = source.SimSource(Scene((obj,), fingertip=FingertipSpec(radius=R)), fidelity="flex")
+    for x in (0.0, 0.01):
+        sim.press(PressTarget(x, 0.0, depth=0.002, speed=0.01))
+    assert len(loads) == 1
 
 
 # ---------------------------------------------------------------- physics (seconds each)

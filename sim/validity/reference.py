@@ -56,9 +56,10 @@ def _array(path: Path, key: str, value) -> np.ndarray:
     return number_array(value, f"{path}: {key}", 1, max_size=1000)
 
 
-def read_document(path: Path | str, what: str, fmt: str, version: int, missing: str) -> dict:
+def read_document(path: Path | str, what: str, fmt: str | None, version: int, missing: str) -> dict:
     """A validity data file (bounded, strict JSON: core.files.read_json) whose ``format`` and ``version`` keys are
-    ``fmt`` and ``version``; ``missing`` says how to make it when it does not exist.
+    ``fmt`` and ``version``; ``missing`` says how to make it when it does not exist. ``fmt`` None: a file whose
+    format predates the ``format`` key (the flex block calibration), known by its ``version`` alone.
 
     Raises:
         ValidationError: missing, too large, not JSON (NaN included) or of another format, naming the file.
@@ -67,7 +68,10 @@ def read_document(path: Path | str, what: str, fmt: str, version: int, missing: 
     if not path.exists():
         raise ValidationError(f"{path}: {what} not found; {missing}")
     raw = read_json(path, what)
-    if not isinstance(raw, dict) or raw.get("format") != fmt or raw.get("version") != version:
+    got = raw.get("version") if isinstance(raw, dict) else None
+    if fmt is None and got != version:
+        raise ValidationError(f"{path}: key 'version' must be {version}, got {got!r}")
+    if fmt is not None and (got != version or raw.get("format") != fmt):
         raise ValidationError(f"{path}: not a {fmt} file of version {version}")
     return raw
 
