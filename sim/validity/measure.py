@@ -22,6 +22,7 @@ from palpate.sim.analytic import run_analytic_press
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import press_profile
 from palpate.sim.flex import run_flex_press
+from palpate.sim.flex_tables import FlexTables, load_flex_tables
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, law_depth
 from palpate.sim.trace import PhysicsTrace
@@ -46,8 +47,10 @@ class CasePress:
     wall_s: float
 
 
-def press_case(case: ValidityCase, fidelity: str, models: dict | None = None) -> CasePress:
-    """Press a case once at ``fidelity`` (``models``: built flex windows, reused across cases)."""
+def press_case(case: ValidityCase, fidelity: str, models: dict | None = None,
+               tables: FlexTables | None = None) -> CasePress:
+    """Press a case once at ``fidelity`` (``models``: built flex windows, reused across cases; ``tables``: flex's
+    calibration tables, read by the press itself when None)."""
     obj = case_object(case)
     scene = Scene((obj,))
     deepest = min(max(case.depths) * 1.03, 0.99 * MAX_DEPTH_OVER_RADIUS * TIP_RADIUS)
@@ -55,7 +58,7 @@ def press_case(case: ValidityCase, fidelity: str, models: dict | None = None) ->
     profile = press_profile(target, obj.height, radius=TIP_RADIUS, timestep=0.002)
     t0 = time.perf_counter()
     if fidelity == "flex":
-        trace = run_flex_press(scene, obj, target, profile, models=models)
+        trace = run_flex_press(scene, obj, target, profile, models=models, tables=tables)
     else:
         law = object_law(obj, 0.0, 0.0, obj.height, TIP_RADIUS, law_depth(profile))
         if fidelity == "analytic":
@@ -72,12 +75,14 @@ def measure_table(cases: list[ValidityCase], reference: FEReference, *, rungs=RU
     wall = dict.fromkeys(rungs, 0.0)
     simulated = dict.fromkeys(rungs, 0.0)
     models: dict = {}
+    # read once, so a flex press's wall time is its physics, not three table reads
+    tables = load_flex_tables() if "flex" in rungs else None
     for case in cases:
         ref = reference_force(reference, case)
         errs = {}
         for rung in rungs:
             try:
-                run = press_case(case, rung, models)
+                run = press_case(case, rung, models, tables)
             except PalpateError as exc:
                 failures.append(RungFailure(case=case.name, fidelity=rung, error=f"{type(exc).__name__}: {exc}"))
                 errs[rung] = np.full(len(case.depths), np.nan)
