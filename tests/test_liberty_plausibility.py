@@ -190,3 +190,38 @@ def test_a_device_restarted_after_a_silence_is_locked_onto_again():
     gate = RecordGate()
     accepted = _feed_at(gate, np.concatenate([frames, again]), np.concatenate([ms, ms_again]), host)
     assert accepted == list(range(599)) + list(range(600, 1200)) and gate.rejected == {"no lock": 1}
+
+
+def _still_records(n: int, rate: float = 240.0):
+    frames, ms = _stamped_stream(rate, n)
+    pos = np.tile([0.2, 0.0, 0.3], (n, 1))
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    return frames, ms, pos, quat
+
+
+def _feed_poses(gate: RecordGate, frames, ms, pos, quat) -> list[int]:
+    out = []
+    for k in range(len(frames)):
+        out += [r for _, r in gate.feed(1, pos[k], quat[k], int(ms[k]), int(frames[k]), 0.0, k)]
+    return out + [r for _, r in gate.flush()]
+
+
+def test_a_spike_costs_only_itself_not_the_good_record_before_it():
+    # record 50 is 5 mm off: its predecessor, checked against it, does not fit either; the record after the spike
+    # shows which of the two is off, so the predecessor is kept and the spike is checked against close neighbours
+    frames, ms, pos, quat = _still_records(100)
+    pos[50, 2] += 0.005
+    gate = RecordGate()
+    assert _feed_poses(gate, frames, ms, pos, quat) == [k for k in range(100) if k != 50]
+    assert gate.rejected == {"position jump": 1}
+
+
+def test_a_quaternion_that_is_not_unit_is_a_damaged_record():
+    # a damaged byte turning x from 0 to 0.01 tilts the sensor by 1.15 degrees and moves the norm by 5e-5; a
+    # float32 unit quaternion's norm is off by ~1e-7
+    frames, ms, pos, quat = _still_records(60)
+    quat[:] = np.array([np.cos(0.25), 0.0, np.sin(0.25), 0.0], dtype=np.float32)  # tilted, as the device sends it
+    quat[30, 1] = 0.01
+    gate = RecordGate()
+    assert _feed_poses(gate, frames, ms, pos, quat) == [k for k in range(60) if k != 30]
+    assert gate.rejected == {"quaternion norm": 1}

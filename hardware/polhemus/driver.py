@@ -91,7 +91,8 @@ class LibertyDriver:
         items: output list; must contain position (2) and quaternion (7).
         timeout: how long to wait for an answer, s; also how long a silent stream is tolerated.
         plausibility: the bounds a streamed record must meet to become a pose (see
-            :mod:`palpate.hardware.polhemus.plausibility`); records are delayed by one per station for it.
+            :mod:`palpate.hardware.polhemus.plausibility`); records are delayed by one per station for it (two
+            while one does not fit).
     """
 
     def __init__(self, transport, stations=(1,), units: str = "cm", binary: bool = True, items=DEFAULT_ITEMS,
