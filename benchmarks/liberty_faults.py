@@ -2,11 +2,11 @@
 
 Run: ``.venv/bin/python benchmarks/liberty_faults.py [--quick] [--seeds 300-319]``. Each row streams from the
 Liberty emulator on a pty (240 Hz, one station pressing 1 cm once a second 30 cm from the source, sent 10x faster
-than real time) through pyserial and the real driver, with truly random bytes on the line at the given rate (and false record headers
-before every 5th record in the "+ headers" rows), and compares every accepted pose with what the emulator sent
-(:mod:`palpate.hardware.polhemus.fault_trial`: wrong = no such record, or > 2 mm or > 1 degree from it).
-The checks' bounds are the physical defaults of ``Plausibility``; its rules were chosen looking at seeds 3,
-100-102 and 200-219 (not the default 10-14, nor 300-319). One seed gives one outcome whatever the host's timing.
+than real time) through pyserial and the real driver, with truly random bytes on the line at the given rate (and
+false record headers before every 5th record in the "+ headers" rows), and compares every accepted pose with what
+the emulator sent (:mod:`palpate.hardware.polhemus.fault_trial`: wrong = no such record, or > 2 mm or > 1 degree
+from it). The checks' bounds are the physical defaults of ``Plausibility``; its rules were chosen looking at seeds
+3, 100-102 and 200-219 (not the default 10-14, nor 300-319). One seed gives one outcome whatever the host's timing.
 """
 
 from __future__ import annotations
