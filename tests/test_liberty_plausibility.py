@@ -15,7 +15,7 @@ from palpate.hardware.polhemus.driver import LibertyDriver
 from palpate.hardware.polhemus.emulator import Faults
 from palpate.hardware.polhemus.fault_trial import run_trial
 from palpate.hardware.polhemus.plausibility import Plausibility, RecordGate
-from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, encode_binary
+from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, decode_ascii_line, encode_ascii, encode_binary
 
 
 @pytest.mark.parametrize("faults", [Faults(byte_error_rate=1e-3), Faults(byte_error_rate=1e-3, false_header_every=5)],
@@ -224,4 +224,45 @@ def test_a_quaternion_that_is_not_unit_is_a_damaged_record():
     quat[30, 1] = 0.01
     gate = RecordGate()
     assert _feed_poses(gate, frames, ms, pos, quat) == [k for k in range(60) if k != 30]
+    assert gate.rejected == {"quaternion norm": 1}
+
+
+def _ascii_turning(n: int, decimals: int):
+    """A still sensor turning about an oblique axis, its records written in ASCII with ``decimals`` decimals in
+    each quaternion component, as text lines (without CR LF)."""
+    frames, ms = _stamped_stream(240.0, n)
+    angle = 0.3 + 0.2 * np.sin(np.arange(n) / 40.0)
+    axis = np.array([0.3, 0.8, 0.52]) / np.linalg.norm([0.3, 0.8, 0.52])
+    quat = np.column_stack([np.cos(angle / 2), np.outer(np.sin(angle / 2), axis)])
+    return frames, [encode_ascii(DEFAULT_ITEMS, 1, "C", [20.0, 0.0, 30.0], quat[k], int(ms[k]), int(frames[k]),
+                                 quaternion_decimals=decimals).rstrip(b"\r\n") for k in range(n)]
+
+
+def _feed_lines(gate: RecordGate, lines) -> list[int]:
+    out = []
+    for k, line in enumerate(lines):
+        rec = decode_ascii_line(line, DEFAULT_ITEMS)
+        out += [r for _, r in gate.feed(1, rec.position * 0.01, rec.quaternion, rec.timestamp_ms, rec.frame, 0.0, k,
+                                        rec.quaternion_rounding)]
+    return out + [r for _, r in gate.flush()]
+
+
+def test_four_decimal_ascii_quaternions_lose_nothing_and_a_damaged_component_is_still_caught():
+    # rounding each component to 4 decimals moves the norm by up to 1e-4: a fixed bound below that (1e-5) would
+    # drop good records, so the bound is the format's resolution, read from the record's own fields
+    frames, lines = _ascii_turning(120, 4)
+    norms = np.array([np.linalg.norm(decode_ascii_line(x, DEFAULT_ITEMS).quaternion) for x in lines])
+    assert np.max(np.abs(norms - 1.0)) > 1e-5
+    gate = RecordGate()
+    assert _feed_lines(gate, lines) == list(range(120)) and gate.rejected == {}
+    # one byte of a component's second decimal damaged (0.0x -> 0.0x + 0.03): its norm moves by ~5e-3, past
+    # the format's 1e-4, while the rest of the record is intact
+    head, nums = lines[60][:4], lines[60][4:].split()
+    x = bytearray(nums[4])  # after the position's three fields and w
+    d = x.index(b".") + 2
+    x[d] = (x[d] - ord("0") + 3) % 10 + ord("0")
+    nums[4] = bytes(x)
+    lines[60] = head + b" " + b" ".join(nums)
+    gate = RecordGate()
+    assert _feed_lines(gate, lines) == [k for k in range(120) if k != 60]
     assert gate.rejected == {"quaternion norm": 1}

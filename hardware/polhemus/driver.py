@@ -294,7 +294,7 @@ class LibertyDriver:
     def _accept(self, rec: Record, t_host: float) -> list[PoseSample]:
         """The poses the plausibility gate accepts on seeing ``rec`` (counted in ``stats.records``)."""
         accepted = self._gate.feed(rec.station, np.asarray(rec.position, dtype=float) * self._scale, rec.quaternion,
-                                   rec.timestamp_ms, rec.frame, t_host, (rec, t_host))
+                                   rec.timestamp_ms, rec.frame, t_host, (rec, t_host), rec.quaternion_rounding)
         return [self._counted(self._pose(r, t, host)) for t, (r, host) in accepted]
 
     def _flush_gate(self) -> list[PoseSample]:

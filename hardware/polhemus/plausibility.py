@@ -12,8 +12,9 @@ records before it becomes a pose:
   lie within one tick of each other. A stamp moved by a tick or two (a damaged low byte) fits a single step within
   ``time_slack`` but breaks that phase; with ``frame_locked_clock`` off (a tracker that stamps by host time) only
   the steps are checked;
-- **quaternion norm**: the device sends unit quaternions, so a norm off 1 by more than ``quaternion_norm`` is a
-  damaged record (a byte of a component near 0 turns the sensor by a degree or two and nothing else tells);
+- **quaternion norm**: the device sends unit quaternions, rounded by the record's format (float32 in binary, the
+  decimals written in ASCII), so a norm off 1 by more than ``quaternion_norm`` plus that rounding is a damaged
+  record (a byte of a component near 0 turns the sensor by a degree or two and nothing else tells);
 - **motion**: a record is held until the next good one arrives, then its position must lie on the path between
   its neighbours: the interpolation error of a hand's path with acceleration at most ``max_accel`` is at most
   ``max_accel / 2 * (t - t0) * (t1 - t)``, plus the tracker's noise; its orientation likewise with
@@ -66,10 +67,12 @@ class Plausibility:
         frame_locked_clock: the device stamps frames by a clock its frame rate is locked to (the Liberty's), so
             the clock phase is checked (module docstring).
         clock_tick: the timestamp's resolution, s.
-        quaternion_norm: how far a record's quaternion norm may be from 1. The device sends a unit quaternion
-            (float32 rounding moves its norm by ~1e-7, the ASCII format's 6 decimals by ~1e-6); a damaged byte in
-            a component near 0, which turns the sensor by a degree or two, moves it by ~1e-4 (a component of
-            0.01 adds 5e-5). Raise it for a tracker whose quaternions are less exactly unit.
+        quaternion_norm: how far the device's own quaternion norm may be from 1 before its output format rounds
+            it; the gate adds the record's rounding (``feed``'s ``quaternion_rounding``: ~6e-8 in binary float32,
+            1e-4 with four decimals in ASCII, 1e-6 with six), as rounding each component by at most h moves the
+            norm by at most 2 h. A damaged byte in a component near 0, which turns the sensor by a degree or two,
+            moves the norm by ~1e-4 (a component of 0.01 adds 5e-5): caught in binary and six-decimal ASCII, not
+            always with four decimals. Raise it for a tracker whose quaternions are less exactly unit.
     """
 
     max_speed: float = 5.0
@@ -83,7 +86,7 @@ class Plausibility:
     relock_after: float = 0.5
     frame_locked_clock: bool = True
     clock_tick: float = 0.001
-    quaternion_norm: float = 1e-5
+    quaternion_norm: float = 1e-6
 
 
 @dataclass
@@ -120,13 +123,16 @@ class RecordGate:
         self._stations: dict[int, _Station] = {}
 
     def feed(self, station: int, position: np.ndarray, quaternion: np.ndarray, timestamp_ms: int | None,
-             frame: int | None, t_host: float, record=None) -> list[tuple[float, object]]:
-        """Check one record (position m, quaternion w,x,y,z); returns ``(t, record)`` of every record accepted by
-        it, in order (none, or the one held before it, or two at lock-in). ``t`` is the unwrapped device time
-        in s (the host time ``t_host`` when the record has no timestamp)."""
+             frame: int | None, t_host: float, record=None, quaternion_rounding: float = 0.0
+             ) -> list[tuple[float, object]]:
+        """Check one record (position m, quaternion w,x,y,z, ``quaternion_rounding``: how far its format can have
+        moved the quaternion, :attr:`~palpate.hardware.polhemus.protocol.Record.quaternion_rounding`); returns
+        ``(t, record)`` of every record accepted by it, in order (none, or the one held before it, or two at
+        lock-in). ``t`` is the unwrapped device time in s (the host time ``t_host`` when the record has no
+        timestamp)."""
         st = self._stations.setdefault(station, _Station())
         quat = np.asarray(quaternion, dtype=float)
-        if not abs(float(np.linalg.norm(quat)) - 1.0) <= self.limits.quaternion_norm:
+        if not abs(float(np.linalg.norm(quat)) - 1.0) <= self.limits.quaternion_norm + quaternion_rounding:
             self.rejected["quaternion norm"] += 1
             return []
         pose = _Pose(0.0, timestamp_ms, frame, np.asarray(position, dtype=float), quat / np.linalg.norm(quat), record,
