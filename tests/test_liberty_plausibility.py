@@ -15,7 +15,7 @@ from palpate.hardware.polhemus.driver import LibertyDriver
 from palpate.hardware.polhemus.emulator import Faults
 from palpate.hardware.polhemus.fault_trial import run_trial
 from palpate.hardware.polhemus.plausibility import Plausibility, RecordGate
-from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, decode_ascii_line, encode_ascii, encode_binary
+from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, ErrorEvent, decode_ascii_line, encode_ascii, encode_binary
 
 
 @pytest.mark.parametrize("faults", [Faults(byte_error_rate=1e-3), Faults(byte_error_rate=1e-3, false_header_every=5)],
@@ -266,3 +266,8 @@ def test_four_decimal_ascii_quaternions_lose_nothing_and_a_damaged_component_is_
     gate = RecordGate()
     assert _feed_lines(gate, lines) == [k for k in range(120) if k != 60]
     assert gate.rejected == {"quaternion norm": 1}
+    # a damaged byte that makes a field an exponent ('0.0005' -> '0.0e05') would claim a resolution of 5e4: the
+    # device never writes one, so the line is bad
+    head, nums = lines[61][:4], lines[61][4:].split()
+    nums[4] = nums[4][:3] + b"e" + nums[4][4:]
+    assert isinstance(decode_ascii_line(head + b" " + b" ".join(nums), DEFAULT_ITEMS), ErrorEvent)

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from decimal import Decimal
 
 import numpy as np
 
@@ -54,6 +53,8 @@ ITEM_LAYOUT: dict[int, tuple[str, str, int]] = {
 DEFAULT_ITEMS = (ITEM_POSITION, ITEM_QUATERNION, ITEM_TIMESTAMP, ITEM_FRAMECOUNT, ITEM_CRLF)
 # A quaternion from the device is unit to float32 precision; anything far off means the bytes are not a record.
 QUAT_NORM_TOLERANCE = 0.05
+# A field as the device writes it in ASCII: digits, at most one point, no exponent.
+_FIXED_POINT = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)")
 # Positions beyond this (in device units) are outside any Liberty's range: the bytes are not a record.
 MAX_ABS_POSITION = 1.0e4
 
@@ -371,9 +372,10 @@ def quaternion_rounding(quaternions: np.ndarray) -> np.ndarray:
 
 
 def _half_last_decimal(text: str) -> float:
-    """Half the unit of the last digit written in a decimal field ('0.0123' -> 5e-5): how far rounding to it can
-    have moved the value. ValueError when it is not a finite number."""
-    exponent = Decimal(text).as_tuple().exponent
-    if not isinstance(exponent, int):
-        raise ValueError(f"{text!r} is not a finite number")
-    return 0.5 * 10.0 ** exponent
+    """Half the unit of the last decimal written in a fixed-point field ('0.0123' -> 5e-5): how far rounding to it
+    can have moved the value. ValueError for anything the device does not write (an exponent, inf, nan: a
+    damaged byte, whose exponent would otherwise claim a coarse resolution)."""
+    if not _FIXED_POINT.fullmatch(text):
+        raise ValueError(f"{text!r} is not a fixed-point decimal")
+    _, _, decimals = text.partition(".")
+    return 0.5 * 10.0 ** -len(decimals)
