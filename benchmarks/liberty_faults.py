@@ -5,8 +5,9 @@ Liberty emulator on a pty (240 Hz, one station pressing 1 cm once a second 30 cm
 than real time) through pyserial and the real driver, with truly random bytes on the line at the given rate (and
 false record headers before every 5th record in the "+ headers" rows), and compares every accepted pose with what
 the emulator sent (:mod:`palpate.hardware.polhemus.fault_trial`: wrong = no such record, or > 2 mm or > 1 degree
-from it). The checks' bounds are the physical defaults of ``Plausibility``; its rules were chosen looking at seeds
-3, 100-102 and 200-219 (not the default 10-14, nor 300-319). One seed gives one outcome whatever the host's timing.
+from it). The checks' bounds are the physical defaults of ``Plausibility`` and the records' format; its rules were
+chosen looking at seeds 3, 100-102 and 200-219 (not the default 10-14, nor 300-319 or 400-419: docs/real_rig.md has
+the 400-419 table). One seed gives one outcome whatever the host's timing.
 """
 
 from __future__ import annotations
