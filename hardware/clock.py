@@ -152,3 +152,17 @@ class DeviceTimeMap:
         if not self._queue:
             raise ValueError("DeviceTimeMap: no sample seen yet")
         return device_t + self._queue[0][1]
+
+
+def read_arrived(port, limit: int) -> bytes:
+    """What has arrived on a pyserial ``port`` (at most ``limit`` bytes), waiting up to the port's timeout only for
+    the first byte.
+
+    A plain ``read(limit)`` waits out the whole timeout unless ``limit`` bytes come, so everything that arrived in
+    it is stamped at its end: a frame every 20 ms read with a 20 ms timeout can be stamped up to 20 ms late for
+    seconds on end (the two periods beat), and a :class:`DeviceTimeMap` only finds the true delay when a frame
+    happens to land just before a read returns. Returning as soon as bytes are there stamps a record when its last
+    byte arrives.
+    """
+    waiting = port.in_waiting
+    return port.read(min(limit, max(1, waiting)))

@@ -15,7 +15,7 @@ from palpate.hardware.polhemus.driver import LibertyDriver
 from palpate.hardware.polhemus.emulator import Faults
 from palpate.hardware.polhemus.fault_trial import run_trial
 from palpate.hardware.polhemus.plausibility import Plausibility, RecordGate
-from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, encode_binary
+from palpate.hardware.polhemus.protocol import DEFAULT_ITEMS, ErrorEvent, decode_ascii_line, encode_ascii, encode_binary
 
 
 @pytest.mark.parametrize("faults", [Faults(byte_error_rate=1e-3), Faults(byte_error_rate=1e-3, false_header_every=5)],
@@ -28,6 +28,21 @@ def test_random_bytes_and_false_headers_let_no_wrong_pose_through(faults):
     assert trial.accepted >= trial.sent - 3 * trial.damaged
     assert trial.lost_good <= 2 * trial.damaged
     assert sum(trial.rejected.values()) > 0 and trial.max_position_error < 0.002
+
+
+def test_one_seed_gives_one_trial_whatever_the_host_timing():
+    # the stream starts at a fixed device time and each record draws its noise and faults from the seed and its
+    # index, so two runs (configured and read at whatever moments the host manages) see the same bytes
+    faults = Faults(byte_error_rate=1e-2, false_header_every=7)
+    first, again, other = (_counted(run_trial(faults, seconds=0.3, seed=s)) for s in (21, 21, 22))
+    assert first == again and first[1] > 100 and other != first
+
+
+def _counted(trial):
+    """What a trial counts over its window (its driver's rejections and parser events also cover the tail read
+    after it, which depends on when the host stopped reading)."""
+    return (trial.sent, trial.damaged, trial.accepted, trial.wrong, trial.lost_good, trial.max_position_error,
+            trial.max_angle_error)
 
 
 def test_ascii_records_with_random_bytes_are_checked_the_same_way():
@@ -175,3 +190,84 @@ def test_a_device_restarted_after_a_silence_is_locked_onto_again():
     gate = RecordGate()
     accepted = _feed_at(gate, np.concatenate([frames, again]), np.concatenate([ms, ms_again]), host)
     assert accepted == list(range(599)) + list(range(600, 1200)) and gate.rejected == {"no lock": 1}
+
+
+def _still_records(n: int, rate: float = 240.0):
+    frames, ms = _stamped_stream(rate, n)
+    pos = np.tile([0.2, 0.0, 0.3], (n, 1))
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    return frames, ms, pos, quat
+
+
+def _feed_poses(gate: RecordGate, frames, ms, pos, quat) -> list[int]:
+    out = []
+    for k in range(len(frames)):
+        out += [r for _, r in gate.feed(1, pos[k], quat[k], int(ms[k]), int(frames[k]), 0.0, k)]
+    return out + [r for _, r in gate.flush()]
+
+
+def test_a_spike_costs_only_itself_not_the_good_record_before_it():
+    # record 50 is 5 mm off: its predecessor, checked against it, does not fit either; the record after the spike
+    # shows which of the two is off, so the predecessor is kept and the spike is checked against close neighbours
+    frames, ms, pos, quat = _still_records(100)
+    pos[50, 2] += 0.005
+    gate = RecordGate()
+    assert _feed_poses(gate, frames, ms, pos, quat) == [k for k in range(100) if k != 50]
+    assert gate.rejected == {"position jump": 1}
+
+
+def test_a_quaternion_that_is_not_unit_is_a_damaged_record():
+    # a damaged byte turning x from 0 to 0.01 tilts the sensor by 1.15 degrees and moves the norm by 5e-5; a
+    # float32 unit quaternion's norm is off by ~1e-7
+    frames, ms, pos, quat = _still_records(60)
+    quat[:] = np.array([np.cos(0.25), 0.0, np.sin(0.25), 0.0], dtype=np.float32)  # tilted, as the device sends it
+    quat[30, 1] = 0.01
+    gate = RecordGate()
+    assert _feed_poses(gate, frames, ms, pos, quat) == [k for k in range(60) if k != 30]
+    assert gate.rejected == {"quaternion norm": 1}
+
+
+def _ascii_turning(n: int, decimals: int):
+    """A still sensor turning about an oblique axis, its records written in ASCII with ``decimals`` decimals in
+    each quaternion component, as text lines (without CR LF)."""
+    frames, ms = _stamped_stream(240.0, n)
+    angle = 0.3 + 0.2 * np.sin(np.arange(n) / 40.0)
+    axis = np.array([0.3, 0.8, 0.52]) / np.linalg.norm([0.3, 0.8, 0.52])
+    quat = np.column_stack([np.cos(angle / 2), np.outer(np.sin(angle / 2), axis)])
+    return frames, [encode_ascii(DEFAULT_ITEMS, 1, "C", [20.0, 0.0, 30.0], quat[k], int(ms[k]), int(frames[k]),
+                                 quaternion_decimals=decimals).rstrip(b"\r\n") for k in range(n)]
+
+
+def _feed_lines(gate: RecordGate, lines) -> list[int]:
+    out = []
+    for k, line in enumerate(lines):
+        rec = decode_ascii_line(line, DEFAULT_ITEMS)
+        out += [r for _, r in gate.feed(1, rec.position * 0.01, rec.quaternion, rec.timestamp_ms, rec.frame, 0.0, k,
+                                        rec.quaternion_rounding)]
+    return out + [r for _, r in gate.flush()]
+
+
+def test_four_decimal_ascii_quaternions_lose_nothing_and_a_damaged_component_is_still_caught():
+    # rounding each component to 4 decimals moves the norm by up to 1e-4: a fixed bound below that (1e-5) would
+    # drop good records, so the bound is the format's resolution, read from the record's own fields
+    frames, lines = _ascii_turning(120, 4)
+    norms = np.array([np.linalg.norm(decode_ascii_line(x, DEFAULT_ITEMS).quaternion) for x in lines])
+    assert np.max(np.abs(norms - 1.0)) > 1e-5
+    gate = RecordGate()
+    assert _feed_lines(gate, lines) == list(range(120)) and gate.rejected == {}
+    # one byte of a component's second decimal damaged (0.0x -> 0.0x + 0.03): its norm moves by ~5e-3, past
+    # the format's 1e-4, while the rest of the record is intact
+    head, nums = lines[60][:4], lines[60][4:].split()
+    x = bytearray(nums[4])  # after the position's three fields and w
+    d = x.index(b".") + 2
+    x[d] = (x[d] - ord("0") + 3) % 10 + ord("0")
+    nums[4] = bytes(x)
+    lines[60] = head + b" " + b" ".join(nums)
+    gate = RecordGate()
+    assert _feed_lines(gate, lines) == [k for k in range(120) if k != 60]
+    assert gate.rejected == {"quaternion norm": 1}
+    # a damaged byte that makes a field an exponent ('0.0005' -> '0.0e05') would claim a resolution of 5e4: the
+    # device never writes one, so the line is bad
+    head, nums = lines[61][:4], lines[61][4:].split()
+    nums[4] = nums[4][:3] + b"e" + nums[4][4:]
+    assert isinstance(decode_ascii_line(head + b" " + b" ".join(nums), DEFAULT_ITEMS), ErrorEvent)

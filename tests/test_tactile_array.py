@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from palpate.core.errors import ValidationError
-from palpate.hardware.clock import FastClock
+from palpate.hardware.clock import FastClock, read_arrived
+from palpate.hardware.polhemus.transport import SerialTransport
 from palpate.hardware.tactile.emulator import TactileArrayEmulator, TactileFaults
 from palpate.hardware.tactile.protocol import FrameParser, crc16, encode_binary, encode_csv
 from palpate.hardware.tactile.reader import TactileArrayReader
@@ -81,3 +82,33 @@ def test_a_silent_array_is_reported_not_filled_in():
     # the frames sent before the port was opened are gone; after them, every frame up to the 40th, and none after
     assert reader.stats.silent and reader.stats.lost == 0 and 30 <= len(frames) == reader.stats.frames <= 40
     assert frames[-1].t - frames[0].t == pytest.approx((len(frames) - 1) / 200.0, abs=1e-6)
+
+
+class _WaitingPort:
+    """A pyserial port with ``waiting`` bytes in its buffer that records how many bytes each read asks for (a
+    read asking for more than is there waits out the timeout, and everything in it is stamped at its end)."""
+
+    def __init__(self, waiting: int, on_read=lambda: None):
+        self.in_waiting = waiting
+        self.asked: list[int] = []
+        self._on_read = on_read
+
+    def read(self, n: int) -> bytes:
+        self.asked.append(n)
+        self._on_read()
+        return bytes(min(n, max(self.in_waiting, 1)))
+
+
+def test_both_serial_readers_take_what_has_arrived_instead_of_waiting_out_the_timeout():
+    # what is there is read at once; with nothing there, one byte is waited for; a read never asks beyond its limit
+    for waiting, limit, asked in ((37, 4096, 37), (0, 4096, 1), (9000, 4096, 4096)):
+        port = _WaitingPort(waiting)
+        assert len(read_arrived(port, limit)) == asked and port.asked == [asked]
+    # the tactile array's reading loop (stopped after one read) and the Liberty's serial transport
+    reader = TactileArrayReader("unused", sensel_area=AREA)
+    reader._serial = port = _WaitingPort(37, on_read=reader._stop.set)
+    reader._run()
+    assert port.asked == [37]
+    transport = SerialTransport.__new__(SerialTransport)
+    transport._serial = port = _WaitingPort(37)
+    assert len(transport.read(1 << 14)) == 37 and port.asked == [37]

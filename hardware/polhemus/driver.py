@@ -91,7 +91,8 @@ class LibertyDriver:
         items: output list; must contain position (2) and quaternion (7).
         timeout: how long to wait for an answer, s; also how long a silent stream is tolerated.
         plausibility: the bounds a streamed record must meet to become a pose (see
-            :mod:`palpate.hardware.polhemus.plausibility`); records are delayed by one per station for it.
+            :mod:`palpate.hardware.polhemus.plausibility`); records are delayed by one per station for it (two
+            while one does not fit).
     """
 
     def __init__(self, transport, stations=(1,), units: str = "cm", binary: bool = True, items=DEFAULT_ITEMS,
@@ -293,7 +294,7 @@ class LibertyDriver:
     def _accept(self, rec: Record, t_host: float) -> list[PoseSample]:
         """The poses the plausibility gate accepts on seeing ``rec`` (counted in ``stats.records``)."""
         accepted = self._gate.feed(rec.station, np.asarray(rec.position, dtype=float) * self._scale, rec.quaternion,
-                                   rec.timestamp_ms, rec.frame, t_host, (rec, t_host))
+                                   rec.timestamp_ms, rec.frame, t_host, (rec, t_host), rec.quaternion_rounding)
         return [self._counted(self._pose(r, t, host)) for t, (r, host) in accepted]
 
     def _flush_gate(self) -> list[PoseSample]:

@@ -142,11 +142,16 @@ class LibertyEmulator(PtyDevice):
         rate: continuous output rate, frames per second (each frame has one record per station).
         stations: the stations with a sensor plugged in (1-based).
         noise: standard deviation of the position noise added to every axis, m.
-        seed: seed of the noise, the garbage and the byte errors.
+        seed: seed of the noise, the garbage and the byte errors. Each record draws them from its own generator,
+            keyed by the seed and the record's index since :attr:`faults` was last set, so one seed gives one
+            pattern of noise and faults whatever the host's timing.
         motion: ``motion(t, station) -> (position m (3,), quaternion w,x,y,z (4,))``, t in s on the device clock.
         baud: the device's baud rate; a client at another speed gets garbage (see the module docstring).
         faults: error injection.
         clock: the device's clock (:mod:`palpate.hardware.clock`); the device time starts at 0 at construction.
+        stream_time: when set, the device clock reads this (s, whole ms) at the first frame of continuous output,
+            so the stamps and the motion's phase do not depend on when the host's ``C`` arrived (a reproducible
+            trial; the real device's clock just runs on). None: frames start when ``C`` arrives.
 
     Timestamps (item 8) are the device clock's ms; continuous frames are exactly 1/rate apart on it. Use as a
     context manager or call :meth:`close`.
@@ -162,6 +167,7 @@ class LibertyEmulator(PtyDevice):
         baud: int = 115200,
         faults: Faults | None = None,
         clock=None,
+        stream_time: float | None = None,
     ):
         if not (np.isfinite(rate) and 0 < rate <= 10000):
             raise ValidationError(f"emulator rate must be in (0, 10000] Hz, got {rate}")
@@ -175,8 +181,12 @@ class LibertyEmulator(PtyDevice):
             raise ValidationError("emulator needs at least one station")
         self.noise = float(noise)
         self.motion = motion or static_motion
+        if stream_time is not None and not (np.isfinite(stream_time) and stream_time >= 0):
+            raise ValidationError(f"emulator stream_time must be >= 0 s, got {stream_time}")
+        self.stream_time = None if stream_time is None else round(float(stream_time) * 1000.0) / 1000.0
+        self._seed = int(seed)
+        self._lock = threading.Lock()
         self.faults = faults or Faults()
-        self._rng = np.random.default_rng(seed)
         # Device state (power-up defaults).
         self.binary = False
         self.units = "in"
@@ -195,9 +205,19 @@ class LibertyEmulator(PtyDevice):
         self._frame_count = 0
         self._line = b""
         self._next_frame_time = 0.0
-        self._lock = threading.Lock()
         self._t0 = self.clock()
         self.start()
+
+    @property
+    def faults(self) -> Faults:
+        """The faults injected; setting them restarts the records' index that keys their random draws."""
+        return self._faults
+
+    @faults.setter
+    def faults(self, value: Faults) -> None:
+        with self._lock:
+            self._faults = value
+            self._draw_index = 0
 
     # -- lifecycle ----------------------------------------------------------------------------------------
 
@@ -213,7 +233,8 @@ class LibertyEmulator(PtyDevice):
 
     @property
     def epoch(self) -> float:
-        """The clock's reading at the device's time zero (another emulator can share it: one motion, two devices)."""
+        """The clock's reading at the device's time zero (another emulator can share it: one motion, two devices;
+        with ``stream_time`` set it moves when continuous output starts)."""
         return self._t0
 
     def device_time(self) -> float:
@@ -296,6 +317,8 @@ class LibertyEmulator(PtyDevice):
     def _start_continuous(self) -> None:
         if not self.continuous:
             self.continuous = True
+            if self.stream_time is not None:
+                self._t0 = self.clock() - self.stream_time
             self._next_frame_time = self.device_time()
 
     def _emit_due_frames(self) -> None:
@@ -317,10 +340,13 @@ class LibertyEmulator(PtyDevice):
             if self.silent:
                 return
             pos, quat = self.motion(t, station)
-            pos = np.asarray(pos, dtype=float) + (self._rng.normal(0.0, self.noise, 3) if self.noise else 0.0)
-            self._send_record(command, station, pos, scale, np.asarray(quat, dtype=float), t)
+            rng = np.random.default_rng((self._seed, self._draw_index))
+            self._draw_index += 1
+            pos = np.asarray(pos, dtype=float) + (rng.normal(0.0, self.noise, 3) if self.noise else 0.0)
+            self._send_record(command, station, pos, scale, np.asarray(quat, dtype=float), t, rng)
 
-    def _send_record(self, command: str, station: int, pos_m, scale: float, quat, t: float) -> None:
+    def _send_record(self, command: str, station: int, pos_m, scale: float, quat, t: float,
+                     rng: np.random.Generator) -> None:
         f = self.faults
         k = self.records_sent + 1
         error = f.error_code if f.error_every and k % f.error_every == 0 else 0
@@ -338,7 +364,7 @@ class LibertyEmulator(PtyDevice):
         wasted = 0
         if f.corrupt_every and k % f.corrupt_every == 0:
             # Garbage without 'L', so it cannot be taken for a header: the test knows exactly what was sent.
-            junk = self._rng.integers(0, 255, f.corrupt_bytes, dtype=np.uint8)
+            junk = rng.integers(0, 255, f.corrupt_bytes, dtype=np.uint8)
             junk[junk == ord("L")] = 0x4D
             data = junk.tobytes() + data
             self.faults_injected["corrupt"] += 1
@@ -346,7 +372,7 @@ class LibertyEmulator(PtyDevice):
             wasted = f.corrupt_bytes
         if f.false_header_every and k % f.false_header_every == 0:
             fake = bytearray(encode_binary(items, station, "C"))
-            fake[8:] = self._rng.integers(0, 256, len(fake) - 8, dtype=np.uint8).tobytes()
+            fake[8:] = rng.integers(0, 256, len(fake) - 8, dtype=np.uint8).tobytes()
             data = bytes(fake) + data
             self.faults_injected["false_header"] += 1
             applied.append("false_header")
@@ -357,9 +383,9 @@ class LibertyEmulator(PtyDevice):
             wasted = len(data)
         if f.byte_error_rate > 0:
             raw = np.frombuffer(data, dtype=np.uint8).copy()
-            hit = self._rng.random(len(raw)) < f.byte_error_rate
+            hit = rng.random(len(raw)) < f.byte_error_rate
             if hit.any():
-                raw[hit] = self._rng.integers(0, 256, int(hit.sum()), dtype=np.uint8)
+                raw[hit] = rng.integers(0, 256, int(hit.sum()), dtype=np.uint8)
                 data = raw.tobytes()
                 self.faults_injected["bytes"] += int(hit.sum())
                 applied.append("bytes")

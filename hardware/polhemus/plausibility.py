@@ -12,16 +12,25 @@ records before it becomes a pose:
   lie within one tick of each other. A stamp moved by a tick or two (a damaged low byte) fits a single step within
   ``time_slack`` but breaks that phase; with ``frame_locked_clock`` off (a tracker that stamps by host time) only
   the steps are checked;
+- **quaternion norm**: the device sends unit quaternions, rounded by the record's format (float32 in binary, the
+  decimals written in ASCII), so a norm off 1 by more than ``quaternion_norm`` plus that rounding is a damaged
+  record (a byte of a component near 0 turns the sensor by a degree or two and nothing else tells);
 - **motion**: a record is held until the next good one arrives, then its position must lie on the path between
   its neighbours: the interpolation error of a hand's path with acceleration at most ``max_accel`` is at most
   ``max_accel / 2 * (t - t0) * (t1 - t)``, plus the tracker's noise; its orientation likewise with
-  ``max_angular_accel``; its speed from the last good pose is at most ``max_speed``.
+  ``max_angular_accel``; its speed from the last good pose is at most ``max_speed``. When it does not fit, either
+  it or its successor is off the path: the record after the successor decides (it is kept when it fits between
+  its predecessor and that record and the successor does not fit between them). Dropping a good record for a bad
+  successor would widen the gap round the bad one, and the bound grows with the gap.
 
 A stream starts (and restarts after ``relock_after`` s of host time without a good record, unless that record
 continues the station's frame counter and clock: a host that stalled reads the buffered frames late) by three
 consecutive records that agree with each other; until then nothing is trusted, and a record that disagrees with
 those held replaces them. Rejected records are counted by reason; nothing is repaired or invented. The cost is one
-record of delay per station (4 ms at 240 Hz).
+record of delay per station (4 ms at 240 Hz), two when a record does not fit.
+
+The bound is physical, so a damaged position that stays within it next to a long gap (records lost on either side)
+still passes; docs/real_rig.md says how often on a very noisy line.
 """
 
 from __future__ import annotations
@@ -35,7 +44,7 @@ import numpy as np
 #: At lock-in the three records must be at most this many frames apart (a clean stream has them consecutive).
 LOCK_SKIP = 3
 #: Reasons a record is rejected (StreamStats.rejected keys).
-REASONS = ("frame counter", "timestamp", "position jump", "orientation jump", "speed", "no lock")
+REASONS = ("frame counter", "timestamp", "position jump", "orientation jump", "speed", "no lock", "quaternion norm")
 #: How many of a station's latest good records the clock phase is checked against: enough to hold every phase of
 #: the ms rounding at 240 Hz (it repeats every 6 frames) twice.
 PHASE_FRAMES = 12
@@ -58,6 +67,12 @@ class Plausibility:
         frame_locked_clock: the device stamps frames by a clock its frame rate is locked to (the Liberty's), so
             the clock phase is checked (module docstring).
         clock_tick: the timestamp's resolution, s.
+        quaternion_norm: how far the device's own quaternion norm may be from 1 before its output format rounds
+            it; the gate adds the record's rounding (``feed``'s ``quaternion_rounding``: ~6e-8 in binary float32,
+            1e-4 with four decimals in ASCII, 1e-6 with six), as rounding each component by at most h moves the
+            norm by at most 2 h. A damaged byte in a component near 0, which turns the sensor by a degree or two,
+            moves the norm by ~1e-4 (a component of 0.01 adds 5e-5): caught in binary and six-decimal ASCII, not
+            always with four decimals. Raise it for a tracker whose quaternions are less exactly unit.
     """
 
     max_speed: float = 5.0
@@ -71,6 +86,7 @@ class Plausibility:
     relock_after: float = 0.5
     frame_locked_clock: bool = True
     clock_tick: float = 0.001
+    quaternion_norm: float = 1e-6
 
 
 @dataclass
@@ -107,12 +123,18 @@ class RecordGate:
         self._stations: dict[int, _Station] = {}
 
     def feed(self, station: int, position: np.ndarray, quaternion: np.ndarray, timestamp_ms: int | None,
-             frame: int | None, t_host: float, record=None) -> list[tuple[float, object]]:
-        """Check one record (position m, quaternion w,x,y,z); returns ``(t, record)`` of every record accepted by
-        it, in order (none, or the one held before it, or two at lock-in). ``t`` is the unwrapped device time
-        in s (the host time ``t_host`` when the record has no timestamp)."""
+             frame: int | None, t_host: float, record=None, quaternion_rounding: float = 0.0
+             ) -> list[tuple[float, object]]:
+        """Check one record (position m, quaternion w,x,y,z, ``quaternion_rounding``: how far its format can have
+        moved the quaternion, :attr:`~palpate.hardware.polhemus.protocol.Record.quaternion_rounding`); returns
+        ``(t, record)`` of every record accepted by it, in order (none, or the one held before it, or two at
+        lock-in). ``t`` is the unwrapped device time in s (the host time ``t_host`` when the record has no
+        timestamp)."""
         st = self._stations.setdefault(station, _Station())
         quat = np.asarray(quaternion, dtype=float)
+        if not abs(float(np.linalg.norm(quat)) - 1.0) <= self.limits.quaternion_norm + quaternion_rounding:
+            self.rejected["quaternion norm"] += 1
+            return []
         pose = _Pose(0.0, timestamp_ms, frame, np.asarray(position, dtype=float), quat / np.linalg.norm(quat), record,
                      t_host)
         if st.accepted and t_host - st.accepted[-1].host > self.limits.relock_after \
@@ -263,6 +285,14 @@ class RecordGate:
             a = st.accepted[-1]
             c, b = st.pending[0], st.pending[1]
             why = self._fits_between(a, c, b)
+            if why is not None:
+                # c or b is off the path: wait for the record after b to tell which. Dropping a good c for a bad
+                # b would widen the gap round b, and with it the bound a bad record is checked against.
+                if len(st.pending) < 3:
+                    break
+                d = st.pending[2]
+                if self._fits_between(a, c, d) is None and self._fits_between(c, b, d) is not None:
+                    why = None
             if why is None:
                 self._learn_period(st, a, c)
                 st.accepted = [a, c]

@@ -53,6 +53,8 @@ ITEM_LAYOUT: dict[int, tuple[str, str, int]] = {
 DEFAULT_ITEMS = (ITEM_POSITION, ITEM_QUATERNION, ITEM_TIMESTAMP, ITEM_FRAMECOUNT, ITEM_CRLF)
 # A quaternion from the device is unit to float32 precision; anything far off means the bytes are not a record.
 QUAT_NORM_TOLERANCE = 0.05
+# A field as the device writes it in ASCII: digits, at most one point, no exponent.
+_FIXED_POINT = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)")
 # Positions beyond this (in device units) are outside any Liberty's range: the bytes are not a record.
 MAX_ABS_POSITION = 1.0e4
 
@@ -69,6 +71,9 @@ class Record:
         quaternion: (w, x, y, z), or None if not in the output list.
         timestamp_ms: device clock, ms, or None.
         frame: device frame count, or None.
+        quaternion_rounding: how far the record's format can have moved the quaternion from the device's value
+            (Euclidean, dimensionless): half a float32 unit in the last place per component in binary, half the
+            last decimal written per component in ASCII (:func:`quaternion_rounding`); 0 when not known.
     """
 
     station: int
@@ -78,6 +83,7 @@ class Record:
     quaternion: np.ndarray | None
     timestamp_ms: int | None
     frame: int | None
+    quaternion_rounding: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -121,6 +127,7 @@ class RecordBatch:
     def records(self) -> list[Record]:
         """The batch as Record objects."""
         n = len(self)
+        rounding = np.zeros(n) if self.quaternion is None else quaternion_rounding(self.quaternion)
         out = []
         for i in range(n):
             out.append(
@@ -132,6 +139,7 @@ class RecordBatch:
                     quaternion=None if self.quaternion is None else self.quaternion[i].astype(float),
                     timestamp_ms=None if self.timestamp_ms is None else int(self.timestamp_ms[i]),
                     frame=None if self.frame is None else int(self.frame[i]),
+                    quaternion_rounding=float(rounding[i]),
                 )
             )
         return out
@@ -276,8 +284,10 @@ def encode_ascii(
     timestamp_ms: int | None = None,
     frame: int | None = None,
     error: int = 0,
+    quaternion_decimals: int = 6,
 ) -> bytes:
-    """Encode one ASCII (F0) record: header, space-separated fields in output-list order, CR LF last."""
+    """Encode one ASCII (F0) record: header, space-separated fields in output-list order, CR LF last (positions
+    with 4 decimals, quaternion components with ``quaternion_decimals``)."""
     items = validate_items(items)
     err = " " if error in NO_ERROR else chr(error)
     parts: list[str] = []
@@ -286,7 +296,7 @@ def encode_ascii(
             parts.extend(f"{v:.4f}" for v in np.asarray(position if position is not None else np.zeros(3)))
         elif i == ITEM_QUATERNION:
             q = quaternion if quaternion is not None else (1.0, 0.0, 0.0, 0.0)
-            parts.extend(f"{v:.6f}" for v in np.asarray(q))
+            parts.extend(f"{v:.{quaternion_decimals}f}" for v in np.asarray(q))
         elif i == ITEM_TIMESTAMP:
             parts.append(str(int(timestamp_ms or 0)))
         elif i == ITEM_FRAMECOUNT:
@@ -339,6 +349,8 @@ def decode_ascii_line(line: bytes, items, station_ok: np.ndarray | None = None) 
                 values[name] = int(chunk[0])
             else:
                 values[name] = np.array([float(c) for c in chunk])
+            if name == "quaternion":
+                values["rounding"] = float(np.sqrt(np.sum(np.square([_half_last_decimal(c) for c in chunk]))))
         except ValueError:
             return bad(f"item {i} ({name}) is not numeric: {' '.join(chunk)!r}")
     if k != len(fields):
@@ -348,4 +360,22 @@ def decode_ascii_line(line: bytes, items, station_ok: np.ndarray | None = None) 
         return bad("position is not finite or out of range")
     if quat is not None and not abs(float(np.linalg.norm(quat)) - 1.0) < QUAT_NORM_TOLERANCE:
         return bad("quaternion is not a unit quaternion")
-    return Record(station, command, error, pos, quat, values.get("timestamp"), values.get("frame"))
+    return Record(station, command, error, pos, quat, values.get("timestamp"), values.get("frame"),
+                  float(values.get("rounding", 0.0)))
+
+
+def quaternion_rounding(quaternions: np.ndarray) -> np.ndarray:
+    """How far float32 storage can have moved each quaternion (rows of an (n, 4) float32 array): the Euclidean norm
+    of half a unit in the last place of each component (about 6e-8 for a unit quaternion)."""
+    q = np.abs(np.asarray(quaternions, dtype=np.float32))
+    return np.sqrt(np.sum(np.square(0.5 * np.spacing(q).astype(float)), axis=-1))
+
+
+def _half_last_decimal(text: str) -> float:
+    """Half the unit of the last decimal written in a fixed-point field ('0.0123' -> 5e-5): how far rounding to it
+    can have moved the value. ValueError for anything the device does not write (an exponent, inf, nan: a
+    damaged byte, whose exponent would otherwise claim a coarse resolution)."""
+    if not _FIXED_POINT.fullmatch(text):
+        raise ValueError(f"{text!r} is not a fixed-point decimal")
+    _, _, decimals = text.partition(".")
+    return 0.5 * 10.0 ** -len(decimals)

@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Protocol, runtime_checkable
 
 from palpate.core.errors import DeviceError, ValidationError
+from palpate.hardware.clock import read_arrived
 
 # USB identity of a Liberty (v2): vendor Polhemus 0x0F44, product 0xFF20; bulk endpoints IN 0x88, OUT 0x04.
 LIBERTY_USB_VENDOR = 0x0F44
@@ -74,7 +75,7 @@ class SerialTransport:
 
     def read(self, n: int) -> bytes:
         try:
-            return self._serial.read(n)
+            return read_arrived(self._serial, n)
         except Exception as exc:  # pyserial raises SerialException or OSError when the port goes away
             raise DeviceError(f"reading from {self.description} failed: {exc}") from exc
 

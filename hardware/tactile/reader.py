@@ -20,7 +20,7 @@ import numpy as np
 
 from palpate.core.errors import DeviceError, ValidationError
 from palpate.core.perception.streams import TaxelFrame
-from palpate.hardware.clock import Clock, DeviceTimeMap, as_clock
+from palpate.hardware.clock import Clock, DeviceTimeMap, as_clock, read_arrived
 from palpate.hardware.tactile.protocol import COUNTER_MOD, FrameParser
 
 READ_CHUNK = 4096
@@ -127,7 +127,7 @@ class TactileArrayReader:
     def _run(self) -> None:
         try:
             while not self._stop.is_set():
-                data = self._serial.read(READ_CHUNK)
+                data = read_arrived(self._serial, READ_CHUNK)
                 arrival = self.clock()
                 if data:
                     self.feed(data, arrival)
