@@ -369,9 +369,11 @@ def test_loop_reports_and_returns_the_iterated_post_processing(trained):
     sc = _scenario(policy="raster", budget=2, extrapolation_passes="all")
     result = explore_object(sc, sc.objects[0], trained, scenario_source_maker(sc), 21, Progress(enabled=False))
     summary, grid, post = object_summary(result), result.grid, result.post
-    certainty = sc.exploration.calibration.extrapolation_certainty
+    cal = sc.exploration.calibration
+    certainty = cal.extrapolation_certainty
     assert certainty < 1  # the calibrated default: an extrapolated cell is less certain than its sources
-    assert np.array_equal(post.probabilities, grid.postprocessed(passes=None, certainty=certainty).probabilities)
+    assert np.array_equal(post.probabilities, grid.postprocessed(
+        passes=None, certainty=certainty, wall_reliability=cal.wall_reliability).probabilities)
     # Two presses in one corner fill the whole 4x3 map: no cell is left at the uniform prior.
     assert not np.isclose(post.probabilities, 0.5).all(axis=-1).any()
     assert summary["per_press"][-1]["mean_entropy_postprocessed"] == pytest.approx(float(post.mean_entropy()))

@@ -134,11 +134,11 @@ class MapPostprocessing:
 
     def apply(self, grid, calibration: MapCalibration):
         """The post-processed copy of ``grid`` (2-D or voxel) with these settings and ``calibration``'s
-        extrapolation certainty."""
+        extrapolation certainty (and, on 2-D maps, its wall reliability)."""
         c = calibration.extrapolation_certainty
         if isinstance(grid, VoxelGrid):
             return grid.postprocessed(lateral=self.voxel_lateral, certainty=c)
-        return grid.postprocessed(passes=self.passes, certainty=c)
+        return grid.postprocessed(passes=self.passes, certainty=c, wall_reliability=calibration.wall_reliability)
 
 
 def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory,
