@@ -181,13 +181,15 @@ def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memo
     n = truth.size
     trace = RunTrace(truth)
     last = None
+    plan = unwalled(cal)
     post = postprocess(grid, cal)
     for k in range(n + 1):
         got = trace.accuracy(post.probabilities)
         trace.calibration(k, post.probabilities)
         if k == n or (stop_at is not None and got >= stop_at):
             break
-        t = policy.next_target(grid, post, last)
+        # the policy plans on the map without wall tempering, as explore_object's policies do
+        t = policy.next_target(grid, post if plan is cal else postprocess(grid, plan), last)
         if t is None:
             break
         grid.update_cell(t.ix, t.iy, cal.evidence(answers[felt[t.iy, t.ix], rng.integers(answers.shape[1])]))
@@ -288,6 +290,11 @@ def physics_explore(fs: FamilyScene, row: str, seed: int = 0, budget: int | None
 def postprocess(grid, cal: MapCalibration):
     """The post-processed 2-D map a run with calibration ``cal`` reports (one eq. 6.15 pass, as the scenes')."""
     return grid.postprocessed(certainty=cal.extrapolation_certainty, wall_reliability=cal.wall_reliability)
+
+
+def unwalled(cal: MapCalibration) -> MapCalibration:
+    """``cal`` without its wall tempering (``cal`` itself when it has none): what the policies plan on."""
+    return cal if cal.wall_reliability == 1.0 else dataclasses.replace(cal, wall_reliability=1.0)
 
 
 def checkpoint_maps(res, cal: MapCalibration, checkpoints):

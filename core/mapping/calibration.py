@@ -95,8 +95,10 @@ class MapCalibration:
 #: The seeds' maps: a press fuses its posterior as it is, eq. 6.15 copies its neighbours with full confidence.
 SEED_CALIBRATION = MapCalibration()
 #: What a scenario uses unless it says otherwise: chosen with physics presses on the tuning seeds of
-#: benchmarks/exploration_families.py (walls anywhere under 10-20 mm cells), whose report-only seeds measure it.
-DEFAULT_CALIBRATION = MapCalibration(press_reliability=0.94, extrapolation_certainty=0.95)
+#: benchmarks/exploration_families.py (walls anywhere under 10-20 mm cells), whose report-only seeds measure it;
+#: the wall reliability on raster's maps of 48 tuning scenes, benchmarks/exploration_wall_sweep.py
+#: (docs/exploration.md, "Maps beside walls").
+DEFAULT_CALIBRATION = MapCalibration(press_reliability=0.94, extrapolation_certainty=0.95, wall_reliability=0.7)
 
 
 def press_evidence(posterior, *, temperature: float = 1.0, reliability: float = 1.0) -> np.ndarray:
