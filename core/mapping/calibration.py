@@ -58,7 +58,8 @@ class MapCalibration:
         extrapolation_certainty: share of an eq. 6.15 estimate kept per pass
             (:func:`palpate.core.mapping.extrapolation.extrapolate_plane`).
         wall_reliability: reliability of a pressed cell whose pressed edge-neighbour reads a wholly different
-            material, applied when the map is post-processed (:func:`wall_tempered`; 2-D maps).
+            material, applied when the map is post-processed (:func:`wall_tempered`; 2-D maps). A run reports,
+            saves and scores the tempered map; its policies plan on the map without it.
     """
 
     press_temperature: float = 1.0

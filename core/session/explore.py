@@ -143,9 +143,9 @@ class MapPostprocessing:
 
     def planned_on(self, grid, calibration: MapCalibration, post):
         """The map the policies plan on and the stop rules read: ``post`` (:meth:`apply`'s) without the wall
-        tempering. A tempered wall cell stays unsure however often it is pressed, and planning on it sent the
-        policies back to walls (tuning seeds 0-143 offline, wall_reliability 0.7: info_gain's worst scene 1.34
-        of raster's presses instead of 0.84; docs/exploration.md, "Maps beside walls")."""
+        tempering. A tempered wall cell stays unsure however often it is pressed, so planning on it sends the
+        policies back to walls (measured in docs/exploration.md, "Maps beside walls"); the tempering says how far
+        the reported map can be trusted, not where to press."""
         if calibration.wall_reliability == 1.0 or isinstance(grid, VoxelGrid):
             return post
         return self.apply(grid, calibration, walls=False)
@@ -207,7 +207,9 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
 
     Per press: policy (next target from the map) -> actuator -> perception -> map update -> post-processing ->
     stop rules (press budget, no expected gain above ``stop_min_gain``, mean or max entropy of the post-processed
-    map under ``stop_mean_entropy`` / ``stop_max_entropy``).
+    map under ``stop_mean_entropy`` / ``stop_max_entropy``). The policy and the stop rules read the map
+    post-processed without the calibration's wall tempering (:meth:`MapPostprocessing.planned_on`); the result
+    holds, and its steps score, the tempered one.
 
     Args:
         scenario, entry: the scenario and the object to explore.
