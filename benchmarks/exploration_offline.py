@@ -44,8 +44,11 @@ def presses_to_accuracy(policy, geom: MapGeometry, truth: np.ndarray, answers: n
     rng = np.random.default_rng(seed)
     last = None
     for k in range(truth.size + 1):
+        # scored on the reported map, planned on it without the wall tempering, as a run does
         post = grid.postprocessed(certainty=calibration.extrapolation_certainty)
-        if (map_accuracy(post.probabilities, truth) or 0.0) >= ACCURACY:
+        reported = post if calibration.wall_reliability == 1.0 else grid.postprocessed(
+            certainty=calibration.extrapolation_certainty, wall_reliability=calibration.wall_reliability)
+        if (map_accuracy(reported.probabilities, truth) or 0.0) >= ACCURACY:
             return k
         if k == truth.size:
             return None

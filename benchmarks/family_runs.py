@@ -30,7 +30,7 @@ import palpate.sim.contact as contact_package
 import palpate.sim.reference as reference_package
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import map_accuracy
-from palpate.core.mapping.calibration import calibration_sample
+from palpate.core.mapping.calibration import MapCalibration, calibration_sample
 from palpate.core.mapping.grids import new_map
 from palpate.core.planning.outcomes import outcome_posteriors
 from palpate.core.planning.registry import make_policy
@@ -181,18 +181,20 @@ def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memo
     n = truth.size
     trace = RunTrace(truth)
     last = None
-    post = grid.postprocessed(certainty=cal.extrapolation_certainty)
+    plan = unwalled(cal)
+    post = postprocess(grid, cal)
     for k in range(n + 1):
         got = trace.accuracy(post.probabilities)
         trace.calibration(k, post.probabilities)
         if k == n or (stop_at is not None and got >= stop_at):
             break
-        t = policy.next_target(grid, post, last)
+        # the policy plans on the map without wall tempering, as explore_object's policies do
+        t = policy.next_target(grid, post if plan is cal else postprocess(grid, plan), last)
         if t is None:
             break
         grid.update_cell(t.ix, t.iy, cal.evidence(answers[felt[t.iy, t.ix], rng.integers(answers.shape[1])]))
         last = (t.ix, t.iy)
-        post = grid.postprocessed(certainty=cal.extrapolation_certainty)
+        post = postprocess(grid, cal)
     return trace.run()
 
 
@@ -266,18 +268,38 @@ def store_felt_archive() -> int:
 def physics_run(fs: FamilyScene, row: str, seed: int = 0, budget: int | None = None) -> Run:
     """One policy on one scene with simulated presses (analytic fidelity) through explore_object, one press per
     cell at most (``budget`` presses when given)."""
+    res, cal = physics_explore(fs, row, seed, budget)
+    trace = RunTrace(res.truth)
+    trace.accuracy(new_map(res.geometry).postprocessed().probabilities)
+    trace.acc += [s.accuracy_postprocessed or 0.0 for s in res.steps]
+    for k, grid in checkpoint_maps(res, cal, trace.checkpoints):
+        trace.calibration(k, postprocess(grid, cal).probabilities)
+    return trace.run()
+
+
+def physics_explore(fs: FamilyScene, row: str, seed: int = 0, budget: int | None = None):
+    """(explore_object's result, the scenario's map calibration) of one policy on one scene with physics."""
     kind, objective = ROWS[row]
     sc = fs.scenario(kind, budget=budget, objective=objective)
     entry = sc.objects[0]
     memory = memory_for(fs.references, fs.moduli())
     res = explore_object(sc, entry, memory, make_source_for(sc), 7000 + fs.seed + seed, Progress(enabled=False))
-    truth = res.truth
-    cal = sc.exploration.calibration
-    certainty = cal.extrapolation_certainty
-    trace = RunTrace(truth)
-    trace.accuracy(new_map(res.geometry).postprocessed().probabilities)
-    trace.acc += [s.accuracy_postprocessed or 0.0 for s in res.steps]
-    # the run's map after each press, rebuilt from what each press fused (the run keeps only the last one)
+    return res, sc.exploration.calibration
+
+
+def postprocess(grid, cal: MapCalibration):
+    """The post-processed 2-D map a run with calibration ``cal`` reports (one eq. 6.15 pass, as the scenes')."""
+    return grid.postprocessed(certainty=cal.extrapolation_certainty, wall_reliability=cal.wall_reliability)
+
+
+def unwalled(cal: MapCalibration) -> MapCalibration:
+    """``cal`` without its wall tempering (``cal`` itself when it has none): what the policies plan on."""
+    return cal if cal.wall_reliability == 1.0 else dataclasses.replace(cal, wall_reliability=1.0)
+
+
+def checkpoint_maps(res, cal: MapCalibration, checkpoints):
+    """(k, map after k presses) for every k in ``checkpoints``, rebuilt from what each press of the run ``res``
+    fused (the run keeps only its last map); the map is updated in place after it is yielded."""
     grid = new_map(res.geometry)
     for s in res.steps:
         if s.posterior is not None:
@@ -285,6 +307,5 @@ def physics_run(fs: FamilyScene, row: str, seed: int = 0, budget: int | None = N
                 grid.update(*s.result.location, cal.evidence(s.posterior))
             except ValidationError:  # the finger slipped off the grid: the run updated the planned cell
                 grid.update(*s.target, cal.evidence(s.posterior))
-        if s.k in trace.checkpoints:
-            trace.calibration(s.k, grid.postprocessed(certainty=certainty).probabilities)
-    return trace.run()
+        if s.k in checkpoints:
+            yield s.k, grid

@@ -15,6 +15,7 @@ from palpate.core.mapping.calibration import (
     calibration_sample,
     press_evidence,
     reliability_table,
+    wall_tempered,
 )
 from palpate.core.mapping.extrapolation import extrapolate_unexplored
 from palpate.core.mapping.grids import Grid2D
@@ -70,6 +71,46 @@ def test_grid_postprocessing_takes_the_certainty():
     assert g.postprocessed(certainty=0.8).probabilities[0, 1, 0] == pytest.approx(0.8 * 0.99 + 0.1)
 
 
+def test_a_wall_between_two_pressed_cells_lowers_both_by_hand():
+    g = Grid2D(["a", "b"], (3, 1))
+    g.update_cell(0, 0, [0.9, 0.1])
+    g.update_cell(1, 0, [0.2, 0.8])
+    # total-variation distance 0.7: each keeps 1 - (1 - 0.5) * 0.7 = 0.65 of itself, the rest uniform
+    post = g.postprocessed(wall_reliability=0.5).probabilities
+    assert post[0, 0] == pytest.approx([0.65 * 0.9 + 0.175, 0.65 * 0.1 + 0.175])
+    assert post[0, 1] == pytest.approx([0.65 * 0.2 + 0.175, 0.65 * 0.8 + 0.175])
+    # eq. 6.15 then copies the lowered cell (its only pressed neighbour) into the unpressed one
+    assert post[0, 2] == pytest.approx(post[0, 1])
+    # each cell keeps its most probable material; the unpressed cell counts for nothing (no wall there)
+    assert (post[0, :2].argmax(-1) == g.probabilities[0, :2].argmax(-1)).all()
+    assert np.array_equal(g.postprocessed(wall_reliability=0.5, certainty=0.9).probabilities[0, 0], post[0, 0])
+
+
+def test_agreeing_neighbours_and_the_seed_setting_keep_the_seed_maps():
+    g = Grid2D(["a", "b", "c"], (3, 2))
+    for ix in range(3):
+        g.update_cell(ix, 0, [0.9, 0.05, 0.05])  # one material along the row: no wall
+    g.update_cell(0, 1, [0.1, 0.1, 0.8])  # a wall above cell (0, 0) only
+    seed = g.postprocessed(certainty=0.95).probabilities
+    post = g.postprocessed(certainty=0.95, wall_reliability=0.6).probabilities
+    assert np.array_equal(post[0, 1:], seed[0, 1:])  # cells whose pressed neighbours agree are untouched
+    assert post[0, 0].max() < seed[0, 0].max() and post[1, 0].max() < seed[1, 0].max()
+    # every setting 1 (SEED_CALIBRATION) is the seeds' eq. 2 / 6.15 to the bit
+    assert SEED_CALIBRATION.wall_reliability == 1.0
+    assert np.array_equal(g.postprocessed(wall_reliability=SEED_CALIBRATION.wall_reliability).probabilities,
+                          g.postprocessed().probabilities)
+    p = g.probabilities
+    assert wall_tempered(p, g.explored, 1.0) is p
+
+
+@pytest.mark.parametrize("bad", [0.0, 1.5, float("nan"), True, "0.5"])
+def test_bad_wall_reliability_is_refused(bad):
+    with pytest.raises(ValidationError, match="wall_reliability must be a number in \\(0, 1\\]"):
+        MapCalibration(wall_reliability=bad)
+    with pytest.raises(ValidationError, match="wall reliability must be a number in \\(0, 1\\]"):
+        Grid2D(["a", "b"], (2, 1)).postprocessed(wall_reliability=bad)
+
+
 def test_reliability_table_against_a_hand_computed_example():
     conf = np.array([0.95, 0.95, 0.95, 0.95, 0.55, 0.55, 0.85])
     right = np.array([1, 1, 1, 0, 1, 0, 1], dtype=bool)
@@ -102,6 +143,11 @@ def test_map_calibration_round_trips_and_names_bad_keys():
         MapCalibration.from_dict({"trust": 1.0}, "rec.mcap")
     with pytest.raises(ValidationError, match="rec.mcap: press_reliability must be a number in"):
         MapCalibration.from_dict({"press_reliability": 2.0}, "rec.mcap")
+    with pytest.raises(ValidationError, match="rec.mcap: wall_reliability must be a number in"):
+        MapCalibration.from_dict({"wall_reliability": 0.0}, "rec.mcap")
+    # a recording made before the setting existed: the seeds' wall reliability
+    old = {k: v for k, v in DEFAULT_CALIBRATION.to_dict().items() if k != "wall_reliability"}
+    assert MapCalibration.from_dict(old).wall_reliability == 1.0
 
 
 RAW = {"scenario": {"name": "c", "seed": 1, "fidelity": "analytic"},
@@ -113,8 +159,12 @@ RAW = {"scenario": {"name": "c", "seed": 1, "fidelity": "analytic"},
 def test_scenario_calibration_keys_default_to_calibrated_and_are_validated():
     assert parse_scenario(copy.deepcopy(RAW), "c.toml").exploration.calibration == DEFAULT_CALIBRATION
     raw = copy.deepcopy(RAW)
-    raw["exploration"].update(press_reliability=1.0, extrapolation_certainty=1.0)
+    raw["exploration"].update(press_reliability=1.0, extrapolation_certainty=1.0, wall_reliability=1.0)
     assert parse_scenario(raw, "c.toml").exploration.calibration == SEED_CALIBRATION
+    raw["exploration"]["wall_reliability"] = 0.0
+    with pytest.raises(ValidationError, match="c.toml: exploration.wall_reliability: must be > 0.0"):
+        parse_scenario(raw, "c.toml")
+    raw["exploration"]["wall_reliability"] = 1.0
     raw["exploration"]["press_temperature"] = 0.0
     with pytest.raises(ValidationError, match="c.toml: exploration.press_temperature: must be > 0.0"):
         parse_scenario(raw, "c.toml")

@@ -369,9 +369,11 @@ def test_loop_reports_and_returns_the_iterated_post_processing(trained):
     sc = _scenario(policy="raster", budget=2, extrapolation_passes="all")
     result = explore_object(sc, sc.objects[0], trained, scenario_source_maker(sc), 21, Progress(enabled=False))
     summary, grid, post = object_summary(result), result.grid, result.post
-    certainty = sc.exploration.calibration.extrapolation_certainty
+    cal = sc.exploration.calibration
+    certainty = cal.extrapolation_certainty
     assert certainty < 1  # the calibrated default: an extrapolated cell is less certain than its sources
-    assert np.array_equal(post.probabilities, grid.postprocessed(passes=None, certainty=certainty).probabilities)
+    assert np.array_equal(post.probabilities, grid.postprocessed(
+        passes=None, certainty=certainty, wall_reliability=cal.wall_reliability).probabilities)
     # Two presses in one corner fill the whole 4x3 map: no cell is left at the uniform prior.
     assert not np.isclose(post.probabilities, 0.5).all(axis=-1).any()
     assert summary["per_press"][-1]["mean_entropy_postprocessed"] == pytest.approx(float(post.mean_entropy()))
@@ -486,3 +488,23 @@ def test_map_postprocessing_round_trips_and_names_bad_metadata():
         MapPostprocessing.from_dict({"voxel_lateral": "yes"}, "rec.mcap")
     with pytest.raises(ValidationError, match="rec.mcap: unknown key"):
         MapPostprocessing.from_dict({"passes": 2}, "rec.mcap")
+
+
+def test_policies_plan_on_the_map_without_wall_tempering():
+    from palpate.core.mapping.calibration import DEFAULT_CALIBRATION, SEED_CALIBRATION
+    from palpate.core.mapping.grids import Grid2D
+    from palpate.core.session.explore import MapPostprocessing
+
+    g = Grid2D(["a", "b"], (3, 1))
+    g.update_cell(0, 0, [0.95, 0.05])
+    g.update_cell(1, 0, [0.05, 0.95])  # a wall between two pressed cells
+    settings = MapPostprocessing()
+    post = settings.apply(g, DEFAULT_CALIBRATION)
+    plan = settings.planned_on(g, DEFAULT_CALIBRATION, post)
+    assert DEFAULT_CALIBRATION.wall_reliability < 1
+    # the reported map is less sure beside the wall; the planned-on one is the map without the tempering
+    assert post.probabilities[0, 0].max() < plan.probabilities[0, 0].max()
+    unwalled = g.postprocessed(certainty=DEFAULT_CALIBRATION.extrapolation_certainty)
+    assert np.array_equal(plan.probabilities, unwalled.probabilities)
+    seed_post = settings.apply(g, SEED_CALIBRATION)
+    assert settings.planned_on(g, SEED_CALIBRATION, seed_post) is seed_post

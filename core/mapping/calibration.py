@@ -12,6 +12,14 @@ contributes:
 With both at 1 a press fuses exactly as seed 001 eq. 2 says. The extrapolation's own certainty is a parameter of
 :func:`palpate.core.mapping.extrapolation.extrapolate_plane`.
 
+Neither sees walls: a press whose contact straddled a wall reads a blend, or the neighbour's material, as surely as
+any other. The map can see where that may have happened, after the fact: two pressed cells sharing an edge that
+read differently have a wall between them, within the contact's reach of both presses (a press at a cell's centre
+reaches half a cell past its edges once the contact radius is about half a cell; a diagonal neighbour's corner
+is further, and a wall cutting a diagonal pair cuts an edge pair too). :func:`wall_tempered` lowers both cells'
+certainty at post-processing time, so a later press beside an earlier one lowers the earlier cell too, and eq. 6.15
+then spreads the lower certainty.
+
 :func:`reliability_table` measures calibration the usual way: cells binned by the confidence of their most probable
 material, the accuracy of each bin against its mean confidence, and the expected calibration error (ECE), the
 count-weighted mean gap. Cells whose top two materials tie claim nothing and are left out.
@@ -25,6 +33,7 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import decided_labels
+from palpate.core.mapping.neighbourhood import shift_slices
 
 
 def check_unit_interval(value: float, name: str) -> float:
@@ -33,6 +42,10 @@ def check_unit_interval(value: float, name: str) -> float:
             np.isfinite(value) and 0 < value <= 1):
         raise ValidationError(f"{name} must be a number in (0, 1], got {value!r}")
     return float(value)
+
+
+#: The settings of :class:`MapCalibration`, in the order files write them.
+CALIBRATION_KEYS = ("press_temperature", "press_reliability", "extrapolation_certainty", "wall_reliability")
 
 
 @dataclass(frozen=True)
@@ -44,14 +57,18 @@ class MapCalibration:
         press_reliability: probability that a press reads what it says (:func:`press_evidence`).
         extrapolation_certainty: share of an eq. 6.15 estimate kept per pass
             (:func:`palpate.core.mapping.extrapolation.extrapolate_plane`).
+        wall_reliability: reliability of a pressed cell whose pressed edge-neighbour reads a wholly different
+            material, applied when the map is post-processed (:func:`wall_tempered`; 2-D maps). A run reports,
+            saves and scores the tempered map; its policies plan on the map without it.
     """
 
     press_temperature: float = 1.0
     press_reliability: float = 1.0
     extrapolation_certainty: float = 1.0
+    wall_reliability: float = 1.0
 
     def __post_init__(self) -> None:
-        for key in ("press_temperature", "press_reliability", "extrapolation_certainty"):
+        for key in CALIBRATION_KEYS:
             check_unit_interval(getattr(self, key), key)
 
     def evidence(self, posterior) -> np.ndarray:
@@ -59,8 +76,7 @@ class MapCalibration:
         return press_evidence(posterior, temperature=self.press_temperature, reliability=self.press_reliability)
 
     def to_dict(self) -> dict:
-        return {"press_temperature": self.press_temperature, "press_reliability": self.press_reliability,
-                "extrapolation_certainty": self.extrapolation_certainty}
+        return {key: getattr(self, key) for key in CALIBRATION_KEYS}
 
     @classmethod
     def from_dict(cls, doc, source: str = "<map calibration>") -> MapCalibration:
@@ -68,7 +84,7 @@ class MapCalibration:
         ValidationError naming ``source`` and the key."""
         if not isinstance(doc, dict):
             raise ValidationError(f"{source}: expected a table of calibration settings, got {type(doc).__name__}")
-        unknown = sorted(set(doc) - {"press_temperature", "press_reliability", "extrapolation_certainty"})
+        unknown = sorted(set(doc) - set(CALIBRATION_KEYS))
         if unknown:
             raise ValidationError(f"{source}: unknown calibration key(s) {unknown}")
         try:
@@ -80,8 +96,10 @@ class MapCalibration:
 #: The seeds' maps: a press fuses its posterior as it is, eq. 6.15 copies its neighbours with full confidence.
 SEED_CALIBRATION = MapCalibration()
 #: What a scenario uses unless it says otherwise: chosen with physics presses on the tuning seeds of
-#: benchmarks/exploration_families.py (walls anywhere under 10-20 mm cells), whose report-only seeds measure it.
-DEFAULT_CALIBRATION = MapCalibration(press_reliability=0.94, extrapolation_certainty=0.95)
+#: benchmarks/exploration_families.py (walls anywhere under 10-20 mm cells), whose report-only seeds measure it;
+#: the wall reliability on raster's maps of 48 tuning scenes, benchmarks/exploration_wall_sweep.py
+#: (docs/exploration.md, "Maps beside walls").
+DEFAULT_CALIBRATION = MapCalibration(press_reliability=0.94, extrapolation_certainty=0.95, wall_reliability=0.7)
 
 
 def press_evidence(posterior, *, temperature: float = 1.0, reliability: float = 1.0) -> np.ndarray:
@@ -107,6 +125,38 @@ def press_evidence(posterior, *, temperature: float = 1.0, reliability: float = 
     if reliability != 1.0:
         p = reliability * p + (1.0 - reliability) / p.shape[-1]
     return p
+
+
+def wall_tempered(p: np.ndarray, explored: np.ndarray, reliability: float) -> np.ndarray:
+    """A 2-D map's cells with each pressed cell's certainty lowered where a pressed edge-neighbour disagrees.
+
+    Each pressed cell c is mixed with a uniform misreading, p_c <- r_c p_c + (1 - r_c) / M, with
+    r_c = 1 - (1 - reliability) D_c and D_c the largest total-variation distance, 1/2 sum_m |p_c,m - p_n,m| in
+    [0, 1], between c and a pressed cell n sharing an edge with it: both sides of a wall are lowered, a cell whose
+    neighbours read as it does keeps its values exactly, and an unpressed neighbour (which says nothing) counts
+    for nothing. The mixing keeps each cell's most probable material.
+
+    Args:
+        p: validated probabilities, shape (ny, nx, M).
+        explored: (ny, nx) mask of pressed cells.
+        reliability: r_c of a cell beside a wholly different one, (0, 1]; 1 returns ``p`` itself (the seeds' maps).
+
+    Returns:
+        ``p`` when ``reliability`` is 1, else a new array.
+    """
+    reliability = check_unit_interval(reliability, "wall reliability")
+    if reliability == 1.0:
+        return p
+    ny, nx = explored.shape
+    d = np.zeros((ny, nx))
+    for dy, dx in ((0, 1), (1, 0)):  # each edge once; both of its cells get its distance
+        a, b = shift_slices(dy, dx, ny, nx)
+        tv = 0.5 * np.abs(p[a] - p[b]).sum(axis=-1)
+        tv *= explored[a] & explored[b]
+        np.maximum(d[a], tv, out=d[a])
+        np.maximum(d[b], tv, out=d[b])
+    keep = (1.0 - (1.0 - reliability) * np.minimum(d, 1.0))[..., None]
+    return keep * p + (1.0 - keep) / p.shape[-1]
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.mapping.calibration import wall_tempered
 from palpate.core.mapping.categorical_map import CategoricalMap, cell_indices
 from palpate.core.mapping.extrapolation import (
     check_certainty,
@@ -140,15 +141,19 @@ class Grid2D(CategoricalMap):
             raise ValidationError(f"p_meas must have shape ({len(self.materials)},) (one value per material "
                                   f"{self.materials}), got {shape}")
 
-    def postprocessed(self, h_min: float = 1e-12, passes: int | None = 1, certainty: float = 1.0) -> Grid2D:
+    def postprocessed(self, h_min: float = 1e-12, passes: int | None = 1, certainty: float = 1.0,
+                      wall_reliability: float = 1.0) -> Grid2D:
         """A new grid with unexplored cells extrapolated by :func:`extrapolate_unexplored`; self is untouched.
 
-        ``passes`` repeats eq. 6.15 from the cells filled by the previous pass (1 = the seed; None = until every
-        cell is filled); each pass keeps ``certainty`` of its estimate and spreads the rest uniformly (1 = the
-        seed). The explored mask is copied unchanged: extrapolated cells are estimates, not measurements.
+        First, pressed cells beside a pressed cell that reads otherwise are made less certain by
+        :func:`~palpate.core.mapping.calibration.wall_tempered` with ``wall_reliability`` (1 = the seed: no
+        change). ``passes`` repeats eq. 6.15 from the cells filled by the previous pass (1 = the seed; None =
+        until every cell is filled); each pass keeps ``certainty`` of its estimate and spreads the rest uniformly
+        (1 = the seed). The explored mask is copied unchanged: extrapolated cells are estimates, not measurements.
         """
         h_min = check_h_min(h_min)
-        p = extrapolate_passes(self._p, self._explored, None, check_passes(passes), self.base, h_min,
+        src = wall_tempered(self._p, self._explored, wall_reliability)
+        p = extrapolate_passes(src, self._explored, None, check_passes(passes), self.base, h_min,
                                check_certainty(certainty))
         return self._like(p)
 

@@ -132,13 +132,23 @@ class MapPostprocessing:
             raise ValidationError(f"{source}: voxel_lateral must be true or false, got {lateral!r}")
         return cls(None if passes == "all" else passes, lateral)
 
-    def apply(self, grid, calibration: MapCalibration):
+    def apply(self, grid, calibration: MapCalibration, walls: bool = True):
         """The post-processed copy of ``grid`` (2-D or voxel) with these settings and ``calibration``'s
-        extrapolation certainty."""
+        extrapolation certainty and, on 2-D maps with ``walls``, its wall reliability."""
         c = calibration.extrapolation_certainty
         if isinstance(grid, VoxelGrid):
             return grid.postprocessed(lateral=self.voxel_lateral, certainty=c)
-        return grid.postprocessed(passes=self.passes, certainty=c)
+        wall = calibration.wall_reliability if walls else 1.0
+        return grid.postprocessed(passes=self.passes, certainty=c, wall_reliability=wall)
+
+    def planned_on(self, grid, calibration: MapCalibration, post):
+        """The map the policies plan on and the stop rules read: ``post`` (:meth:`apply`'s) without the wall
+        tempering. A tempered wall cell stays unsure however often it is pressed, so planning on it sends the
+        policies back to walls (measured in docs/exploration.md, "Maps beside walls"); the tempering says how far
+        the reported map can be trusted, not where to press."""
+        if calibration.wall_reliability == 1.0 or isinstance(grid, VoxelGrid):
+            return post
+        return self.apply(grid, calibration, walls=False)
 
 
 def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory,
@@ -197,7 +207,9 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
 
     Per press: policy (next target from the map) -> actuator -> perception -> map update -> post-processing ->
     stop rules (press budget, no expected gain above ``stop_min_gain``, mean or max entropy of the post-processed
-    map under ``stop_mean_entropy`` / ``stop_max_entropy``).
+    map under ``stop_mean_entropy`` / ``stop_max_entropy``). The policy and the stop rules read the map
+    post-processed without the calibration's wall tempering (:meth:`MapPostprocessing.planned_on`); the result
+    holds, and its steps score, the tempered one.
 
     Args:
         scenario, entry: the scenario and the object to explore.
@@ -228,6 +240,9 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
 
     def postprocess():
         return post_settings.apply(grid, ex.calibration)
+
+    def planned_on(post):
+        return post_settings.planned_on(grid, ex.calibration, post)
     source = make_source((entry.spec,), seed, ex.variability)
     if not callable(getattr(source, "press", None)):
         raise ValidationError(f"exploring {entry.spec.name}: the source/actuator {type(source).__name__} has no "
@@ -238,10 +253,11 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
     steps: list[PressStep] = []
     cycles = []
     post = postprocess()
+    plan = planned_on(post)
     last, stop = None, "budget"
     progress.start(f"exploring {entry.spec.name}", budget)
     for k in range(budget):
-        target = policy.next_target(grid, post, last)
+        target = policy.next_target(grid, plan, last)
         if target is None:
             stop = "policy_exhausted"
             break
@@ -270,6 +286,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
         res = perceive_press(rec, pipeline_for(perception) if perception else None).at_target((x, y))
         posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y), calibration=ex.calibration)
         post = postprocess()
+        plan = planned_on(post)
         if log is not None:
             log.show_map(entry.spec.name, grid, geometry, entry.spec.height, scene=(entry.spec,) if k == 0 else ())
         last = cell
@@ -281,7 +298,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
         if (k + 1) == budget // 2:
             snapshots.append(MapSnapshot.of(grid, f"k = {k + 1}"))
         progress.update(k + 1)
-        reason = stop_reason(post, mean_entropy=ex.stop_mean_entropy, max_entropy=ex.stop_max_entropy)
+        reason = stop_reason(plan, mean_entropy=ex.stop_mean_entropy, max_entropy=ex.stop_max_entropy)
         if reason is not None:
             stop = reason
             break
