@@ -9,10 +9,12 @@ neighbours. Whether a scene is hard for the planner or hard for any planner is w
 The clairvoyant planner is greedy: before each press it tries every unpressed cell with the answer that press will
 get (one draw per cell from the memory's predicted posteriors of the cell's felt material, as offline presses are
 answered) and takes the one whose post-processed map agrees best with the felt map, i.e. with what pressing
-everything would show. It knows the readings but not the truth behind a blended reading, so it cannot skip a
-misleading cell on purpose. Greedy is not optimal (one press at a time, no lookahead), so it is a reference, not a
-bound: a scene where it needs more than 0.7 of raster's presses is one greedy planners find hard. Whether any
-planner can finish it is benchmarks/clairvoyant_bound.py's exact answer (on every tail scene measured so far, yes).
+everything would show. It chooses on and is scored on the map a run reports and is scored on
+(family_runs.postprocess: the scenario's calibration, wall tempering included). It knows the readings but not the
+truth behind a blended reading, so it cannot skip a misleading cell on purpose. Greedy is not optimal (one press
+at a time, no lookahead), so it is a reference, not a bound: a scene where it needs more than 0.7 of raster's
+presses is one greedy planners find hard. Whether any planner can finish it is benchmarks/clairvoyant_bound.py's
+exact answer (on every tail scene measured so far, yes).
 
 Run through benchmarks/exploration_families.py (``--policies ...,clairvoyant``, offline only).
 """
@@ -22,7 +24,7 @@ from __future__ import annotations
 import copy
 
 import numpy as np
-from family_runs import Run, RunTrace, answers_for, felt_cells_cached
+from family_runs import Run, RunTrace, answers_for, felt_cells_cached, postprocess
 from scene_families import FamilyScene
 
 from palpate.core.mapping.accuracy import map_accuracy
@@ -48,13 +50,12 @@ def clairvoyant_run(fs: FamilyScene, *, stop_at: float | None = None, answers=No
     truth = ground_truth_map(entry, sc, geom)
     felt = felt_cells_cached(fs) if felt is None else felt
     cal = sc.exploration.calibration
-    certainty = cal.extrapolation_certainty
     # one reading per cell, known in advance (the draws differ from offline_run's order, not their distribution)
     reading = cell_readings(fs, fs.seed + 7000, answers=answers, felt=felt)  # (ny, nx, M)
     n = truth.size
     trace = RunTrace(truth)
     grid = new_map(geom)
-    post = grid.postprocessed(certainty=certainty)
+    post = postprocess(grid, cal)  # the map a run reports and is scored on (wall tempering included)
     for k in range(n + 1):
         got = trace.accuracy(post.probabilities)
         trace.calibration(k, post.probabilities)
@@ -64,7 +65,7 @@ def clairvoyant_run(fs: FamilyScene, *, stop_at: float | None = None, answers=No
         for iy, ix in zip(*np.nonzero(~np.asarray(grid.explored)), strict=True):
             trial = copy.deepcopy(grid)
             trial.update_cell(int(ix), int(iy), cal.evidence(reading[iy, ix]))
-            trial_post = trial.postprocessed(certainty=certainty)
+            trial_post = postprocess(trial, cal)
             agree = map_accuracy(trial_post.probabilities, felt) or 0.0
             if agree > best:  # first best in row-major order: deterministic
                 best, best_cell, best_post = agree, trial, trial_post

@@ -15,7 +15,14 @@ hundred binaries; scipy's HiGHS), solved exactly (a solve cut short at its time 
 too). It knows the readings *and* the truth, so no planner with those readings does better (up to :data:`MARGIN`, a
 win by less than which it does not count): if it needs more than 0.7 of raster's presses, the worst-scene target
 cannot be met on that scene with this map. Every solution is replayed through the real map
-(``Grid2D.postprocessed``, ``map_accuracy``) before it is reported. Readings are one draw per cell; ``--draws``
+(family_runs.postprocess, ``map_accuracy``) before it is reported.
+
+The programme models the map without the calibration's wall tempering (MapCalibration.wall_reliability): the
+tempering lowers a pressed cell by how much its pressed edge-neighbours disagree, so an unpressed cell's 1/H
+weights would depend on pairs of presses, not on each press alone, and the condition would no longer be linear. The
+tempering keeps every cell's most probable material, so it moves only unpressed cells whose neighbours nearly tie;
+the replay scores what a run scores (the tempered map), and a solution whose replay misses the target says so
+(its accuracy is printed below the target). Readings are one draw per cell; ``--draws``
 repeats with others.
 
 ``--readings-only`` plans without the truth, as a planner that has seen every reading could: the fewest presses
@@ -42,7 +49,7 @@ from scipy.sparse import coo_matrix
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from clairvoyant import cell_readings  # noqa: E402
-from family_runs import OF_CEILING, offline_run  # noqa: E402
+from family_runs import OF_CEILING, offline_run, postprocess  # noqa: E402
 from scene_families import scene  # noqa: E402
 
 from palpate.core.mapping.accuracy import decided_labels, map_accuracy  # noqa: E402
@@ -232,7 +239,7 @@ def _replayed(fs, readings: np.ndarray, truth: np.ndarray, target: float, solved
     if mask is None:
         return Bound(None, lower, np.zeros(truth.shape, bool), None, own_only, never, misses)
     grid, cal = _pressed_map(fs, readings, mask)
-    acc = map_accuracy(grid.postprocessed(certainty=cal.extrapolation_certainty).probabilities, truth)
+    acc = map_accuracy(postprocess(grid, cal).probabilities, truth)
     return Bound(int(mask.sum()), max(lower, 0), mask, acc, own_only, never, misses)
 
 

@@ -23,6 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from exploration import ACCURACY, ROWS, chosen_rows, make_source_for, scene_dict  # noqa: E402
+from family_runs import postprocess, unwalled  # noqa: E402
 
 from palpate.core.mapping.accuracy import map_accuracy
 from palpate.core.mapping.calibration import MapCalibration
@@ -45,9 +46,8 @@ def presses_to_accuracy(policy, geom: MapGeometry, truth: np.ndarray, answers: n
     last = None
     for k in range(truth.size + 1):
         # scored on the reported map, planned on it without the wall tempering, as a run does
-        post = grid.postprocessed(certainty=calibration.extrapolation_certainty)
-        reported = post if calibration.wall_reliability == 1.0 else grid.postprocessed(
-            certainty=calibration.extrapolation_certainty, wall_reliability=calibration.wall_reliability)
+        post = postprocess(grid, unwalled(calibration))
+        reported = postprocess(grid, calibration)
         if (map_accuracy(reported.probabilities, truth) or 0.0) >= ACCURACY:
             return k
         if k == truth.size:

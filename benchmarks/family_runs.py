@@ -277,10 +277,14 @@ def physics_run(fs: FamilyScene, row: str, seed: int = 0, budget: int | None = N
     return trace.run()
 
 
-def physics_explore(fs: FamilyScene, row: str, seed: int = 0, budget: int | None = None):
-    """(explore_object's result, the scenario's map calibration) of one policy on one scene with physics."""
+def physics_explore(fs: FamilyScene, row: str, seed: int = 0, budget: int | None = None,
+                    calibration: MapCalibration | None = None):
+    """(explore_object's result, the scenario's map calibration) of one policy on one scene with physics;
+    ``calibration`` replaces the scenario's (for sweeps on the tuning seeds)."""
     kind, objective = ROWS[row]
     sc = fs.scenario(kind, budget=budget, objective=objective)
+    if calibration is not None:
+        sc = dataclasses.replace(sc, exploration=dataclasses.replace(sc.exploration, calibration=calibration))
     entry = sc.objects[0]
     memory = memory_for(fs.references, fs.moduli())
     res = explore_object(sc, entry, memory, make_source_for(sc), 7000 + fs.seed + seed, Progress(enabled=False))
