@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from exploration import ACCURACY, ROWS, chosen_rows, make_source_for, scene_dict  # noqa: E402
-from family_runs import postprocess, unwalled  # noqa: E402
+from family_runs import planned_on, postprocess  # noqa: E402
 
 from palpate.core.mapping.accuracy import map_accuracy
 from palpate.core.mapping.calibration import MapCalibration
@@ -46,8 +46,8 @@ def presses_to_accuracy(policy, geom: MapGeometry, truth: np.ndarray, answers: n
     last = None
     for k in range(truth.size + 1):
         # scored on the reported map, planned on it without the wall tempering, as a run does
-        post = postprocess(grid, unwalled(calibration))
         reported = postprocess(grid, calibration)
+        post = planned_on(grid, calibration, reported)
         if (map_accuracy(reported.probabilities, truth) or 0.0) >= ACCURACY:
             return k
         if k == truth.size:

@@ -34,7 +34,7 @@ from palpate.core.mapping.calibration import MapCalibration, calibration_sample
 from palpate.core.mapping.grids import new_map
 from palpate.core.planning.outcomes import outcome_posteriors
 from palpate.core.planning.registry import make_policy
-from palpate.core.session.explore import explore_object
+from palpate.core.session.explore import MapPostprocessing, explore_object
 from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory
 from palpate.core.world.scenario_file import parse_scenario
@@ -181,15 +181,13 @@ def offline_run(fs: FamilyScene, row: str, *, stop_at: float | None = None, memo
     n = truth.size
     trace = RunTrace(truth)
     last = None
-    plan = unwalled(cal)
     post = postprocess(grid, cal)
     for k in range(n + 1):
         got = trace.accuracy(post.probabilities)
         trace.calibration(k, post.probabilities)
         if k == n or (stop_at is not None and got >= stop_at):
             break
-        # the policy plans on the map without wall tempering, as explore_object's policies do
-        t = policy.next_target(grid, post if plan is cal else postprocess(grid, plan), last)
+        t = policy.next_target(grid, planned_on(grid, cal, post), last)
         if t is None:
             break
         grid.update_cell(t.ix, t.iy, cal.evidence(answers[felt[t.iy, t.ix], rng.integers(answers.shape[1])]))
@@ -291,14 +289,19 @@ def physics_explore(fs: FamilyScene, row: str, seed: int = 0, budget: int | None
     return res, sc.exploration.calibration
 
 
+#: How the families' scenes post-process their maps: explore_object's defaults (one eq. 6.15 pass).
+POSTPROCESSING = MapPostprocessing()
+
+
 def postprocess(grid, cal: MapCalibration):
-    """The post-processed 2-D map a run with calibration ``cal`` reports (one eq. 6.15 pass, as the scenes')."""
-    return grid.postprocessed(certainty=cal.extrapolation_certainty, wall_reliability=cal.wall_reliability)
+    """The post-processed 2-D map a run with calibration ``cal`` reports (:meth:`MapPostprocessing.apply`)."""
+    return POSTPROCESSING.apply(grid, cal)
 
 
-def unwalled(cal: MapCalibration) -> MapCalibration:
-    """``cal`` without its wall tempering (``cal`` itself when it has none): what the policies plan on."""
-    return cal if cal.wall_reliability == 1.0 else dataclasses.replace(cal, wall_reliability=1.0)
+def planned_on(grid, cal: MapCalibration, post):
+    """The map the policies plan on, given the reported ``post`` (:meth:`MapPostprocessing.planned_on`: without
+    the wall tempering, as explore_object's policies do)."""
+    return POSTPROCESSING.planned_on(grid, cal, post)
 
 
 def checkpoint_maps(res, cal: MapCalibration, checkpoints):
