@@ -1,10 +1,10 @@
-"""The `flex` correction for lumps (sim/flex_lump.py): its calibration, and flex's error on held-out lumps without
+"""The `flex` correction for lumps (sim/flex/lump.py): its calibration, and flex's error on held-out lumps without
 it (before) and with it (after).
 
     .venv/bin/python benchmarks/flex_lump.py --calibrate   # remeasure models/flex_lump_calibration.json first
     .venv/bin/python benchmarks/flex_lump.py               # the held-out lumps, before -> after
 
-The table is measured on calibration lumps (sim/flex_lump.py: spheres of 4 / 6 mm, tops 0.7-7.5 mm down, 0.05-40x
+The table is measured on calibration lumps (sim/flex/lump.py: spheres of 4 / 6 mm, tops 0.7-7.5 mm down, 0.05-40x
 the bulk), none of which is reported here. Every lump below is held out: the validity table's five lumps (against
 the cached FE reference) and NEW_LUMPS (against the FE reference solved here, refinement 1). Each is one shipped flex
 press (`validity.measure.press_case`'s, to 4.12 mm); "before" is its force times r at each depth's a / cell (the
@@ -18,9 +18,9 @@ import time
 
 import numpy as np
 
-from palpate.sim.flex_calibrate import lump_sample, measure_lump_calibration
-from palpate.sim.flex_grid import DEFAULT_RESOLUTION
-from palpate.sim.flex_lump import LUMP_CALIBRATION_PATH, load_lump_calibration, lump_curve, pocket_moduli
+from palpate.sim.flex.calibrate import lump_sample, measure_lump_calibration
+from palpate.sim.flex.grid import DEFAULT_RESOLUTION
+from palpate.sim.flex.lump import LUMP_CALIBRATION_PATH, load_lump_calibration, lump_curve, pocket_moduli
 from palpate.sim.reference.fe import fe_press
 from palpate.sim.validity.cases import TIP_RADIUS, ValidityCase, case_object, validity_cases
 from palpate.sim.validity.measure import loading_force, press_case

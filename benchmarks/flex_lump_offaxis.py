@@ -1,4 +1,4 @@
-"""The `flex` lump correction (sim/flex_lump.py) off the press axis: flex beside box lumps against the 3-D FE.
+"""The `flex` lump correction (sim/flex/lump.py) off the press axis: flex beside box lumps against the 3-D FE.
 
     .venv/bin/python benchmarks/flex_lump_offaxis.py [--nu 0.45] [--save rows.json]
 
@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.sim.flex import reference_press
-from palpate.sim.flex_grid import DEFAULT_RESOLUTION
-from palpate.sim.flex_lump import CENTRING_POWER, load_lump_calibration, lump_curve, pocket_centring, pocket_moduli
+from palpate.sim.flex.grid import DEFAULT_RESOLUTION
+from palpate.sim.flex.lump import CENTRING_POWER, load_lump_calibration, lump_curve, pocket_centring, pocket_moduli
+from palpate.sim.flex.press import reference_press
 from palpate.sim.reference.fe3d import fe3d_press
 from palpate.sim.validity.measure import loading_force
 from palpate.sim.validity.offaxis import (

@@ -4,7 +4,7 @@ with the block's kappa alone (before) and with the plate's (after).
     .venv/bin/python benchmarks/flex_plate.py --calibrate   # remeasure models/flex_plate_calibration.json first
     .venv/bin/python benchmarks/flex_plate.py               # the held-out skins, before -> after
 
-The table is measured on calibration plates (sim/flex_plate.py: 2-70x, 0.7-4.5 mm skins, 12-60 mm stacks, skins of
+The table is measured on calibration plates (sim/flex/plate.py: 2-70x, 0.7-4.5 mm skins, 12-60 mm stacks, skins of
 nu 0.3 / 0.4 on bases of nu 0.3 / 0.45 / 0.49), none of which is reported here. Every stack below is held out but
 the three weak skins (WEAK_STACKS, tuned): the validity table's skin_stiff_1/2/4mm (2 MPa on 100 kPa, 30 mm) against
 the FE reference, and new skins against the exact layered contact law (within 0.5% of the FE reference on the
@@ -21,16 +21,16 @@ import time
 import numpy as np
 
 from palpate.sim.contact.law import solve_contact_law
-from palpate.sim.flex import reference_press
-from palpate.sim.flex_calibrate import measure_plate_calibration, plate_sample
-from palpate.sim.flex_calibration import MeshCalibration, load_calibration, mesh_curve
-from palpate.sim.flex_plate import (
+from palpate.sim.flex.calibrate import measure_plate_calibration, plate_sample
+from palpate.sim.flex.calibration import MeshCalibration, load_calibration, mesh_curve
+from palpate.sim.flex.plate import (
     PLATE_CALIBRATION_PATH,
     PlateSkin,
     PlateTable,
     load_plate_calibration,
     plate_curve,
 )
+from palpate.sim.flex.press import reference_press
 from palpate.sim.validity.cases import TIP_RADIUS, validity_cases
 from palpate.sim.validity.measure import loading_force
 from palpate.sim.validity.reference import load_reference, reference_force

@@ -23,10 +23,10 @@ import numpy as np
 from palpate.core.errors import PalpateError
 from palpate.core.world.scene import Material
 from palpate.sim.contact.law import solve_contact_law
-from palpate.sim.flex import reference_press
-from palpate.sim.flex_calibrate import loading_ratio, measure_calibration
-from palpate.sim.flex_calibration import CAL_YOUNG, CALIBRATION_PATH
-from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW
+from palpate.sim.flex.calibrate import loading_ratio, measure_calibration
+from palpate.sim.flex.calibration import CAL_YOUNG, CALIBRATION_PATH
+from palpate.sim.flex.grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW
+from palpate.sim.flex.press import reference_press
 from palpate.sim.reference.sample import AxisymmetricSample
 
 RADIUS = 0.008

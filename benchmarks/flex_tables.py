@@ -1,5 +1,5 @@
 """What reading the `flex` calibration tables once per run saves a press: one stiff-skin press (block and plate
-tables read) repeated in one window, each press given the run's tables (sim/flex_tables.py, as a SimSource passes
+tables read) repeated in one window, each press given the run's tables (sim/flex/tables.py, as a SimSource passes
 them) or reading them from disk itself (``tables=None``, as every press did before), interleaved.
 
     .venv/bin/python benchmarks/flex_tables.py              # 5 rounds of 15 presses each way
@@ -19,8 +19,8 @@ import numpy as np
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, Layer, Material, ObjectSpec, Scene
 from palpate.sim.controller import press_profile
-from palpate.sim.flex import run_flex_press
-from palpate.sim.flex_tables import load_flex_tables
+from palpate.sim.flex.press import run_flex_press
+from palpate.sim.flex.tables import load_flex_tables
 
 RADIUS = 0.008
 #: 2 mm of 2 MPa on 100 kPa, 30 mm: wide enough for the plate window, so the press reads the plate table too.

@@ -45,7 +45,7 @@ def _physics_call(fid: str, scene: Scene, obj: ObjectSpec, target: PressTarget, 
         return lambda: run_analytic_press(scene, obj, prof)
     if fid == "rigid":
         return lambda: run_rigid_press(scene, obj, prof, timestep=0.002)
-    from palpate.sim.flex import run_flex_press
+    from palpate.sim.flex.press import run_flex_press
 
     models: dict = {}  # the window is built on the first call and reused, as a SimSource does
     return lambda: run_flex_press(scene, obj, target, prof, seed=0, models=models)
@@ -59,7 +59,7 @@ def main() -> None:
     materials = (2e5,) if args.quick else (2e4, 2e5, 2e6)
     fidelities = ["analytic", "rigid"]
     try:
-        import palpate.sim.flex  # noqa: F401
+        import palpate.sim.flex.press  # noqa: F401
 
         fidelities.append("flex")
     except ImportError:

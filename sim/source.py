@@ -24,9 +24,9 @@ from palpate.sim.analytic import material_under, run_analytic_press
 from palpate.sim.blas import one_blas_thread
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profile
-from palpate.sim.flex import run_flex_press
-from palpate.sim.flex_model import SOLVER_ITERATIONS
-from palpate.sim.flex_tables import FlexTables, load_flex_tables
+from palpate.sim.flex.model import SOLVER_ITERATIONS
+from palpate.sim.flex.press import run_flex_press
+from palpate.sim.flex.tables import FlexTables, load_flex_tables
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import resolve_profile
 from palpate.sim.realism.stage import RealismSession
@@ -76,7 +76,8 @@ class SimSource:
         timestep: physics step, s (rigid default 2 ms, flex its own; analytic samples at the taxel rate).
         tolerance: largest predicted force error ``auto`` accepts, fraction (default 5%).
         max_steps: physics steps one press may take; a longer one is refused before it runs.
-        flex_iterations: MuJoCo's iteration limit for a ``flex`` press (see :func:`palpate.sim.flex.run_flex_press`).
+        flex_iterations: MuJoCo's iteration limit for a ``flex`` press (see
+            :func:`palpate.sim.flex.press.run_flex_press`).
         realism: a realism profile (:mod:`palpate.sim.realism`): a preset or shipped profile's name, a TOML path,
             or a RealismProfile; None is ``ideal`` (the simulation exactly as without profiles). One source is one
             session (one pad equilibration, one clock synchronisation). Its finger pulp is in series with the
@@ -116,7 +117,7 @@ class SimSource:
         self._presses = 0
         self._meshes: dict = {}
         self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
-        self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.run_flex_press)
+        self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.press.run_flex_press)
         self._flex_tables: FlexTables | None = None  # its calibration tables, read on the first flex press
         self._session = (None if self.realism.is_ideal else
                          RealismSession(self.realism, scene.fingertip, scene.taxels, self.seed))
@@ -237,7 +238,7 @@ class SimSource:
             trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
                                     max_steps=self.max_steps)
         else:
-            # flex has its own default step (up to 10 ms, see palpate.sim.flex.default_timestep): the rigid
+            # flex has its own default step (up to 10 ms, see palpate.sim.flex.press.default_timestep): the rigid
             # default of 2 ms would make it 5x slower for nothing (its elasticity is integrated implicitly)
             if self._flex_tables is None:
                 self._flex_tables = load_flex_tables()

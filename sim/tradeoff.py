@@ -35,7 +35,7 @@ from palpate.core.world.scene import Material, ObjectSpec, Scene, TaxelSensorSpe
 from palpate.sim.analytic import run_analytic_press
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import HUMAN, press_profile
-from palpate.sim.flex import run_flex_press
+from palpate.sim.flex.press import run_flex_press
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS

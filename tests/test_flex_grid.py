@@ -8,7 +8,8 @@ import pytest
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec
-from palpate.sim import flex_element, flex_grid
+from palpate.sim.flex import element as flex_element
+from palpate.sim.flex import grid as flex_grid
 
 BASE = Material("base", 1e5, 0.45)
 STIFF = Material("stiff", 2e6, 0.4)
@@ -149,7 +150,7 @@ def test_incompatible_modes_bend_a_thin_cell_exactly_and_keep_its_rigid_and_line
 
 def test_the_mixing_correction_is_the_layered_law_of_the_mixed_column_over_the_layers():
     from palpate.sim.contact.law import solve_contact_law
-    from palpate.sim.flex_mixing import SUBCELL, mixing_correction
+    from palpate.sim.flex.mixing import SUBCELL, mixing_correction
     from palpate.sim.reference.sample import AxisymmetricSample
 
     base = Material("base", 2e5, 0.45)
@@ -184,7 +185,7 @@ def test_the_mixing_correction_is_the_layered_law_of_the_mixed_column_over_the_l
 
 @pytest.mark.parametrize("obj", [_box(), ObjectSpec("c", "cylinder", (0.01, 0.02), (0.003, -0.002), BASE)])
 def test_the_cells_lookup_finds_each_cell_from_its_centre_also_through_the_disc_map(obj):
-    from palpate.sim.flex_mixing import cell_lookup
+    from palpate.sim.flex.mixing import cell_lookup
 
     grid = flex_grid.flex_grid(obj, 0.004, -0.001)
     n = int(np.prod(grid.cells))
@@ -202,7 +203,7 @@ def test_the_lateral_mixing_correction_is_one_where_cells_hold_the_lump_and_not_
     5 mm sphere 1 mm under the top is spread over the four 5 mm cells around the axis, and their mix is softer than
     a hard sphere (stiffer than a soft one) under a contact narrower than a cell, by less once the contact spans
     the cells."""
-    from palpate.sim.flex_mixing import cell_moduli, lateral_mixing_correction
+    from palpate.sim.flex.mixing import cell_moduli, lateral_mixing_correction
 
     aligned = _box(inclusions=(Inclusion(STIFF, "box", (0.0, 0.0, 0.0225), (0.01, 0.01, 0.005)),))
     grid = flex_grid.flex_grid(aligned, 0.0, 0.0)
@@ -228,7 +229,7 @@ def test_the_lateral_mixing_correction_solves_on_one_blas_thread_and_gives_the_d
 
     from threadpoolctl import threadpool_info
 
-    from palpate.sim import flex_mixing
+    from palpate.sim.flex import mixing as flex_mixing
 
     def blas_threads() -> list[int]:
         return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]

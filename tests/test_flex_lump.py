@@ -1,4 +1,4 @@
-"""The flex correction for lumps (sim/flex_lump.py): its table, where it applies, and its held-out lumps."""
+"""The flex correction for lumps (sim/flex/lump.py): its table, where it applies, and its held-out lumps."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec
-from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW, flex_grid
-from palpate.sim.flex_lump import (
+from palpate.sim.flex.grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW, flex_grid
+from palpate.sim.flex.lump import (
     CENTRING_POWER,
     LUMP_CALIBRATION_PATH,
     LUMP_CONTRASTS,
@@ -21,7 +21,7 @@ from palpate.sim.flex_lump import (
     pocket_centring,
     pocket_moduli,
 )
-from palpate.sim.flex_mixing import cell_moduli
+from palpate.sim.flex.mixing import cell_moduli
 
 CELL_OVER_RADIUS = 0.625  # the shipped 5 mm cells under the 8 mm tip
 BULK = Material("bulk", 1e5, 0.45)
@@ -161,7 +161,7 @@ def test_flex_is_within_six_percent_of_the_fe_reference_on_held_out_lumps(top, r
     correction was first evaluated on them), against the FE reference, at 0.5 / 1 / 2 / 4 mm: without the lump
     correction up to 19% off (mean |error| 5.5%), with it within 5.2% (mean 2.0%; measured 2026-11-24)."""
     pytest.importorskip("mujoco")
-    from palpate.sim.flex_calibrate import lump_sample
+    from palpate.sim.flex.calibrate import lump_sample
     from palpate.sim.reference.fe import fe_press
     from palpate.sim.validity.cases import ValidityCase
     from palpate.sim.validity.measure import loading_force, press_case
@@ -182,7 +182,7 @@ def test_a_press_over_a_soft_lumps_edge_is_not_corrected_as_a_centred_one():
     pytest.importorskip("mujoco")
     from dataclasses import replace
 
-    from palpate.sim.flex import reference_press
+    from palpate.sim.flex.press import reference_press
     from palpate.sim.reference.fe3d import fe3d_press
     from palpate.sim.validity.measure import loading_force
     from palpate.sim.validity.offaxis import BULK_E, HALF, THICKNESS, TIP, H, OffAxisCase, case_block, case_object

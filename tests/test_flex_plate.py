@@ -1,4 +1,4 @@
-"""The flex mesh correction for plates (sim/flex_plate.py): its table, its limit and its held-out stiff skins."""
+"""The flex mesh correction for plates (sim/flex/plate.py): its table, its limit and its held-out stiff skins."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Layer, Material, ObjectSpec
-from palpate.sim.flex_plate import (
+from palpate.sim.flex.plate import (
     PLATE_BASE_POISSONS,
     PLATE_CALIBRATION_PATH,
     PLATE_HEIGHTS,
@@ -143,8 +143,8 @@ def test_flex_is_within_eight_percent_of_the_layered_law_on_held_out_stiff_skins
     (90 mm) and 5.1% (60 mm, the table's Poisson axes; measured 2026-11-24)."""
     pytest.importorskip("mujoco")
     from palpate.sim.contact.law import solve_contact_law
-    from palpate.sim.flex import reference_press
-    from palpate.sim.flex_calibrate import plate_sample
+    from palpate.sim.flex.calibrate import plate_sample
+    from palpate.sim.flex.press import reference_press
     from palpate.sim.validity.measure import loading_force
 
     depths = np.array([0.5, 1.0, 2.0, 4.0]) * 1e-3

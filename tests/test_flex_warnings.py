@@ -22,8 +22,9 @@ from palpate.core.session.report import solver_warning, solver_warnings  # noqa:
 from palpate.core.session.sources import PressTarget, scenario_source_maker  # noqa: E402
 from palpate.core.world.scenario_file import parse_scenario  # noqa: E402
 from palpate.core.world.scene import FingertipSpec, Layer, Material, ObjectSpec, Scene  # noqa: E402
-from palpate.sim import flex, simulate_press  # noqa: E402
+from palpate.sim import simulate_press  # noqa: E402
 from palpate.sim.controller import press_profile  # noqa: E402
+from palpate.sim.flex import press as flex  # noqa: E402
 from palpate.sim.source import SimSource  # noqa: E402
 from palpate.sim.stability import SolverWarnings, check_dropped, inertia_warnings  # noqa: E402
 

@@ -11,10 +11,14 @@ pytest.importorskip("mujoco")
 
 from palpate.core.errors import ValidationError  # noqa: E402
 from palpate.core.world.scene import FingertipSpec, Layer, Material, ObjectSpec, Scene  # noqa: E402
-from palpate.sim import flex, flex_element, flex_grid, flex_mixing, flex_model  # noqa: E402
 from palpate.sim.contact.law import solve_contact_law  # noqa: E402
-from palpate.sim.flex_calibrate import loading_ratio  # noqa: E402
-from palpate.sim.flex_calibration import load_calibration, mesh_factor  # noqa: E402
+from palpate.sim.flex import element as flex_element  # noqa: E402
+from palpate.sim.flex import grid as flex_grid  # noqa: E402
+from palpate.sim.flex import mixing as flex_mixing  # noqa: E402
+from palpate.sim.flex import model as flex_model  # noqa: E402
+from palpate.sim.flex import press as flex  # noqa: E402
+from palpate.sim.flex.calibrate import loading_ratio  # noqa: E402
+from palpate.sim.flex.calibration import load_calibration, mesh_factor  # noqa: E402
 from palpate.sim.reference.sample import AxisymmetricSample  # noqa: E402
 
 R = 0.008
@@ -112,7 +116,7 @@ def test_the_mesh_correction_reduced_once_per_press_is_the_tables_trilinear_inte
     """A press reduces the tables to kappa against a / cell once (mesh_curve) and reads it at every step; off the
     tables' points in a / cell, thickness and Poisson ratio, and past their ends, that is each table interpolated
     linearly in a / cell, then log thickness, then Poisson ratio (clamped), weighted by the pinned fraction."""
-    from palpate.sim.flex_calibration import mesh_curve
+    from palpate.sim.flex.calibration import mesh_curve
 
     cal = load_calibration()
     tables = {tb.sides: tb for tb in cal.tables}
@@ -263,7 +267,8 @@ def test_a_press_reads_the_tables_it_is_given_and_a_source_reads_them_once(monke
     from dataclasses import replace
 
     from palpate.core.session.sources import PressTarget
-    from palpate.sim import flex_tables, source
+    from palpate.sim import source
+    from palpate.sim.flex import tables as flex_tables
 
     kw = dict(young=1e5, poisson=0.45, height=0.03, width=0.2, depth=0.002,
               layers=(Layer(Material("skin", 2e6, 0.4), 0.002),))

@@ -196,9 +196,9 @@ def test_flex_is_within_ten_percent_of_the_fe_reference_on_soft_skins_from_half_
 @pytest.mark.parametrize("name", ["skin_stiff_1mm", "skin_stiff_2mm", "skin_stiff_4mm"])
 def test_a_stiff_skin_is_within_five_percent_from_half_a_mm_to_four(name):
     """Issue 12: the default 30 mm window's pinned sides stiffened a stiff skin (a plate spreads its load far) by
-    +25 / +30 / +40% at 4 mm on the 1 / 2 / 4 mm skins; the plate's wide graded window (sim/flex_grid.py, chosen on
+    +25 / +30 / +40% at 4 mm on the 1 / 2 / 4 mm skins; the plate's wide graded window (sim/flex/grid.py, chosen on
     skin_stiff_2mm) left +12.5% at 4 mm on the 1 mm skin and -12.7% at 1 mm on the 4 mm one (the block's kappa
-    over-corrects a plate); with the plate's kappa (sim/flex_plate.py, measured on calibration plates, none of
+    over-corrects a plate); with the plate's kappa (sim/flex/plate.py, measured on calibration plates, none of
     them these three, which are all held out from it) each is within 3.6% at 0.5-4 mm; in the 60 mm plate window
     with the table remeasured on it (half the cost), within 2.3%."""
     err = _flex_error(name, (0.5e-3, 1e-3, 2e-3, 4e-3))
@@ -210,10 +210,10 @@ def test_a_stiff_skin_is_within_five_percent_from_half_a_mm_to_four(name):
                                   "lump_soft_3mm"])
 def test_flex_is_within_seven_percent_of_the_fe_reference_on_every_lump_from_half_a_mm_to_four(name):
     """Issue 12: a 5 mm sphere 1 to 6 mm under the top, mixed into the 5 mm cells around the press axis, against the
-    cached FE reference. The lateral mixing correction (sim/flex_mixing.py, nothing fitted) took the hard lump 1 mm
+    cached FE reference. The lateral mixing correction (sim/flex/mixing.py, nothing fitted) took the hard lump 1 mm
     down from -25 / -18 / -17% at 0.5 / 1 / 2 mm and the soft one 3 mm down from -12% at 0.5 mm to within 10%, but
     left lump_soft_1mm +15.6% at 2 mm (the contact's edge reaching the next ring of surface vertices over the soft
-    pocket); the lump correction (sim/flex_lump.py, measured on calibration lumps, none of these five, which are all
+    pocket); the lump correction (sim/flex/lump.py, measured on calibration lumps, none of these five, which are all
     held out from it) puts every row within 5.7% at 0.5-4 mm (measured 2026-11-24)."""
     err = _flex_error(name, (0.5e-3, 1e-3, 2e-3, 4e-3))
     assert np.all(np.abs(err) < 0.07), err

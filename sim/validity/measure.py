@@ -21,8 +21,8 @@ from palpate.core.world.scene import Scene
 from palpate.sim.analytic import run_analytic_press
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import press_profile
-from palpate.sim.flex import run_flex_press
-from palpate.sim.flex_tables import FlexTables, load_flex_tables
+from palpate.sim.flex.press import run_flex_press
+from palpate.sim.flex.tables import FlexTables, load_flex_tables
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, law_depth
 from palpate.sim.trace import PhysicsTrace

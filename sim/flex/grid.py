@@ -5,7 +5,7 @@
   cuts through the object its sides are pinned; free object faces within it stay free.
 - Over a stiff layer (a plate, which spreads its load far wider than a block), the box's window is
   PLATE_WINDOW_SCALE times as wide, fine at the press and coarser out, with the free calibration table (times the
-  plate's q under a stiff top layer, :mod:`palpate.sim.flex_plate`): the
+  plate's q under a stiff top layer, :mod:`palpate.sim.flex.plate`): the
   default window's pinned sides stiffened stiff skins by +25 to +40% at 4 mm.
 - A cylinder whose disc fits the window (radius up to window / sqrt(2)): the whole disc, a tensor grid mapped onto
   it (:func:`disc_map`), so its curved side is free where it really is. A square inscribed in the disc with
@@ -15,9 +15,9 @@
   nearest node moved onto it within SNAP_PLANE cells, else a plane inserted), a layer thinner than a cell gets
   LAYER_CELLS cells through it, and its cells are marked ``bending``: a stiff skin carries load by bending, which
   a cell mixing it with its base cannot, and which a thin trilinear cell cannot either without the incompatible
-  modes :func:`palpate.sim.flex_element.bending_ee` gives it. Other cells holding two materials (a soft skin, a
-  lump) get their mix (:func:`palpate.sim.flex_mixing.cell_moduli`), which the press corrects by the continuum's
-  answer to it (:mod:`palpate.sim.flex_mixing`). Node planes on a lump's top, bottom and sides
+  modes :func:`palpate.sim.flex.element.bending_ee` gives it. Other cells holding two materials (a soft skin, a
+  lump) get their mix (:func:`palpate.sim.flex.mixing.cell_moduli`), which the press corrects by the continuum's
+  answer to it (:mod:`palpate.sim.flex.mixing`). Node planes on a lump's top, bottom and sides
   were tried and dropped: on lump_hard_3mm and lump_soft_3mm they left as many rows beyond 10% (one) for two more
   layers of cells.
 """
@@ -30,7 +30,7 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec
-from palpate.sim.flex_element import UNIT_CORNERS
+from palpate.sim.flex.element import UNIT_CORNERS
 
 #: Default cell edge of the elastic grid (under the press, if graded), m.
 DEFAULT_RESOLUTION = 0.005

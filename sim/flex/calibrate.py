@@ -1,4 +1,4 @@
-"""Measuring the `flex` mesh correction (see :mod:`palpate.sim.flex_calibration` for what it holds and how it is
+"""Measuring the `flex` mesh correction (see :mod:`palpate.sim.flex.calibration` for what it holds and how it is
 used): uncalibrated presses on a thick block, each compared with the reference for the same block."""
 
 from __future__ import annotations
@@ -14,8 +14,7 @@ from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, Scene
 from palpate.sim.contact.law import solve_contact_law
 from palpate.sim.controller import press_profile
-from palpate.sim.flex import reference_press, run_flex_press
-from palpate.sim.flex_calibration import (
+from palpate.sim.flex.calibration import (
     CAL_HEIGHTS,
     CAL_YOUNG,
     FORMAT_VERSION,
@@ -25,8 +24,8 @@ from palpate.sim.flex_calibration import (
     load_calibration,
     mesh_curve,
 )
-from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW
-from palpate.sim.flex_lump import (
+from palpate.sim.flex.grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW
+from palpate.sim.flex.lump import (
     HARD_LUMP_POISSON,
     LUMP_BULK_POISSON,
     LUMP_BULK_YOUNG,
@@ -40,8 +39,8 @@ from palpate.sim.flex_lump import (
     SOFT_LUMP_POISSON,
     pocket_moduli,
 )
-from palpate.sim.flex_model import mixing_at
-from palpate.sim.flex_plate import (
+from palpate.sim.flex.model import mixing_at
+from palpate.sim.flex.plate import (
     BASE_POISSON,
     BASE_YOUNG,
     PLATE_BASE_POISSONS,
@@ -53,6 +52,7 @@ from palpate.sim.flex_plate import (
     PLATE_SKINS,
     SKIN_POISSON,
 )
+from palpate.sim.flex.press import reference_press, run_flex_press
 from palpate.sim.reference.fe import fe_press
 from palpate.sim.reference.sample import AxisInclusion, AxisymmetricSample
 
@@ -83,7 +83,7 @@ def measure_calibration(resolution: float, *, radius: float = 0.008, window: flo
                         progress=None) -> MeshCalibration:
     """Measure kappa on the calibration blocks for cells of ``resolution`` (m), both kinds of sides (a "pinned"
     table in ``window``, a "free" one in FREE_WINDOW_SCALE times it); write the file if ``path``; return the tables
-    as :func:`palpate.sim.flex_calibration.load_calibration` reads them.
+    as :func:`palpate.sim.flex.calibration.load_calibration` reads them.
 
     Each (poisson, thickness) is one uncalibrated press, as deep as a / cell reaches the table's end or the
     thickness allows; beyond the deepest measured a / cell the row repeats its last value (and a press there is
@@ -97,7 +97,7 @@ def measure_calibration(resolution: float, *, radius: float = 0.008, window: flo
             "young": CAL_YOUNG, "heights": list(heights), "radius": radius, "window": window,
             "free_window": FREE_WINDOW_SCALE * window,
             "reference": "layered contact law of the same bonded block (palpate.sim.contact.law)",
-            "how": "benchmarks/flex_resolution.py --calibrate (palpate.sim.flex_calibrate.measure_calibration)",
+            "how": "benchmarks/flex_resolution.py --calibrate (palpate.sim.flex.calibrate.measure_calibration)",
         },
         "tables": tables,
     }
@@ -199,7 +199,7 @@ def _plate_ratio_within(sample: AxisymmetricSample, radius: float, resolution: f
 def measure_plate_calibration(*, radius: float = 0.008, resolution: float = DEFAULT_RESOLUTION,
                               path: Path | str | None = None, progress=None) -> dict:
     """Measure q = (F_flex / F_law) / kappa_block on the calibration plates (PLATE_SKIN_POISSONS x
-    PLATE_BASE_POISSONS x PLATE_RATIOS x PLATE_SKINS x PLATE_HEIGHTS, :mod:`palpate.sim.flex_plate`), one uncorrected
+    PLATE_BASE_POISSONS x PLATE_RATIOS x PLATE_SKINS x PLATE_HEIGHTS, :mod:`palpate.sim.flex.plate`), one uncorrected
     press each; write the file if ``path``. ``progress(skin_poisson, base_poisson, ratio, skin, height)`` after each."""
     calibration = load_calibration()
     cell = None
@@ -223,7 +223,7 @@ def measure_plate_calibration(*, radius: float = 0.008, resolution: float = DEFA
             "radius": radius, "cell": cell,
             "reference": "layered contact law of the same stack (palpate.sim.contact.law)",
             "block_table": "models/flex_calibration.json, free sides (remeasure this table when it changes)",
-            "how": "benchmarks/flex_plate.py --calibrate (palpate.sim.flex_calibrate.measure_plate_calibration)",
+            "how": "benchmarks/flex_plate.py --calibrate (palpate.sim.flex.calibrate.measure_plate_calibration)",
         },
         "cell_over_radius": round(cell / radius, 4), "contact_over_cell": list(CONTACT_OVER_CELL),
         "skin_poisson": list(PLATE_SKIN_POISSONS), "base_poisson": list(PLATE_BASE_POISSONS),
@@ -238,7 +238,7 @@ def measure_plate_calibration(*, radius: float = 0.008, resolution: float = DEFA
 
 def lump_sample(cover: float, radius: float, contrast: float) -> AxisymmetricSample:
     """A calibration lump: a sphere of ``radius`` m, its top ``cover`` m down, ``contrast`` times the bulk's
-    Young's modulus, on the axis of the calibration block (:mod:`palpate.sim.flex_lump`)."""
+    Young's modulus, on the axis of the calibration block (:mod:`palpate.sim.flex.lump`)."""
     nu = SOFT_LUMP_POISSON if contrast < 1.0 else HARD_LUMP_POISSON
     return AxisymmetricSample(Material("bulk", LUMP_BULK_YOUNG, LUMP_BULK_POISSON), LUMP_HEIGHT,
                               inclusion=AxisInclusion(Material("lump", LUMP_BULK_YOUNG * contrast, nu), "sphere",
@@ -291,7 +291,7 @@ def lump_press(sample: AxisymmetricSample, *, radius: float = 0.008,
 def measure_lump_calibration(*, radius: float = 0.008, resolution: float = DEFAULT_RESOLUTION,
                              path: Path | str | None = None, progress=None) -> dict:
     """Measure r = [F_flex(lump) / F_flex(block) / mixing] / [F_FE(lump) / F_FE(block)] on the calibration lumps
-    (LUMP_COVERS x LUMP_RADII x LUMP_CONTRASTS, :mod:`palpate.sim.flex_lump`), one uncorrected flex press and one FE
+    (LUMP_COVERS x LUMP_RADII x LUMP_CONTRASTS, :mod:`palpate.sim.flex.lump`), one uncorrected flex press and one FE
     reference each; write the file if ``path``. ``progress(cover, radius, contrast)`` after each."""
     depths = np.array(LUMP_DEPTHS)
     block = lump_sample(LUMP_COVERS[0], LUMP_RADII[0], 1.0)
@@ -316,7 +316,7 @@ def measure_lump_calibration(*, radius: float = 0.008, resolution: float = DEFAU
         "measured_with": {
             "radius": radius, "cell": resolution,
             "reference": "FE reference (palpate.sim.reference.fe, refinement 1) of each lump and of the block",
-            "how": "benchmarks/flex_lump.py --calibrate (palpate.sim.flex_calibrate.measure_lump_calibration)",
+            "how": "benchmarks/flex_lump.py --calibrate (palpate.sim.flex.calibrate.measure_lump_calibration)",
             "lumps": "covers x radii x contrasts, row-major", "covers": list(LUMP_COVERS),
             "radii": list(LUMP_RADII), "contrasts": list(LUMP_CONTRASTS),
         },

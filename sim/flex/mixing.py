@@ -27,8 +27,8 @@ from palpate.sim.blas import one_blas_thread
 from palpate.sim.contact import axisymmetric
 from palpate.sim.contact.law import solve_contact_law
 from palpate.sim.contact.stack import object_breaks, object_lookup, object_radial_breaks
-from palpate.sim.flex_element import UNIT_CORNERS
-from palpate.sim.flex_grid import FlexGrid
+from palpate.sim.flex.element import UNIT_CORNERS
+from palpate.sim.flex.grid import FlexGrid
 from palpate.sim.reference.fe import fe_press
 from palpate.sim.reference.sample import AxisymmetricSample
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS
@@ -42,7 +42,7 @@ def cell_moduli(obj: ObjectSpec, grid: FlexGrid) -> tuple[np.ndarray, np.ndarray
     E in series down each vertical sub-column (harmonic mean: exact for the squeeze of a layered cell), the
     sub-columns in parallel (mean: a lump filling part of the cell carries its share); the mean Poisson ratio. A
     cell of one material gets exactly its own; the grid puts node planes under stiff layers
-    (:func:`palpate.sim.flex_grid.flex_grid`), so the cells that mix hold a soft skin or part of an inclusion (their
+    (:func:`palpate.sim.flex.grid.flex_grid`), so the cells that mix hold a soft skin or part of an inclusion (their
     mix is corrected by :func:`mixing_correction` or :func:`lateral_mixing_correction`)."""
     mats = obj.materials()
     names = [m.name for m in mats]
@@ -101,7 +101,7 @@ def mixing_correction(obj: ObjectSpec, grid: FlexGrid, tip_radius: float) -> Mix
     """The continuum's answer to the window's mixing of thin layers into cells (None where no cell mixes layers).
 
     A soft layer thinner than a cell is mixed into it (:func:`cell_moduli`; a stiff one gets node planes and cells
-    of its own, :func:`palpate.sim.flex_grid.flex_grid`). The series mix is exact for a cell squeezed uniformly,
+    of its own, :func:`palpate.sim.flex.grid.flex_grid`). The series mix is exact for a cell squeezed uniformly,
     but a contact narrower than the cell strains the cell's top, where the soft layer is, more than its bottom: the
     mixed column is stiffer than the layers (+33% at 0.2 mm and +14% at 0.5 mm on a 2 mm skin of 20 kPa on 200
     kPa in 5 mm cells), which the mesh correction, measured on homogeneous blocks, does not know. This is that

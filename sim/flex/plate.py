@@ -1,6 +1,6 @@
 """The `flex` mesh correction for plates: a stiff skin's kappa, measured on calibration plates.
 
-The block's mesh correction (:mod:`palpate.sim.flex_calibration`) is measured on homogeneous blocks, where the press
+The block's mesh correction (:mod:`palpate.sim.flex.calibration`) is measured on homogeneous blocks, where the press
 loads a field concentrated within about a cell. A stiff skin spreads its load over a few bending lengths, which the
 5 mm cells resolve nearly as the continuum does, so the block's kappa over-corrects it, the more so the thicker
 the skin, while the plate window's coarse outer cells stiffen the spread load again, more as it spreads with depth
@@ -26,7 +26,7 @@ that row's: the plate window's own difference from the free table's block (0.12-
 on three skins of 1.2-1.5x, docs/architecture.md).
 
 models/flex_plate_calibration.json holds the table for one cell size; ``benchmarks/flex_plate.py --calibrate``
-remeasures it (:func:`palpate.sim.flex_calibrate.measure_plate_calibration`); it depends on the block table, so it
+remeasures it (:func:`palpate.sim.flex.calibrate.measure_plate_calibration`); it depends on the block table, so it
 is remeasured whenever that one is.
 """
 

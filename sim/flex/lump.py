@@ -1,6 +1,6 @@
 """The `flex` correction for lumps: what the window's surface vertices do over a pocket, measured on calibration lumps.
 
-The lateral mixing correction (:func:`palpate.sim.flex_mixing.lateral_mixing_correction`) answers how the cells
+The lateral mixing correction (:func:`palpate.sim.flex.mixing.lateral_mixing_correction`) answers how the cells
 round the press axis average a lump's moduli; it does not see the kinematics of the collision vertices over them.
 Over a soft pocket as wide as two cells the contact's edge reaching the next ring of collision vertices, which are
 interpolated from nodes on the pocket's rim and held by the bulk's cells, steps the force up by ~19% between 1.2 and
@@ -29,7 +29,7 @@ over a lump's edge: off the axis flex is as it was before r.
 Applied to objects with inclusions and neither layers nor a haptic-material map (the table holds no such window: a
 skin mixes into the top cells without a pocket). models/flex_lump_calibration.json holds the table for one cell
 size and tip; ``benchmarks/flex_lump.py --calibrate`` remeasures it
-(:func:`palpate.sim.flex_calibrate.measure_lump_calibration`); it does not depend on the block table (kappa cancels).
+(:func:`palpate.sim.flex.calibrate.measure_lump_calibration`); it does not depend on the block table (kappa cancels).
 """
 
 from __future__ import annotations
@@ -45,8 +45,8 @@ from palpate.core.files import number_array
 from palpate.core.world.resources import models_dir
 from palpate.core.world.scene import ObjectSpec
 from palpate.sim.blas import one_blas_thread
-from palpate.sim.flex_grid import FlexGrid
-from palpate.sim.flex_mixing import cell_lookup
+from palpate.sim.flex.grid import FlexGrid
+from palpate.sim.flex.mixing import cell_lookup
 from palpate.sim.validity.reference import read_document
 
 #: The shipped table.
@@ -149,7 +149,7 @@ class Pocket:
 def pocket_at(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray, poisson: np.ndarray, x: float,
               y: float) -> Pocket | None:
     """The pocket of a press at (x, y) (m), its eight cells looked up once; ``young`` and ``poisson`` per cell
-    (:func:`palpate.sim.flex_mixing.cell_moduli`). None where the lump correction does not apply: no inclusion, a
+    (:func:`palpate.sim.flex.mixing.cell_moduli`). None where the lump correction does not apply: no inclusion, a
     layer or a material map (the table holds no such window), or all eight cells bulk."""
     cells = _pocket_cells(obj, grid, young, poisson, x, y)
     if cells is None:

@@ -1,14 +1,14 @@
 """The `flex` fidelity's MuJoCo model: a trilinear flexcomp window of the object under the press, built once and
-reused (see :mod:`palpate.sim.flex` for the press that runs it).
+reused (see :mod:`palpate.sim.flex.press` for the press that runs it).
 
-- The window (:func:`palpate.sim.flex_grid.flex_grid`): its bottom is bonded to the table and where it cuts
+- The window (:func:`palpate.sim.flex.grid.flex_grid`): its bottom is bonded to the table and where it cuts
   through the object its sides are pinned, with MuJoCo's ``<pin>`` (not by deleting joints). The flexcomp is
   compiled as a uniform box with the grid's cell counts and its nodes then moved to the grid (graded, or mapped
   onto a cylinder's disc).
 - The stiffness: MuJoCo's trilinear cell integrates lambda (div u)^2 at 2x2x2 points, which locks as nu -> 0.5
   (3.4x Hertz at nu = 0.49). Each cell's 24x24 block is replaced by the same element with selective reduced
   integration (the volumetric term at the cell centre, the deviatoric 2 mu e:e at 2x2x2 points;
-  :mod:`palpate.sim.flex_element`), with the Lame parameters of the cell's material (:func:`cell_moduli`), so
+  :mod:`palpate.sim.flex.element`), with the Lame parameters of the cell's material (:func:`cell_moduli`), so
   layers and inclusions are per cell and nu up to 0.49 does not lock; the cells of a stiff skin thinner than a
   cell also get incompatible bending modes. The block layout (node (i, j, k) with k fastest, dof 3 node + axis,
   stored as -K) is MuJoCo 4.0's; a compiled cell is checked against it, so a MuJoCo that stores it differently is
@@ -17,7 +17,7 @@ reused (see :mod:`palpate.sim.flex` for the press that runs it).
   200 kPa) and the tip's drive with the stiffest: a homogeneous block of any modulus then runs the same dynamics,
   and the force scales with E exactly (E-invariance), with the same contact softness (the direct solref is an
   acceleration).
-- The mixing correction (:mod:`palpate.sim.flex_mixing`): a layer thinner than a cell that is not given node planes
+- The mixing correction (:mod:`palpate.sim.flex.mixing`): a layer thinner than a cell that is not given node planes
   (a soft skin) or part of an inclusion is mixed into its cells, which the continuum answers differently from the
   materials themselves; the continuum's ratio of the mixed cells to the object divides the contact force
   (:func:`mixing_at`: per window for layers, per press point for an object that varies laterally).
@@ -31,9 +31,9 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, Scene, material_index_at
-from palpate.sim.flex_element import bending_ee, box_corners, hex_bases, hex_volumes, lame
-from palpate.sim.flex_grid import FlexGrid
-from palpate.sim.flex_mixing import (
+from palpate.sim.flex.element import bending_ee, box_corners, hex_bases, hex_volumes, lame
+from palpate.sim.flex.grid import FlexGrid
+from palpate.sim.flex.mixing import (
     MixingCorrection,
     cell_moduli,
     lateral_mixing_correction,
@@ -66,7 +66,7 @@ class FlexModel:
         model: the MuJoCo model; grid: its window; tip_joint, tip_body, tip_geom: MuJoCo ids;
         cell_material: per-cell material name; young_max: the stiffest modulus (Pa), which scales mass and drive;
         kp: drive stiffness, N/m; vertex_spacing: collision vertex spacing on the top, m;
-        mixing: the layers' mixing correction (:func:`palpate.sim.flex_mixing.mixing_correction`), None where no
+        mixing: the layers' mixing correction (:func:`palpate.sim.flex.mixing.mixing_correction`), None where no
             cell mixes layers or where the object varies laterally (then :func:`mixing_at` gives it per point);
         cell_young, cell_poisson: (n,) each cell's mixed moduli (Pa; MuJoCo's cell order);
         lateral: the object varies laterally; points: lateral corrections computed so far, by press point.
@@ -216,7 +216,7 @@ POINT_SNAP = 1e-4
 
 def mixing_at(fm: FlexModel, obj: ObjectSpec, x: float, y: float, tip_radius: float) -> MixingCorrection | None:
     """The mixing correction of a press at (x, y) (m) in window ``fm`` of ``obj``: the window's own (layers), or,
-    where the object varies laterally, the press point's (:func:`palpate.sim.flex_mixing.lateral_mixing_correction`),
+    where the object varies laterally, the press point's (:func:`palpate.sim.flex.mixing.lateral_mixing_correction`),
     computed once per point (POINT_SNAP) and kept in ``fm.points``."""
     if not fm.lateral:
         return fm.mixing

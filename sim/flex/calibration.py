@@ -9,8 +9,8 @@ it is tabulated densely in a / cell, not smoothed. It is measured on homogeneous
 validity table's thicknesses, wider than the window, bonded to the table) against the reference for the same block
 (the layered contact law, which agrees with the FE reference within ~1%): kappa(a / cell, H, nu) = F_flex /
 F_reference. A press divides its contact forces by kappa (times, over a stiff top layer, the plate's q,
-:mod:`palpate.sim.flex_plate`) at its current contact radius sqrt(R d) (a soft skin's
-mixed cells: where the block's contact was as wide, :meth:`palpate.sim.flex_mixing.MixingCorrection.contact_at`) and
+:mod:`palpate.sim.flex.plate`) at its current contact radius sqrt(R d) (a soft skin's
+mixed cells: where the block's contact was as wide, :meth:`palpate.sim.flex.mixing.MixingCorrection.contact_at`) and
 its object's height. kappa is the mesh's alone (the reference of each block includes its own thickness), so a
 thinner block, a layer or an edge keeps the stiffening its own elasticity gives it.
 
@@ -22,7 +22,7 @@ as wide (FREE_WINDOW_SCALE; wider changes kappa by under ~3% on a 20 mm block); 
 between them by the fraction of its window's sides that are pinned.
 
 models/flex_calibration.json holds one table per cell size (cell / tip radius) and kind of sides;
-``benchmarks/flex_resolution.py --calibrate`` remeasures it (:func:`palpate.sim.flex_calibrate.measure_calibration`).
+``benchmarks/flex_resolution.py --calibrate`` remeasures it (:func:`palpate.sim.flex.calibrate.measure_calibration`).
 """
 
 from __future__ import annotations
@@ -98,7 +98,7 @@ def load_calibration(path: Path | str = CALIBRATION_PATH) -> MeshCalibration:
 
 
 def calibration_from(raw: dict, source: str) -> MeshCalibration:
-    """A decoded calibration document (a file's, or :func:`palpate.sim.flex_calibrate.measure_calibration`'s)
+    """A decoded calibration document (a file's, or :func:`palpate.sim.flex.calibrate.measure_calibration`'s)
     validated; a ValidationError names ``source`` and the key."""
     tables = raw.get("tables")
     if not isinstance(tables, list) or not tables:

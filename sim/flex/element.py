@@ -1,9 +1,9 @@
 """The `flex` fidelity's element: the stiffness of one trilinear hexahedral cell with selective reduced
-integration, in MuJoCo's block layout (see :mod:`palpate.sim.flex_model` for why it replaces MuJoCo's own).
+integration, in MuJoCo's block layout (see :mod:`palpate.sim.flex.model` for why it replaces MuJoCo's own).
 
 A cell is given by its 8 corners (node (bx, by, bz) with bz fastest, MuJoCo's order), so the same element serves
 the axis-aligned cells of a box window and the distorted cells of a disc mapped onto a tensor grid (a cylinder,
-:func:`palpate.sim.flex_grid.flex_grid`): the strains come from the isoparametric map's Jacobian at each point.
+:func:`palpate.sim.flex.grid.flex_grid`): the strains come from the isoparametric map's Jacobian at each point.
 """
 
 from __future__ import annotations

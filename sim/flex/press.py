@@ -1,20 +1,20 @@
 """The `flex` fidelity: a MuJoCo deformable block (trilinear flexcomp, linear elasticity) pressed by the tip.
 
 What MuJoCo computes: the block's elastic deformation (per-cell stiffness with the material at each cell: layers and
-inclusions, see :mod:`palpate.sim.flex_model`), the tip's drive dynamics, the frictionless contact between the tip
+inclusions, see :mod:`palpate.sim.flex.model`), the tip's drive dynamics, the frictionless contact between the tip
 sphere and the block's surface vertices, and each contact's normal force. What palpate adds: the window of the object
 (bottom bonded to the table, cut sides pinned, free object edges free), the mesh correction (the coarse trilinear grid
 is stiffer than the elastic continuum by a factor that depends on the contact radius over the cell and the block's
-thickness, measured against the reference of homogeneous blocks, :mod:`palpate.sim.flex_calibration`, so finite
+thickness, measured against the reference of homogeneous blocks, :mod:`palpate.sim.flex.calibration`, so finite
 thickness, layers and edges come from the block itself; a stiff top layer, a plate, by the block's factor times the
-plate's, measured on calibration plates, :mod:`palpate.sim.flex_plate`; over a lump, by the factor its pocket's
-surface vertices add, measured on calibration lumps, :mod:`palpate.sim.flex_lump`; cells holding two materials (a
+plate's, measured on calibration plates, :mod:`palpate.sim.flex.plate`; over a lump, by the factor its pocket's
+surface vertices add, measured on calibration lumps, :mod:`palpate.sim.flex.lump`; cells holding two materials (a
 soft skin, part of a lump) are corrected by the continuum's ratio of the mixed cells to the object,
-:mod:`palpate.sim.flex_mixing`), and the taxels: each contact force stands for the surface patch of its vertex (side =
+:mod:`palpate.sim.flex.mixing`), and the taxels: each contact force stands for the surface patch of its vertex (side =
 vertex spacing) and is spread uniformly over it on the pad, which then averages over each sensel.
 
 The model is built once per window (a ``models`` dict the caller keeps, e.g. one per SimSource) and its state reset
-between presses; the calibration tables are read once per run too (``tables``, :mod:`palpate.sim.flex_tables`). A
+between presses; the calibration tables are read once per run too (``tables``, :mod:`palpate.sim.flex.tables`). A
 cylinder narrow enough for the window is meshed whole (its curved side free), a wider one by the square inscribed in
 it; meshes are not supported. Gravity is off so that the undeformed top stays at the object's height.
 """
@@ -28,10 +28,10 @@ from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, Scene
 from palpate.sim.analytic import material_under
 from palpate.sim.controller import press_profile
-from palpate.sim.flex_calibration import load_calibration, mesh_curve
-from palpate.sim.flex_grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW, flex_grid
-from palpate.sim.flex_lump import load_lump_calibration, lump_curve, pocket_at
-from palpate.sim.flex_model import (
+from palpate.sim.flex.calibration import load_calibration, mesh_curve
+from palpate.sim.flex.grid import DEFAULT_RESOLUTION, DEFAULT_WINDOW, flex_grid
+from palpate.sim.flex.lump import load_lump_calibration, lump_curve, pocket_at
+from palpate.sim.flex.model import (
     CONTACT_SOLREF,
     MAX_TIMESTEP,
     SOLVER_ITERATIONS,
@@ -39,8 +39,8 @@ from palpate.sim.flex_model import (
     build_flex_model,
     mixing_at,
 )
-from palpate.sim.flex_plate import load_plate_calibration, plate_curve, plate_skin
-from palpate.sim.flex_tables import FlexTables
+from palpate.sim.flex.plate import load_plate_calibration, plate_curve, plate_skin
+from palpate.sim.flex.tables import FlexTables
 from palpate.sim.stability import (
     MAX_STEPS,
     SolverWarnings,
@@ -166,7 +166,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         max_steps: step budget; a longer press is refused before it runs.
         iterations: MuJoCo's iteration limit (opt.iterations) for its M + K solve and its constraint solve.
         tables: the calibration tables, read once by a caller that presses many times
-            (:func:`palpate.sim.flex_tables.load_flex_tables`); None reads the ones this press needs from disk.
+            (:func:`palpate.sim.flex.tables.load_flex_tables`); None reads the ones this press needs from disk.
 
     Returns:
         PhysicsTrace with sensel_pressure (n, rows, cols) Pa, force N (total normal contact force), indentation m
