@@ -20,7 +20,7 @@ def simulate_press(
 
     Args:
         young: Young's modulus, Pa.  poisson: Poisson ratio.
-        fidelity: "analytic", "rigid", "flex" or "auto".
+        fidelity: "analytic", "bem", "rigid", "flex" or "auto".
         depth: indentation to reach, m (None when pressing to ``force``).
         speed: press speed, m/s.
         seed: seed of press variability and sensor noise.

@@ -25,6 +25,7 @@ from palpate.sim.blas import one_blas_thread
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profile
 from palpate.sim.flex.model import SOLVER_ITERATIONS
+from palpate.sim.bem.press import run_bem_press
 from palpate.sim.flex.press import run_flex_press
 from palpate.sim.flex.tables import FlexTables, load_flex_tables
 from palpate.sim.realism.profile import RealismProfile
@@ -37,7 +38,7 @@ from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, check_iterat
 from palpate.sim.validity.choice import Choice, choose, situation
 from palpate.sim.validity.table import ValidityTable, load_table
 
-FIDELITIES = ("auto", "analytic", "rigid", "flex")
+FIDELITIES = ("auto", "analytic", "bem", "rigid", "flex")
 #: Default tolerance of ``auto``: the largest predicted force error against the reference, fraction.
 DEFAULT_TOLERANCE = 0.05
 
@@ -234,6 +235,9 @@ class SimSource:
             physics_profile = replace(physics_profile, meta=dict(physics_profile.meta, force_target=None))
         if fidelity == "analytic":
             trace = run_analytic_press(self.scene, obj, physics_profile, law=law)
+        elif fidelity == "bem":
+            with one_blas_thread():
+                trace = run_bem_press(self.scene, obj, physics_profile)
         elif fidelity == "rigid":
             trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
                                     max_steps=self.max_steps)

@@ -42,7 +42,7 @@ from palpate.core.world.scene import FingertipSpec, Material, PoseSensorSpec, Ta
 from palpate.core.world.table_reader import REQUIRED, TableReader, resolve_path
 from palpate.core.world.workspace import object_geometry
 
-FIDELITIES = ("analytic", "rigid", "flex", "auto")
+FIDELITIES = ("analytic", "bem", "rigid", "flex", "auto")
 VARIABILITY = ("human", "robot")
 
 # Physically plausible ranges, checked at load so that an absurd value is named here and not met later as a

@@ -54,7 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--design", type=int, default=None,
                    help="candidates of the Latin hypercube before Nelder-Mead (default: a third of the budget; 0: "
                    "refine the start profile with Nelder-Mead only)")
-    r.add_argument("--fidelity", default=None, choices=("analytic", "rigid", "flex", "auto"),
+    r.add_argument("--fidelity", default=None, choices=("analytic", "bem", "rigid", "flex", "auto"),
                    help="fidelity of the simulated presses (default: the scenario's)")
     r.add_argument("--fit-a2-sign", action="store_true",
                    help="fit the share of presses with a2 < 0 too (default: reported only, as the shipped fits)")

@@ -1,0 +1,123 @@
+"""``bem`` fidelity: the press's contact solved on the surface as boundary elements, the tip following the profile.
+
+The surface around the press point is cut into square cells, each with the layer stack under it
+(:mod:`.surface`); at a ladder of indentations the frictionless contact of the exact sphere is solved for the cell
+pressures (:mod:`.solve`), each warm-started from the last; the force is their sum and each sensel the mean over
+its footprint. Between the solved indentations, force and sensel pressures are interpolated in the contact's
+natural coordinate sqrt(d) (force and pressures grow as powers of it).
+
+Unlike ``analytic``, which averages the material around the press axis, the image follows where the material is:
+over a wall the harder side carries more, a lump beside the axis tilts the image. Validity: quasi-static, flat top,
+linear elasticity, frictionless; the compliance between two different columns is a local-compliance mean (see
+:mod:`.surface`), measured against the 3-D FE reference in the validity table.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.world.scene import ObjectSpec, Scene
+from palpate.sim.analytic import local_material
+from palpate.sim.bem.solve import solve_contact
+from palpate.sim.bem.surface import Surface, build_surface
+from palpate.sim.bem.wall import WallTable
+from palpate.sim.controller import PressProfile
+from palpate.sim.stability import check_depth, check_resolves_press
+from palpate.sim.trace import PhysicsTrace
+
+#: Default cell side, m, and indentations solved per press.
+CELL = 0.5e-3
+LADDER = 12
+
+
+def solve_ladder(surface: Surface, tip_radius: float, depths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Force (N, (n,)) and sensel pressures (Pa, (n, rows * cols)) at increasing indentations ``depths`` (m)."""
+    r2 = np.sum(surface.centres**2, axis=1)
+    if np.any(r2 >= tip_radius**2):
+        raise ValidationError("bem: the surface reaches beyond the tip's radius; press shallower")
+    profile = tip_radius - np.sqrt(tip_radius**2 - r2)
+    force = np.zeros(len(depths))
+    pressure = np.zeros((len(depths), surface.overlap.shape[0]))
+    active = None
+    area = surface.cell**2
+    for k, d in enumerate(depths):
+        p, active = solve_contact(surface.compliance, d - profile, active)
+        if active.any() and np.max(r2[active]) > (np.sqrt(r2.max()) - 1.5 * surface.cell) ** 2:
+            raise ValidationError("bem: the contact reached the edge of the solved surface; a bug in its reach")
+        force[k] = p.sum() * area
+        pressure[k] = surface.overlap @ p
+    return force, pressure
+
+
+def _interp_sqrt(depth: np.ndarray, nodes: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Values (m, ...) at ``nodes`` (m,) increasing from 0, interpolated at ``depth`` by a monotone cubic in
+    sqrt(depth)."""
+    from scipy.interpolate import PchipInterpolator
+
+    f = PchipInterpolator(np.sqrt(nodes), values, axis=0, extrapolate=False)
+    out = f(np.sqrt(np.clip(depth, 0.0, nodes[-1])))
+    return np.maximum(np.nan_to_num(out), 0.0)
+
+
+def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None,
+                  cell: float = CELL, ladder: int = LADDER, walls: WallTable | None = None) -> PhysicsTrace:
+    """The press-and-release solved on the surface, sampled at ``rate`` Hz (default the taxel rate).
+
+    Args:
+        scene: the scene (fingertip and pad geometry).
+        obj: the pressed object.
+        profile: the press trajectory; the tip follows it exactly (quasi-static).
+        rate: sampling rate of the trace, Hz.
+        cell: boundary-element side, m.
+        ladder: indentations solved between 0 and the deepest; the rest are interpolated.
+        walls: the wall table (read from models/ when a wall is met and none is given; a SimSource passes its own).
+
+    Raises:
+        ValidationError: a press deeper than 0.75 tip radii, too short for the rate, or off the object.
+    """
+    rate = scene.taxels.rate if rate is None else rate
+    if not (np.isfinite(rate) and rate > 0):
+        raise ValidationError(f"run_bem_press: rate must be > 0 Hz, got {rate!r}")
+    if not (math.isfinite(cell) and cell > 0 and ladder >= 2):
+        raise ValidationError(f"run_bem_press: need cell > 0 m and ladder >= 2, got {cell!r}, {ladder!r}")
+    check_resolves_press(profile, 1.0 / rate, f" (bem, sampled at the {rate:g} Hz taxel rate)", min_steps=2,
+                         knobs="a slower or deeper press, or a higher taxel rate")
+    tip = scene.fingertip
+    radius = tip.radius
+    check_depth(profile, radius, " (bem)")
+    mat = local_material(obj, profile.x, profile.y, profile.surface_z)
+    grid = profile.t[0] + np.arange(max(int(np.floor(profile.duration * rate)) + 1, 2)) / rate
+    t = np.union1d(grid, [float(profile.t[int(np.argmin(profile.z))])])
+    z = profile.at(t)
+    depth = np.maximum(profile.surface_z + radius - z, 0.0)
+    d_max = float(depth.max())
+    force = np.zeros(len(t))
+    pressure = np.zeros((len(t), tip.rows, tip.cols))
+    mixing = "none"
+    if d_max > 0:
+        # cells beyond the contact carry nothing; the pad's corners past it need no cells
+        reach = min(1.2 * math.sqrt(radius * d_max) + 2 * cell, 0.97 * radius)
+        surface = build_surface(obj, profile.x, profile.y, profile.surface_z, tip, reach, cell,
+                                math.sqrt(radius * d_max), walls)
+        mixing = surface.mixing
+        nodes = d_max * (np.arange(ladder + 1) / ladder) ** 2
+        f_nodes, p_nodes = solve_ladder(surface, radius, nodes[1:])
+        f_nodes = np.concatenate([[0.0], f_nodes])
+        p_nodes = np.concatenate([np.zeros((1, p_nodes.shape[1])), p_nodes])
+        force = _interp_sqrt(depth, nodes, f_nodes)
+        pressure = _interp_sqrt(depth, nodes, p_nodes).reshape(len(t), tip.rows, tip.cols)
+    normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
+    contact = np.array([profile.x, profile.y, profile.surface_z])
+    pos = contact[None, :] + normal[None, :] * (z - profile.surface_z)[:, None]
+    trace = PhysicsTrace(
+        t=t, tip_position=pos, tip_quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (len(t), 1)),
+        sensel_pressure=pressure, force=force, indentation=depth, surface_z=profile.surface_z, material=mat.name,
+        meta={"fidelity": "bem", "rate": float(rate), "cell": float(cell), "ladder": int(ladder), "mixing": mixing,
+              "young_eff_surface": float(mat.effective_modulus)},
+    )
+    trace.check_finite()
+    return trace
+

@@ -1,0 +1,201 @@
+"""The surface under a press as boundary elements: square cells around the press point, the layer stack under each
+cell, their compliance matrix, and which share of each cell lies on each sensel.
+
+Each cell has the stack of layers found along its own vertical line. How two cells' settlements couple depends on
+what lies around them (``Surface.mixing``):
+
+- ``uniform``: one stack under every cell: the stack's exact compliance (:mod:`.kernel`);
+- ``wall``: two stacks split by a straight line: the soft stack's compliance times the wall table's factor, measured
+  on the 3-D FE (:mod:`.wall`), with the contrast of the two stacks' compliances at the contact's scale;
+- ``local``: anything else (a lump under part of the contact, a curved boundary, three materials): the press point's
+  stack's compliance times a power mean of the two cells' relative compliances, each averaged over a short length
+  (a local-compliance model, as in rough-contact solvers with influence matrices; measured, not exact).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.world.scene import FingertipSpec, ObjectSpec
+from palpate.sim.bem.kernel import Stack, influence
+from palpate.sim.bem.wall import WallTable, find_wall, load_wall_table, wall_share
+from palpate.sim.contact.layered import surface_kernel
+from palpate.sim.contact.stack import object_breaks, object_lookup
+from palpate.sim.fingertip import sensel_bounds
+
+#: Vertical sampling of each cell's column, m: fine near the surface, where a press feels most.
+FINE_STEP, FINE_DEPTH, COARSE_STEP = 0.25e-3, 10e-3, 1e-3
+#: How two cells' compliances mix (power mean) and over what length (m) each column's is averaged.
+MIX_POWER, MIX_SMOOTHING = -1.0, 1.0e-3
+
+
+@dataclass(frozen=True)
+class Surface:
+    """The cells a press can touch and what lies under them.
+
+    Attributes:
+        cell: cell side, m.
+        centres: (n, 2) cell centres relative to the press point, m.
+        stack_of: (n,) index into ``stacks`` of each cell's column.
+        stacks: the distinct column stacks (top first, on the rigid table).
+        compliance: (n, n) settlement per unit pressure, m/Pa.
+        overlap: (rows * cols, n) share of each sensel's footprint covered by each cell (rows sum to 1 where the
+            cells cover the sensel).
+        mixing: how the stacks' compliances were combined: "uniform", "wall" or "local" (module docstring).
+    """
+
+    cell: float
+    centres: np.ndarray
+    stack_of: np.ndarray
+    stacks: tuple[Stack, ...]
+    compliance: np.ndarray
+    overlap: np.ndarray
+    mixing: str
+
+
+def _depth_edges(thickness: float, breaks: list[float]) -> np.ndarray:
+    fine = np.arange(0.0, min(FINE_DEPTH, thickness), FINE_STEP)
+    coarse = np.arange(min(FINE_DEPTH, thickness), thickness, COARSE_STEP)
+    edges = np.unique(np.concatenate([fine, coarse, [thickness], [b for b in breaks if 0 < b < thickness]]))
+    # drop slivers a break leaves beside a sampling edge
+    keep = np.concatenate([[True], np.diff(edges) > 1e-6])
+    return edges[keep]
+
+
+def column_stacks(obj: ObjectSpec, x: float, y: float, surface_z: float,
+                  centres: np.ndarray) -> tuple[np.ndarray, tuple[Stack, ...], np.ndarray]:
+    """The layer stack under each cell centre ((n, 2) m from the press point (x, y)): (stack index per cell, the
+    distinct stacks, whether the cell lies on the object)."""
+    lookup = object_lookup(obj, x, y, surface_z)
+    edges = _depth_edges(surface_z, object_breaks(obj, surface_z))
+    mid = 0.5 * (edges[1:] + edges[:-1])
+    n, m = len(centres), len(mid)
+    young, poisson, inside = lookup(np.repeat(centres, m, axis=0), np.tile(mid, n))
+    young, poisson, inside = young.reshape(n, m), poisson.reshape(n, m), inside.reshape(n, m)
+    on_object = inside.all(axis=1)
+    key = np.concatenate([young, poisson], axis=1)
+    _, first, stack_of = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    stacks = []
+    for row in first:
+        e, nu = young[row], poisson[row]
+        change = np.flatnonzero((np.diff(e) != 0) | (np.diff(nu) != 0)) + 1
+        starts = np.concatenate([[0], change])
+        ends = np.concatenate([change, [m]])
+        stacks.append(Stack(tuple(float(edges[b] - edges[a]) for a, b in zip(starts, ends, strict=True)),
+                            tuple(float(e[a]) for a in starts), tuple(float(nu[a]) for a in starts)))
+    return stack_of.reshape(-1), tuple(stacks), on_object
+
+
+@lru_cache(maxsize=32)
+def _lattice(stack: Stack, cell: float, span: int) -> np.ndarray:
+    """Coefficients (per unit top E*) for every lattice offset (i, j) cells, i, j in [-span, span]."""
+    k = np.arange(-span, span + 1) * cell
+    dx, dy = np.meshgrid(k, k, indexing="ij")
+    return influence(stack, cell, dx, dy)
+
+
+def sensel_overlap(tip: FingertipSpec, centres: np.ndarray, cell: float) -> np.ndarray:
+    """(rows * cols, n) share of each sensel footprint covered by each square cell (centres (n, 2) m, side m)."""
+    b = sensel_bounds(tip).reshape(-1, 4)
+    h = cell / 2.0
+    wx = np.minimum(b[:, 1:2], centres[None, :, 0] + h) - np.maximum(b[:, 0:1], centres[None, :, 0] - h)
+    wy = np.minimum(b[:, 3:4], centres[None, :, 1] + h) - np.maximum(b[:, 2:3], centres[None, :, 1] - h)
+    area = (b[:, 1] - b[:, 0]) * (b[:, 3] - b[:, 2])
+    return np.maximum(wx, 0.0) * np.maximum(wy, 0.0) / area[:, None]
+
+
+def stack_compliance(stack: Stack, wavenumber: float) -> float:
+    """The stack's surface compliance at one wavenumber q (1/m) times q: 2 H(q) / E*_top, 1/Pa."""
+    h = surface_kernel(np.array([wavenumber]), np.array(stack.thickness), np.array(stack.young),
+                       np.array(stack.poisson))
+    return float(2.0 * h[0] / stack.top_modulus)
+
+
+def power_mean(a: np.ndarray, b: np.ndarray, power: float) -> np.ndarray:
+    """((a^p + b^p) / 2)^(1/p) of positive arrays; p = 0 the geometric mean, p = -inf the smaller."""
+    if power == 0:
+        return np.sqrt(a * b)
+    if np.isinf(power):
+        return np.minimum(a, b) if power < 0 else np.maximum(a, b)
+    return (0.5 * (a**power + b**power)) ** (1.0 / power)
+
+
+def _stack_matrix(stack: Stack, cell: float, span: int, di: np.ndarray, dj: np.ndarray) -> np.ndarray:
+    """The stack's own compliance (m/Pa) between the cells at lattice offsets (di, dj) (shifted by 2 span)."""
+    return _lattice(stack.scaled(), float(cell), 2 * span)[di, dj] / stack.top_modulus
+
+
+def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: FingertipSpec, reach: float,
+                  cell: float, contact_radius: float, walls: WallTable | None = None) -> Surface:
+    """The cells within ``reach`` (m) of the press point (x, y) on the object's top at ``surface_z`` (m), their
+    stacks and compliance, and their overlap with the pad's sensels (see the module docstring).
+
+    ``contact_radius`` (m) is the scale at which two columns' compliances are compared; ``walls`` the wall table
+    (read from models/ when a wall is met and none is given).
+
+    Raises:
+        ValidationError: no material under the press point, or a wall outside the wall table.
+    """
+    if not (cell > 0 and reach > cell):
+        raise ValidationError(f"bem: need a cell (m) smaller than the reach (m), got {cell!r}, {reach!r}")
+    span = int(math.ceil(reach / cell))
+    margin = int(math.ceil(3.0 * MIX_SMOOTHING / cell))
+    k = (np.arange(-span - margin, span + margin) + 0.5) * cell
+    gx, gy = np.meshgrid(k, k, indexing="ij")
+    lattice = np.column_stack([gx.ravel(), gy.ravel()])
+    stack_of, stacks, on_object = column_stacks(obj, x, y, surface_z, lattice)
+    centre = int(np.argmin(np.hypot(lattice[:, 0], lattice[:, 1])))
+    if not on_object[centre]:
+        raise ValidationError("bem: no material under the press point")
+    q = 1.0 / contact_radius
+    compliance_at = np.array([stack_compliance(st, q) for st in stacks])
+    keep = on_object & (np.hypot(lattice[:, 0], lattice[:, 1]) <= reach)
+    # off the object nothing can be pressed (the compliance beside a free edge is not modelled: `auto` keeps
+    # this rung away from edges within reach)
+    centres, own = lattice[keep], stack_of[keep]
+    used, own = np.unique(own, return_inverse=True)
+    ij = np.rint(centres / cell - 0.5).astype(int)
+    di = ij[:, None, 0] - ij[None, :, 0] + 2 * span
+    dj = ij[:, None, 1] - ij[None, :, 1] + 2 * span
+    mixing = "uniform"
+    if len(used) == 1:
+        compliance = _stack_matrix(stacks[used[0]], cell, span, di, dj)
+    else:
+        wall = None
+        if len(used) == 2:
+            soft, stiff = sorted(used, key=lambda s: -compliance_at[s])
+
+            def is_stiff(points: np.ndarray) -> np.ndarray:
+                idx, found, inside = column_stacks(obj, x, y, surface_z, points)
+                return np.array([inside[n] and found[i] == stacks[stiff] for n, i in enumerate(idx)])
+
+            wall = find_wall(is_stiff, centres, used[own] == stiff, reach, cell)
+        if wall is not None:
+            mixing = "wall"
+            walls = load_wall_table() if walls is None else walls
+            u = wall.distance(centres)
+            tangent = np.array([-wall.normal[1], wall.normal[0]])
+            along = np.abs((centres @ tangent)[:, None] - (centres @ tangent)[None, :])
+            nu = 0.5 * (stacks[soft].poisson[0] + stacks[stiff].poisson[0])
+            contrast = compliance_at[soft] / compliance_at[stiff]
+            share = wall_share(walls, nu, contrast, u[:, None], u[None, :], along)
+            compliance = _stack_matrix(stacks[soft], cell, span, di, dj) * contrast ** (share - 1.0)
+        else:
+            mixing = "local"
+            ref = stack_of[centre]
+            field = np.where(on_object, compliance_at[stack_of] / compliance_at[ref], 0.0).reshape(gx.shape)
+            from scipy.ndimage import gaussian_filter
+
+            weight = gaussian_filter(on_object.reshape(gx.shape).astype(float), MIX_SMOOTHING / cell,
+                                     mode="constant")
+            field = (gaussian_filter(field, MIX_SMOOTHING / cell, mode="constant") / np.maximum(weight, 1e-12))
+            field = field.ravel()[keep]
+            compliance = (_stack_matrix(stacks[ref], cell, span, di, dj)
+                          * power_mean(field[:, None], field[None, :], MIX_POWER))
+    return Surface(cell=float(cell), centres=centres, stack_of=own, stacks=tuple(stacks[i] for i in used),
+                   compliance=compliance, overlap=sensel_overlap(tip, centres, cell), mixing=mixing)

@@ -1,0 +1,212 @@
+"""The surface compliance beside a straight wall between two materials, measured once on the 3-D FE and tabulated.
+
+A local-compliance rule (each pair of cells mixing their two materials' compliances) cannot hold a wall: the FE
+shows the stiff side near the wall softened, the soft side stiffened, and pairs of cells on one side coupled more
+or less strongly the farther apart they are, through the other material. So the FE's own surface compliance beside
+a wall is the model. Written as the share lambda of the soft material in the coupling of two surface points,
+
+    C_wall(i, j) = C_soft(i, j) * c^(lambda(u_i, u_j, v) - 1),
+
+with c the stiff over the soft side's modulus, u each point's signed distance from the wall (+ on the stiff side),
+v their distance along it and C_soft the soft material's own compliance (lambda = 1: soft, 0: stiff). lambda is the
+ratio of the FE's nodal compliances with and without the wall on one mesh (so its discretisation cancels), over
+u, u' in +-9 mm and v in 0..9 mm, per Poisson ratio and contrast, on a 30 mm block
+(:mod:`.wall_measure`, models/bem_wall_table.json); between the tabulated values it is interpolated linearly (in
+log contrast), and points within a node spacing of the wall take the nearest node on their own side.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.world.resources import models_dir
+from palpate.sim.validity.reference import read_document
+
+TABLE_PATH = models_dir() / "bem_wall_table.json"
+FORMAT = "palpate-bem-wall"
+VERSION = 1
+
+
+@dataclass(frozen=True)
+class WallTable:
+    """lambda on a grid (see the module docstring).
+
+    Attributes:
+        offsets: signed distances from the wall, m, (U,) increasing, symmetric about 0 with a node on the wall.
+        along: distances along the wall, m, (V,) from 0.
+        poisson: (P,) increasing; contrast: (Q,) stiff over soft modulus, increasing, > 1.
+        share: lambda, (P, Q, U, U, V), symmetric in its two offset axes.
+        thickness: the FE block's thickness, m.
+    """
+
+    offsets: np.ndarray
+    along: np.ndarray
+    poisson: np.ndarray
+    contrast: np.ndarray
+    share: np.ndarray
+    thickness: float
+
+    def __post_init__(self) -> None:
+        shape = (len(self.poisson), len(self.contrast), len(self.offsets), len(self.offsets), len(self.along))
+        if self.share.shape != shape or not np.all(np.isfinite(self.share)):
+            raise ValidationError(f"WallTable: share must be finite with shape {shape}, got {self.share.shape}")
+        for name in ("offsets", "along", "poisson", "contrast"):
+            a = getattr(self, name)
+            if a.ndim != 1 or len(a) < 1 or np.any(np.diff(a) <= 0):
+                raise ValidationError(f"WallTable: {name} must increase strictly")
+        if np.any(self.contrast <= 1) or len(self.offsets) < 3:
+            raise ValidationError("WallTable: contrasts must exceed 1 and offsets span the wall")
+
+    @property
+    def spacing(self) -> float:
+        """The node spacing of the offsets, m."""
+        return float(self.offsets[1] - self.offsets[0])
+
+    def to_dict(self, measured_with: dict) -> dict:
+        """The JSON document (lambda rounded to 1e-4)."""
+        return {"format": FORMAT, "version": VERSION, "measured_with": measured_with,
+                "thickness": self.thickness, "offsets": self.offsets.tolist(), "along": self.along.tolist(),
+                "poisson": self.poisson.tolist(), "contrast": self.contrast.tolist(),
+                "share": np.round(self.share, 4).tolist()}
+
+
+def load_wall_table(path: Path = TABLE_PATH) -> WallTable:
+    """Read and check the wall table (models/bem_wall_table.json by default)."""
+    doc = read_document(path, "the bem wall table", FORMAT, VERSION, "run benchmarks/bem_wall_table.py --write")
+    try:
+        table = WallTable(offsets=np.asarray(doc["offsets"], dtype=float), along=np.asarray(doc["along"], dtype=float),
+                          poisson=np.asarray(doc["poisson"], dtype=float),
+                          contrast=np.asarray(doc["contrast"], dtype=float),
+                          share=np.asarray(doc["share"], dtype=float), thickness=float(doc["thickness"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValidationError(f"{path}: not a wall table ({exc})") from None
+    return table
+
+
+def _bracket(grid: np.ndarray, value: float) -> tuple[int, int, float]:
+    """Indices and weight of ``value`` between two nodes of ``grid`` (clamped to its ends)."""
+    if len(grid) == 1 or value <= grid[0]:
+        return 0, 0, 0.0
+    if value >= grid[-1]:
+        return len(grid) - 1, len(grid) - 1, 0.0
+    k = int(np.searchsorted(grid, value)) - 1
+    return k, k + 1, float((value - grid[k]) / (grid[k + 1] - grid[k]))
+
+
+def _trilinear(cube: np.ndarray, grid_u: np.ndarray, grid_v: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+               v: np.ndarray) -> np.ndarray:
+    """Linear interpolation of cube (U, U, V) at (u1, u2, v), all clamped to the grid."""
+    def locate(grid, x):
+        x = np.clip(x, grid[0], grid[-1])
+        k = np.clip(np.searchsorted(grid, x) - 1, 0, len(grid) - 2)
+        return k, (x - grid[k]) / (grid[k + 1] - grid[k])
+
+    i, a = locate(grid_u, u1)
+    j, b = locate(grid_u, u2)
+    k, c = locate(grid_v, v)
+    out = np.zeros(np.broadcast(u1, u2, v).shape)
+    for di, wi in ((0, 1 - a), (1, a)):
+        for dj, wj in ((0, 1 - b), (1, b)):
+            for dk, wk in ((0, 1 - c), (1, c)):
+                out = out + wi * wj * wk * cube[i + di, j + dj, k + dk]
+    return out
+
+
+def wall_share(table: WallTable, poisson: float, contrast: float, u1: np.ndarray, u2: np.ndarray,
+               along: np.ndarray) -> np.ndarray:
+    """lambda for points at signed distances u1, u2 from the wall (m, + stiff side) and ``along`` it apart (m).
+
+    Raises:
+        ValidationError: a contrast below 1 or a Poisson ratio outside the table.
+    """
+    if not contrast >= 1.0:
+        raise ValidationError(f"wall_share: the contrast is stiff over soft, >= 1; got {contrast!r}")
+    if not table.poisson[0] - 1e-9 <= poisson <= table.poisson[-1] + 1e-9:
+        raise ValidationError(f"bem: a wall at Poisson ratio {poisson:g} is outside the wall table's "
+                              f"{table.poisson[0]:g}-{table.poisson[-1]:g}")
+    h = table.spacing
+    # a point nearer the wall than a node takes its own side's nearest node (the wall's node is half of each)
+    u1 = np.where(u1 > 0, np.maximum(u1, h), np.minimum(u1, -h))
+    u2 = np.where(u2 > 0, np.maximum(u2, h), np.minimum(u2, -h))
+    p0, p1, wp = _bracket(table.poisson, poisson)
+    c0, c1, wc = _bracket(np.log(table.contrast), math.log(max(contrast, 1.0)))
+    out = 0.0
+    for p, w1 in ((p0, 1 - wp), (p1, wp)):
+        for c, w2 in ((c0, 1 - wc), (c1, wc)):
+            if w1 * w2 > 0:
+                out = out + w1 * w2 * _trilinear(table.share[p, c], table.offsets, table.along, u1, u2, along)
+    return out
+
+
+@dataclass(frozen=True)
+class Wall:
+    """A straight boundary between two materials near a press point.
+
+    Attributes:
+        normal: unit (2,) from the soft side to the stiff side.
+        offset: signed distance of the wall from the press point along ``normal``, m.
+    """
+
+    normal: np.ndarray
+    offset: float
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance of points (n, 2) (m, relative to the press point) from the wall, + on the stiff side."""
+        return points @ self.normal - self.offset
+
+
+def _crossing(is_stiff, start: np.ndarray, direction: np.ndarray, length: float, tol: float) -> float | None:
+    """Where along start + t direction, t in [-length, length], ``is_stiff`` turns true (bisection); None if it does
+    not change once."""
+    t = np.linspace(-length, length, 65)
+    side = is_stiff(start[None, :] + t[:, None] * direction[None, :])
+    change = np.flatnonzero(side[1:] != side[:-1])
+    if len(change) != 1 or side[0] or not side[-1]:
+        return None
+    lo, hi = float(t[change[0]]), float(t[change[0] + 1])
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if is_stiff(start[None, :] + mid * direction[None, :])[0]:
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)
+
+
+def find_wall(is_stiff, centres: np.ndarray, stiff: np.ndarray, reach: float, cell: float,
+              tol: float = 1e-5) -> Wall | None:
+    """The straight wall that splits the square cells (centres (n, 2) m, side ``cell`` m) into their ``stiff``
+    (bool) and other ones, located to ``tol`` m by bisection on ``is_stiff(points (k, 2)) -> bool (k,)``; None where
+    no straight line does (a curved or broken boundary, or more than one)."""
+    if stiff.all() or not stiff.any():
+        return None
+    design = np.column_stack([np.ones(len(centres)), centres])
+    coef, *_ = np.linalg.lstsq(design, stiff.astype(float), rcond=None)
+    if not np.hypot(*coef[1:]) > 0:
+        return None
+    normal = coef[1:] / np.hypot(*coef[1:])
+    tangent = np.array([-normal[1], normal[0]])
+    # two crossings half a reach either side of the press point give the wall's direction
+    points = []
+    for s in (-0.5 * reach, 0.5 * reach):
+        t = _crossing(is_stiff, s * tangent, normal, reach, tol)
+        if t is None:
+            return None
+        points.append(s * tangent + t * normal)
+    along = points[1] - points[0]
+    tangent = along / np.hypot(*along)
+    normal = np.array([tangent[1], -tangent[0]])
+    if normal @ (coef[1:]) < 0:
+        normal = -normal
+    wall = Wall(normal=normal, offset=float(points[0] @ normal))
+    # every cell on its side, but for those the wall cuts
+    wrong = (wall.distance(centres) > 0) != stiff
+    cut = np.abs(wall.distance(centres)) < cell / np.sqrt(2.0)
+    if np.count_nonzero(wrong & ~cut) > 0:
+        return None
+    return wall
