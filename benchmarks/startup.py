@@ -4,7 +4,8 @@ Run: ``.venv/bin/python benchmarks/startup.py [--repeat N]``. Each command runs 
 the table prints the median CPU time (user + system, the operating system's accounting of the finished child) and
 its ratio to the plain reference measured in the same run: ``python -c "import argparse"`` (what any command-line
 tool pays before it does anything). ``palpate --help`` and ``--version`` import no command group (their parsers are
-declared, see ``core/cli/commands.py``); ``palpate scenarios list`` imports one group.
+declared, see ``core/cli/commands.py``); ``palpate scenarios list`` imports one group; ``import palpate`` imports
+nothing of the API until a name is used.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ COMMANDS = {
     "palpate --help": [sys.executable, "-c", CLI, "--help"],
     "palpate --version": [sys.executable, "-c", CLI, "--version"],
     "palpate scenarios list": [sys.executable, "-c", CLI, "scenarios", "list"],
+    "import palpate; palpate.__version__": [sys.executable, "-c", "import palpate; palpate.__version__"],
     "import numpy (for scale)": [sys.executable, "-c", "import numpy"],
 }
 
