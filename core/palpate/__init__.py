@@ -30,6 +30,8 @@ _EXPORTS = {
     "Scenario": "palpate.core.world.scenario",
     "TrainingResult": "palpate.core.session.training",
     "HapticMemory": "palpate.core.perception.memory",
+    "ClassifierMemory": "palpate.core.perception.classifier_memory",
+    "LayeredMemoryClassifier": "palpate.core.perception.layered_estimator",
     "CrossValidation": "palpate.core.perception.crossval",
     "PressRecording": "palpate.core.perception.streams",
     "PressResult": "palpate.core.perception.press",

@@ -178,23 +178,31 @@ def with_settings(scenario: Scenario, **tables) -> Scenario:
     return parse_scenario(raw, file, base_dir=scenario.path.parent if scenario.path else None)
 
 
-def run(scenario: Scenario, out: str | Path, *, policy: str | None = None, source: str | None = None,
-        force: bool = False, progress: bool = False) -> RunResult:
+def run(scenario: Scenario, out: str | Path, *, policy: str | None = None, classifier=None,
+        source: str | None = None, force: bool = False, progress: bool = False) -> RunResult:
     """Run a scenario end to end as ``palpate run`` does and write its outputs into ``out``.
 
     Args:
         scenario: from :func:`load_scenario`.
         out: output folder: new, empty, or an earlier run's (replaced only with ``force``).
         policy: exploration policy name, instead of the scenario's ``exploration.policy``.
+        classifier: an unfitted classifier with ``fit(X, y)`` and ``predict_proba(X)`` (e.g. any scikit-learn
+            classifier) to train on the training presses' [n1, n2, a1, a2] and judge every press instead of the
+            haptic memory; or a :class:`~palpate.core.perception.classifier_memory.ClassifierMemory` (which also
+            names a feature extractor). The run's ``summary["algorithms"]`` names it.
         source: registered source that trains and explores (default: the scenario's ``training.source``).
         progress: show progress bars on stderr.
 
     Returns:
         a :class:`RunResult` (the folder and ``summary.json``'s contents).
     """
+    from palpate.core.perception.classifier_memory import ClassifierMemory
     from palpate.core.session.run import run_scenario
 
     if policy is not None:
         scenario = with_settings(scenario, exploration={"policy": policy})
-    summary = run_scenario(scenario, out, progress=Progress(enabled=progress), source=source, force=force)
+    if classifier is not None and not isinstance(classifier, ClassifierMemory):
+        classifier = ClassifierMemory(classifier, materials=scenario.references)
+    summary = run_scenario(scenario, out, progress=Progress(enabled=progress), source=source, force=force,
+                           classifier=classifier)
     return RunResult(Path(out), summary)

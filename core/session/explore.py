@@ -162,7 +162,9 @@ def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory
     2-D: the press's posterior updates the cell under the measured press location (the planned cell if the
     finger slipped off the grid). Voxels: every layer the press reached gets the posterior of ``layers`` for a fit
     to the press samples down to that layer (deeper layers see more of the press, as seed 001 observes); the
-    deepest layer's posterior is returned. A press with no fit changes nothing and returns None.
+    deepest layer's posterior is returned. A press with no fit changes nothing and returns None. A classifier
+    memory (:class:`~palpate.core.perception.classifier_memory.ClassifierMemory`) judges the features its extractor
+    takes from the press (2-D maps only); a press it gives no features changes nothing either.
     """
     if res.fit is None:
         return None
@@ -181,7 +183,13 @@ def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory
                 grid.update_voxel(ix, iy, iz, calibration.evidence(p))
         done = [p for p in posts if p is not None]
         return done[-1] if done else None
-    p = memory.predict_proba(res.fit.params[None, :], features=res.fit.features)[0]
+    features_of = getattr(memory, "press_features", None)  # a classifier memory: its own feature extractor
+    if features_of is None:
+        p = memory.predict_proba(res.fit.params[None, :], features=res.fit.features)[0]
+    elif (x := features_of(res)) is None:
+        return None
+    else:
+        p = memory.predict_proba(x[None, :])[0]
     try:
         grid.update(*res.location, calibration.evidence(p))
     except ValidationError:
