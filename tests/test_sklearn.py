@@ -131,7 +131,9 @@ def test_layered_memory_classifier_judges_by_the_deepest_layer():
 def test_a_scikit_learn_classifier_judges_a_run(tmp_path):
     scenario = palpate.load_scenario(TINY)
     result = palpate.run(scenario, tmp_path / "lr", classifier=make_pipeline(StandardScaler(), LogisticRegression()))
-    assert result.summary["algorithms"] == {"policy": "raster", "classifier": "Pipeline", "features": "power_law"}
+    assert result.summary["algorithms"] == {"policy": "raster", "classifier": "Pipeline", "features": "power_law",
+                                            "origins": {"policy": "palpate", "classifier": "given in Python",
+                                                        "features": "given in Python"}}
     memory = json.loads((result.out / "memory.json").read_text())
     assert memory["format"] == "palpate.classifier_memory" and memory["materials"] == ["soft", "hard"]
     # the map's posterior of each press is the pipeline's, refitted here on the stored training data

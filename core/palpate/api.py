@@ -13,8 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core import plugins
 from palpate.core.errors import ValidationError
 from palpate.core.perception.fit import PressFit
+from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.press import PressResult, perceive_press
 from palpate.core.perception.streams import GroundTruth, PoseSample, PressRecording, TaxelFrame
 from palpate.core.session.progress import Progress
@@ -178,31 +180,85 @@ def with_settings(scenario: Scenario, **tables) -> Scenario:
     return parse_scenario(raw, file, base_dir=scenario.path.parent if scenario.path else None)
 
 
-def run(scenario: Scenario, out: str | Path, *, policy: str | None = None, classifier=None,
+def run(scenario: Scenario, out: str | Path, *, policy: str | None = None, classifier=None, features=None,
         source: str | None = None, force: bool = False, progress: bool = False) -> RunResult:
     """Run a scenario end to end as ``palpate run`` does and write its outputs into ``out``.
 
     Args:
         scenario: from :func:`load_scenario`.
         out: output folder: new, empty, or an earlier run's (replaced only with ``force``).
-        policy: exploration policy name, instead of the scenario's ``exploration.policy``.
-        classifier: an unfitted classifier with ``fit(X, y)`` and ``predict_proba(X)`` (e.g. any scikit-learn
-            classifier) to train on the training presses' [n1, n2, a1, a2] and judge every press instead of the
-            haptic memory; or a :class:`~palpate.core.perception.classifier_memory.ClassifierMemory` (which also
-            names a feature extractor). The run's ``summary["algorithms"]`` names it.
+        policy: exploration policy name (palpate's own or a plugin's, :func:`register_policy`), instead of the
+            scenario's ``exploration.policy``.
+        classifier: what judges the presses instead of the scenario's ``training.classifier``: a registered name
+            (:func:`register_classifier`), or an unfitted classifier with ``fit(X, y)`` and ``predict_proba(X)``
+            (any scikit-learn classifier), trained on the training presses.
+        features: what the classifier sees of each press instead of ``training.features``: a registered name
+            (:func:`register_features`) or an extractor ``f(PressResult) -> 1-D array | None``.
         source: registered source that trains and explores (default: the scenario's ``training.source``).
         progress: show progress bars on stderr.
 
     Returns:
-        a :class:`RunResult` (the folder and ``summary.json``'s contents).
+        a :class:`RunResult` (the folder and ``summary.json``'s contents; ``summary["algorithms"]`` names the
+        policy, classifier and features used and where each came from).
     """
-    from palpate.core.perception.classifier_memory import ClassifierMemory
+    from palpate.core.perception.classifier_memory import ClassifierMemory, classifier_for
     from palpate.core.session.run import run_scenario
 
-    if policy is not None:
-        scenario = with_settings(scenario, exploration={"policy": policy})
-    if classifier is not None and not isinstance(classifier, ClassifierMemory):
-        classifier = ClassifierMemory(classifier, materials=scenario.references)
+    training = {k: v for k, v in (("classifier", classifier), ("features", features)) if isinstance(v, str)}
+    if policy is not None or training:
+        scenario = with_settings(scenario, **({"exploration": {"policy": policy}} if policy is not None else {}),
+                                 **({"training": training} if training else {}))
+    memory = None
+    given_classifier = classifier is not None and not isinstance(classifier, str)
+    given_features = features is not None and not isinstance(features, str)
+    if given_classifier or given_features:  # objects, not names: the rest still comes from the scenario's names
+        refs = scenario.references
+        named, _ = classifier_for(scenario.training.classifier, scenario.training.features, refs)
+        if isinstance(classifier, ClassifierMemory):
+            memory = classifier
+        elif given_classifier:
+            memory = ClassifierMemory(classifier, refs, features=named.features if named else None)
+        else:
+            memory = named or ClassifierMemory(HapticMemory(refs), refs, scenario.training.classifier)
+        if given_features:
+            memory = ClassifierMemory(memory.estimator, memory.materials_arg, memory.name, features)
     summary = run_scenario(scenario, out, progress=Progress(enabled=progress), source=source, force=force,
-                           classifier=classifier)
+                           classifier=memory)
     return RunResult(Path(out), summary)
+
+
+def register_policy(name: str, factory, *, replace: bool = False) -> None:
+    """Register an exploration policy for this process: ``factory(context) -> policy``, where ``context`` is a
+    :class:`~palpate.core.planning.registry.PolicyContext` (the object's map geometry, seed, memory, regions,
+    budget, depth m) and ``policy.next_target(grid, post, last)`` returns a
+    :class:`~palpate.core.planning.policies.Target` (0-based ix, iy) or None. A scenario may then name it
+    (``exploration.policy``). Installed packages register through the entry-point group ``palpate.policies``."""
+    plugins.register(plugins.POLICIES, name, factory, replace)
+
+
+def register_classifier(name: str, factory, *, replace: bool = False) -> None:
+    """Register a classifier for this process: ``factory()`` returns a new unfitted classifier with ``fit(X, y)``
+    and ``predict_proba(X)`` (e.g. ``sklearn.linear_model.LogisticRegression`` itself). A scenario may then name it
+    (``training.classifier``). Entry-point group: ``palpate.classifiers``."""
+    plugins.register(plugins.CLASSIFIERS, name, factory, replace)
+
+
+def register_features(name: str, extractor, *, replace: bool = False) -> None:
+    """Register a per-press feature extractor for this process: ``extractor(result)`` takes a perceived press
+    (:class:`~palpate.core.perception.press.PressResult`: ``press`` samples t s, c_P counts, c_A m^2, c_D m;
+    ``fit``) and returns a 1-D float array or None. A scenario may then name it (``training.features``).
+    Entry-point group: ``palpate.features``."""
+    plugins.register(plugins.FEATURES, name, extractor, replace)
+
+
+def unregister(name: str) -> None:
+    """Remove an in-process registration of ``name`` (policy, classifier or feature extractor)."""
+    for registry in (plugins.POLICIES, plugins.CLASSIFIERS, plugins.FEATURES):
+        plugins.unregister(registry, name)
+
+
+def available() -> dict[str, list[str]]:
+    """Every name a scenario may use: {"policies": [...], "classifiers": [...], "features": [...]}, palpate's own
+    first, then the plugins (in-process registrations and installed entry points)."""
+    return {"policies": plugins.names(plugins.POLICIES), "classifiers": plugins.names(plugins.CLASSIFIERS),
+            "features": plugins.names(plugins.FEATURES)}

@@ -15,20 +15,57 @@ import copy
 import json
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
-from palpate.core import __version__
+from palpate.core import __version__, plugins
 from palpate.core.errors import ValidationError
 from palpate.core.perception.crossval import CrossValidation, crossval_result
 from palpate.core.perception.estimator import ClassifierParams, check_fitted
 from palpate.core.perception.feature_extractors import extractor_name, press_features
+from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.params import as_labels, unique_in_order
 
 #: The name a run records for palpate's own classifier, the haptic memory.
-HAPTIC_MEMORY = "haptic_memory"
+HAPTIC_MEMORY = plugins.CLASSIFIERS.builtin[0]
 FORMAT_NAME = "palpate.classifier_memory"
 FORMAT_VERSION = 1
+
+
+class ClassifierFactory(Protocol):
+    """A classifier plugin (entry-point group ``palpate.classifiers``, ``palpate.register_classifier``): called with
+    no arguments, it returns a new unfitted classifier with ``fit(X, y)``, ``predict_proba(X)`` and, once fitted,
+    ``classes_`` (a scikit-learn classifier class such as ``LogisticRegression`` is one as it is)."""
+
+    def __call__(self):  # pragma: no cover - protocol
+        ...
+
+
+def classifier_for(classifier: str, features: str, materials: Sequence[str]) -> tuple[ClassifierMemory | None,
+                                                                                      dict[str, str]]:
+    """The classifier memory a run trains for the named classifier and feature extractor (None: palpate's haptic
+    memory over the power-law features, the run's own path), and where each name came from."""
+    found_c = plugins.resolve(plugins.CLASSIFIERS, classifier)
+    found_f = plugins.resolve(plugins.FEATURES, features)
+    origins = {"classifier": found_c.origin, "features": found_f.origin}
+    if found_c.obj is None and found_f.obj is None:
+        return None, origins
+    estimator = HapticMemory(list(materials)) if found_c.obj is None else found_c.obj()
+    extractor = found_f.obj
+    if extractor is not None and not getattr(extractor, "name", None):
+        extractor = _Named(features, extractor)
+    return ClassifierMemory(estimator, list(materials), classifier, extractor), origins
+
+
+class _Named:
+    """An extractor under the name it was registered by (a plain function's ``__name__`` may differ)."""
+
+    def __init__(self, name: str, extract):
+        self.name, self.extract = name, extract
+
+    def __call__(self, result):
+        return self.extract(result)
 
 
 def as_features(X, where: str = "X") -> np.ndarray:

@@ -26,9 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core import plugins
 from palpate.core.errors import ValidationError
 from palpate.core.io.realism_figures import plot_sim_vs_real
-from palpate.core.perception.classifier_memory import HAPTIC_MEMORY, ClassifierMemory
+from palpate.core.perception.classifier_memory import HAPTIC_MEMORY, ClassifierMemory, classifier_for
 from palpate.core.perception.feature_extractors import extractor_name
 from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
@@ -81,6 +82,13 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
     replaced only with ``force`` (:mod:`palpate.core.session.output_guard`). No input is ever overwritten.
     """
     progress = progress or Progress(enabled=False)
+    origins = {"policy": plugins.resolve(plugins.POLICIES, scenario.exploration.policy).origin}
+    if classifier is None:
+        classifier, found = classifier_for(scenario.training.classifier, scenario.training.features,
+                                           scenario.references)
+        origins.update(found)
+    else:
+        origins.update(classifier="given in Python", features="given in Python")
     if classifier is not None:
         check_classifier_fits(scenario, classifier)
     inputs = scenario_inputs(scenario)
@@ -102,7 +110,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                         "map_calibration": scenario.exploration.calibration.to_dict(),
                         "map_postprocessing": MapPostprocessing.of(scenario.exploration).to_dict()}, live=live)
         try:
-            return _run(scenario, out, progress, *makers, seeds, log, classifier)
+            return _run(scenario, out, progress, *makers, seeds, log, classifier, origins)
         finally:
             log.close()
 
@@ -152,15 +160,15 @@ def _memory(scenario: Scenario, make_source, seeds, progress: Progress, log: Pre
 
 
 def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds,
-         log: PressLog, classifier: ClassifierMemory | None) -> dict:
+         log: PressLog, classifier: ClassifierMemory | None, origins: dict[str, str]) -> dict:
     out_cfg = scenario.outputs
     preload = ("pyvista",) if out_cfg.render_3d and scenario.exploration.map == "voxel" else ()
     with FigureDrawer(out / "figures", background=out_cfg.figures, preload=preload) as drawer:
-        return _stages(scenario, out, progress, make_source, make_actuator, seeds, log, drawer, classifier)
+        return _stages(scenario, out, progress, make_source, make_actuator, seeds, log, drawer, classifier, origins)
 
 
 def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds, log: PressLog,
-            drawer: FigureDrawer, classifier: ClassifierMemory | None) -> dict:
+            drawer: FigureDrawer, classifier: ClassifierMemory | None, origins: dict[str, str]) -> dict:
     timing: dict[str, float] = {}
     draw = scenario.outputs.figures
     t0 = time.perf_counter()
@@ -238,7 +246,8 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         # the algorithms this run used, by the names they are registered under
         "algorithms": {"policy": ex.policy,
                        "classifier": HAPTIC_MEMORY if classifier is None else classifier.label,
-                       "features": extractor_name(None if classifier is None else classifier.features)},
+                       "features": extractor_name(None if classifier is None else classifier.features),
+                       "origins": origins},
         "crossval": None if crossval is None else {
             "confusion": np.asarray(crossval.confusion).tolist(),
             "mean_posterior": np.asarray(crossval.mean_posterior).tolist(),
