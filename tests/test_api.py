@@ -100,3 +100,27 @@ def test_settings_are_validated_like_the_file():
         palpate.with_settings(scenario, exploration={"policy": "spiral"})
     changed = palpate.with_settings(scenario, exploration={"depth_mm": 3.0})
     assert changed.exploration.depth == pytest.approx(0.003) and scenario.exploration.depth == pytest.approx(0.002)
+
+
+def test_the_tutorial_runs_end_to_end(tmp_path):
+    from pathlib import Path
+
+    tutorial = Path(__file__).resolve().parent.parent / "docs" / "tutorial.py"
+    proc = subprocess.run([sys.executable, str(tutorial), str(tmp_path / "tutorial")], capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = json.loads((tmp_path / "tutorial" / "summary.json").read_text())
+    assert summary["algorithms"]["policy"] == "backwards"
+    assert [p["cell"] for p in summary["objects"][0]["per_press"]] == [[3, 2], [2, 2], [1, 2]]
+    assert f"palpate {version('palpate')}" in proc.stdout
+
+
+def test_every_name_the_api_doc_uses_exists():
+    import re
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "api.md").read_text()
+    used = set(re.findall(r"palpate\.([A-Za-z_]+)", doc)) - {"policies", "classifiers", "features", "commands"}
+    assert {"load_scenario", "press", "train_memory", "run", "register_policy"} <= used
+    missing = sorted(name for name in used if not hasattr(palpate, name))
+    assert not missing, f"docs/api.md names palpate.{missing}, which do not exist"
