@@ -11,13 +11,14 @@ from setuptools import find_packages, setup
 
 TOP = ("core", "sim", "hardware")
 DATA = ("models", "scenarios")
+API = "core/palpate"
 
-packages = [f"palpate.{top}" for top in TOP + DATA]
-packages += [f"palpate.{top}.{sub}" for top in TOP for sub in find_packages(top)]
+packages = ["palpate"] + [f"palpate.{top}" for top in TOP + DATA]
+packages += [f"palpate.{top}.{sub}" for top in TOP for sub in find_packages(top, exclude=("palpate", "palpate.*"))]
 
 setup(
     packages=packages,
-    package_dir={f"palpate.{top}": top for top in TOP + DATA},
+    package_dir={"palpate": API} | {f"palpate.{top}": top for top in TOP + DATA},
     package_data={f"palpate.{data}": ["**/*"] for data in DATA},
     exclude_package_data={f"palpate.{data}": ["**/__pycache__/*", "**/*.pyc"] for data in DATA},
 )

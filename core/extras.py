@@ -19,6 +19,7 @@ EXTRA_OF_MODULE = {
     "pyvista": "viz", "vtk": "viz", "vtkmodules": "viz",
     "ray": "ray",
     "foxglove": "live",
+    "sklearn": "learn",
     "websockets": "test", "pytest": "test", "hypothesis": "test",
 }
 

@@ -1,7 +1,9 @@
 """The ``palpate`` command line.
 
 Each command group lives next to the code it drives and registers itself through the entry-point group
-``palpate.commands`` (a function ``register(subparsers)``), so that core never imports sim or hardware.
+``palpate.commands``, so that core never imports sim or hardware. A group declared as a
+:class:`~palpate.core.cli.commands.CommandGroup` is imported only when one of its commands runs: ``palpate --help``
+and ``palpate --version`` import no group at all (see :mod:`palpate.core.cli.commands`).
 A command's handler returns an exit code. Every error a user can cause (a palpate error, a file that cannot be
 read or written) is one line on stderr naming the file, key or line, with exit code 2; anything else is a bug,
 reported in one line with exit code 1. ``--debug`` shows the traceback instead. Exit codes: 0 done, 1 failed (a
@@ -17,6 +19,7 @@ import sys
 from importlib.metadata import entry_points
 
 from palpate.core import __version__
+from palpate.core.cli.commands import CommandGroup
 from palpate.core.errors import PalpateError, Terminated
 from palpate.core.extras import EXTRA_OF_MODULE, missing_extra
 from palpate.core.limits import ENV as LIMITS_ENV
@@ -25,8 +28,12 @@ from palpate.core.limits import LIMITS, set_limit
 COMMANDS_GROUP = "palpate.commands"
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Build the top-level parser with every registered command group."""
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """Build the top-level parser for ``argv`` (default: every group's real parser).
+
+    With ``argv``, only the group of the command it names is imported; every other declared command gets a
+    placeholder parser that carries its help line for ``palpate --help``.
+    """
     parser = argparse.ArgumentParser(
         prog="palpate",
         description="Haptic softness perception by press-and-release palpation: simulate, record, perceive, map.",
@@ -39,15 +46,52 @@ def build_parser() -> argparse.ArgumentParser:
                         f"the processes it starts; names: {', '.join(LIMITS)} (docs/limits.md)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
+    wanted = None if argv is None else _command_of(argv)
     for ep in sorted(entry_points(group=COMMANDS_GROUP), key=lambda e: e.name):
         try:
-            register = ep.load()
+            group = ep.load()
         except ImportError as exc:  # an optional extra is missing: say so instead of hiding the command
-            p = sub.add_parser(ep.name, help=f"(unavailable: {missing_extra(exc, 'it')})")
-            p.set_defaults(func=_unavailable(ep.name, exc))
+            _add_unavailable(sub, (ep.name,), exc)
             continue
-        register(sub)
+        if not isinstance(group, CommandGroup):
+            group(sub)
+        elif argv is not None and wanted not in group.names:
+            for name, help_text in group.commands:
+                sub.add_parser(name, help=help_text, add_help=False).set_defaults(func=_not_loaded(name))
+        else:
+            try:
+                register = group.load()
+            except ImportError as exc:
+                _add_unavailable(sub, group.names, exc)
+                continue
+            register(sub)
     return parser
+
+
+def _command_of(argv: list[str]) -> str | None:
+    """The command ``argv`` names: its first word that is neither a global option nor the value of ``--limit``."""
+    words = iter(argv)
+    for word in words:
+        if word == "--":
+            return next(words, None)
+        if not word.startswith("-"):
+            return word
+        if "=" not in word and len(word) > 3 and "--limit".startswith(word):  # argparse takes abbreviations
+            next(words, None)
+    return None
+
+
+def _add_unavailable(sub: argparse._SubParsersAction, names, exc: ImportError) -> None:
+    for name in names:
+        p = sub.add_parser(name, help=f"(unavailable: {missing_extra(exc, 'it')})")
+        p.set_defaults(func=_unavailable(name, exc))
+
+
+def _not_loaded(name: str):
+    def handler(args: argparse.Namespace) -> int:  # unreachable: the command's own group is built for its argv
+        raise RuntimeError(f"the command group of {name!r} was not loaded")
+
+    return handler
 
 
 def _unavailable(name: str, exc: ImportError):
@@ -60,8 +104,8 @@ def _unavailable(name: str, exc: ImportError):
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``palpate`` console script. Returns the process exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(argv).parse_args(argv)
     debug = args.debug or os.environ.get("PALPATE_DEBUG", "") not in ("", "0")
     saved = os.environ.get(LIMITS_ENV)
     try:

@@ -100,7 +100,17 @@ def leave_one_out(params, labels: Sequence[str], groups=None, **memory_kwargs) -
                                   f"presses of it; the memory needs {MIN_SAMPLES}")
         mem = HapticMemory(**kwargs).fit(x[keep], [lab for lab, k in zip(labs, keep, strict=True) if k])
         post[i] = mem.predict_proba(x[i], features=mem.features)[0]
+    return crossval_result(materials, truth, post)
+
+
+def crossval_result(materials: Sequence[str], truth: np.ndarray, post: np.ndarray) -> CrossValidation:
+    """The confusion and mean posterior of held-out posteriors ``post`` (n, M) of presses of material index
+    ``truth`` (n,); every material needs at least one press."""
     m = len(materials)
+    counts_per = np.bincount(truth, minlength=m)
+    if np.any(counts_per == 0):
+        missing = [name for name, c in zip(materials, counts_per, strict=True) if c == 0]
+        raise ValidationError(f"cross-validation: no press of material(s) {missing}")
     counts = np.zeros((m, m))
     np.add.at(counts, (truth, np.argmax(post, axis=1)), 1)
     mean_post = np.zeros((m, m))

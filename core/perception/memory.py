@@ -8,9 +8,11 @@ still gives a finite posterior; the category is its argmax (MAP, eq. 6.12 / 6.18
 Parameter vectors are always ``[n1, n2, a1, a2]`` (:data:`~palpate.core.perception.params.PARAM_COLUMNS`, the order
 of :attr:`palpate.core.perception.fit.PressFit.params`), in the units of the fit; nothing here converts units.
 
-:class:`HapticMemory` follows scikit-learn's conventions: the constructor only stores its settings, :meth:`fit`
-validates them and learns, and predicting before :meth:`fit` (or :meth:`load`) raises
-:class:`~palpate.core.errors.NotFittedError`. The Gaussians are factored once, when fitted or loaded.
+:class:`HapticMemory` is a scikit-learn classifier (duck-typed, :mod:`palpate.core.perception.estimator`: ``clone``,
+``cross_val_score`` and ``Pipeline`` work with it; core does not import scikit-learn): the constructor only stores
+its settings, :meth:`fit` validates them and learns, ``get_params`` returns them, and predicting before :meth:`fit`
+(or :meth:`load`) raises :class:`~palpate.core.errors.NotFittedError`. The Gaussians are factored once, when fitted
+or loaded.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import numpy as np
 
 from palpate.core import __version__
 from palpate.core.errors import NotFittedError, ValidationError
+from palpate.core.perception.estimator import ClassifierParams
 from palpate.core.perception.gaussian import GaussianFactors, regularise_covariance
 from palpate.core.perception.memory_file import FEATURES_VERSION, FORMAT_NAME, FORMAT_VERSION, parse_memory, read_json
 from palpate.core.perception.params import PARAM_COLUMNS, as_labels, as_params, unique_in_order
@@ -52,7 +55,7 @@ def _check_settings(materials, min_eig, ddof) -> list[str] | None:
     return materials
 
 
-class HapticMemory:
+class HapticMemory(ClassifierParams):
     """Bayesian haptic memory of seed 000 (eq. 6.10-6.14): per material, N(mu_N, Sigma_N) x N(mu_A, Sigma_A) x prior.
 
     Args:
@@ -67,8 +70,12 @@ class HapticMemory:
 
     After :meth:`fit`: ``materials`` (list[str]), ``prior`` (M,), ``means_N``, ``means_A`` (M, 2), ``covs_N``,
     ``covs_A`` (M, 2, 2) (regularised, as used), ``regularisation`` ({material: {"N": lam, "A": lam}}, the
-    relative diagonal loading applied), ``training_params`` (n, 4) and ``training_labels``.
+    relative diagonal loading applied), ``training_params`` (n, 4) and ``training_labels``; ``classes_`` (the
+    materials as an array, scikit-learn's name).
     """
+
+    _PARAMS = (("materials", "materials_arg"), ("prior", "prior_arg"), ("min_eig", "min_eig"), ("ddof", "ddof"),
+               ("features", "features"))
 
     def __init__(self, materials: Sequence[str] | None = None, prior=None, min_eig: float = DEFAULT_MIN_EIG,
                  ddof: int = 0, features: str = "both"):
@@ -137,7 +144,6 @@ class HapticMemory:
             reg[m] = {"N": lamN, "A": lamA}
         if self.features not in ("both", "kinesthetic"):
             raise ValidationError(f"features must be 'both' or 'kinesthetic', got {self.features!r}")
-        self.min_eig, self.ddof = min_eig, ddof
         self._install(materials, prior, np.array(means_N), np.array(covs_N), np.array(means_A), np.array(covs_A),
                       reg, x.copy(), labs)
         return self
@@ -249,7 +255,7 @@ class HapticMemory:
         """A new memory trained on the stored training data with the same settings (for auditing)."""
         self._check_fitted()
         prior = dict(zip(self.materials, self.prior.tolist(), strict=True))
-        return HapticMemory(self.materials, prior, self.min_eig, self.ddof, self.features).fit(
+        return HapticMemory(self.materials, prior, float(self.min_eig), int(self.ddof), self.features).fit(
             self.training_params, self.training_labels
         )
 
@@ -266,8 +272,8 @@ class HapticMemory:
             "param_columns": list(PARAM_COLUMNS),
             "materials": list(self.materials),
             "prior": self.prior.tolist(),
-            "ddof": self.ddof,
-            "min_eig": self.min_eig,
+            "ddof": int(self.ddof),
+            "min_eig": float(self.min_eig),
             "means_N": self.means_N.tolist(),
             "covs_N": self.covs_N.tolist(),
             "means_A": self.means_A.tolist(),

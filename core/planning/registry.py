@@ -1,18 +1,84 @@
-"""Policies by name, and the stop rules of an exploration.
+"""Policies by name (palpate's own and plugins), and the stop rules of an exploration.
 
-:data:`POLICY_NAMES` is the one list of policy names (the scenario schema and the command line take it from here).
+:data:`POLICY_NAMES` are palpate's own policies; :func:`policy_names` adds the plugins (entry-point group
+``palpate.policies`` and ``palpate.register_policy``), which the scenario schema accepts too. A plugin is a
+:class:`PolicyFactory`: called once per explored object with a :class:`PolicyContext`, it returns a :class:`Policy`.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
 import numpy as np
 
+from palpate.core import plugins
 from palpate.core.errors import ValidationError
+from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.probability import entropy_unchecked
 from palpate.core.planning.info_gain import InfoGain
-from palpate.core.planning.policies import MaxEntropy, Predefined, RandomCells, Raster
+from palpate.core.planning.policies import MaxEntropy, Predefined, RandomCells, Raster, Target
 
-POLICY_NAMES = ("predefined", "raster", "random", "max_entropy", "info_gain")
+POLICY_NAMES = plugins.POLICIES.builtin
+
+
+@runtime_checkable
+class Policy(Protocol):
+    """Where to press next (:mod:`palpate.core.planning.policies` describes the contract in full)."""
+
+    def next_target(self, grid, post=None, last=None) -> Target | None:  # pragma: no cover - protocol
+        """The next column to press, given the map as measured (``grid``: ``probabilities`` (ny, nx, M) or voxels
+        (nx, ny, nz, M), ``explored``), its post-processed version ``post`` and the previous press's (ix, iy) ``last``;
+        None when there is nothing left to press."""
+        ...
+
+
+@dataclass(frozen=True)
+class PolicyContext:
+    """What a policy plugin is built from, once per explored object.
+
+    Attributes:
+        name: the name it was asked for by.
+        geometry: the object's map (shape, cell size m, origin m, 2-D or voxel).
+        seed: the object's seed (a random policy draws from it).
+        memory: the run's trained memory (``predict_proba``, ``materials``).
+        regions: the scenario's predefined cells of the object, 0-based (ix, iy).
+        budget: the press budget (``exploration.budget``).
+        depth: the planned press depth, m.
+    """
+
+    name: str
+    geometry: MapGeometry
+    seed: int
+    memory: object
+    regions: tuple[tuple[int, int], ...]
+    budget: int
+    depth: float
+
+
+class PolicyFactory(Protocol):
+    """A policy plugin: ``factory(context) -> Policy`` (a class whose constructor takes the context will do)."""
+
+    def __call__(self, context: PolicyContext) -> Policy:  # pragma: no cover - protocol
+        ...
+
+
+def policy_names() -> list[str]:
+    """Every policy a scenario may name: palpate's own, then the plugins."""
+    return plugins.names(plugins.POLICIES)
+
+
+def build_policy(context: PolicyContext, **builtin_settings) -> tuple[Policy, plugins.Plugin]:
+    """The policy ``context.name`` names and where it came from: palpate's own through :func:`make_policy` with
+    ``builtin_settings``, a plugin through its factory (checked to have ``next_target``)."""
+    found = plugins.resolve(plugins.POLICIES, context.name)
+    if found.obj is None:
+        return make_policy(context.name, **builtin_settings), found
+    policy = found.obj(context)
+    if not callable(getattr(policy, "next_target", None)):
+        raise ValidationError(f"exploration policy {context.name!r} ({found.origin}): its factory returned "
+                              f"{type(policy).__name__}, which has no next_target(grid, post, last) method")
+    return policy, found
 
 
 def make_policy(name: str, *, cells: list[tuple[int, int]] | None = None, repeats: int = 1, seed: int = 0,

@@ -21,7 +21,7 @@ from palpate.core.mapping.snapshot import MapSnapshot
 from palpate.core.perception.layered_memory import LayeredMemory
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.press import PressResult, perceive_press
-from palpate.core.planning.registry import make_policy, stop_reason
+from palpate.core.planning.registry import PolicyContext, build_policy, stop_reason
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
 from palpate.core.session.sources import PressTarget
@@ -162,7 +162,9 @@ def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory
     2-D: the press's posterior updates the cell under the measured press location (the planned cell if the
     finger slipped off the grid). Voxels: every layer the press reached gets the posterior of ``layers`` for a fit
     to the press samples down to that layer (deeper layers see more of the press, as seed 001 observes); the
-    deepest layer's posterior is returned. A press with no fit changes nothing and returns None.
+    deepest layer's posterior is returned. A press with no fit changes nothing and returns None. A classifier
+    memory (:class:`~palpate.core.perception.classifier_memory.ClassifierMemory`) judges the features its extractor
+    takes from the press (2-D maps only); a press it gives no features changes nothing either.
     """
     if res.fit is None:
         return None
@@ -181,7 +183,13 @@ def apply_press(grid: Grid2D | VoxelGrid, res: PressResult, memory: HapticMemory
                 grid.update_voxel(ix, iy, iz, calibration.evidence(p))
         done = [p for p in posts if p is not None]
         return done[-1] if done else None
-    p = memory.predict_proba(res.fit.params[None, :], features=res.fit.features)[0]
+    features_of = getattr(memory, "press_features", None)  # a classifier memory: its own feature extractor
+    if features_of is None:
+        p = memory.predict_proba(res.fit.params[None, :], features=res.fit.features)[0]
+    elif (x := features_of(res)) is None:
+        return None
+    else:
+        p = memory.predict_proba(x[None, :])[0]
     try:
         grid.update(*res.location, calibration.evidence(p))
     except ValidationError:
@@ -231,10 +239,11 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
 
     regions0 = tuple((c - 1, r - 1) for c, r in entry.regions)
     budget = len(regions0) * ex.presses_per_region if ex.policy == "predefined" else ex.budget
-    policy = make_policy(ex.policy, cells=list(regions0), repeats=ex.presses_per_region, seed=seed, memory=memory,
-                         travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None,
-                         passes=ex.extrapolation_passes, objective=ex.objective, feature_size=ex.feature_size,
-                         certainty=ex.calibration.extrapolation_certainty, lateral=ex.voxel_lateral)
+    context = PolicyContext(ex.policy, geometry, seed, memory, regions0, budget, ex.depth)
+    policy, _ = build_policy(context, cells=list(regions0), repeats=ex.presses_per_region, seed=seed, memory=memory,
+                             travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None,
+                             passes=ex.extrapolation_passes, objective=ex.objective, feature_size=ex.feature_size,
+                             certainty=ex.calibration.extrapolation_certainty, lateral=ex.voxel_lateral)
     # The one post-processing the policies plan on, the run reports and the map files hold.
     post_settings = MapPostprocessing.of(ex)
 
@@ -264,7 +273,10 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
         if ex.stop_min_gain is not None and target.score is not None and target.score < ex.stop_min_gain:
             stop = "min_gain"
             break
-        cell = (target.ix, target.iy)
+        cell = (int(target.ix), int(target.iy))
+        if not (0 <= cell[0] < cells_xy.shape[1] and 0 <= cell[1] < cells_xy.shape[0]):
+            raise ValidationError(f"exploration policy {ex.policy!r} chose cell {cell} (0-based ix, iy) outside the "
+                                  f"{cells_xy.shape[1]} x {cells_xy.shape[0]} map of {entry.spec.name!r}")
         depth = ex.depth if target.depth is None else target.depth
         x, y = (float(v) for v in cells_xy[cell[1], cell[0]])
         if callable(show_map):

@@ -26,8 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core import plugins
 from palpate.core.errors import ValidationError
 from palpate.core.io.realism_figures import plot_sim_vs_real
+from palpate.core.perception.classifier_memory import HAPTIC_MEMORY, ClassifierMemory, classifier_for
+from palpate.core.perception.feature_extractors import extractor_name
 from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.param_stats import table_from_csv, table_from_fits
@@ -61,7 +64,7 @@ from palpate.core.world.workspace import map_geometries
 
 def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress | None = None,
                  source: str | None = None, record: str | Path | None = None, force: bool = False,
-                 live=None) -> dict:
+                 live=None, classifier: ClassifierMemory | None = None) -> dict:
     """Run a scenario end to end and write its outputs into ``out_dir``. Returns the summary (also summary.json).
 
     ``source`` names the registered simulated source that trains the memory and, with ``[actuator] kind = "sim"``,
@@ -70,10 +73,24 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
     truth) go to that MCAP file, annotated so that ``palpate replay`` rebuilds the same maps; with ``live`` (a
     :class:`~palpate.core.io.live.LiveServer`) the same messages, and the map after every press, are served live.
 
+    With ``classifier`` (an unfitted :class:`~palpate.core.perception.classifier_memory.ClassifierMemory`: any
+    classifier with ``predict_proba`` and its feature extractor), that classifier is trained on the training presses
+    and judges every press instead of the haptic memory (2-D maps; not with ``info_gain``, which predicts presses
+    from the haptic memory's Gaussians, nor with a trained memory file).
+
     ``out_dir`` must be new, empty or an earlier run's folder; an earlier run (and an existing ``record`` file) is
     replaced only with ``force`` (:mod:`palpate.core.session.output_guard`). No input is ever overwritten.
     """
     progress = progress or Progress(enabled=False)
+    origins = {"policy": plugins.resolve(plugins.POLICIES, scenario.exploration.policy).origin}
+    if classifier is None:
+        classifier, found = classifier_for(scenario.training.classifier, scenario.training.features,
+                                           scenario.references)
+        origins.update(found)
+    else:
+        origins.update(classifier="given in Python", features="given in Python")
+    if classifier is not None:
+        check_classifier_fits(scenario, classifier)
     inputs = scenario_inputs(scenario)
     if record is not None:
         check_output_file(record, inputs=inputs, force=force, option="--record", outputs=Path(out_dir), kind="run")
@@ -93,7 +110,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                         "map_calibration": scenario.exploration.calibration.to_dict(),
                         "map_postprocessing": MapPostprocessing.of(scenario.exploration).to_dict()}, live=live)
         try:
-            return _run(scenario, out, progress, *makers, seeds, log)
+            return _run(scenario, out, progress, *makers, seeds, log, classifier, origins)
         finally:
             log.close()
 
@@ -111,11 +128,29 @@ def scenario_inputs(scenario: Scenario) -> list[Path]:
     return [p for p in paths if p is not None]
 
 
-def _memory(scenario: Scenario, make_source, seeds, progress: Progress,
-            log: PressLog) -> tuple[HapticMemory, TrainingResult | None]:
-    """The scenario's trained memory file, or a memory trained now (with its cross-validation and presses)."""
+def check_classifier_fits(scenario: Scenario, classifier: ClassifierMemory) -> None:
+    """ValidationError, before any work, where a scenario cannot be judged by a classifier other than the haptic
+    memory: a voxel map (its layers are judged by per-layer haptic memories), the info_gain policy (it predicts
+    presses from the memory's Gaussians), a trained memory file (it is a haptic memory)."""
+    where = f"{scenario.path or 'scenario'}: classifier {classifier.label!r}"
+    if scenario.exploration.map == "voxel":
+        raise ValidationError(f"{where}: voxel maps judge each layer with haptic memories; use map = \"grid2d\" "
+                              "or the haptic memory")
+    if scenario.exploration.policy == "info_gain":
+        raise ValidationError(f"{where}: exploration.policy info_gain predicts presses from the haptic memory's "
+                              "Gaussians; choose another policy or the haptic memory")
+    if scenario.training.memory is not None:
+        raise ValidationError(f"{where}: training.memory names a trained haptic memory; leave it out to train the "
+                              "classifier")
+
+
+def _memory(scenario: Scenario, make_source, seeds, progress: Progress, log: PressLog,
+            classifier: ClassifierMemory | None = None) -> tuple[HapticMemory | ClassifierMemory,
+                                                                  TrainingResult | None]:
+    """The scenario's trained memory file, or a memory (or ``classifier``) trained now (with its cross-validation
+    and presses)."""
     if scenario.training.memory is None:
-        training = train_memory(scenario, make_source, seeds[4:], progress, log)
+        training = train_memory(scenario, make_source, seeds[4:], progress, log, classifier)
         return training.memory, training
     memory = HapticMemory.load(scenario.training.memory)
     if list(memory.materials) != list(scenario.references):
@@ -125,19 +160,19 @@ def _memory(scenario: Scenario, make_source, seeds, progress: Progress,
 
 
 def _run(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds,
-         log: PressLog) -> dict:
+         log: PressLog, classifier: ClassifierMemory | None, origins: dict[str, str]) -> dict:
     out_cfg = scenario.outputs
     preload = ("pyvista",) if out_cfg.render_3d and scenario.exploration.map == "voxel" else ()
     with FigureDrawer(out / "figures", background=out_cfg.figures, preload=preload) as drawer:
-        return _stages(scenario, out, progress, make_source, make_actuator, seeds, log, drawer)
+        return _stages(scenario, out, progress, make_source, make_actuator, seeds, log, drawer, classifier, origins)
 
 
 def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make_actuator, seeds, log: PressLog,
-            drawer: FigureDrawer) -> dict:
+            drawer: FigureDrawer, classifier: ClassifierMemory | None, origins: dict[str, str]) -> dict:
     timing: dict[str, float] = {}
     draw = scenario.outputs.figures
     t0 = time.perf_counter()
-    memory, training = _memory(scenario, make_source, seeds, progress, log)
+    memory, training = _memory(scenario, make_source, seeds, progress, log, classifier)
     memory.save(out / "memory.json")
     layers = None
     ex = scenario.exploration
@@ -208,6 +243,11 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         "seed": scenario.seed,
         "materials": list(scenario.references),
         "memory": {"file": "memory.json", "trained": scenario.training.memory is None},
+        # the algorithms this run used, by the names they are registered under
+        "algorithms": {"policy": ex.policy,
+                       "classifier": HAPTIC_MEMORY if classifier is None else classifier.label,
+                       "features": extractor_name(None if classifier is None else classifier.features),
+                       "origins": origins},
         "crossval": None if crossval is None else {
             "confusion": np.asarray(crossval.confusion).tolist(),
             "mean_posterior": np.asarray(crossval.mean_posterior).tolist(),

@@ -8,8 +8,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from palpate.core.alignment.merge import pipeline_for
-from palpate.core.errors import PalpateError
+from palpate.core.errors import PalpateError, ValidationError
+from palpate.core.perception.classifier_memory import ClassifierMemory
 from palpate.core.perception.crossval import CrossValidation, leave_one_out
+from palpate.core.perception.feature_extractors import extractor_name
 from palpate.core.perception.force_channel import with_force_channel
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.press import PressResult, perceive_press
@@ -40,13 +42,13 @@ class TrainingResult:
     """A trained memory, its leave-one-out cross-validation, and every training press as perceived (by material,
     in the scenario's reference order)."""
 
-    memory: HapticMemory
+    memory: HapticMemory | ClassifierMemory
     crossval: CrossValidation
     presses: dict[str, tuple[PressResult, ...]]
 
 
 def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
-                 log: PressLog | None = None) -> TrainingResult:
+                 log: PressLog | None = None, classifier: ClassifierMemory | None = None) -> TrainingResult:
     """Press every reference material ``training.presses_per_material`` times on a thick block and fit the memory.
 
     Args:
@@ -56,6 +58,8 @@ def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
         seeds: one seed per reference material.
         progress: progress display.
         log: when given, every press is laid on the run's timeline (and recorded).
+        classifier: an unfitted classifier memory (with its feature extractor) to fit instead of the haptic
+            memory; it is fitted in place and cross-validated leave-one-out the same way.
     """
     tr = scenario.training
     # an actuator may perceive its presses its own way (options.perception); training perceives alike
@@ -87,8 +91,25 @@ def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
         if usable < MIN_FITTED:
             raise PalpateError(f"training: only {usable} of {tr.presses_per_material} presses on {name} could be "
                                "fitted; press deeper (training.depth_mm) or lower the taxel threshold")
+    if classifier is not None:
+        return _train_classifier(classifier, by_material)
     P = np.vstack(params)
     memory = HapticMemory(materials=list(scenario.references), features=config.features if config else "both").fit(
         P, labels)
     crossval = leave_one_out(P, labels, materials=list(scenario.references), features=memory.features)
     return TrainingResult(memory, crossval, by_material)
+
+
+def _train_classifier(classifier: ClassifierMemory, presses: dict[str, tuple[PressResult, ...]]) -> TrainingResult:
+    rows, labels = [], []
+    for name, results in presses.items():
+        for res in results:
+            if res.fit is not None and (x := classifier.press_features(res)) is not None:
+                rows.append(x)
+                labels.append(name)
+    if len({len(x) for x in rows}) > 1:
+        raise ValidationError(f"training: feature extractor {extractor_name(classifier.features)!r} gave rows of "
+                              f"{sorted({len(x) for x in rows})} values; every press needs the same number")
+    X = np.vstack(rows)
+    crossval = classifier.crossval(X, labels)
+    return TrainingResult(classifier.fit(X, labels), crossval, presses)

@@ -33,6 +33,10 @@ class TrainingSpec:
     variability: str = "human"
     memory: Path | None = None
     source: str = "sim"
+    #: what judges the presses: "haptic_memory" or a classifier plugin's name (palpate.classifiers)
+    classifier: str = "haptic_memory"
+    #: what the classifier sees of a press: "power_law" ([n1, n2, a1, a2]) or a feature plugin's name
+    features: str = "power_law"
 
 
 @dataclass(frozen=True)

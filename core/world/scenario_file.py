@@ -13,14 +13,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from palpate.core import limits
+from palpate.core import limits, plugins
 from palpate.core.errors import ValidationError
 from palpate.core.files import read_toml
 from palpate.core.mapping.calibration import DEFAULT_CALIBRATION, MapCalibration
 from palpate.core.mapping.geometry import MAP_KINDS
 from palpate.core.names import check_name, unique_stems
 from palpate.core.planning.info_gain import OBJECTIVES
-from palpate.core.planning.registry import POLICY_NAMES
+from palpate.core.planning.registry import policy_names
 from palpate.core.world.actuator_kinds import SIM, actuator_names, load_actuator_kind, owner_of
 from palpate.core.world.scenario import (
     ActuatorSpec,
@@ -155,7 +155,12 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         variability=tr.choice("variability", VARIABILITY, "human"),
         memory=resolve_path(base, memory) if memory else None,
         source=training_source(tr),
+        classifier=tr.choice("classifier", tuple(plugins.names(plugins.CLASSIFIERS)), "haptic_memory"),
+        features=tr.choice("features", tuple(plugins.names(plugins.FEATURES)), "power_law"),
     )
+    if training.memory is not None and (training.classifier, training.features) != ("haptic_memory", "power_law"):
+        raise tr.err("memory", "a trained memory file is a haptic memory over [n1, n2, a1, a2]; leave out "
+                     "classifier and features, or leave out memory to train the classifier")
     tr.finish()
 
     ex = top.sub("exploration")
@@ -164,7 +169,7 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         map=ex.choice("map", MAP_KINDS, "grid2d"),
         cell_size=ex.number("cell_mm", 10.0, lo=MIN_CELL_MM, hi=MAX_SIZE_MM) * 1e-3,
         voxel_depth=ex.number("voxel_depth_mm", 15.0, lo=0.0, lo_open=True, hi=MAX_SIZE_MM) * 1e-3,
-        policy=ex.choice("policy", POLICY_NAMES, "predefined"),
+        policy=ex.choice("policy", tuple(policy_names()), "predefined"),
         budget=ex.integer("budget", 10, lo=1, hi=MAX_PRESSES),
         presses_per_region=ex.integer("presses_per_region", 2, lo=1, hi=MAX_PRESSES),
         depth=ex.number("depth_mm", 4.0, lo=0.0, lo_open=True, hi=MAX_TOOL_MM) * 1e-3,
