@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.world.scene import Material
+from palpate.core.world.scene import Layer, Material
 from palpate.sim.reference.mesh import graded_line
 
 
@@ -62,13 +62,50 @@ class BoxLump:
 
 
 @dataclass(frozen=True)
+class Wall:
+    """A vertical plane through the whole block splitting it into two materials: the points with
+    n . (x, y) > ``offset`` (n = (cos angle, sin angle)) hold ``material``, the rest the block's bulk.
+
+    Attributes:
+        material: the far side's material.
+        angle: the wall normal's angle from +x, rad (0: a wall along y with ``material`` on +x).
+        offset: the wall's signed distance from the press axis along n, m.
+    """
+
+    material: Material
+    angle: float
+    offset: float
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.angle) and math.isfinite(self.offset)):
+            raise ValidationError(f"Wall.angle (rad) and Wall.offset (m) must be finite, got {self.angle!r}, "
+                                  f"{self.offset!r}")
+
+    @property
+    def normal(self) -> tuple[float, float]:
+        """(cos angle, sin angle), with components within 1e-12 of 0 set to 0 (so 90 deg is exactly (0, 1))."""
+        c, s = math.cos(self.angle), math.sin(self.angle)
+        return (0.0 if abs(c) < 1e-12 else c, 0.0 if abs(s) < 1e-12 else s)
+
+    @property
+    def axis_aligned(self) -> bool:
+        """The wall lies along x or y (its plane can be a grid line)."""
+        c, s = self.normal
+        return c == 0.0 or s == 0.0
+
+
+@dataclass(frozen=True)
 class BoxBlock:
     """A box-shaped block on a rigid base, pressed at the centre of its top (x = y = 0).
+
+    Materials, later ones winning where they overlap: the bulk, the wall's far side, the skin, the lump.
 
     Attributes:
         material: the bulk material.
         thickness: m; half_x, half_y: half its extents, m.
         lump: an optional inclusion (see :class:`BoxLump`), inside the block.
+        wall: an optional vertical material boundary (see :class:`Wall`).
+        skin: an optional top layer (its thickness m from the top down).
     """
 
     material: Material
@@ -76,6 +113,8 @@ class BoxBlock:
     half_x: float
     half_y: float
     lump: BoxLump | None = None
+    wall: Wall | None = None
+    skin: Layer | None = None
 
     def __post_init__(self) -> None:
         for key in ("thickness", "half_x", "half_y"):
@@ -86,18 +125,54 @@ class BoxBlock:
         if lump is not None and (lump.near < -self.half_x or lump.near + lump.length > self.half_x
                                  or lump.width / 2 > self.half_y or lump.depth + lump.height > self.thickness):
             raise ValidationError("BoxBlock.lump must lie inside the block")
+        if self.wall is not None and abs(self.wall.offset) >= 0.9 * min(self.half_x, self.half_y):
+            raise ValidationError("BoxBlock.wall.offset must lie well inside the block (|offset| < 0.9 of the "
+                                  "smaller half side)")
+        if self.skin is not None and not self.skin.thickness < self.thickness:
+            raise ValidationError("BoxBlock.skin.thickness must be less than the block's thickness")
+
+    @property
+    def symmetric_y(self) -> bool:
+        """The block is symmetric about the plane y = 0 (so a half model holds it)."""
+        return self.wall is None or self.wall.normal[1] == 0.0
+
+    def far_fraction(self, x0, x1, y0, y1, samples: int = 16) -> np.ndarray:
+        """Share of each rectangle [x0, x1] x [y0, y1] (m, arrays) on the wall's far side (0 without a wall):
+        exact where the rectangle lies on one side, a ``samples`` x ``samples`` midpoint count where the wall cuts
+        it."""
+        x0, x1, y0, y1 = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x0, x1, y0, y1)))
+        out = np.zeros(x0.shape)
+        if self.wall is None:
+            return out
+        c, s = self.wall.normal
+        corners = np.stack([c * x + s * y for x in (x0, x1) for y in (y0, y1)]) - self.wall.offset
+        out[np.all(corners >= 0, axis=0)] = 1.0
+        cut = ~(np.all(corners >= 0, axis=0) | np.all(corners <= 0, axis=0))
+        if np.any(cut):
+            t = (np.arange(samples) + 0.5) / samples
+            px = x0[cut][:, None, None] + (x1 - x0)[cut][:, None, None] * t[None, :, None]
+            py = y0[cut][:, None, None] + (y1 - y0)[cut][:, None, None] * t[None, None, :]
+            out[cut] = np.mean(c * px + s * py > self.wall.offset, axis=(1, 2))
+        return out
 
     def materials_at(self, x: np.ndarray, y: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(Young Pa, Poisson) at points (m; depth below the top)."""
         x, y, depth = (np.asarray(v, dtype=float) for v in (x, y, depth))
         young = np.full(x.shape, self.material.young)
         poisson = np.full(x.shape, self.material.poisson)
+        regions = []
+        if self.wall is not None:
+            c, s = self.wall.normal
+            regions.append((c * x + s * y > self.wall.offset, self.wall.material))
+        if self.skin is not None:
+            regions.append((depth < self.skin.thickness, self.skin.material))
         lump = self.lump
         if lump is not None:
-            inside = ((x > lump.near) & (x < lump.near + lump.length) & (np.abs(y) < lump.width / 2)
-                      & (depth > lump.depth) & (depth < lump.depth + lump.height))
-            young[inside] = lump.material.young
-            poisson[inside] = lump.material.poisson
+            regions.append((((x > lump.near) & (x < lump.near + lump.length) & (np.abs(y) < lump.width / 2)
+                             & (depth > lump.depth) & (depth < lump.depth + lump.height)), lump.material))
+        for inside, material in regions:
+            young[inside] = material.young
+            poisson[inside] = material.poisson
         return young, poisson
 
 
@@ -127,50 +202,52 @@ class TensorGrid:
     depth: np.ndarray
 
 
-def block_grids(block: BoxBlock, a_max: float, h: float, growth: float = 1.3) -> TensorGrid:
+def _flank(x: np.ndarray, at: float, h: float) -> np.ndarray:
+    """Grid lines ``x`` with lines added h/4 either side of the line ``at`` (which must be one), nodes closer than
+    h/5 to an added line dropped (never ``at``)."""
+    for side in (at - h / 4, at + h / 4):
+        if x[0] < side < x[-1]:
+            x = np.unique(np.append(x[(np.abs(x - side) >= h / 5) | np.isclose(x, at, rtol=0, atol=1e-12)], side))
+    return x
+
+
+def block_grids(block: BoxBlock, a_max: float, h: float, growth: float = 1.3, half: bool = True) -> TensorGrid:
     """Grid lines: spacing ``h`` out to 1.3 a_max from the press axis (and 0.25 a_max deep), growing by ``growth``
-    per cell beyond; the lump's faces are grid lines."""
-    lump = block.lump
+    per cell beyond; the lump's faces, an axis-aligned wall (with lines h/4 either side) and the skin's bottom are
+    grid lines. ``half``: y from 0 only (the half model), else across the whole block."""
     bx, by, bz = [], [], []
+    lump = block.lump
     if lump is not None:
-        bx = [lump.near, lump.near + lump.length]
-        by = [lump.width / 2]
-        bz = [lump.depth, lump.depth + lump.height]
+        bx += [lump.near, lump.near + lump.length]
+        by += [lump.width / 2, -lump.width / 2]
+        bz += [lump.depth, lump.depth + lump.height]
+    wall = block.wall
+    at = None
+    if wall is not None and wall.axis_aligned:
+        c, s = wall.normal
+        at = wall.offset / (c if c != 0.0 else s)
+        (bx if c != 0.0 else by).append(at)
+    if block.skin is not None:
+        bz.append(block.skin.thickness)
     uniform = 1.3 * a_max
-    right = graded_line(block.half_x, h, uniform, growth, [b for b in bx if b > 0])
-    left = graded_line(block.half_x, h, uniform, growth, [-b for b in bx if b < 0])
-    x = np.unique(np.concatenate([-left[::-1], right]))
-    y = graded_line(block.half_y, h, uniform, growth, by)
+
+    def symmetric(half_side: float, breaks: list[float]) -> np.ndarray:
+        right = graded_line(half_side, h, uniform, growth, [b for b in breaks if b > 0])
+        left = graded_line(half_side, h, uniform, growth, [-b for b in breaks if b < 0])
+        return np.unique(np.concatenate([-left[::-1], right]))
+
+    x = symmetric(block.half_x, bx)
+    y = graded_line(block.half_y, h, uniform, growth, [b for b in by if b > 0]) if half else symmetric(
+        block.half_y, by)
+    if at is not None:
+        # the wall node's tributary strip narrows to h/4, so the pressure's jump at the wall is not smeared over a
+        # whole cell in the image
+        if wall.normal[0] != 0.0:
+            x = _flank(x, at, h)
+        else:
+            y = _flank(y, at, h)
     z = graded_line(block.thickness, h, 0.25 * a_max, growth, bz)
     return TensorGrid(x=x, y=y, depth=z)
-
-
-def _stiffness(block: BoxBlock, grid: TensorGrid):
-    from skfem import Basis, BilinearForm, ElementHex1, ElementVector, MeshHex, asm
-    from skfem.helpers import ddot, sym_grad, trace
-
-    # mesh coordinates: height above the base (depth = thickness - height)
-    mesh = MeshHex.init_tensor(grid.x, grid.y, np.sort(block.thickness - grid.depth))
-    centroid = mesh.p[:, mesh.t].mean(axis=1)
-    young, poisson = block.materials_at(centroid[0], centroid[1], block.thickness - centroid[2])
-    lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
-    mu = young / (2 * (1 + poisson))
-
-    @BilinearForm
-    def shear(u, v, w):
-        return 2.0 * w.mu * ddot(sym_grad(u), sym_grad(v))
-
-    @BilinearForm
-    def volume(u, v, w):
-        return w.lam * trace(sym_grad(u)) * trace(sym_grad(v))
-
-    full = Basis(mesh, ElementVector(ElementHex1()), intorder=2)
-    # selective reduced integration: the volumetric term at the centroid only, so trilinear bricks do not lock
-    # as nu approaches 0.5 (fully integrated, they are ~15% too stiff at nu 0.45)
-    reduced = Basis(mesh, ElementVector(ElementHex1()), intorder=1)
-    stiffness = (asm(shear, full, mu=np.repeat(mu[:, None], full.X.shape[1], axis=1))
-                 + asm(volume, reduced, lam=np.repeat(lam[:, None], reduced.X.shape[1], axis=1)))
-    return full, stiffness
 
 
 def solve_contact(compliance: np.ndarray, gap: np.ndarray, max_iter: int = 500) -> np.ndarray:
@@ -198,7 +275,8 @@ def solve_contact(compliance: np.ndarray, gap: np.ndarray, max_iter: int = 500) 
 def fe3d_press(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.001,
                growth: float = 1.3) -> FE3DPress:
     """Force of a rigid frictionless sphere (radius ``tip_radius`` m) pressed ``depths`` (m) into the centre of
-    ``block``'s top (see the module docstring).
+    ``block``'s top (see the module docstring; the solve is :func:`palpate.sim.reference.fe3d_solve.contact_field`,
+    as a half model where the block is symmetric about y = 0).
 
     Args:
         block: the block.
@@ -207,42 +285,8 @@ def fe3d_press(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.001,
         h: element edge (node spacing) across the contact, m.
         growth: element size growth per cell away from the contact.
     """
-    from scipy.sparse.linalg import splu
+    from palpate.sim.reference.fe3d_solve import contact_field
 
-    d = np.sort(np.atleast_1d(np.asarray(depths, dtype=float)))
-    if not (tip_radius > 0 and d.size and np.all(np.isfinite(d)) and d[0] > 0 and d[-1] < 0.9 * tip_radius):
-        raise ValidationError(f"fe3d_press: depths must lie in (0, {0.9 * tip_radius}) m, got {depths!r}")
-    if not (h > 0 and growth >= 1.0):
-        raise ValidationError(f"fe3d_press: need h > 0 and growth >= 1, got {h!r}, {growth!r}")
-    a_max = 1.15 * math.sqrt(tip_radius * d[-1])
-    basis, stiffness = _stiffness(block, block_grids(block, a_max, h, growth))
-    locs = basis.doflocs
-    dofs = basis.get_dofs()
-    uy, uz = dofs.all("u^2"), dofs.all("u^3")
-    fixed = np.unique(np.concatenate([np.flatnonzero(np.isclose(locs[2], 0.0)), uy[np.isclose(locs[1, uy], 0.0)]]))
-    free = np.setdiff1d(np.arange(basis.N), fixed)
-    at = -np.ones(basis.N, dtype=int)
-    at[free] = np.arange(len(free))
-
-    top = uz[np.isclose(locs[2, uz], block.thickness)]
-    r_top = np.hypot(locs[0, top], locs[1, top])
-    reach = min(1.3 * a_max, 0.95 * tip_radius)
-    cand = top[r_top <= reach]
-    r_cand = r_top[r_top <= reach]
-    if len(cand) < 8:
-        raise ValidationError("fe3d_press: fewer than 8 surface nodes under the contact; make h smaller")
-    lu = splu(stiffness[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A")
-    loads = np.zeros((len(free), len(cand)))
-    loads[at[cand], np.arange(len(cand))] = -1.0  # unit downward force (z up)
-    compliance = -lu.solve(loads)[at[cand]]  # downward settlement per unit downward force
-    compliance = 0.5 * (compliance + compliance.T)
-    gap0 = tip_radius - np.sqrt(tip_radius**2 - r_cand**2)
-    forces, count = [], []
-    for depth in d:
-        f = solve_contact(compliance, depth - gap0)
-        if np.any(f[r_cand > 0.97 * reach] > 0):
-            raise ValidationError("fe3d_press: the contact reached the edge of the condensed surface; a bug in the "
-                                  "reach")
-        forces.append(2.0 * float(f.sum()))
-        count.append(int(np.sum(f > 0)))
-    return FE3DPress(depth=d, force=np.array(forces), contact_nodes=np.array(count), dofs=int(basis.N), h=float(h))
+    field = contact_field(block, tip_radius, depths, h=h, growth=growth)
+    return FE3DPress(depth=field.depth, force=field.force.sum(axis=(1, 2)), contact_nodes=field.contact_nodes,
+                     dofs=field.dofs, h=field.h)
