@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.sim.bem.wall import TABLE_PATH, WallTable
-from palpate.sim.bem.wall_measure import WallBlock, measure_share, surface_response
+from palpate.sim.bem.wall_measure import measure_share, surface_response, wall_block
 
 
 def main() -> None:
@@ -37,7 +37,7 @@ def main() -> None:
         if soft_file.exists():
             soft = dict(np.load(soft_file))
         else:
-            soft = surface_response(WallBlock(1e5, 1e5, nu), 9e-3, args.h)
+            soft = surface_response(wall_block(nu, 1.0), 9e-3, args.h)
             np.savez(soft_file, **soft)
         for c, contrast in enumerate(contrasts):
             f = args.cache / f"share_nu{nu:g}_c{contrast:g}_h{args.h:g}.npz"

@@ -21,11 +21,12 @@ from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import material_under, run_analytic_press
+from palpate.sim.bem.press import run_bem_press
+from palpate.sim.bem.wall import load_wall_table
 from palpate.sim.blas import one_blas_thread
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profile
 from palpate.sim.flex.model import SOLVER_ITERATIONS
-from palpate.sim.bem.press import run_bem_press
 from palpate.sim.flex.press import run_flex_press
 from palpate.sim.flex.tables import FlexTables, load_flex_tables
 from palpate.sim.realism.profile import RealismProfile
@@ -36,6 +37,7 @@ from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, check_iterations, law_depth
 from palpate.sim.validity.choice import Choice, choose, situation
+from palpate.sim.validity.image_table import ImageTable, load_image_table
 from palpate.sim.validity.table import ValidityTable, load_table
 
 FIDELITIES = ("auto", "analytic", "bem", "rigid", "flex")
@@ -44,20 +46,24 @@ DEFAULT_TOLERANCE = 0.05
 
 
 def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, *, tolerance: float = DEFAULT_TOLERANCE,
-                     table: ValidityTable | None = None, depth: float | None = None, surface_z: float | None = None
-                     ) -> Choice:
+                     table: ValidityTable | None = None, depth: float | None = None, surface_z: float | None = None,
+                     images: ImageTable | None = None) -> Choice:
     """The cheapest fidelity within ``tolerance`` for pressing ``obj`` at ``target``, a one-line reason and the
     predicted errors.
 
     Args:
         depth: the press's depth, m (default the target's, or 0.25 tip radii for a force-only target).
         table: a loaded validity table (default the shipped one).
+        images: a loaded image table (default the shipped one, read where material changes off the press axis).
         surface_z: the top's height at the target, m (default the object's height).
     """
     table = load_table() if table is None else table
     d = depth if depth is not None else (target.depth if target.depth is not None else 0.25 * radius)
     top = obj.height if surface_z is None else surface_z
-    return choose(table, situation(obj, target.x, target.y, top, d, radius), tolerance, obj.name)
+    sit = situation(obj, target.x, target.y, top, d, radius)
+    if sit.image is not None and images is None:
+        images = load_image_table()
+    return choose(table, sit, tolerance, obj.name, images)
 
 
 def choose_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, **kwargs) -> str:
@@ -110,6 +116,8 @@ class SimSource:
         self.max_steps = max_steps
         self.flex_iterations = check_iterations(flex_iterations, "SimSource: flex_iterations")
         self._table = None  # the validity table, read on the first ``auto`` decision
+        self._images = None  # its image columns, likewise
+        self._walls = None  # the bem rung's wall table, read on its first press
         self.scene = scene
         self.fidelity = fidelity
         self.seed = int(seed)
@@ -156,7 +164,10 @@ class SimSource:
             law = self._law(obj, target.x, target.y, surface_z, MAX_DEPTH_OVER_RADIUS * tip.radius)
             reach = law.depth_for_force(target.force) if target.force < law.force[-1] else law.max_depth
             depth = reach if depth is None else min(depth, reach)
+        if self._images is None:
+            self._images = load_image_table()
         return explain_fidelity(obj, target, tip.radius, tolerance=self.tolerance, table=self._table, depth=depth,
+                                images=self._images,
                                 surface_z=surface_z)
 
     def press(self, target: PressTarget) -> PressRecording:
@@ -236,8 +247,10 @@ class SimSource:
         if fidelity == "analytic":
             trace = run_analytic_press(self.scene, obj, physics_profile, law=law)
         elif fidelity == "bem":
+            if self._walls is None:
+                self._walls = load_wall_table()
             with one_blas_thread():
-                trace = run_bem_press(self.scene, obj, physics_profile)
+                trace = run_bem_press(self.scene, obj, physics_profile, walls=self._walls)
         elif fidelity == "rigid":
             trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
                                     max_steps=self.max_steps)

@@ -3,8 +3,8 @@
 The surface around the press point is cut into square cells, each with the layer stack under it
 (:mod:`.surface`); at a ladder of indentations the frictionless contact of the exact sphere is solved for the cell
 pressures (:mod:`.solve`), each warm-started from the last; the force is their sum and each sensel the mean over
-its footprint. Between the solved indentations, force and sensel pressures are interpolated in the contact's
-natural coordinate sqrt(d) (force and pressures grow as powers of it).
+its footprint. Between the solved indentations, the neighbouring solutions are stretched as a growing contact is
+(:func:`between`) and blended.
 
 Unlike ``analytic``, which averages the material around the press axis, the image follows where the material is:
 over a wall the harder side carries more, a lump beside the axis tilts the image. Validity: quasi-static, flat top,
@@ -30,36 +30,68 @@ from palpate.sim.trace import PhysicsTrace
 
 #: Default cell side, m, and indentations solved per press.
 CELL = 0.5e-3
-LADDER = 12
+LADDER = 10
 
 
-def solve_ladder(surface: Surface, tip_radius: float, depths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Force (N, (n,)) and sensel pressures (Pa, (n, rows * cols)) at increasing indentations ``depths`` (m)."""
+def solve_fields(surface: Surface, tip_radius: float, depths: np.ndarray) -> np.ndarray:
+    """Cell pressures (Pa, (n, cells)) at increasing indentations ``depths`` (m), each solve started from the
+    contact set Hertz would give (the cells whose gap exceeds half the depth) and the last one's."""
     r2 = np.sum(surface.centres**2, axis=1)
     if np.any(r2 >= tip_radius**2):
         raise ValidationError("bem: the surface reaches beyond the tip's radius; press shallower")
     profile = tip_radius - np.sqrt(tip_radius**2 - r2)
-    force = np.zeros(len(depths))
-    pressure = np.zeros((len(depths), surface.overlap.shape[0]))
-    active = None
-    area = surface.cell**2
+    fields = np.zeros((len(depths), len(r2)))
+    edge = (np.sqrt(r2.max()) - 1.5 * surface.cell) ** 2
     for k, d in enumerate(depths):
-        p, active = solve_contact(surface.compliance, d - profile, active)
-        if active.any() and np.max(r2[active]) > (np.sqrt(r2.max()) - 1.5 * surface.cell) ** 2:
+        gap = d - profile
+        fields[k], active = solve_contact(surface.compliance, gap, gap > 0.5 * d)
+        if active.any() and np.max(r2[active]) > edge:
             raise ValidationError("bem: the contact reached the edge of the solved surface; a bug in its reach")
-        force[k] = p.sum() * area
-        pressure[k] = surface.overlap @ p
-    return force, pressure
+    return fields
 
 
-def _interp_sqrt(depth: np.ndarray, nodes: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """Values (m, ...) at ``nodes`` (m,) increasing from 0, interpolated at ``depth`` by a monotone cubic in
-    sqrt(depth)."""
-    from scipy.interpolate import PchipInterpolator
+def solve_ladder(surface: Surface, tip_radius: float, depths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Force (N, (n,)) and sensel pressures (Pa, (n, rows * cols)) solved at increasing indentations ``depths``
+    (m)."""
+    fields = solve_fields(surface, tip_radius, depths)
+    return fields.sum(axis=1) * surface.cell**2, fields @ surface.overlap.T
 
-    f = PchipInterpolator(np.sqrt(nodes), values, axis=0, extrapolate=False)
-    out = f(np.sqrt(np.clip(depth, 0.0, nodes[-1])))
-    return np.maximum(np.nan_to_num(out), 0.0)
+
+def between(surface: Surface, nodes: np.ndarray, fields: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray,
+                                                                                                 np.ndarray]:
+    """Force (N) and sensel pressures (Pa, (m, rows * cols)) at any ``depth`` (m, (m,)) from the fields solved at
+    ``nodes`` (m, increasing, > 0): each neighbouring solution stretched as a contact grows (positions by s, pressure
+    by s, s = sqrt(d / node), the force by s^3, as Hertz's do exactly), the two blended linearly in sqrt(d).
+
+    A contact's edge thus moves continuously across the sensels between solved depths, which interpolating each
+    sensel's value cannot do where the contact first reaches it."""
+    from scipy.ndimage import map_coordinates
+
+    cell = surface.cell
+    ij = np.rint(surface.centres / cell - 0.5).astype(int)
+    lo = ij.min(axis=0)
+    shape = tuple(ij.max(axis=0) - lo + 1)
+    grids = np.zeros((len(nodes),) + shape)
+    grids[:, ij[:, 0] - lo[0], ij[:, 1] - lo[1]] = fields
+    d = np.clip(np.asarray(depth, dtype=float), 0.0, nodes[-1])
+    root = np.sqrt(nodes)
+    hi = np.clip(np.searchsorted(nodes, d), 0, len(nodes) - 1)
+    below = np.maximum(hi - 1, 0)
+    weight = np.where(hi > below, (np.sqrt(d) - root[below]) / np.maximum(root[hi] - root[below], 1e-30), 1.0)
+    node_force = fields.sum(axis=1) * cell * cell
+    force = np.zeros(len(d))
+    sensels = np.zeros((len(d), surface.overlap.shape[0]))
+    for m in np.flatnonzero(d > 0):
+        blend = np.zeros(len(ij))
+        for k, w in ((below[m], 1.0 - weight[m]), (hi[m], weight[m])):
+            if w <= 0:
+                continue
+            s = math.sqrt(d[m] / nodes[k])
+            coords = (surface.centres / s / cell - 0.5 - lo).T
+            blend += w * s * map_coordinates(grids[k], coords, order=1, mode="constant", cval=0.0)
+            force[m] += w * s**3 * node_force[k]
+        sensels[m] = surface.overlap @ blend
+    return force, sensels
 
 
 def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None,
@@ -103,12 +135,12 @@ def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate:
         surface = build_surface(obj, profile.x, profile.y, profile.surface_z, tip, reach, cell,
                                 math.sqrt(radius * d_max), walls)
         mixing = surface.mixing
-        nodes = d_max * (np.arange(ladder + 1) / ladder) ** 2
-        f_nodes, p_nodes = solve_ladder(surface, radius, nodes[1:])
-        f_nodes = np.concatenate([[0.0], f_nodes])
-        p_nodes = np.concatenate([np.zeros((1, p_nodes.shape[1])), p_nodes])
-        force = _interp_sqrt(depth, nodes, f_nodes)
-        pressure = _interp_sqrt(depth, nodes, p_nodes).reshape(len(t), tip.rows, tip.cols)
+        nodes = d_max * (np.arange(1, ladder + 1) / ladder) ** 2
+        # the release retraces the press (quasi-static elasticity): each distinct depth is computed once
+        unique, back = np.unique(np.round(depth, 12), return_inverse=True)
+        f_u, p_u = between(surface, nodes, solve_fields(surface, radius, nodes), unique)
+        force = f_u[back]
+        pressure = p_u[back].reshape(len(t), tip.rows, tip.cols)
     normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
     contact = np.array([profile.x, profile.y, profile.surface_z])
     pos = contact[None, :] + normal[None, :] * (z - profile.surface_z)[:, None]

@@ -71,6 +71,16 @@ def column_stacks(obj: ObjectSpec, x: float, y: float, surface_z: float,
                   centres: np.ndarray) -> tuple[np.ndarray, tuple[Stack, ...], np.ndarray]:
     """The layer stack under each cell centre ((n, 2) m from the press point (x, y)): (stack index per cell, the
     distinct stacks, whether the cell lies on the object)."""
+    if not obj.inclusions and obj.material_map is None:
+        # layers only: every column is the press point's (sampled once)
+        _, stacks, _ = _sampled_stacks(obj, x, y, surface_z, np.zeros((1, 2)))
+        on_object = obj.contains_xy(centres + np.array([x, y]))
+        return np.zeros(len(centres), dtype=int), stacks, on_object
+    return _sampled_stacks(obj, x, y, surface_z, centres)
+
+
+def _sampled_stacks(obj: ObjectSpec, x: float, y: float, surface_z: float,
+                    centres: np.ndarray) -> tuple[np.ndarray, tuple[Stack, ...], np.ndarray]:
     lookup = object_lookup(obj, x, y, surface_z)
     edges = _depth_edges(surface_z, object_breaks(obj, surface_z))
     mid = 0.5 * (edges[1:] + edges[:-1])

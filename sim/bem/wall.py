@@ -30,6 +30,8 @@ from palpate.sim.validity.reference import read_document
 TABLE_PATH = models_dir() / "bem_wall_table.json"
 FORMAT = "palpate-bem-wall"
 VERSION = 1
+#: Points nearer the wall than this share of the node spacing take the value there, on their own side.
+NEAR_WALL = 1.0
 
 
 @dataclass(frozen=True)
@@ -131,8 +133,9 @@ def wall_share(table: WallTable, poisson: float, contrast: float, u1: np.ndarray
                               f"{table.poisson[0]:g}-{table.poisson[-1]:g}")
     h = table.spacing
     # a point nearer the wall than a node takes its own side's nearest node (the wall's node is half of each)
-    u1 = np.where(u1 > 0, np.maximum(u1, h), np.minimum(u1, -h))
-    u2 = np.where(u2 > 0, np.maximum(u2, h), np.minimum(u2, -h))
+    near = NEAR_WALL * h
+    u1 = np.where(u1 > 0, np.maximum(u1, near), np.minimum(u1, -near))
+    u2 = np.where(u2 > 0, np.maximum(u2, near), np.minimum(u2, -near))
     p0, p1, wp = _bracket(table.poisson, poisson)
     c0, c1, wc = _bracket(np.log(table.contrast), math.log(max(contrast, 1.0)))
     out = 0.0

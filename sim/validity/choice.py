@@ -10,8 +10,13 @@ Each applicable family predicts an error: the largest over its rows within a fac
 past the table's largest value, the rows there: farther from the edge or thicker only helps); a press smaller than
 anything measured has no prediction. A fidelity's predicted error is the worst over the families. Geometry rules
 out what a fidelity cannot see: ``analytic`` needs a flat top under the whole contact, ``flex`` a box or cylinder.
-The cheapest remaining fidelity within the tolerance wins (analytic, then rigid, then flex); if none is, the most
-accurate one, and the reason says so.
+Where the material changes off the press axis within reach (a wall, a map's boundary, a lump beside the axis), the
+taxel image matters too: the image table (:mod:`.image_table`, against the 3-D FE) must pass the family (``wall``
+where the change reaches the surface, else ``lump``; a family the image table has not measured leaves the choice
+to the force rule) for a rung to be chosen, and its force error there is the rung's prediction; ``analytic`` and
+``rigid`` average the material around the axis, so their images fail walls.
+The cheapest remaining fidelity within the tolerance wins (analytic, then bem, then rigid, then flex); if none is,
+the most accurate one, and the reason says so.
 """
 
 from __future__ import annotations
@@ -23,9 +28,12 @@ import numpy as np
 
 from palpate.core.world.scene import ObjectSpec, material_index_at
 from palpate.sim.analytic import material_under
+from palpate.sim.validity.image_table import ImageTable
 from palpate.sim.validity.table import ValidityRow, ValidityTable
 
-ORDER = ("analytic", "rigid", "flex")
+ORDER = ("analytic", "bem", "rigid", "flex")
+#: A lateral change shallower than this (m) is a wall: it reaches the surface.
+WALL_DEPTH = 0.5e-3
 #: The families a press can be placed by, in the order its reason lists them.
 FEATURES = ("thickness", "edge", "skin", "lump")
 #: Reach of a lateral feature: 1.5 contact radii plus its depth (as the contact law's homogenisation).
@@ -47,6 +55,8 @@ class Situation:
         lump: depth of a material change within reach / a.
         excluded: fidelity -> why the geometry rules it out.
         notes: what lies outside the table (said in the reason).
+        image: the image table's family ("wall" or "lump") where material changes off the press axis within
+            reach, else None.
     """
 
     thickness: float
@@ -56,6 +66,7 @@ class Situation:
     lump: float | None = None
     excluded: dict[str, str] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    image: str | None = None
 
     def families(self) -> tuple[str, ...]:
         """The families that apply, in the order of FEATURES."""
@@ -146,12 +157,14 @@ def situation(obj: ObjectSpec, x: float, y: float, surface_z: float, depth: floa
     if obj.layers and obj.layers[0].thickness < surface_z:
         skin = obj.layers[0].thickness / a
     lateral = _lateral_depth(obj, x, y, surface_z, a)
+    image = None
     if lateral is not None:
         lump = max(lateral.depth, 0.5e-3) / a
         if not lateral.centred:
+            image = "wall" if lateral.depth < WALL_DEPTH else "lump"
             notes.append("material changing off the press axis (the table's lumps are on it)")
     return Situation(thickness=surface_z / a, poisson=poisson, edge=edge_value, skin=skin, lump=lump,
-                     excluded=excluded, notes=tuple(notes))
+                     excluded=excluded, notes=tuple(notes), image=image)
 
 
 def _family_error(rows: list[ValidityRow], rung: str, value: float) -> float:
@@ -168,13 +181,32 @@ def _family_error(rows: list[ValidityRow], rung: str, value: float) -> float:
     return max((abs(e) if e is not None else math.inf) for e in errs)
 
 
-def predicted_errors(table: ValidityTable, sit: Situation) -> dict[str, float]:
-    """Predicted |relative force error| per fidelity for a situation (inf where unknown or excluded)."""
-    rows = table.rows
+def image_exclusions(images: ImageTable, sit: Situation) -> dict[str, str]:
+    """Fidelity -> why its image rules it out of a press whose material changes off the axis (empty otherwise)."""
+    if sit.image is None or not images.measures(sit.image):
+        return {}
     out = {}
     for rung in ORDER:
-        if rung in sit.excluded:
+        _, why = images.verdict(rung, sit.image)
+        if why is not None:
+            out[rung] = why
+    return out
+
+
+def predicted_errors(table: ValidityTable, sit: Situation, images: ImageTable | None = None) -> dict[str, float]:
+    """Predicted |relative force error| per fidelity for a situation (inf where unknown or excluded); with a
+    lateral change off the axis, the image table's force error for its family (and inf where the image fails)."""
+    rows = table.rows
+    out = {}
+    blind = image_exclusions(images, sit) if images is not None else {}
+    for rung in ORDER:
+        if rung in sit.excluded or rung in blind:
             out[rung] = math.inf
+            continue
+        if sit.image is not None and images is not None and images.measures(sit.image):
+            # the image table's cases hold the off-axis change itself; the other families still apply
+            out[rung] = max(images.verdict(rung, sit.image)[0],
+                            _other_families(table, sit, rung, skip=("lump",)))
             continue
         worst = 0.0
         for family in sit.families():
@@ -188,19 +220,47 @@ def predicted_errors(table: ValidityTable, sit: Situation) -> dict[str, float]:
     return out
 
 
-def choose(table: ValidityTable, sit: Situation, tolerance: float, name: str) -> Choice:
+def _other_families(table: ValidityTable, sit: Situation, rung: str, skip: tuple[str, ...]) -> float:
+    """The worst predicted error of ``rung`` over the situation's families other than ``skip``; 0 if none apply."""
+    worst = 0.0
+    for family in sit.families():
+        if family in skip or family == "thickness":
+            continue
+        worst = max(worst, _family_error([r for r in table.rows if r.family == family], rung, sit.value(family)))
+    return worst
+
+
+def choose(table: ValidityTable, sit: Situation, tolerance: float, name: str,
+           images: ImageTable | None = None) -> Choice:
     """The cheapest fidelity for a situation under ``tolerance`` (fraction), the reason and the predicted errors;
-    ``name`` (the object's) starts the reason."""
-    errs = predicted_errors(table, sit)
+    ``name`` (the object's) starts the reason; ``images`` the image table (needed where the material changes off the
+    press axis)."""
+    errs = predicted_errors(table, sit, images)
     where = ", ".join(f"{k} {sit.value(k):.2g}" for k in sit.families())
+    if sit.image is not None and images is not None and images.measures(sit.image):
+        where += f", a {sit.image} off the press axis"
     said = "; ".join(f"{k}: {v:.1%}" if math.isfinite(v) else f"{k}: outside the table" for k, v in errs.items())
-    extra = "".join(f"; {k} ruled out: {v}" for k, v in sit.excluded.items())
+    ruled = dict(sit.excluded)
+    if images is not None:
+        ruled.update({k: v for k, v in image_exclusions(images, sit).items() if k not in ruled})
+    extra = "".join(f"; {k} ruled out: {v}" for k, v in ruled.items())
     extra += "".join(f"; note: {n}" for n in sit.notes)
     for rung in ORDER:
         if errs[rung] <= tolerance:
             return Choice(rung, f"{name}: {rung} is the cheapest within the {tolerance:.0%} tolerance (validity "
                           f"table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)
+    if (sit.image is not None and images is not None and images.measures(sit.image)
+            and not any(math.isfinite(v) for v in errs.values())):
+        # no rung's image holds the family: the closest image, said as such
+        allowed = tuple(r for r in ORDER if r not in sit.excluded)
+        closest = images.closest(allowed, sit.image)
+        if closest is not None:
+            rung, share = closest
+            return Choice(rung, f"{name}: no fidelity's image is within the image table's limits over "
+                          f"{sit.image}s; {rung} has the closest (rms up to {share:.0%} of the peak per sensel; "
+                          f"validity table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)
     finite = {k: v for k, v in errs.items() if math.isfinite(v)}
-    best = min(finite, key=finite.get) if finite else next(r for r in ORDER if r not in sit.excluded)
+    # with nothing measured to prefer, the cheapest rung the geometry allows (bem holds no validity-table rows)
+    best = min(finite, key=finite.get) if finite else next(r for r in ORDER if r not in sit.excluded and r != "bem")
     return Choice(best, f"{name}: no fidelity is within the {tolerance:.0%} tolerance; {best} is the most accurate "
                   f"(validity table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)

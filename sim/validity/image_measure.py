@@ -1,0 +1,69 @@
+"""The rungs' images against the 3-D FE image reference: each rung pressed on each case of
+:mod:`.image_cases` at the reference's depths, scored by :func:`.image.image_errors`.
+
+``analytic`` and ``bem`` are evaluated at the depths directly (both are quasi-static: the image at a depth does not
+depend on how the press got there); ``rigid`` shares analytic's contact law and image, so it is scored as analytic.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from palpate.core.world.scene import FingertipSpec
+from palpate.sim.analytic import law_sensel_pressure
+from palpate.sim.bem.press import CELL, solve_ladder
+from palpate.sim.bem.surface import build_surface
+from palpate.sim.bem.wall import WallTable
+from palpate.sim.blas import one_blas_thread
+from palpate.sim.contact.stack import object_law
+from palpate.sim.fingertip import sensel_bounds
+from palpate.sim.validity.image import ImageErrors, PressImage, image_errors
+from palpate.sim.validity.image_cases import ImageCase
+
+#: The rungs scored here.
+IMAGE_RUNGS = ("analytic", "bem")
+
+
+@dataclass(frozen=True)
+class ImageScore:
+    """One rung on one case: its errors per depth, its CPU time (s) and, for bem, how it mixed materials."""
+
+    case: str
+    family: str
+    split: str
+    rung: str
+    errors: ImageErrors
+    cpu: float
+    mixing: str = ""
+
+
+def rung_image(case: ImageCase, rung: str, tip: FingertipSpec, walls: WallTable | None = None) -> tuple[PressImage,
+                                                                                                          str]:
+    """The rung's image of ``case`` at the case's depths, and (bem) its mixing model."""
+    obj = case.object_spec()
+    x, y = case.press_point
+    depths = np.asarray(case.depths, dtype=float)
+    with one_blas_thread():
+        if rung == "analytic":
+            law = object_law(obj, x, y, obj.height, tip.radius, 1.05 * depths[-1])
+            return PressImage(depths, law.force_at(depths), law_sensel_pressure(law, depths, sensel_bounds(tip))), ""
+        if rung == "bem":
+            a = math.sqrt(tip.radius * depths[-1])
+            surface = build_surface(obj, x, y, obj.height, tip, min(1.2 * a + 2 * CELL, 0.97 * tip.radius), CELL,
+                                    a, walls)
+            force, pressure = solve_ladder(surface, tip.radius, depths)
+            return PressImage(depths, force, pressure.reshape(len(depths), tip.rows, tip.cols)), surface.mixing
+    raise ValueError(f"rung_image: no image rung {rung!r}; one of {IMAGE_RUNGS}")
+
+
+def score(case: ImageCase, reference: PressImage, rung: str, split: str, tip: FingertipSpec,
+          walls: WallTable | None = None) -> ImageScore:
+    """``rung`` on ``case`` against its reference image."""
+    t0 = time.process_time()
+    image, mixing = rung_image(case, rung, tip, walls)
+    cpu = time.process_time() - t0
+    return ImageScore(case.name, case.family, split, rung, image_errors(image, reference, tip), cpu, mixing)

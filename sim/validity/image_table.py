@@ -1,0 +1,130 @@
+"""The image columns of the validity table as data: per rung, case and depth, the force error, the rms sensel error
+as a share of the reference's peak, whether the asymmetry holds, and the active sensels, against the 3-D FE image
+reference (:mod:`.image_measure`; models/image_validity.json, written by benchmarks/image_validity.py --write).
+
+``auto`` reads it for presses whose material changes off the press axis within reach (:mod:`.choice`): there the
+image matters, and a rung whose image fails the family is never chosen.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from palpate.core.errors import ValidationError
+from palpate.core.world.resources import models_dir
+from palpate.sim.validity.image_measure import ImageScore
+from palpate.sim.validity.reference import read_document
+
+IMAGE_TABLE_PATH = models_dir() / "image_validity.json"
+FORMAT = "palpate-image-validity"
+VERSION = 1
+#: What a valid image is: rms sensel error at most this share of the peak, asymmetry of the right sign and within
+#: 20% where the reference's exceeds 0.1, at every depth from MIN_DEPTH.
+RMS_LIMIT = 0.10
+MIN_DEPTH = 1e-3
+
+
+@dataclass(frozen=True)
+class ImageRow:
+    """One rung on one case at one depth (see the module docstring)."""
+
+    case: str
+    family: str
+    split: str
+    rung: str
+    depth: float
+    force_error: float
+    rms_share: float
+    asymmetry_ok: bool
+    active: int
+    reference_active: int
+
+    def to_dict(self) -> dict:
+        """The row as the file writes it."""
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class ImageTable:
+    """The rows, and per (rung, family) the verdict over depths >= MIN_DEPTH."""
+
+    rows: tuple[ImageRow, ...]
+
+    def measures(self, family: str) -> bool:
+        """Whether any rung was measured on ``family`` (an unmeasured family leaves ``auto`` to the force rule)."""
+        return any(r.family == family for r in self.rows)
+
+    def verdict(self, rung: str, family: str) -> tuple[float, str | None]:
+        """(worst |force error| over the family's rows, why the image fails or None) for ``rung``; (inf, why) where
+        the family was not measured for the rung."""
+        rows = [r for r in self.rows if r.rung == rung and r.family == family and r.depth >= MIN_DEPTH - 1e-12]
+        if not rows:
+            return math.inf, f"its image is not measured on {family}s (the image table)"
+        worst = max(abs(r.force_error) for r in rows)
+        bad_rms = [r for r in rows if r.rms_share > RMS_LIMIT]
+        bad_asym = [r for r in rows if not r.asymmetry_ok]
+        if bad_asym:
+            return worst, (f"its image over {family}s has the wrong asymmetry in {len(bad_asym)} of {len(rows)} "
+                           "measured presses (the image table)")
+        if bad_rms:
+            share = max(r.rms_share for r in bad_rms)
+            return worst, f"its image over {family}s is up to {share:.0%} of the peak off per sensel (the image table)"
+        return worst, None
+
+
+    def closest(self, rungs: tuple[str, ...], family: str) -> tuple[str, float] | None:
+        """Among ``rungs``, the one whose image over ``family`` is closest to the reference (right asymmetry
+        everywhere, smallest worst rms share), with that share; None if none has the asymmetry right."""
+        best = None
+        for rung in rungs:
+            rows = [r for r in self.rows if r.rung == rung and r.family == family and r.depth >= MIN_DEPTH - 1e-12]
+            if rows and all(r.asymmetry_ok for r in rows):
+                share = max(r.rms_share for r in rows)
+                if best is None or share < best[1]:
+                    best = (rung, share)
+        return best
+
+
+def rows_from_scores(scores: list[ImageScore]) -> list[ImageRow]:
+    """One row per score and depth."""
+    out = []
+    for s in scores:
+        e = s.errors
+        ok = e.asymmetry_ok()
+        for k, d in enumerate(e.depth):
+            out.append(ImageRow(s.case, s.family, s.split, s.rung, float(d), float(e.force_error[k]),
+                                float(e.rms_share[k]), bool(ok[k]), int(e.active[k]), int(e.reference_active[k])))
+    return out
+
+
+def table_document(rows: list[ImageRow], measured_with: dict) -> dict:
+    """The JSON document of the image table."""
+    return {"format": FORMAT, "version": VERSION, "measured_with": measured_with,
+            "rows": [r.to_dict() for r in rows]}
+
+
+def load_image_table(path: Path | str = IMAGE_TABLE_PATH) -> ImageTable:
+    """Read and check models/image_validity.json (or ``path``)."""
+    doc = read_document(path, "the image validity table", FORMAT, VERSION,
+                        "run benchmarks/image_validity.py --write")
+    raw = doc.get("rows")
+    if not isinstance(raw, list) or len(raw) > 100_000:
+        raise ValidationError(f"{path}: key 'rows' must be a list of at most 100000 rows")
+    rows = []
+    for i, r in enumerate(raw):
+        try:
+            row = ImageRow(case=str(r["case"]), family=str(r["family"]), split=str(r["split"]), rung=str(r["rung"]),
+                           depth=float(r["depth"]), force_error=float(r["force_error"]),
+                           rms_share=float(r["rms_share"]), asymmetry_ok=bool(r["asymmetry_ok"]),
+                           active=int(r["active"]), reference_active=int(r["reference_active"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValidationError(f"{path}: row {i}: {exc}") from None
+        if not (np.isfinite([row.depth, row.force_error, row.rms_share]).all() and row.depth > 0
+                and row.rms_share >= 0):
+            raise ValidationError(f"{path}: row {i}: depth, force_error and rms_share must be finite, depth > 0")
+        rows.append(row)
+    return ImageTable(tuple(rows))
