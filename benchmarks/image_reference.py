@@ -20,7 +20,7 @@ import numpy as np
 
 from palpate.core.world.scene import FingertipSpec, Material, TaxelSensorSpec
 from palpate.sim.reference.fe import fe_press
-from palpate.sim.reference.fe3d import BoxBlock
+from palpate.sim.reference.fe3d import BoxBlock, Wall
 from palpate.sim.reference.fe3d_image import fe3d_image
 from palpate.sim.reference.sample import AxisymmetricSample
 from palpate.sim.validity.image import PressImage, active_sensels, asymmetry, image_errors
@@ -52,7 +52,8 @@ def _summary(name: str, image: PressImage, extra: str = "") -> None:
     p = image.pressure[-1] / 1e3
     print(f"{name:<40} F {' '.join(f'{f:6.3f}' for f in image.force)} N | 4 mm: centre {p[1:3, 1:3].mean():5.1f} "
           f"corner {p[[0, 0, 3, 3], [0, 3, 0, 3]].mean():5.1f} kPa | asym x "
-          f"{' '.join(f'{a:+.2f}' for a in asymmetry(image.pressure))} | active "
+          f"{' '.join(f'{a:+.2f}' for a in asymmetry(image.pressure))}, y at 4 mm "
+          f"{float(asymmetry(image.pressure[-1], 'y')):+.2f} | active "
           f"{' '.join(str(int(a)) for a in active_sensels(image.pressure, TAXELS))} {extra}", flush=True)
 
 
@@ -101,6 +102,21 @@ def checks() -> None:
     print(f"sides at {1e3 * HALF:g} mm vs {1.5e3 * HALF:g} mm: force % "
           f"{' '.join(f'{100 * v:+.2f}' for v in err.force_error)}; image rms % of peak "
           f"{' '.join(f'{100 * v:.2f}' for v in err.rms_share)}")
+    # the volume-fraction mixing of a rotated wall, measured where the exact answer is known: a wall along y
+    # 0.35 mm off (mid-cell at h 0.7 mm) turned by 1e-6 rad, so it is mixed, against the same wall on a grid line
+    exact = wall_case(20, 115, 0.45, 0, 0.35)
+    aligned, _ = fe3d_image(exact.block, TIP, depths, h=H, growth=GROWTH)
+    for factor in (1.0, 2**-0.5):
+        mixed_block = BoxBlock(exact.block.material, THICKNESS, HALF, HALF,
+                               wall=Wall(exact.block.wall.material, 1e-6, 0.35e-3))
+        mixed, field = fe3d_image(mixed_block, TIP, depths, h=H * factor, growth=GROWTH)
+        err = image_errors(mixed, aligned, TIP)
+        print(f"wall 20|115 +0.35 mm mixed by volume fraction (h {1e3 * H * factor:.3f} mm, {field.dofs} dofs) vs "
+              f"on a grid line (h {1e3 * H:g}): force % {' '.join(f'{100 * v:+.2f}' for v in err.force_error)}; "
+              f"image rms % {' '.join(f'{100 * v:.2f}' for v in err.rms_share)}; asym x "
+              f"{' '.join(f'{v:+.3f}' for v in err.asymmetry)} vs "
+              f"{' '.join(f'{v:+.3f}' for v in err.reference_asymmetry)}",
+              flush=True)
     for angle in (0.0, 90.0):
         case = wall_case(20, 115, 0.45, angle, 2)
         img, field = fe3d_image(case.block, TIP, depths, h=H, growth=GROWTH, half=False)

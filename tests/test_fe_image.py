@@ -138,7 +138,8 @@ def test_the_cases_are_unique_a_third_held_out_and_their_scenes_hold_the_fe_mate
 
 def test_the_shipped_image_reference_holds_every_case_well_formed():
     reference = load_image_reference()
-    for case in core_cases():
+    assert set(reference.cases) == {c.name for c in image_cases()}
+    for case in image_cases():
         image = reference_image(reference, case)
         np.testing.assert_allclose(image.depth, DEPTHS)
         assert image.pressure.shape == (len(DEPTHS), TIP.rows, TIP.cols)
@@ -146,6 +147,7 @@ def test_the_shipped_image_reference_holds_every_case_well_formed():
         seen = image.pressure.sum(axis=(1, 2)) * TIP.sensel_area
         assert np.all(seen <= image.force * (1 + 1e-9)) and np.all(seen > 0.3 * image.force)
         assert reference.cases[case.name].split == case.split
+    assert len({c.case for c in reference.convergence}) >= 5
     for change in reference.convergence:
         assert np.all(change.rms_share < 0.05) and np.all(np.abs(change.force_change) < 0.03), change
 

@@ -1,24 +1,28 @@
-"""A 3-D check of the contact law off the press axis: a rigid frictionless sphere pressed into a box-shaped elastic
-block bonded to a rigid base, with a box-shaped inclusion beside (or under) the press point.
+"""A 3-D FE reference off the press axis: a rigid frictionless sphere pressed into a box-shaped elastic block bonded
+to a rigid base, with a box-shaped inclusion beside (or under) the press point, a vertical wall between two
+materials, or a top skin.
 
 It exists because the axisymmetric reference (:mod:`.fe`) can only hold what is symmetric about the press axis,
 while the contact law averages laterally varying material around the axis (sim/contact/axisymmetric.py): off the
-axis that average is an approximation that nothing axisymmetric can check.
+axis that average is an approximation that nothing axisymmetric can check. Its nodal contact forces also give the
+taxel image (:mod:`.fe3d_image`).
 
 Model (quasi-static, linear elastic, small strain):
 
 - geometry: press point at the origin, the block spans x in [-half_x, half_x], y in [-half_y, half_y], depth in
-  [0, thickness]; the inclusion spans x in [near, near + length] and is centred on y = 0, so the plane y = 0 (through
-  the press axis and the lump's centre) is a symmetry plane and only y >= 0 is meshed (u_y = 0 there);
+  [0, thickness]; the inclusion spans x in [near, near + length] and is centred on y = 0; a wall is the plane
+  n . (x, y) = offset; a skin the top ``thickness`` of another material. Where the block is symmetric about y = 0
+  (no wall, or a wall along y) only y >= 0 is meshed (u_y = 0 there), else all of it;
 - mesh: a tensor-product hex mesh, uniform (spacing ``h``) across the contact and growing geometrically away, with
-  grid lines on the inclusion's faces (each element one material: ratios with and without the lump on the same
-  grid cancel most of the discretisation error); trilinear bricks with selective reduced integration (the volumetric
-  term at one point: no locking at nu 0.45; triquadratic bricks cost ~40x more to assemble and factorise here);
+  grid lines on the inclusion's faces, the skin's bottom and a wall at 0 / 90 deg (each element one material; a
+  wall at another angle mixes the elements it cuts, :mod:`.fe3d_solve`); trilinear bricks with selective reduced
+  integration (the volumetric term at one point: no locking at nu 0.45; triquadratic bricks cost ~40x more to
+  assemble and factorise here);
 - boundary: the bottom bonded (u = 0), the sides free (as the scene's box), the symmetry plane u_y = 0;
-- contact: the stiffness is factorised once and the surface compliance of the top nodes within reach condensed from
-  it (vertical settlement per unit downward nodal force); at each indentation d the active set of nodes is found
-  with f >= 0, settlement = d - (R - sqrt(R^2 - r^2)) (the exact sphere) where f > 0 and no penetration elsewhere
-  (Murty's active-set iteration on the dense LCP); the force is twice the half model's nodal sum.
+- contact: the surface compliance of the top nodes within reach is condensed from the stiffness (vertical
+  settlement per unit downward nodal force); at each indentation d the active set of nodes is found with f >= 0,
+  settlement = d - (R - sqrt(R^2 - r^2)) (the exact sphere) where f > 0 and no penetration elsewhere (Murty's
+  active-set iteration on the dense LCP); the solve is :func:`.fe3d_solve.contact_field`.
 """
 
 from __future__ import annotations
@@ -182,8 +186,8 @@ class FE3DPress:
 
     Attributes:
         depth: indentations, m, (n,); force: normal force on the whole (unhalved) block, N, (n,).
-        contact_nodes: top nodes in contact in the half model, (n,); dofs: degrees of freedom; h: the element
-            edge across the contact, m.
+        contact_nodes: top nodes in contact in the model solved (half or whole), (n,); dofs: degrees of freedom;
+            h: the element edge across the contact, m.
     """
 
     depth: np.ndarray
