@@ -41,6 +41,7 @@ from palpate.sim.flex.model import (
 )
 from palpate.sim.flex.plate import load_plate_calibration, plate_curve, plate_skin
 from palpate.sim.flex.tables import FlexTables
+from palpate.sim.limits import check_holds
 from palpate.sim.stability import (
     MAX_STEPS,
     SolverWarnings,
@@ -190,6 +191,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     check_resolves_press(profile, dt, " (flex)")
     tip = scene.fingertip
     check_depth(profile, tip.radius, " (flex)")
+    check_holds("flex", obj, profile, " (flex)")
     t_prof = np.asarray(profile.t, dtype=float)
     z_prof = np.asarray(profile.z, dtype=float)
     if t_prof.ndim != 1 or t_prof.shape != z_prof.shape or len(t_prof) < 2 or np.any(np.diff(t_prof) <= 0):
