@@ -26,6 +26,7 @@ from palpate.sim.contact.law import ContactLaw
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import gauss_points, sensel_bounds
+from palpate.sim.limits import check_holds
 from palpate.sim.stability import check_depth, check_resolves_press, law_depth
 from palpate.sim.trace import PhysicsTrace
 
@@ -197,6 +198,7 @@ def run_analytic_press(
             f"press profile was made for a tip radius {profile.meta.get('radius')} m, the scene's is {radius} m"
         )
     check_depth(profile, radius, " (analytic)")
+    check_holds("analytic", obj, profile, " (analytic)")
     mat = local_material(obj, profile.x, profile.y, profile.surface_z)
     grid = profile.t[0] + np.arange(max(int(np.floor(profile.duration * rate)) + 1, 2)) / rate
     # the deepest point too, so the trace's peak is the press's (a taxel frame between samples interpolates)

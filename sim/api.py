@@ -34,6 +34,10 @@ def simulate_press(
     Returns:
         a PressRecording with ``.frames`` (TaxelFrame list), ``.poses`` (PoseSample list), ``.truth``
         (GroundTruth: t s, force N, indentation m) and ``.meta``.
+
+    Raises:
+        ValidationError: bad options, or a press the fidelity does not hold (:mod:`palpate.sim.limits`: deeper than
+            half the thickness, a Poisson ratio over 0.49 for flex or 0.4999 for the others), naming the limit.
     """
 
     unknown = sorted(set(scene_options) - set(_OPTIONS))

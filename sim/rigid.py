@@ -36,6 +36,7 @@ from palpate.sim.contact.law import ContactLaw
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import cap_height, sensel_quadrature
+from palpate.sim.limits import check_holds
 from palpate.sim.scene import FingerDrive, build_press_model, surface_heights
 from palpate.sim.stability import (
     MAX_STEPS,
@@ -159,6 +160,7 @@ def run_rigid_press(
     tip = scene.fingertip
     radius = tip.radius
     check_depth(profile, radius, " (rigid)")
+    check_holds("rigid", obj, profile, " (rigid)")
     mat = local_material(obj, profile.x, profile.y, profile.surface_z)
     if young is not None:
         if not (np.isfinite(young) and young > 0):

@@ -29,6 +29,7 @@ from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profi
 from palpate.sim.flex.model import SOLVER_ITERATIONS
 from palpate.sim.flex.press import run_flex_press
 from palpate.sim.flex.tables import FlexTables, load_flex_tables
+from palpate.sim.limits import MAX_DEPTH_OVER_THICKNESS, depth_refusal, layer_refusal, poisson_refusal
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import resolve_profile
 from palpate.sim.realism.stage import RealismSession
@@ -161,7 +162,8 @@ class SimSource:
         surface_z, _ = surface_at(obj, target.x, target.y, self._mesh(obj))
         depth = target.depth
         if target.force is not None:
-            law = self._law(obj, target.x, target.y, surface_z, MAX_DEPTH_OVER_RADIUS * tip.radius)
+            law = self._law(obj, target.x, target.y, surface_z,
+                            min(MAX_DEPTH_OVER_RADIUS * tip.radius, MAX_DEPTH_OVER_THICKNESS * surface_z))
             reach = law.depth_for_force(target.force) if target.force < law.force[-1] else law.max_depth
             depth = reach if depth is None else min(depth, reach)
         if self._images is None:
@@ -186,11 +188,20 @@ class SimSource:
         timestep = self.timestep or 0.002
         seed = int(s_profile.generate_state(1)[0])
 
-        deepest = MAX_DEPTH_OVER_RADIUS * tip.radius
+        # a material or a layer the rung does not hold: refused before its contact law is solved
+        held = poisson_refusal(obj, fidelity) or layer_refusal(obj, fidelity)
+        if held is not None:
+            raise ValidationError(f"{obj.name}: {held}")
+        by_radius = MAX_DEPTH_OVER_RADIUS * tip.radius
+        # and no deeper than the share of the material over the rigid base that every rung holds
+        deepest = min(by_radius, MAX_DEPTH_OVER_THICKNESS * surface_z)
+        capped = False
         if target.depth is not None and target.depth > deepest and target.force is not None:
             # "this force, but no deeper than ...": no press goes past the deepest allowed either
-            target = replace(target, depth=deepest)
+            target, capped = replace(target, depth=deepest), deepest < by_radius
         if target.depth is not None and target.depth > deepest:
+            if deepest < by_radius:
+                raise ValidationError(f"{obj.name}: {depth_refusal(target.depth, surface_z)}")
             raise ValidationError(f"press target depth {target.depth * 1e3:.2f} mm is over {MAX_DEPTH_OVER_RADIUS} tip "
                                   f"radii ({tip.radius * 1e3:.1f} mm tip): the contact would reach the sphere's "
                                   f"equator; press at most {deepest * 1e3:.2f} mm deep")
@@ -219,7 +230,7 @@ class SimSource:
         else:
             # the same seed draws the same press point whatever the depth: find it, then invert the law felt there
             point = profile_for(lambda force: 1e-3)
-            law = self._law(obj, point.x, point.y, surface_z, MAX_DEPTH_OVER_RADIUS * tip.radius)
+            law = self._law(obj, point.x, point.y, surface_z, deepest)
 
             def depth_for_force(force: float) -> float:
                 try:
@@ -231,6 +242,11 @@ class SimSource:
                 except ValidationError:
                     if target.depth is not None:
                         return float("inf")  # the depth comes first: the force limit is never reached
+                    if deepest < by_radius:
+                        raise ValidationError(
+                            f"{obj.name}: the {force:.3g} N force target is not reached within the depth limit of "
+                            f"{deepest * 1e3:.2f} mm ({MAX_DEPTH_OVER_THICKNESS:.0%} of the {surface_z * 1e3:.2f} mm "
+                            "of material over the rigid base): use a lower force target or a thicker sample") from None
                     raise
 
             if self._session is None:
@@ -238,6 +254,12 @@ class SimSource:
             else:
                 real = self._realism(obj, point, target, law, depth_for_force, s_real)
                 profile = profile_for(real.bone_depth_for_force)
+        if capped and profile.meta.get("force_target") is None:
+            # the depth limit, not the user's, would stop this press short of its force: refused, not silent
+            raise ValidationError(
+                f"{obj.name}: the {target.force:.3g} N force target is not reached within the depth limit of "
+                f"{deepest * 1e3:.2f} mm ({MAX_DEPTH_OVER_THICKNESS:.0%} of the {surface_z * 1e3:.2f} mm of material "
+                "over the rigid base): use a lower force target or a thicker sample")
         physics_profile = profile
         if real is not None:
             # the pulp's share taken out of the bone's press; the force the person stops at is felt through the

@@ -76,6 +76,21 @@ def test_bad_samples_and_settings_are_refused_naming_what_is_wrong(make, match):
         make()
 
 
+def test_any_single_depth_and_any_set_of_depths_into_a_thin_layer_is_solved_and_matches_the_layered_law():
+    """A thin bonded layer's contact is wider than a half-space's (1.34 sqrt(R d) on 2 mm at nu 0.45), so a single
+    depth of 0.8-1.9 mm ran out of the refined region; the region now widens until it holds the contact."""
+    sample = AxisymmetricSample(Material("m", 2e5, 0.45), 0.002)
+    depths = np.linspace(0.1e-3, 1.9e-3, 10)
+    law = sample_law(sample, R, float(depths[-1]))
+    single = np.array([fe_press(sample, R, [d]).force[0] for d in depths])
+    np.testing.assert_allclose(single, law.force_at(depths), rtol=0.01)
+    # the same depths at once, and a set whose smallest sets a fine spacing, agree with the single ones
+    np.testing.assert_allclose(fe_press(sample, R, depths).force, single, rtol=0.01)
+    thin = AxisymmetricSample(Material("m", 2e5, 0.49), 0.001)
+    pair = fe_press(thin, R, [0.3e-3, 0.9e-3]).force
+    np.testing.assert_allclose(pair, sample_law(thin, R, 0.9e-3).force_at(np.array([0.3e-3, 0.9e-3])), rtol=0.01)
+
+
 @pytest.mark.physics
 @pytest.mark.parametrize(("thickness", "poisson", "base"), [(0.01, 0.49, "bonded"), (0.01, 0.3, "bonded"),
                                                            (0.008, 0.3, "frictionless")])

@@ -1,17 +1,31 @@
 """Stability at the extremes: every cell of the matrix, and every call of a random fuzz, is ok (finite, ordered,
-at its commanded depth and force), diverged or invalid with a message that names an option the caller has; never
-NaN, never a silent miss, never a hang. The full matrix is benchmarks/stability_matrix.py."""
+at its commanded depth and force, and at the centre within WRONG of the contact law), diverged or invalid with a
+message that names an option the caller has; never NaN, never a silent miss or a silent wrong answer, never a hang.
+The full matrix is benchmarks/stability_matrix.py."""
 
 from __future__ import annotations
+
+import re
 
 import numpy as np
 import pytest
 
-from palpate.sim.extremes import Cell, fuzz_cells, matrix, outcome_counts, physically_ordered, run_cell
+from palpate.sim import limits
+from palpate.sim.extremes import (
+    Cell,
+    audit_cells,
+    fuzz_cells,
+    matrix,
+    outcome_counts,
+    physically_ordered,
+    run_cell,
+)
 
 #: Options a caller of simulate_press / SimSource / the run_*_press functions has, one of which every message names.
 ACTIONABLE = ("timestep", "speed", "slower", "deep", "depth", "taxel rate", "force target", "fidelity",
-              "max_steps", "tip radius")
+              "max_steps", "tip radius", "thicker sample", "Poisson ratio", "layer of at least")
+#: How a refusal for what a rung holds (palpate.sim.limits) names its limit.
+LIMIT = re.compile(r"depth limit (of )?\d+\.\d+ mm|Poisson ratio up to 0\.\d+|resolves layers from \d+(\.\d+)? mm")
 
 
 def _check(outcomes):
@@ -60,7 +74,7 @@ def test_step_budget_stops_a_press_that_would_take_too_long():
 
 
 def test_a_press_past_three_quarters_of_the_tip_radius_is_refused_naming_the_depth():
-    o = run_cell(Cell("analytic", 2e5, 0.3, 2e-3, 0.01, 0.8, "centre"))
+    o = run_cell(Cell("analytic", 2e5, 0.3, 2e-3, 0.01, 0.8, "centre", thickness=0.02))
     assert o.outcome == "invalid" and "tip radii" in o.message and "deep" in o.message
 
 
@@ -75,6 +89,45 @@ def test_fuzz_of_the_closed_form_fidelities_has_no_nan_no_silent_miss_and_no_han
     outcomes = [run_cell(c) for c in fuzz_cells(10, seed=3, fidelities=("analytic", "rigid"))]
     _check(outcomes)
     assert outcome_counts(outcomes).get("ok", 0) >= 3
+
+
+def test_the_audits_silent_wrong_answers_are_refused_naming_their_limit_or_answered_right():
+    """Deeper than the base holds (every rung), thin skins, a 2 mm block pressed 1-1.8 mm, nu 0.49-0.49995."""
+    outcomes = [run_cell(c) for c in audit_cells()]
+    _check(outcomes)
+    for o in outcomes:
+        c = o.cell
+        if o.outcome == "invalid":
+            assert LIMIT.search(o.message), (c, o.message)
+        elif c.fidelity != "analytic":
+            # rigid and flex (and auto's choice of them) within the table's errors of the contact law
+            assert o.fidelity == "analytic" or abs(o.error) < 0.08, (c, o.error)
+    by = {(o.cell.fidelity, o.cell.poisson, o.cell.thickness, o.cell.skin, o.cell.depth_fraction): o.outcome
+          for o in outcomes}
+    assert all(v == "invalid" for k, v in by.items() if k[2] == 0.002 and k[4] > 0.5)  # past half the base
+    assert all(v == "invalid" for k, v in by.items() if k[0] == "flex" and (0 < k[3] < 1e-3 or k[1] > 0.49))
+    assert all(v == "ok" for k, v in by.items() if k[0] in ("analytic", "auto") and k[3] >= 2e-4)
+    assert by[("auto", 0.499, 0.01, 0.0, 0.2)] == "ok" and by[("flex", 0.49, 0.01, 0.0, 0.2)] == "ok"
+
+
+def test_the_matrix_catches_a_silent_wrong_answer(monkeypatch):
+    """With flex's thin-layer limit lifted, a 0.5 mm skin is the bare block again: the matrix calls it a BUG."""
+    monkeypatch.setitem(limits.MIN_LAYER, "flex", 0.0)
+    o = run_cell(Cell("flex", 2e5, 0.45, 5e-3, 0.01, 0.2, skin=5e-4))
+    assert o.outcome == "BUG" and "silent wrong answer" in o.message and o.error > 0.25
+
+
+def test_fuzz_of_stacks_and_thin_blocks_has_no_silent_wrong_answer():
+    outcomes = [run_cell(c) for c in fuzz_cells(12, seed=5, fidelities=("analytic", "rigid", "auto"), stacks=True)]
+    _check(outcomes)
+    assert outcome_counts(outcomes).get("ok", 0) >= 3
+    over = [o for o in outcomes if o.outcome == "invalid" and "material over" in o.message]
+    assert over and all(LIMIT.search(o.message) for o in over), [o.message for o in over]
+
+
+@pytest.mark.physics
+def test_fuzz_of_stacks_with_flex_has_no_silent_wrong_answer():
+    _check([run_cell(c) for c in fuzz_cells(30, seed=21, fidelities=("flex", "auto"), stacks=True)])
 
 
 @pytest.mark.physics

@@ -25,6 +25,7 @@ from palpate.sim.bem.solve import solve_contact
 from palpate.sim.bem.surface import Surface, build_surface
 from palpate.sim.bem.wall import WallTable
 from palpate.sim.controller import PressProfile
+from palpate.sim.limits import check_holds
 from palpate.sim.stability import check_depth, check_resolves_press
 from palpate.sim.trace import PhysicsTrace
 
@@ -108,7 +109,8 @@ def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate:
         walls: the wall table (read from models/ when a wall is met and none is given; a SimSource passes its own).
 
     Raises:
-        ValidationError: a press deeper than 0.75 tip radii, too short for the rate, or off the object.
+        ValidationError: a press deeper than 0.75 tip radii or than the rung holds (:mod:`palpate.sim.limits`), too
+            short for the rate, or off the object.
     """
     rate = scene.taxels.rate if rate is None else rate
     if not (np.isfinite(rate) and rate > 0):
@@ -120,6 +122,7 @@ def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate:
     tip = scene.fingertip
     radius = tip.radius
     check_depth(profile, radius, " (bem)")
+    check_holds("bem", obj, profile, " (bem)")
     mat = local_material(obj, profile.x, profile.y, profile.surface_z)
     grid = profile.t[0] + np.arange(max(int(np.floor(profile.duration * rate)) + 1, 2)) / rate
     t = np.union1d(grid, [float(profile.t[int(np.argmin(profile.z))])])

@@ -41,6 +41,7 @@ from palpate.sim.flex.model import (
 )
 from palpate.sim.flex.plate import load_plate_calibration, plate_curve, plate_skin
 from palpate.sim.flex.tables import FlexTables
+from palpate.sim.limits import check_holds
 from palpate.sim.stability import (
     MAX_STEPS,
     SolverWarnings,
@@ -178,7 +179,9 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
         SimulationDiverged: a MuJoCo warning that invalidates the force (a reset state: BADQACC, BADQPOS,
             BADQVEL, BADCTRL; dropped contacts or constraints: CONTACTFULL, CNSTRFULL), NaN, or the tip sinking
             through the block; PressShortfall: the tip missed its commanded depth by over 2%; ValidationError:
-            unsupported shape, bad parameters, a press deeper than 0.75 tip radii or longer than the step budget.
+            unsupported shape, bad parameters, a press deeper than 0.75 tip radii or longer than the step budget, or
+            (with ``calibrate``) one flex does not hold (:mod:`palpate.sim.limits`: deeper than half the material
+            over the base, a Poisson ratio over 0.49, a layer under 1 mm).
     """
     import mujoco
 
@@ -190,6 +193,8 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
     check_resolves_press(profile, dt, " (flex)")
     tip = scene.fingertip
     check_depth(profile, tip.radius, " (flex)")
+    if calibrate:  # an uncorrected press measures the mesh itself (its calibration), not an answer for a user
+        check_holds("flex", obj, profile, " (flex)")
     t_prof = np.asarray(profile.t, dtype=float)
     z_prof = np.asarray(profile.z, dtype=float)
     if t_prof.ndim != 1 or t_prof.shape != z_prof.shape or len(t_prof) < 2 or np.any(np.diff(t_prof) <= 0):

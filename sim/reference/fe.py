@@ -30,6 +30,10 @@ from palpate.sim.reference.sample import AxisymmetricSample
 
 #: Surface spacing h0 as a fraction of the smallest contact radius asked for, at refinement 1.
 H0_OVER_A = 1.0 / 12.0
+#: The refined region first reaches 1.3 x 1.15 sqrt(R d) (a half-space's contact with room); where the contact is
+#: wider (a thin bonded layer), it is widened by WIDENING, up to MAX_WIDENINGS times.
+WIDENING = 1.5
+MAX_WIDENINGS = 4
 
 
 @dataclass(frozen=True)
@@ -166,8 +170,6 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
         free_side: radius, m, past which the top surface is absent (a free side that ``materials`` fills with a
             near-void so the mesh can run on): the sphere cannot touch it there. It is also a mesh line.
     """
-    from scipy.sparse.linalg import splu
-
     d = np.sort(np.atleast_1d(np.asarray(depths, dtype=float)))
     if not (tip_radius > 0 and np.all(np.isfinite(d)) and d.size and d[0] > 0 and d[-1] < 0.9 * tip_radius):
         raise ValidationError(f"fe_press: depths must lie in (0, {0.9 * tip_radius}) m, got {depths!r}")
@@ -176,6 +178,38 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
     a_min = math.sqrt(tip_radius * d[0])
     a_max = math.sqrt(tip_radius * d[-1]) * 1.15  # a sphere's contact is a little wider than the paraboloid's
     h0 = a_min * H0_OVER_A / refinement
+    reach = a_max
+    for _ in range(MAX_WIDENINGS + 1):
+        try:
+            return _solve(sample, tip_radius, d, reach, h0, growth=growth, depth_growth=depth_growth,
+                          materials=materials, breaks_r=breaks_r, breaks_z=breaks_z, energy=energy,
+                          free_side=free_side)
+        except _EdgeReached as exc:
+            if exc.at_rim:
+                break
+            # on a thin bonded layer the contact is wider than a half-space's (1.35 sqrt(R d) on 2 mm at nu 0.45):
+            # the fine region is widened until it holds the contact
+            reach *= WIDENING
+    raise ValidationError(f"fe_press: the contact on {sample.describe()} reached the edge of the refined region "
+                          f"({1.3 * reach * 1e3:.2f} mm) at depths up to {d[-1] * 1e3:.2f} mm; press less deep")
+
+
+class _EdgeReached(ValidationError):
+    """The contact disc reached the last surface vertex of the refined region (``at_rim``: the sample's own rim,
+    so a wider refined region cannot help)."""
+
+    def __init__(self, message: str, at_rim: bool = False):
+        super().__init__(message)
+        self.at_rim = at_rim
+
+
+def _solve(sample: AxisymmetricSample, tip_radius: float, d: np.ndarray, a_max: float, h0: float, *,
+           growth: float, depth_growth: float, materials, breaks_r, breaks_z, energy: bool,
+           free_side: float) -> FEPress:
+    """:func:`fe_press` on a mesh refined (spacing ``h0``, m) out to 1.3 ``a_max`` (m); _EdgeReached if the contact
+    reaches the end of that region."""
+    from scipy.sparse.linalg import splu
+
     wide = not math.isfinite(sample.radius)
     width = 12.0 * sample.thickness + 60.0 * a_max if wide else sample.radius
     breaks_r, breaks_z = list(breaks_r), list(breaks_z) + list(sample.interfaces())
@@ -228,6 +262,9 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
     forces, radii, pressures = [], [], []
     for depth in d:
         disc = contact_disc(compliance, depth - gap0, depth)
+        if disc.loaded >= len(r_top) - 1:
+            raise _EdgeReached("fe_press: the contact reached the edge of the refined region",
+                               at_rim=bool(r_top[-1] >= r_nodes[-1] - 1e-12))
         forces.append(2.0 * math.pi * float(weights @ disc.pressure))
         radii.append(_edge(r_top, disc.pressure, disc.loaded))
         pressures.append(disc.pressure)
@@ -266,9 +303,6 @@ def contact_disc(compliance: np.ndarray, gap: np.ndarray, depth: float) -> HatDi
         if penetrates(q, k - 1):
             break
         k, p = k - 1, q
-    if k >= n - 1:
-        raise ValidationError("fe_press: the contact reached the edge of the refined region; this is a bug in the "
-                              "mesh sizing")
     return HatDisc(pressure=p, loaded=k)
 
 

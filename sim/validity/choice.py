@@ -9,7 +9,9 @@ A press is placed in the table by what it feels (contact radius a = sqrt(R d) at
 Each applicable family predicts an error: the largest over its rows within a factor 1.5 of the press's value (or,
 past the table's largest value, the rows there: farther from the edge or thicker only helps); a press smaller than
 anything measured has no prediction. A fidelity's predicted error is the worst over the families. Geometry rules
-out what a fidelity cannot see: ``analytic`` needs a flat top under the whole contact, ``flex`` a box or cylinder.
+out what a fidelity cannot see: ``analytic`` needs a flat top under the whole contact, ``flex`` a box or cylinder;
+and what a fidelity refuses (:mod:`palpate.sim.limits`: a press too deep for the material over the base, a Poisson
+ratio or a layer it does not hold) rules it out the same way (every rung ruled out: ValidationError with the reasons).
 Where the material changes off the press axis within reach (a wall, a map's boundary, a lump beside the axis), the
 taxel image matters too: the image table (:mod:`.image_table`, against the 3-D FE) must pass the family (``wall``
 where the change reaches the surface, else ``lump``; a family the image table has not measured leaves the choice
@@ -26,8 +28,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, material_index_at
 from palpate.sim.analytic import material_under
+from palpate.sim.limits import refusal
 from palpate.sim.validity.image_table import ImageTable
 from palpate.sim.validity.table import ValidityRow, ValidityTable
 
@@ -163,6 +167,10 @@ def situation(obj: ObjectSpec, x: float, y: float, surface_z: float, depth: floa
         if not lateral.centred:
             image = "wall" if lateral.depth < WALL_DEPTH else "lump"
             notes.append("material changing off the press axis (the table's lumps are on it)")
+    for rung in ORDER:  # what a rung would refuse (palpate.sim.limits) rules it out too
+        why = refusal(rung, obj, depth, surface_z)
+        if why is not None and rung not in excluded:
+            excluded[rung] = why
     return Situation(thickness=surface_z / a, poisson=poisson, edge=edge_value, skin=skin, lump=lump,
                      excluded=excluded, notes=tuple(notes), image=image)
 
@@ -249,6 +257,9 @@ def choose(table: ValidityTable, sit: Situation, tolerance: float, name: str,
         if errs[rung] <= tolerance:
             return Choice(rung, f"{name}: {rung} is the cheapest within the {tolerance:.0%} tolerance (validity "
                           f"table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)
+    if all(rung in sit.excluded for rung in ORDER):
+        reasons = list(dict.fromkeys(sit.excluded[r] for r in ORDER))
+        raise ValidationError(f"{name}: no fidelity holds this press: {'; '.join(reasons)}")
     if (sit.image is not None and images is not None and images.measures(sit.image)
             and not any(math.isfinite(v) for v in errs.values())):
         # no rung's image holds the family: the closest image, said as such
@@ -261,6 +272,7 @@ def choose(table: ValidityTable, sit: Situation, tolerance: float, name: str,
                           f"validity table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)
     finite = {k: v for k, v in errs.items() if math.isfinite(v)}
     # with nothing measured to prefer, the cheapest rung the geometry allows (bem holds no validity-table rows)
-    best = min(finite, key=finite.get) if finite else next(r for r in ORDER if r not in sit.excluded and r != "bem")
+    allowed = [r for r in ORDER if r not in sit.excluded]
+    best = min(finite, key=finite.get) if finite else next((r for r in allowed if r != "bem"), allowed[0])
     return Choice(best, f"{name}: no fidelity is within the {tolerance:.0%} tolerance; {best} is the most accurate "
                   f"(validity table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)
