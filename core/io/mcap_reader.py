@@ -63,8 +63,9 @@ class _Bounds:
 
     def time_of(self, msg: dict) -> float:
         t = _field(msg, "t", "number")
-        if not -self.time <= t <= self.time:
-            raise _BadMessage(str(limits.implausible("field 't'", t, -self.time, self.time, "s", "time_s")))
+        # never negative: a recording's log times are unsigned, and palpate's writer refuses t < 0
+        if not 0.0 <= t <= self.time:
+            raise _BadMessage(str(limits.implausible("field 't'", t, 0.0, self.time, "s", "time_s")))
         return t
 
     def area(self, msg: dict) -> float:

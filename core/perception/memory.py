@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core import __version__
+from palpate.core import __version__, files
 from palpate.core.errors import NotFittedError, ValidationError
 from palpate.core.perception.gaussian import GaussianFactors, regularise_covariance
 from palpate.core.perception.memory_file import FEATURES_VERSION, FORMAT_NAME, FORMAT_VERSION, parse_memory, read_json
@@ -287,7 +287,7 @@ class HapticMemory:
 
     def save(self, path: str | Path) -> None:
         """Write the memory as JSON to ``path``."""
-        Path(path).write_text(self.to_json() + "\n", encoding="utf-8")
+        files.write_text(path, self.to_json() + "\n")
 
     @classmethod
     def from_dict(cls, doc, source: str = "<memory>", audit: bool = True) -> HapticMemory:

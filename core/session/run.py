@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core import files
 from palpate.core.errors import ValidationError
 from palpate.core.io.realism_figures import plot_sim_vs_real
 from palpate.core.perception.layered_memory import train_layered_memory
@@ -228,7 +229,7 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         "versions": _versions(),
     }
     assert_finite(summary)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    files.write_text(out / "summary.json", json.dumps(summary, indent=2))
     return summary
 
 

@@ -244,7 +244,7 @@ class HapticMaterialMap:
             "meta": self.meta,
         }
         path = out / "manifest.json"
-        path.write_text(json.dumps(manifest, indent=2))
+        files.write_text(path, json.dumps(manifest, indent=2))
         return path
 
     @classmethod
@@ -343,4 +343,5 @@ def read_png(root: Path, fname, shape: tuple[int, int], where: str) -> np.ndarra
 
 def _write_png(image_module, path: Path, codes: np.ndarray) -> None:
     # Flip so that image row 0 is the largest y: the picture is a top view of the object.
-    image_module.fromarray(np.ascontiguousarray(codes[::-1], dtype=np.uint8)).save(path)
+    with files.writing(path):
+        image_module.fromarray(np.ascontiguousarray(codes[::-1], dtype=np.uint8)).save(path)
