@@ -176,7 +176,7 @@ def test_a_hostile_client_keeps_no_one_else_out(tmp_path):
     assert "unknown channel" not in err  # the SDK never saw the hostile subscriptions
 
 
-LIMITS = GuardLimits(handshake_s=0.5, idle_s=1.5, max_message_bytes=1024, max_messages_per_s=5,
+LIMITS = GuardLimits(handshake_s=2.0, idle_s=3.0, max_message_bytes=1024, max_messages_per_s=5,
                      max_subscriptions=4, max_clients=3)
 
 
