@@ -131,3 +131,15 @@ def test_an_integer_of_5000_digits_in_a_realism_profile_is_a_one_line_error(tmp_
     with pytest.raises(ValidationError, match="long.toml") as exc:
         load_profile(path)
     assert len(str(exc.value)) < 300 and "\n" not in str(exc.value)
+
+
+@pytest.mark.parametrize(("line", "value", "key"), [
+    ("SENSEL_AREA 0.0645 sq cm", "SENSEL_AREA 1e300 sq cm", "SENSEL_AREA"),
+    ("ROW_SPACING 0.254 cm", "ROW_SPACING 1e300 cm", "ROW_SPACING")])
+def test_a_tekscan_header_with_an_absurd_magnitude_is_refused(tmp_path, capsys, line, value, key):
+    export = tmp_path / "absurd.csv"
+    export.write_text((REPO / "tests" / "data" / "tekscan_press.csv").read_text().replace(line, value))
+    code = main(["import", "tekscan", str(export), "--out", str(tmp_path / "x.mcap")])
+    err = _error_line(capsys.readouterr().err)
+    assert code == 2 and f"{export.name}:" in err and key in err and "--limit" in err, err
+    assert not (tmp_path / "x.mcap").exists()
