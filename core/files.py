@@ -9,6 +9,7 @@ never echoed whole into an error.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import math
@@ -30,6 +31,33 @@ def brief(value, n: int = BRIEF) -> str:
     """``repr(value)`` cut to ``n`` characters, for error messages about values read from files."""
     text = repr(value)
     return text if len(text) <= n else f"{text[: n - 3]}..."
+
+
+def named(exc: OSError, path) -> OSError:
+    """``exc`` naming ``path`` when it names no file (a ``write`` that fills the disk says only "No space left on
+    device"); the command line shows it as ``path: reason``."""
+    if exc.filename is not None:
+        return exc
+    out = OSError(exc.errno, exc.strerror or str(exc), str(path))
+    out.__cause__ = exc.__cause__
+    return out
+
+
+@contextlib.contextmanager
+def writing(path):
+    """Around the writing of ``path``: an OSError that names no file is raised again naming it."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.filename is not None:
+            raise
+        raise named(exc, path) from None
+
+
+def write_text(path, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path``; an I/O error names the file."""
+    with writing(path):
+        Path(path).write_text(text, encoding="utf-8")
 
 
 def _os_error(path: Path, what: str, exc: OSError) -> ValidationError:

@@ -41,6 +41,14 @@ LIMITS = {lim.name: lim for lim in (
     Limit("sweep_variants", 10000, "variants", "variants of one sweep (the product of its axes)"),
     Limit("mcap_mb", 64, "MB", "an MCAP record read into memory, and an MCAP chunk once decompressed"),
     Limit("mcap_messages", 4e6, "messages", "messages in one MCAP recording"),
+    # Plausibility of physical numbers read from files (not sizes): a value outside its range is an error naming the
+    # file and the field, never a run that rejects every press or a map that overflows.
+    Limit("length_m", 100, "m", "largest magnitude of a position or length read from a file: a recorded pose's "
+          "coordinates, a haptic material's origin and cell"),
+    Limit("length_min_m", 1e-6, "m", "smallest cell read from a file (a haptic material's cell_size_m), and the "
+          "side of the smallest sensel; a lower bound: a smaller value allows smaller"),
+    Limit("sensel_area_m2", 1e-2, "m^2", "largest sensel area of a recorded taxel frame"),
+    Limit("time_s", 1e10, "s", "largest magnitude of a time stamp read from a recording"),
 )}
 
 
@@ -88,6 +96,15 @@ def exceeded(name: str, what: str, value: float) -> ValidationError:
 
 def _number(v: float) -> str:
     return str(int(v)) if math.isfinite(v) and float(v).is_integer() and abs(v) < 1e15 else f"{v:.4g}"
+
+
+def implausible(what: str, value: float, lo: float, hi: float, unit: str, *names: str) -> ValidationError:
+    """The error for ``what`` (naming the file and field) being ``value`` ``unit``, outside [lo, hi], the range the
+    limits ``names`` set."""
+    raised = " or ".join(f"palpate --limit {n}=N" for n in names)
+    return ValidationError(f"{what} = {_number(value)} {unit} is outside the plausible range {_number(lo)} to "
+                           f"{_number(hi)} {unit} (limit {', '.join(names)}; change it with {raised}; "
+                           "see docs/limits.md)")
 
 
 def check(name: str, what: str, value: float) -> None:

@@ -1,8 +1,10 @@
 """Fuzz test over every file kind palpate reads: seeded, bounded in time and memory, run in CI.
 
 Each try (tests/fuzz_inputs.py) runs in a forked child process whose address space is limited
-(``MEMORY_HEADROOM`` above what the test process already maps) and which is killed after ``TRY_SECONDS``; a
-command line goes through palpate's ``main`` as a user's would. Every try ends in one outcome:
+(``MEMORY_HEADROOM`` above what the test process already maps) and which is killed as a hang when its processes
+(the child and whatever it starts) have used ``TRY_CPU_SECONDS`` of CPU on the try, or no CPU at all for
+``STALL_SECONDS`` (blocked): budgets of work done, not of wall-clock time, so a busy machine slows a try without
+making it a hang. A command line goes through palpate's ``main`` as a user's would. Every try ends in one outcome:
 
 - ``ok``: the input was still valid and the command succeeded;
 - ``clear``: exit code 2 (or a palpate error from a library call) with one line naming the file (or key);
@@ -23,6 +25,7 @@ import multiprocessing as mp
 import os
 import resource
 import signal
+import time
 from pathlib import Path
 
 import numpy as np
@@ -31,8 +34,13 @@ from fuzz_inputs import KINDS, Try, make_bases, tries
 
 TRIES = int(os.environ.get("PALPATE_FUZZ_TRIES", "12"))
 SEED = int(os.environ.get("PALPATE_FUZZ_SEED", "17"))
-#: A try still running after this is a hang (the longest valid try, a one-variant sweep, takes ~2 s).
-TRY_SECONDS = 30.0
+#: CPU a try's processes may use, s (the longest valid try, a one-variant sweep, takes ~2 s); more is a hang.
+TRY_CPU_SECONDS = 30.0
+#: A try whose processes use less than STALL_CPU s of CPU for this long is blocked: a hang.
+STALL_SECONDS = 60.0
+STALL_CPU = 0.02
+#: How often the budgets are looked at, s.
+POLL_SECONDS = 0.25
 #: Address space a try may add to what the test process maps: a bounded read needs far less.
 MEMORY_HEADROOM = 1.5e9
 BAD = ("unclear", "traceback", "hang", "memory", "outside", "nan")
@@ -149,8 +157,33 @@ def _vm_size() -> int:
     return 0
 
 
-def run_tries(all_tries: list[Try]) -> list[tuple[str, str]]:
-    """Outcome and detail of every try, each in a forked child bounded in time and memory."""
+def _tree_cpu(pid: int) -> float:
+    """CPU time used by process ``pid``, its threads, its live descendants and the children it has reaped, s."""
+    tick = os.sysconf("SC_CLK_TCK")
+    total, todo, seen = 0, [pid], set()
+    while todo:
+        p = todo.pop()
+        if p in seen:
+            continue
+        seen.add(p)
+        try:
+            fields = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
+            tasks = os.listdir(f"/proc/{p}/task")
+        except OSError:  # ended meanwhile: a parent's reaped-children time holds it once it is waited for
+            continue
+        total += sum(int(v) for v in fields[11:15])  # utime, stime, cutime, cstime
+        for tid in tasks:
+            try:
+                todo += [int(c) for c in Path(f"/proc/{p}/task/{tid}/children").read_text().split()]
+            except OSError:
+                pass
+    return total / tick
+
+
+def run_tries(all_tries: list[Try], cpu_seconds: float = TRY_CPU_SECONDS,
+              stall_seconds: float = STALL_SECONDS) -> list[tuple[str, str]]:
+    """Outcome and detail of every try, each in a forked child bounded in CPU time (``cpu_seconds`` per try, and
+    ``stall_seconds`` without using any) and memory."""
     ctx = mp.get_context("fork")
     limit = int(_vm_size() + MEMORY_HEADROOM)
     results: list[tuple[str, str] | None] = [None] * len(all_tries)
@@ -161,11 +194,21 @@ def run_tries(all_tries: list[Try]) -> list[tuple[str, str]]:
         proc.start()
         there.close()
         current = i
+        start_cpu = last_cpu = _tree_cpu(proc.pid)
+        last_progress = time.monotonic()
         while True:
-            if not here.poll(TRY_SECONDS):
+            if not here.poll(POLL_SECONDS):
+                cpu, now = _tree_cpu(proc.pid), time.monotonic()
+                if cpu - last_cpu >= STALL_CPU:
+                    last_cpu, last_progress = cpu, now
+                why = (f"used {cpu - start_cpu:.0f} s of CPU" if cpu - start_cpu > cpu_seconds
+                       else f"blocked: no CPU used for {now - last_progress:.0f} s"
+                       if now - last_progress > stall_seconds else None)
+                if why is None:
+                    continue
                 proc.kill()
                 proc.join()
-                results[current] = ("hang", f"still running after {TRY_SECONDS:.0f} s")
+                results[current] = ("hang", why)
                 i = current + 1
                 break
             try:
@@ -179,6 +222,8 @@ def run_tries(all_tries: list[Try]) -> list[tuple[str, str]]:
                 break
             if msg[0] == "start":
                 current = msg[1]
+                start_cpu = last_cpu = _tree_cpu(proc.pid)
+                last_progress = time.monotonic()
             elif msg[0] == "done":
                 results[msg[1]] = msg[2]
                 i = msg[1] + 1
@@ -230,3 +275,26 @@ def test_fuzz_every_file_kind(kind, fuzz_root, bases, table):
                    "clear": counts.get("clear", 0), "bad": bad}
     failures = [f"{t.label}: {o}: {d}" for t, (o, d) in zip(all_tries, results, strict=True) if o in BAD]
     assert not failures, "\n".join(failures)
+
+
+def _spin() -> None:
+    while True:
+        pass
+
+
+def _block() -> None:
+    read_end, _ = os.pipe()
+    os.read(read_end, 1)
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists() or "fork" not in mp.get_all_start_methods(),
+                    reason="the fuzz harness forks a child per batch and reads /proc (Linux)")
+def test_the_harness_calls_a_try_that_spins_or_blocks_a_hang_and_runs_the_next(tmp_path):
+    done = tmp_path / "done"
+    tries_ = [Try("harness", "spins", tmp_path, ("x",), call=_spin),
+              Try("harness", "blocks", tmp_path, ("x",), call=_block),
+              Try("harness", "works", tmp_path, ("x",), call=lambda: sum(range(10**6))),
+              Try("harness", "writes", tmp_path, ("x",), call=lambda: done.write_text("x"))]
+    results = run_tries(tries_, cpu_seconds=1.0, stall_seconds=2.0)
+    assert [o for o, _ in results] == ["hang", "hang", "ok", "outside"], results
+    assert "CPU" in results[0][1] and "blocked" in results[1][1]

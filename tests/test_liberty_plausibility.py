@@ -6,6 +6,9 @@ hand loses no record; a silent device ends the recording command with a non-zero
 
 from __future__ import annotations
 
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -36,6 +39,59 @@ def test_one_seed_gives_one_trial_whatever_the_host_timing():
     faults = Faults(byte_error_rate=1e-2, false_header_every=7)
     first, again, other = (_counted(run_trial(faults, seconds=0.3, seed=s)) for s in (21, 21, 22))
     assert first == again and first[1] > 100 and other != first
+
+
+class _Transport:
+    """The trial's serial port, ending the emulator's pause (see below) when the driver next uses the line."""
+
+    def __init__(self, paused: threading.Event, *args, **kwargs):
+        from palpate.hardware.polhemus.transport import SerialTransport
+
+        self.paused, self.inner = paused, SerialTransport(*args, **kwargs)
+
+    def read(self, n: int) -> bytes:
+        self.paused.clear()
+        return self.inner.read(n)
+
+    def write(self, data: bytes) -> None:
+        self.inner.write(data)
+        self.paused.clear()
+
+    def __enter__(self):
+        self.inner.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.inner.__exit__(*exc)
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+
+def test_a_host_that_stalls_mid_stream_sees_the_same_trial(monkeypatch):
+    # The device's timeline is fixed by the seed; how long the host takes to read it must change nothing. Here the
+    # whole host stalls (as a loaded machine's does) while the driver checks a record, for longer than a device
+    # may stay silent by default and than the gate waits before relocking: the driver's thread sleeps and the
+    # emulator's sends nothing until the driver next uses the line (the order a busy scheduler may pick).
+    from palpate.hardware.polhemus import fault_trial
+    from palpate.hardware.polhemus.emulator import LibertyEmulator
+
+    faults = Faults(byte_error_rate=1e-2, false_header_every=7)
+    calm = _counted(run_trial(faults, seconds=0.3, seed=21))
+    paused, feed, emit, calls = threading.Event(), RecordGate.feed, LibertyEmulator.emit, [0]
+
+    def stalling_feed(self, *args, **kwargs):
+        calls[0] += 1
+        if calls[0] in (60, 400):
+            paused.set()
+            time.sleep(0.8)
+        return feed(self, *args, **kwargs)
+
+    monkeypatch.setattr(RecordGate, "feed", stalling_feed)
+    monkeypatch.setattr(LibertyEmulator, "emit", lambda self, now: b"" if paused.is_set() else emit(self, now))
+    monkeypatch.setattr(fault_trial, "SerialTransport", lambda *a, **k: _Transport(paused, *a, **k))
+    stalled = _counted(run_trial(faults, seconds=0.3, seed=21))
+    assert stalled == calm and calm[0] == 720
 
 
 def _counted(trial):

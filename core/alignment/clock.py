@@ -21,6 +21,7 @@ offset, its slope the rate difference (drift), both with standard errors from th
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -126,6 +127,8 @@ def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
         ValidationError: no contact or no reversal; no offset pairs two presses; ambiguous; per-press offsets that
             do not agree on one map; an implausible drift; streams that do not overlap once mapped.
     """
+    if max_offset is not None and not (math.isfinite(max_offset) and max_offset > 0):
+        raise ValidationError(f"clock estimate: max_offset must be a finite number of seconds > 0, got {max_offset!r}")
     t, counts, _ = frames_to_arrays(frames)
     tp, pos, _ = poses_to_arrays(poses)
     c_p = counts.reshape(len(t), -1).sum(axis=1, dtype=np.int64).astype(float)

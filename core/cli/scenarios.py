@@ -8,6 +8,8 @@ import shutil
 import sys
 from pathlib import Path
 
+from palpate.core import files
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``scenarios`` command group."""
@@ -74,7 +76,7 @@ def _copy(args: argparse.Namespace) -> int:
     # points at the installed models instead.
     for rel in ("../models/", "models/"):
         text = text.replace(f'"{rel}', f'"{models_dir().as_posix()}/')
-    dest.write_text(text, encoding="utf-8")
+    files.write_text(dest, text)
     shutil.copymode(src, dest)
     print(f"copied {args.name} to {dest}")
     return 0

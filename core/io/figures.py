@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from palpate.core import files
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.probability import entropy
 from palpate.core.mapping.snapshot import MapSnapshot
@@ -69,7 +70,8 @@ def warm_up() -> None:
 
 
 def _save(fig, path: Path) -> Path:
-    fig.savefig(path, dpi=DPI, pil_kwargs=PNG)
+    with files.writing(path):
+        fig.savefig(path, dpi=DPI, pil_kwargs=PNG)
     return path
 
 

@@ -5,6 +5,10 @@ Open Foxglove, "Open connection", ``ws://127.0.0.1:8765`` (the default port) and
 taxel image, the map after every press and the press log as they happen. The server is the Foxglove SDK's
 (``pip install 'palpate[live]'``); messages are the same JSON as in a recording (:mod:`~palpate.core.io.mcap_schemas`).
 
+Clients reach the SDK through a guard (:mod:`~palpate.core.io.live_guard`): the SDK listens on a private loopback
+port, and the guard, on the port users connect to, times out handshakes and idle clients, caps what one client may
+send and subscribe to, and drops every client at once on :meth:`LiveServer.close`, which never waits on a client.
+
 The maps and the scene are state, not events: a client that subscribes after they were sent gets the latest one at
 once, so a view opened late (or after the run) still shows the current map.
 """
@@ -14,6 +18,7 @@ from __future__ import annotations
 import threading
 
 from palpate.core.extras import missing_extra
+from palpate.core.io.live_guard import GuardLimits, LiveGuard, listening_fds
 
 DEFAULT_PORT = 8765
 _STATE_TOPICS = ("/map/", "/scene")
@@ -26,13 +31,15 @@ class LiveServer:
         host: address to listen on (default: this machine only).
         port: TCP port; 0 picks a free one (see :attr:`port`).
         name: server name shown by Foxglove.
+        limits: what one client may do (:class:`~palpate.core.io.live_guard.GuardLimits`; default: its defaults).
 
     Raises:
         MissingExtraError: the Foxglove SDK (the ``live`` extra) is not installed.
         OSError-like errors from the SDK when the port is taken.
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, name: str = "palpate"):
+    def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, name: str = "palpate",
+                 limits: GuardLimits | None = None):
         try:
             import foxglove
         except ImportError as exc:
@@ -59,14 +66,21 @@ class LiveServer:
                 with subscribed:
                     subscribers[channel.topic] = max(subscribers.get(channel.topic, 0) - 1, 0)
 
-        self._server = foxglove.start_server(name=name, host=host, port=port, context=self._context,
+        # The SDK on a private loopback port, the guard on the one users connect to.
+        self._server = foxglove.start_server(name=name, host="127.0.0.1", port=0, context=self._context,
                                              server_listener=_Listener())
+        try:
+            self._guard = LiveGuard(host, port, int(self._server.port), limits,
+                                    private_fds=listening_fds(int(self._server.port)))
+        except BaseException:
+            _stop_soon(self._server)
+            raise
         self.host = host
 
     @property
     def port(self) -> int:
         """The TCP port the server listens on."""
-        return int(self._server.port)
+        return self._guard.port
 
     @property
     def url(self) -> str:
@@ -92,9 +106,10 @@ class LiveServer:
         ch.log(data, log_time=log_time)
 
     def close(self) -> None:
-        """Stop serving (idempotent)."""
+        """Stop serving (idempotent): every client is cut, and the SDK is given a moment to stop, never more."""
         if self._server is not None:
-            self._server.stop()
+            self._guard.close()
+            _stop_soon(self._server)
             self._server = None
 
     def __enter__(self) -> LiveServer:
@@ -102,3 +117,11 @@ class LiveServer:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _stop_soon(server, wait: float = 2.0) -> None:
+    """Stop the SDK's server, waiting ``wait`` s at most: its ``stop()`` can wait on a connection forever, and a
+    daemon thread left in it does not keep the process alive."""
+    t = threading.Thread(target=server.stop, name="palpate live stop", daemon=True)
+    t.start()
+    t.join(wait)

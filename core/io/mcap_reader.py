@@ -9,10 +9,12 @@ import base64
 import binascii
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from palpate.core import limits
 from palpate.core.errors import PalpateError, RecordingError
 from palpate.core.io.mcap_records import Channel, Damaged, Message, Metadata, ReadLimits, Schema, read_records
 from palpate.core.io.mcap_schemas import METADATA_NAME, READABLE_VERSIONS, VERSIONS_NAME
@@ -45,6 +47,44 @@ def _field(msg: dict, key: str, kind: str):
     return value
 
 
+@dataclass(frozen=True)
+class _Bounds:
+    """The plausible ranges in force while one file is read (limits are read once, not per message)."""
+
+    length: float
+    area_lo: float
+    area_hi: float
+    time: float
+
+    @classmethod
+    def in_force(cls) -> _Bounds:
+        return cls(limits.limit("length_m"), limits.limit("length_min_m") ** 2, limits.limit("sensel_area_m2"),
+                   limits.limit("time_s"))
+
+    def time_of(self, msg: dict) -> float:
+        t = _field(msg, "t", "number")
+        # never negative: a recording's log times are unsigned, and palpate's writer refuses t < 0
+        if not 0.0 <= t <= self.time:
+            raise _BadMessage(str(limits.implausible("field 't'", t, 0.0, self.time, "s", "time_s")))
+        return t
+
+    def area(self, msg: dict) -> float:
+        a = _field(msg, "sensel_area", "number")
+        if not self.area_lo <= a <= self.area_hi:
+            raise _BadMessage(str(limits.implausible("field 'sensel_area'", a, self.area_lo, self.area_hi, "m^2",
+                                                     "length_min_m", "sensel_area_m2")))
+        return a
+
+    def position(self, msg: dict, key: str) -> np.ndarray:
+        p = _field(msg, key, "dict")
+        xyz = np.array([_field(p, k, "number") for k in "xyz"])
+        if not np.all(np.abs(xyz) <= self.length):
+            k = "xyz"[int(np.argmax(np.abs(xyz) > self.length))]
+            raise _BadMessage(str(limits.implausible(f"field '{key}.{k}'", float(p[k]), -self.length, self.length,
+                                                     "m", "length_m")))
+        return xyz
+
+
 def _numbers(msg: dict, key: str) -> np.ndarray:
     values = _field(msg, key, "list")
     try:  # one conversion for the whole list: strings, nulls, objects and nested lists fail it
@@ -66,7 +106,7 @@ def _exact_quaternion(sample: PoseSample, quat: np.ndarray) -> PoseSample:
 
 # ---- format 2: Foxglove's well-known schemas plus palpate's fields ----
 
-def _taxel_image(msg: dict) -> TaxelFrame:
+def _taxel_image(msg: dict, b: _Bounds) -> TaxelFrame:
     rows, cols = _field(msg, "height", "int"), _field(msg, "width", "int")
     if msg.get("encoding") != "mono8":
         raise _BadMessage(f"'encoding' must be 'mono8' (one byte per sensel), got {msg.get('encoding')!r}")
@@ -77,23 +117,23 @@ def _taxel_image(msg: dict) -> TaxelFrame:
     if rows < 1 or cols < 1 or len(raw) != rows * cols:
         raise _BadMessage(f"'data' has {len(raw)} bytes, expected height*width = {rows}*{cols}")
     counts = np.frombuffer(raw, dtype=np.uint8).reshape(rows, cols)
-    return TaxelFrame(t=_field(msg, "t", "number"), counts=counts, sensel_area=_field(msg, "sensel_area", "number"),
+    return TaxelFrame(t=b.time_of(msg), counts=counts, sensel_area=b.area(msg),
                       sensor_id=_field(msg, "frame_id", "str"))
 
 
-def _frame_transform(msg: dict) -> PoseSample:
-    p, q = _field(msg, "translation", "dict"), _field(msg, "rotation", "dict")
+def _frame_transform(msg: dict, b: _Bounds) -> PoseSample:
+    q = _field(msg, "rotation", "dict")
     quat = np.array([_field(q, k, "number") for k in "wxyz"])
-    sample = PoseSample(t=_field(msg, "t", "number"), position=np.array([_field(p, k, "number") for k in "xyz"]),
-                        quaternion=quat, sensor_id=_field(msg, "child_frame_id", "str"))
+    sample = PoseSample(t=b.time_of(msg), position=b.position(msg, "translation"), quaternion=quat,
+                        sensor_id=_field(msg, "child_frame_id", "str"))
     return _exact_quaternion(sample, quat)
 
 
-def _log(msg: dict) -> Annotation:
-    return Annotation(_field(msg, "t", "number"), _field(msg, "kind", "str"), _field(msg, "data", "dict"))
+def _log(msg: dict, b: _Bounds) -> Annotation:
+    return Annotation(b.time_of(msg), _field(msg, "kind", "str"), _field(msg, "data", "dict"))
 
 
-def _truth_series(msg: dict) -> tuple:
+def _truth_series(msg: dict, b: _Bounds) -> tuple:
     material = msg.get("material")
     if material is not None and not isinstance(material, str):
         raise _BadMessage("'material' must be a string or null")
@@ -105,42 +145,42 @@ def _truth_series(msg: dict) -> tuple:
 
 # ---- format 1: palpate.* schemas, one message per sample ----
 
-def _taxel_v1(msg: dict) -> TaxelFrame:
+def _taxel_v1(msg: dict, b: _Bounds) -> TaxelFrame:
     rows, cols = _field(msg, "rows", "int"), _field(msg, "cols", "int")
     counts = _field(msg, "counts", "list")
     if rows < 1 or cols < 1 or len(counts) != rows * cols:
         raise _BadMessage(f"'counts' has {len(counts)} values, expected rows*cols = {rows}*{cols}")
     if not all(type(c) is int and 0 <= c <= 255 for c in counts):
         raise _BadMessage("'counts' must hold integers 0..255")
-    return TaxelFrame(t=_field(msg, "t", "number"), counts=np.asarray(counts, dtype=np.uint8).reshape(rows, cols),
-                      sensel_area=_field(msg, "sensel_area", "number"), sensor_id=_field(msg, "sensor_id", "str"))
+    return TaxelFrame(t=b.time_of(msg), counts=np.asarray(counts, dtype=np.uint8).reshape(rows, cols),
+                      sensel_area=b.area(msg), sensor_id=_field(msg, "sensor_id", "str"))
 
 
-def _pose_v1(msg: dict) -> PoseSample:
-    p, q = _field(msg, "position", "dict"), _field(msg, "orientation", "dict")
+def _pose_v1(msg: dict, b: _Bounds) -> PoseSample:
+    q = _field(msg, "orientation", "dict")
     quat = np.array([_field(q, k, "number") for k in "wxyz"])
-    sample = PoseSample(t=_field(msg, "t", "number"), position=np.array([_field(p, k, "number") for k in "xyz"]),
-                        quaternion=quat, sensor_id=_field(msg, "sensor_id", "str"))
+    sample = PoseSample(t=b.time_of(msg), position=b.position(msg, "position"), quaternion=quat,
+                        sensor_id=_field(msg, "sensor_id", "str"))
     return _exact_quaternion(sample, quat)
 
 
-def _annotation_v1(msg: dict) -> Annotation:
-    return Annotation(_field(msg, "t", "number"), _field(msg, "kind", "str"), _field(msg, "data", "dict"))
+def _annotation_v1(msg: dict, b: _Bounds) -> Annotation:
+    return Annotation(b.time_of(msg), _field(msg, "kind", "str"), _field(msg, "data", "dict"))
 
 
-def _truth_v1(msg: dict) -> tuple:
+def _truth_v1(msg: dict, b: _Bounds) -> tuple:
     material = msg.get("material")
     if material is not None and not isinstance(material, str):
         raise _BadMessage("'material' must be a string or null")
-    return (np.array([_field(msg, "t", "number")]), np.array([_field(msg, "force", "number")]),
+    return (np.array([b.time_of(msg)]), np.array([_field(msg, "force", "number")]),
             np.array([_field(msg, "indentation", "number")]), material)
 
 
-def _joints(msg: dict) -> JointState:
+def _joints(msg: dict, b: _Bounds) -> JointState:
     names = _field(msg, "names", "list")
     if not all(isinstance(n, str) for n in names):
         raise _BadMessage("'names' must be a list of strings")
-    return JointState(_field(msg, "t", "number"), tuple(names), _numbers(msg, "position"),
+    return JointState(b.time_of(msg), tuple(names), _numbers(msg, "position"),
                       _numbers(msg, "velocity"), _numbers(msg, "current"))
 
 
@@ -176,8 +216,9 @@ def read_recording(path, *, salvage: bool = False, limits: ReadLimits | None = N
     Raises:
         RecordingError: the file is missing, not MCAP, not a palpate recording, breaks a size limit, is
             truncated or corrupt (without ``salvage``; ``exc.salvaged`` says how many messages could be kept;
-            ``palpate replay --salvage`` reads it), or a message lacks a field (the message names the topic and
-            the message's index on it).
+            ``palpate replay --salvage`` reads it), or a message lacks a field or holds an implausible number (a
+            time, position or sensel area outside the limits ``time_s``, ``length_m``, ``length_min_m``,
+            ``sensel_area_m2``; the message names the topic, the message's index on it and the field).
     """
     path = Path(path)
     limits = limits or ReadLimits.in_force()
@@ -215,6 +256,7 @@ def _read(f, path: Path, size: int, salvage: bool, limits: ReadLimits, progress)
     if progress is not None:
         progress.start(f"reading {path.name}", size, unit="B")
     loads = json.loads
+    bounds = _Bounds.in_force()
     try:
         for record in read_records(f, path, size, limits):
             if type(record) is Message:
@@ -232,7 +274,7 @@ def _read(f, path: Path, size: int, salvage: bool, limits: ReadLimits, progress)
                     msg = loads(record.data)
                     if type(msg) is not dict:
                         raise _BadMessage("is not a JSON object")
-                    out[key].append(decode(msg))
+                    out[key].append(decode(msg, bounds))
                 except (_BadMessage, ValueError, TypeError, PalpateError) as exc:
                     raise RecordingError(f"{path}: {topic} message {index}: {exc}",
                                          salvaged=n_messages - 1) from None

@@ -15,6 +15,7 @@ import numpy as np
 
 from palpate.core import __version__
 from palpate.core.errors import RecordingError, ValidationError
+from palpate.core.files import writing
 from palpate.core.io import foxglove_messages as fm
 from palpate.core.io.mcap_schemas import FORMAT_VERSION, METADATA_NAME, PROFILE, SCHEMAS, SENSOR_ID, VERSIONS_NAME
 from palpate.core.io.recording import JointState
@@ -50,27 +51,31 @@ class _FlushingStream:
     """File wrapper that pushes every write to the OS: mcap writes only whole records (header, metadata, a finished
     chunk, its indexes), so each completed chunk is on disk even if the process is then killed."""
 
-    def __init__(self, f, fsync: bool):
+    def __init__(self, f, fsync: bool, path: Path):
         self._f = f
         self._fsync = fsync
+        self._path = path
 
     def write(self, data: bytes) -> int:
-        n = self._f.write(data)
-        self._f.flush()
-        if self._fsync:
-            import os
+        with writing(self._path):  # a full disk names the recording
+            n = self._f.write(data)
+            self._f.flush()
+            if self._fsync:
+                import os
 
-            os.fsync(self._f.fileno())
+                os.fsync(self._f.fileno())
         return n
 
     def tell(self) -> int:
         return self._f.tell()
 
     def flush(self) -> None:
-        self._f.flush()
+        with writing(self._path):
+            self._f.flush()
 
     def close(self) -> None:
-        self._f.close()
+        with writing(self._path):
+            self._f.close()
 
 
 class RecordingWriter:
@@ -117,7 +122,7 @@ class RecordingWriter:
                 f = open(self.path, "wb")
             except OSError as exc:
                 raise RecordingError(f"{self.path}: cannot open for writing: {exc.strerror}") from None
-            self._stream = _FlushingStream(f, fsync)
+            self._stream = _FlushingStream(f, fsync, self.path)
             self._writer = Writer(self._stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
             self._writer.start(profile=PROFILE, library=f"palpate {__version__}")
             self._writer.add_metadata(METADATA_NAME, {"format_version": FORMAT_VERSION, **entries})

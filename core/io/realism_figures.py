@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core import files
 from palpate.core.perception.param_stats import PressTable
 
 _PLANES = (("n1", "n2", (0, 1)), ("a1", "a2", (3, 4)))
@@ -60,6 +61,7 @@ def plot_sim_vs_real(path: Path, sim: PressTable, real: PressTable, ddof: int = 
             ax.legend(fontsize=7, loc="best")
     fig.suptitle("Per-press parameters, simulated vs real, with 1- and 2-sigma contours of the learned Gaussians")
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    with files.writing(path):
+        fig.savefig(path, dpi=90)
     plt.close(fig)
     return Path(path)

@@ -35,8 +35,9 @@ def write_map_files(path, p: np.ndarray, explored: np.ndarray, meta: dict) -> tu
     if npz.suffix != ".npz":
         raise ValidationError(f"map file must end in .npz (metadata goes beside it as .json), got {npz}")
     sidecar = npz.with_suffix(".json")
-    np.savez_compressed(npz, probabilities=p, explored=explored)
-    sidecar.write_text(json.dumps({"format": FORMAT_NAME, "version": FORMAT_VERSION, **meta}, indent=2) + "\n")
+    with files.writing(npz):
+        np.savez_compressed(npz, probabilities=p, explored=explored)
+    files.write_text(sidecar, json.dumps({"format": FORMAT_NAME, "version": FORMAT_VERSION, **meta}, indent=2) + "\n")
     return npz, sidecar
 
 

@@ -116,7 +116,7 @@ class LayeredMemory:
         """Write the per-layer judges (JSON; the whole-press memory is saved on its own as memory.json)."""
         doc = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "cell_size_m": self.cell,
                "layers": [m if m is None or isinstance(m, str) else m.to_dict() for m in self.layers]}
-        Path(path).write_text(json.dumps(doc))
+        files.write_text(path, json.dumps(doc))
 
     @classmethod
     def load(cls, full: HapticMemory, path: str | Path) -> LayeredMemory:

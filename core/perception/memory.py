@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core import __version__
+from palpate.core import __version__, files
 from palpate.core.errors import NotFittedError, ValidationError
 from palpate.core.perception.estimator import ClassifierParams
 from palpate.core.perception.gaussian import GaussianFactors, regularise_covariance
@@ -293,7 +293,7 @@ class HapticMemory(ClassifierParams):
 
     def save(self, path: str | Path) -> None:
         """Write the memory as JSON to ``path``."""
-        Path(path).write_text(self.to_json() + "\n", encoding="utf-8")
+        files.write_text(path, self.to_json() + "\n")
 
     @classmethod
     def from_dict(cls, doc, source: str = "<memory>", audit: bool = True) -> HapticMemory:

@@ -17,6 +17,7 @@ from typing import TextIO
 
 import numpy as np
 
+from palpate.core import files
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.recording import recording_to_press_recording
@@ -219,6 +220,7 @@ class HumanOperator:
         self.figure_dir.mkdir(parents=True, exist_ok=True)
         path = self.figure_dir / f"operator_press_{k + 1:03d}.png"
         fig.tight_layout()
-        fig.savefig(path, dpi=90)
+        with files.writing(path):
+            fig.savefig(path, dpi=90)
         plt.close(fig)
         return path

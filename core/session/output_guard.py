@@ -4,7 +4,9 @@ A run, replay or sweep writes into a folder that is new, empty, or already holds
 kind; it replaces an earlier one only when asked (``force``, the commands' ``--force``), and then removes exactly
 the files that kind writes, so an old run's maps or figures never mix with a new summary. A folder holding
 anything else is never written into. A single output file (a recording, a memory) is never an input of the same
-command and never replaces an existing file without ``force``.
+command and never replaces an existing file without ``force``. An output folder or file that is itself a symbolic
+link is refused, with or without ``force``: what palpate writes lands where the user named it, never in a link's
+target.
 """
 
 from __future__ import annotations
@@ -70,6 +72,18 @@ def _extras(folder: Path) -> list[Path]:
     return out
 
 
+def refuse_link(path: Path, option: str, what: str) -> None:
+    """ValidationError when the output ``path`` itself is a symbolic link: what is written there would land in the
+    link's target, somewhere the user did not name (a folder the link leads into, or a file it replaces)."""
+    if path.is_symlink():
+        try:
+            target = os.readlink(path)
+        except OSError:
+            target = "?"
+        raise ValidationError(f"{option} {path}: is a symbolic link (to {target}); palpate never writes an output "
+                              f"through a link: give the real {what} or a new name")
+
+
 def prepare_output_folder(out: str | Path, kind: str, *, force: bool = False, inputs=(), option: str = "--out",
                           extra=()) -> Path:
     """Make ``out`` ready for a new output of ``kind`` and mark it; ValidationError (one line) when it may not be.
@@ -84,6 +98,7 @@ def prepare_output_folder(out: str | Path, kind: str, *, force: bool = False, in
         extra: further files of this output directly inside ``out`` (names), removed by a later ``force``.
     """
     folder = Path(out)
+    refuse_link(folder, option, "folder")
     if folder.exists() and not folder.is_dir():
         raise ValidationError(f"{option} {folder}: is a file, not a folder; give a folder (new or empty)")
     if folder.is_dir() and any(folder.iterdir()):
@@ -122,6 +137,7 @@ def check_output_file(path: str | Path, *, inputs=(), force: bool = False, optio
     not an existing file unless ``force``, and not one of the files an output folder ``outputs`` of ``kind``
     holds. ValidationError (one line) otherwise."""
     p = Path(path)
+    refuse_link(p, option, "file")
     if p.is_dir():
         raise ValidationError(f"{option} {p}: is a folder; give a file name")
     for src in inputs:

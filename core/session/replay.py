@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core import __version__
+from palpate.core import __version__, files
 from palpate.core.alignment.merge import pipeline_for, session_pipeline
 from palpate.core.errors import ValidationError
 from palpate.core.files import brief
@@ -56,6 +56,12 @@ class _Timeline:
     @classmethod
     def of(cls, rec: PressRecording) -> _Timeline:
         return cls(rec, np.array([f.t for f in rec.frames]), np.array([p.t for p in rec.poses]))
+
+    def span(self) -> str:
+        """Where the recording's frames and poses lie, for an error about a press window (s)."""
+        def of(t: np.ndarray) -> str:
+            return f"{t[0]:g}..{t[-1]:g} s" if len(t) else "none"
+        return f" (the recording's taxel frames: {of(self.frame_t)}; poses: {of(self.pose_t)})"
 
     def window(self, t0: float, t1: float) -> PressRecording:
         """The part of the recording with t0 <= t <= t1 (frames, poses and truth)."""
@@ -225,7 +231,12 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             # a press whose streams asked for their own perception (a session file's) is perceived so again
             perception = annotations[id(w)].data.get("perception")
             perception = perception if isinstance(perception, dict) else None
-            res = perceive_press(sub, pipeline_for(perception) if perception else None).at_target(w.target)
+            try:
+                res = perceive_press(sub, pipeline_for(perception) if perception else None).at_target(w.target)
+            except ValidationError as exc:  # the streams of this press are malformed: say which press of which file
+                raise ValidationError(f"{path}: press annotation {windows[presses_all.index(w)][0]} "
+                                      f"({brief(w.object)}, {w.t_start:g}..{w.t_end:g} s): {exc}"
+                                      f"{timeline.span()}") from None
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
                                     fallback_xy=w.target, calibration=calibration)
             state.rows.append(_row(w.k if w.k is not None else len(state.rows) + 1, w.cell, res, posterior,
@@ -235,7 +246,10 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             progress.update(i + 1)
     else:
         # a session merged from separate devices says how it is perceived (press axis from each press's motion)
-        seg = presses_from_recording(stream, session_pipeline(rec.metadata))
+        try:
+            seg = presses_from_recording(stream, session_pipeline(rec.metadata))
+        except ValidationError as exc:
+            raise ValidationError(f"{path}: {exc}{timeline.span()}") from None
         if not seg.presses:
             reasons = "; ".join(sorted({r.reason for r in seg.rejected})) or "no contact in the taxel stream"
             raise ValidationError(f"{path}: no press found to replay ({reasons})")
@@ -281,7 +295,7 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
                "source_metadata": rec.metadata, "objects": summary_objects, "versions": versions(),
                "palpate": __version__}
     assert_finite(summary)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    files.write_text(out / "summary.json", json.dumps(summary, indent=2))
     return summary
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core import plugins
+from palpate.core import files, plugins
 from palpate.core.errors import ValidationError
 from palpate.core.io.realism_figures import plot_sim_vs_real
 from palpate.core.perception.classifier_memory import HAPTIC_MEMORY, ClassifierMemory, classifier_for
@@ -268,7 +268,7 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         "versions": _versions(),
     }
     assert_finite(summary)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    files.write_text(out / "summary.json", json.dumps(summary, indent=2))
     return summary
 
 

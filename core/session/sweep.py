@@ -76,7 +76,7 @@ def run_variant(raw: dict, base_dir: str, run_dir: str, vid: str, overrides: dic
     elif out.exists():
         shutil.rmtree(out)
     prepare_output_folder(out, "run")
-    (out / VARIANT_FILE).write_text(json.dumps({"id": vid, "overrides": overrides, "digest": digest}, indent=1))
+    files.write_text(out / VARIANT_FILE, json.dumps({"id": vid, "overrides": overrides, "digest": digest}, indent=1))
     scenario = parse_scenario(raw, source or f"variant {vid}", base_dir=Path(base_dir))
     t0 = time.perf_counter()
     summary = run_scenario(scenario, out, force=True)
@@ -144,6 +144,10 @@ def _check_sweep_folder(out: Path, sweep: Sweep) -> None:
                               f"{sweep.name!r}; give another folder")
 
 
+#: Most local worker processes (or CPUs of a local Ray instance) one sweep may ask for.
+MAX_WORKERS = 256
+
+
 def run_sweep(sweep: Sweep, out_dir: str | Path, *, workers: int = 2, ray: str | None = None,
               log: Callable[[str], None] | None = None) -> list[dict]:
     """Run every unfinished variant of ``sweep`` and gather the table (OUT/sweep.csv, OUT/sweep.json).
@@ -158,8 +162,9 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *, workers: int = 2, ray: str |
     goes on; its run is redone on the next call.
     """
     log = log or (lambda s: print(s, file=sys.stderr, flush=True))
-    if workers < 1:
-        raise ValidationError(f"sweep: --workers must be >= 1, got {workers}")
+    if not 1 <= workers <= MAX_WORKERS:
+        raise ValidationError(f"sweep: --workers must be 1..{MAX_WORKERS} (processes, or a local Ray instance's "
+                              f"CPUs; this machine has {os.cpu_count() or 1}), got {workers}")
     out = Path(out_dir)
     if out.is_dir():
         _check_sweep_folder(out, sweep)
@@ -201,7 +206,7 @@ def _failed(vid: str, failure: TaskFailure, run_dir: Path) -> dict:
     if not failure.palpate_error and failure.traceback:
         with contextlib.suppress(OSError):
             run_dir.mkdir(parents=True, exist_ok=True)
-            (run_dir / "traceback.txt").write_text(failure.traceback)
+            files.write_text(run_dir / "traceback.txt", failure.traceback)
             status += f" (traceback in {run_dir / 'traceback.txt'})"
     return {"variant": vid, "status": " ".join(status.split())[:300]}
 
@@ -256,7 +261,7 @@ def write_table(rows: list[dict], out: Path, sweep: Sweep) -> None:
            "variants": {v.id: v.overrides for v in sweep.variants},
            "digests": {v.id: v.digest for v in sweep.variants}, "rows": rows}
     try:
-        (out / "sweep.csv").write_text(buf.getvalue())
-        (out / "sweep.json").write_text(json.dumps(doc, indent=1, allow_nan=False))
+        files.write_text(out / "sweep.csv", buf.getvalue())
+        files.write_text(out / "sweep.json", json.dumps(doc, indent=1, allow_nan=False))
     except OSError as exc:
         raise RecordingError(f"sweep: cannot write the table into {out}: {exc}") from exc

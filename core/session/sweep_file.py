@@ -37,6 +37,7 @@ from pathlib import Path
 from palpate.core import limits
 from palpate.core.errors import ValidationError
 from palpate.core.files import brief, read_toml
+from palpate.core.names import check_name
 from palpate.core.session.run import scenario_inputs
 from palpate.core.world.scenario import Scenario
 from palpate.core.world.scenario_file import parse_scenario
@@ -134,8 +135,7 @@ def load_sweep(path: str | Path) -> Sweep:
     if bad:
         raise ValidationError(f"{file}: [sweep]: unknown key(s) {bad}; expected name, base, description")
     name, base = head.get("name"), head.get("base")
-    if not isinstance(name, str) or not name:
-        raise ValidationError(f"{file}: sweep.name must be a non-empty string")
+    check_name(name, f"{file}: sweep.name")  # it names the sweep's table and lines: one printable line
     if not isinstance(base, str) or not base:
         raise ValidationError(f"{file}: sweep.base must be the path of the base scenario (TOML)")
     base_path = (file.parent / base).resolve()

@@ -32,7 +32,6 @@ unmeasured cells are never decoded into numbers that look measured.
 from __future__ import annotations
 
 import json
-import math
 import os
 import struct
 import warnings
@@ -43,7 +42,8 @@ import numpy as np
 
 from palpate.core import files, limits
 from palpate.core.errors import ValidationError
-from palpate.core.names import file_stem, unique_stems
+from palpate.core.names import file_stem
+from palpate.core.world.haptic_material_manifest import check_manifest, check_probability_sums, check_quantisation
 
 FORMAT_NAME = "palpate-haptic-material"
 FORMAT_VERSION = 1
@@ -244,7 +244,7 @@ class HapticMaterialMap:
             "meta": self.meta,
         }
         path = out / "manifest.json"
-        path.write_text(json.dumps(manifest, indent=2))
+        files.write_text(path, json.dumps(manifest, indent=2))
         return path
 
     @classmethod
@@ -252,9 +252,11 @@ class HapticMaterialMap:
         """Read a haptic material folder written by :meth:`write` (or by hand following the manifest).
 
         Everything is validated before it is decoded: the manifest (bounded JSON, format, version, integer shape,
-        finite origin, positive cell, distinct material names), each map's file name (a plain name inside the
+        plausible origin and cell, distinct material names, each map's range and resolution, probability maps only
+        for listed materials; :mod:`.haptic_material_manifest`), each map's file name (a plain name inside the
         folder, also after symlinks) and each PNG's size from its header (the limit ``png_pixels``, the manifest's
-        shape); an undecodable or truncated PNG is an error naming it. Errors name the file and key.
+        shape); an undecodable or truncated PNG is an error naming it, and so is a measured cell whose probabilities do
+        not sum to 1. Errors name the file and key.
         """
         root = Path(folder)
         mpath = root / "manifest.json"
@@ -263,44 +265,8 @@ class HapticMaterialMap:
         if not mpath.exists():
             raise ValidationError(f"{root}: no manifest.json (not a haptic material folder)")
         manifest = files.read_json(mpath, "haptic-material manifest")
-        if not isinstance(manifest, dict):
-            raise ValidationError(f"{mpath}: expected a JSON object")
-        if manifest.get("format") != FORMAT_NAME:
-            raise ValidationError(f"{mpath}: key 'format' must be {FORMAT_NAME!r}, got "
-                                  f"{files.brief(manifest.get('format'))}")
-        if manifest.get("version") != FORMAT_VERSION:
-            raise ValidationError(f"{mpath}: key 'version' {files.brief(manifest.get('version'))} is not supported "
-                                  f"(this palpate reads version {FORMAT_VERSION})")
-        for key in ("shape", "origin_m", "cell_size_m", "materials", "maps"):
-            if key not in manifest:
-                raise ValidationError(f"{mpath}: missing key {key!r}")
-        shape = manifest["shape"]
-        if not (isinstance(shape, list) and len(shape) == 2
-                and all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in shape)):
-            raise ValidationError(f"{mpath}: key 'shape' must be [ny, nx], two integers >= 1, got "
-                                  f"{files.brief(shape)}")
-        limits.check("png_pixels", f"{mpath}: key 'shape' {shape}: pixels per map", shape[0] * shape[1])
-        origin = manifest["origin_m"]
-        if not (isinstance(origin, list) and len(origin) == 2 and all(_finite_number(v) for v in origin)):
-            raise ValidationError(f"{mpath}: key 'origin_m' must be [x0, y0], two finite numbers (m), got "
-                                  f"{files.brief(origin)}")
-        cell = manifest["cell_size_m"]
-        if not (_finite_number(cell) and cell > 0):
-            raise ValidationError(f"{mpath}: key 'cell_size_m' must be a finite number > 0 (m), got "
-                                  f"{files.brief(cell)}")
-        materials = manifest["materials"]
-        if not (isinstance(materials, list) and all(isinstance(m, str) and m for m in materials)
-                and len(set(materials)) == len(materials)):
-            raise ValidationError(f"{mpath}: key 'materials' must list distinct material names, got "
-                                  f"{files.brief(materials)}")
-        limits.check("materials", f"{mpath}: key 'materials'", len(materials))
-        unique_stems(materials, f"{mpath}: key 'materials'")
-        maps = manifest["maps"]
-        if not isinstance(maps, dict) or not all(isinstance(e, dict) for e in maps.values()):
-            raise ValidationError(f"{mpath}: key 'maps' must map each map's name to an object (file, range, ...)")
-        meta = manifest.get("meta", {})
-        if not isinstance(meta, dict):
-            raise ValidationError(f"{mpath}: key 'meta' must be an object, got {files.brief(meta)}")
+        m = check_manifest(manifest, mpath, FORMAT_NAME, FORMAT_VERSION, lambda name: probability_spec(name).name)
+        shape, materials, maps = m.shape, m.materials, m.maps
 
         def load(stem: str, fname) -> np.ndarray:
             return read_png(root, fname, (shape[0], shape[1]), f"{mpath}: map {stem!r}")
@@ -313,30 +279,23 @@ class HapticMaterialMap:
                 spec = probability_spec(name)
                 if spec.name not in maps:
                     raise ValidationError(f"{mpath}: 'maps' has no entry {spec.name!r} for material {name!r}")
-                layers.append(spec.decode(load(spec.name, maps[spec.name].get("file", f"{spec.name}.png"))))
+                entry = maps[spec.name]
+                check_quantisation(mpath, spec.name, entry, spec.lo, spec.hi, spec.resolution)
+                layers.append(spec.decode(load(spec.name, entry.get("file", f"{spec.name}.png"))))
             probs = np.stack(layers, axis=-1)
+            check_probability_sums(probs, measured, str(mpath))
             total = probs.sum(axis=-1, keepdims=True)
-            # 8-bit rounding leaves sums slightly off 1; renormalise, and keep a zero-sum cell uniform.
+            # 8-bit rounding leaves sums slightly off 1: renormalise; an unmeasured cell of zeros (nothing was
+            # perceived there) is kept uniform.
             probs = np.where(total > 0, probs / np.where(total > 0, total, 1.0), 1.0 / len(materials))
         features = {}
         for name, spec in MEASURED_FEATURES.items():
             if name in maps:
                 entry = maps[name]
-                try:
-                    known = (float(entry.get("resolution", spec.resolution)) == spec.resolution
-                             and [float(v) for v in entry.get("range", [spec.lo, spec.hi])] == [spec.lo, spec.hi])
-                except (TypeError, ValueError):
-                    known = False
-                if not known:
-                    raise ValidationError(f"{mpath}: map {name!r} uses a range/resolution palpate does not know "
-                                          f"(expected {[spec.lo, spec.hi]} / {spec.resolution})")
+                check_quantisation(mpath, name, entry, spec.lo, spec.hi, spec.resolution)
                 features[name] = spec.decode(load(name, entry.get("file", f"{name}.png")))
-        return cls(origin=(float(origin[0]), float(origin[1])), cell_size=float(cell), materials=materials,
-                   probabilities=probs, features=features, measured=measured, meta=dict(meta))
-
-
-def _finite_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        return cls(origin=m.origin, cell_size=m.cell_size, materials=materials, probabilities=probs,
+                   features=features, measured=measured, meta=dict(m.meta))
 
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -384,4 +343,5 @@ def read_png(root: Path, fname, shape: tuple[int, int], where: str) -> np.ndarra
 
 def _write_png(image_module, path: Path, codes: np.ndarray) -> None:
     # Flip so that image row 0 is the largest y: the picture is a top view of the object.
-    image_module.fromarray(np.ascontiguousarray(codes[::-1], dtype=np.uint8)).save(path)
+    with files.writing(path):
+        image_module.fromarray(np.ascontiguousarray(codes[::-1], dtype=np.uint8)).save(path)

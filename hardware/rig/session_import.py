@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import heapq
 import json
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +36,7 @@ from palpate.core.alignment.calibration import (
 from palpate.core.alignment.clock import ClockMap, estimate_clock_map
 from palpate.core.alignment.merge import merge_session
 from palpate.core.errors import ValidationError
+from palpate.core.files import write_text
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.perception.streams import PoseSample, TaxelFrame
@@ -143,8 +145,11 @@ def import_session(taxels, poses, out, *, region: str | None = None, start_time:
                                        full_scale_pa=full_scale_pa)
     samples, pose_source = read_poses(poses, station=station)
     transform = workspace_of(calibration, workspace, station)
-    cmap = clock if clock is not None else estimate_clock_map(frames, samples, max_offset=max_offset)
-    merged = merge_session(frames, samples, cmap, transform, sensor_id="fingertip")
+    try:  # the streams of the two files disagree: name both
+        cmap = clock if clock is not None else estimate_clock_map(frames, samples, max_offset=max_offset)
+        merged = merge_session(frames, samples, cmap, transform, sensor_id="fingertip")
+    except ValidationError as exc:
+        raise ValidationError(f"--taxels {taxels} with --poses {poses}: {exc}") from None
     metadata = {"scenario": None, "sources": [taxel_source, pose_source], "session": merged.metadata()}
     partial = out.with_name(out.name + ".partial")
     try:
@@ -208,6 +213,13 @@ def add_import_command(imports: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    for option, value in (("--max-offset", args.max_offset), ("--clock-offset", args.clock_offset),
+                          ("--clock-drift-ppm", args.clock_drift_ppm)):
+        if value is not None and not math.isfinite(value):
+            raise ValidationError(f"{option} must be a finite number, got {value}")
+    if args.max_offset is not None and not args.max_offset > 0:
+        raise ValidationError(f"--max-offset must be > 0 s (the estimate searches offsets within +-S), got "
+                              f"{args.max_offset:g}")
     check_output_file(args.out, inputs=[args.taxels, args.poses, args.calibration, args.workspace],
                       force=args.force)
     if args.save_workspace is not None:
@@ -223,6 +235,6 @@ def _run(args: argparse.Namespace) -> int:
                              taxel_sensor=args.taxel_sensor, station=args.station, clock=clock,
                              max_offset=args.max_offset, calibration=args.calibration, workspace=args.workspace)
     if args.save_workspace is not None:
-        args.save_workspace.write_text(json.dumps(summary.transform.to_dict(), indent=2) + "\n")
+        write_text(args.save_workspace, json.dumps(summary.transform.to_dict(), indent=2) + "\n")
     print(summary.text())
     return 0

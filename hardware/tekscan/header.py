@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from palpate.core import limits
 from palpate.core.errors import ValidationError
 
 FRAME_LINE = re.compile(r"^frame\s*[:#]?\s*(\d+)\s*(?:[,;\s].*)?$", re.IGNORECASE)
@@ -141,6 +142,10 @@ def length_entry(header, key: str, name: str) -> float | None:
     if scale is None or not number > 0:
         raise ValidationError(f"{name}:{header[key][1]}: {key} must be a positive length with a unit "
                               f"({', '.join(LENGTH)}), got {header[key][0]!r}")
+    lo, hi = limits.limit("length_min_m"), limits.limit("length_m")
+    if not lo <= number * scale <= hi:
+        raise limits.implausible(f"{name}:{header[key][1]}: {key}", number * scale, lo, hi, "m", "length_min_m",
+                                 "length_m")
     return number * scale
 
 
@@ -148,12 +153,21 @@ def area_entry(header, row_sp, col_sp, name: str) -> float:
     if "SENSEL_AREA" not in header:
         if row_sp is None or col_sp is None:
             raise ValidationError(f"{name}: header has no SENSEL_AREA (nor ROW_SPACING and COL_SPACING to derive it)")
-        return row_sp * col_sp
+        area = row_sp * col_sp
+        hi = limits.limit("sensel_area_m2")
+        if area > hi:
+            raise limits.implausible(f"{name}: ROW_SPACING x COL_SPACING (the sensel area)", area,
+                                     limits.limit("length_min_m") ** 2, hi, "m^2", "sensel_area_m2")
+        return area
     number, unit = number_unit(header, "SENSEL_AREA", name)
     scale = AREA.get(unit_key(unit))
     if scale is None or not number > 0:
         raise ValidationError(f"{name}:{header['SENSEL_AREA'][1]}: SENSEL_AREA must be a positive area with a unit "
                               f"(cm2, sq cm, mm2, in2, m2), got {header['SENSEL_AREA'][0]!r}")
+    lo, hi = limits.limit("length_min_m") ** 2, limits.limit("sensel_area_m2")
+    if not lo <= number * scale <= hi:
+        raise limits.implausible(f"{name}:{header['SENSEL_AREA'][1]}: SENSEL_AREA", number * scale, lo, hi, "m^2",
+                                 "length_min_m", "sensel_area_m2")
     return number * scale
 
 

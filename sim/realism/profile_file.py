@@ -32,13 +32,12 @@ is an error naming the file and the key (``x.toml: press.tilt_deg: must be <= 29
 from __future__ import annotations
 
 import json
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.files import read_text
+from palpate.core.files import read_toml
 from palpate.core.world.resources import models_dir
 from palpate.core.world.table_reader import TableReader
 from palpate.sim.controller import HUMAN, Variability
@@ -85,12 +84,9 @@ def resolve_profile(spec: str | Path | RealismProfile | None) -> RealismProfile:
 def load_profile(path: str | Path) -> RealismProfile:
     """Read and validate a profile file (TOML, bounded by the ``text_mb`` limit). Errors name the file and the key."""
     p = Path(path)
-    text = read_text(p, "realism profile")
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValidationError(f"{p}: not valid TOML: {exc}") from None
-    return parse_profile(raw, str(p), default_name=p.stem)
+    # read_toml turns every parse failure (bad syntax, an integer past Python's digit limit, nesting too deep) into
+    # one line naming the file
+    return parse_profile(read_toml(p, "realism profile"), str(p), default_name=p.stem)
 
 
 def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profile") -> RealismProfile:
