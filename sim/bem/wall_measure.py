@@ -63,7 +63,10 @@ def measure_share(poisson: float, contrast: float, *, extent: float = 9e-3, h: f
     wall = surface_response(wall_block(poisson, contrast), extent, h)
     if soft is None:
         soft = surface_response(wall_block(poisson, 1.0), extent, h)
-    share = np.log(contrast * wall["compliance"] / soft["compliance"]) / math.log(contrast)
+    # far apart on a nearly incompressible block the settlement can change sign (the surface heaves); there both
+    # are a tiny share of the near ones and the factor is floored (lambda >= -1)
+    ratio = contrast * wall["compliance"] / soft["compliance"]
+    share = np.log(np.where(ratio > 1.0 / contrast, ratio, 1.0 / contrast)) / math.log(contrast)
     n = int(round(extent / h))
     offsets = np.arange(-n, n + 1) * h
     along = np.arange(n + 1) * h

@@ -266,9 +266,10 @@ def choose(table: ValidityTable, sit: Situation, tolerance: float, name: str,
         allowed = tuple(r for r in ORDER if r not in sit.excluded)
         closest = images.closest(allowed, sit.image)
         if closest is not None:
-            rung, share = closest
+            rung, wrong, share = closest
             return Choice(rung, f"{name}: no fidelity's image is within the image table's limits over "
-                          f"{sit.image}s; {rung} has the closest (rms up to {share:.0%} of the peak per sensel; "
+                          f"{sit.image}s; {rung}'s is the closest (asymmetry wrong in {wrong:.0%} of the measured "
+                          f"presses, rms up to {share:.0%} of the peak per sensel; "
                           f"validity table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)
     finite = {k: v for k, v in errs.items() if math.isfinite(v)}
     # with nothing measured to prefer, the cheapest rung the geometry allows (bem holds no validity-table rows)

@@ -76,16 +76,18 @@ class ImageTable:
         return worst, None
 
 
-    def closest(self, rungs: tuple[str, ...], family: str) -> tuple[str, float] | None:
-        """Among ``rungs``, the one whose image over ``family`` is closest to the reference (right asymmetry
-        everywhere, smallest worst rms share), with that share; None if none has the asymmetry right."""
+    def closest(self, rungs: tuple[str, ...], family: str) -> tuple[str, float, float] | None:
+        """Among ``rungs``, the one whose image over ``family`` is closest to the reference: the smallest share of
+        measured presses with the asymmetry wrong, then the smallest worst rms share; returned with both shares.
+        None if none of them was measured on the family."""
         best = None
         for rung in rungs:
             rows = [r for r in self.rows if r.rung == rung and r.family == family and r.depth >= MIN_DEPTH - 1e-12]
-            if rows and all(r.asymmetry_ok for r in rows):
-                share = max(r.rms_share for r in rows)
-                if best is None or share < best[1]:
-                    best = (rung, share)
+            if not rows:
+                continue
+            key = (sum(not r.asymmetry_ok for r in rows) / len(rows), max(r.rms_share for r in rows))
+            if best is None or key < best[1:]:
+                best = (rung, *key)
         return best
 
 
