@@ -90,3 +90,12 @@ def test_analytic_image_never_carries_more_than_its_force(case):
     image, _ = rung_image(case, "analytic", REFERENCE.tip)
     pad = image.pressure.sum(axis=(1, 2)) * REFERENCE.tip.sensel_area
     assert np.all(pad <= 1.01 * image.force)
+
+
+def test_auto_beside_a_lump_keeps_the_rung_whose_force_holds():
+    """No rung's image passes the lump family; bem's local model is far off in force there, so auto keeps the rung
+    whose force is nearest the FE (analytic) and says why."""
+    case = next(c for c in image_cases() if c.name == "lump_2000-115kPa_near2mm")
+    source = SimSource(Scene(objects=(case.object_spec(),)), fidelity="auto")
+    choice = source.explain(PressTarget(0.0, 0.0, depth=0.003))
+    assert choice.fidelity == "analytic" and "image" in choice.reason

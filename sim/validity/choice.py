@@ -266,9 +266,10 @@ def choose(table: ValidityTable, sit: Situation, tolerance: float, name: str,
         raise ValidationError(f"{name}: no fidelity holds this press: {'; '.join(reasons)}")
     if (sit.image is not None and images is not None and images.measures(sit.image)
             and not any(math.isfinite(v) for v in errs.values())):
-        # no rung's image holds the family: the closest image, said as such
+        # no rung's image holds the family: the closest image among the rungs whose force holds it (else the
+        # rung whose force is nearest), said as such
         allowed = tuple(r for r in ORDER if r not in sit.excluded)
-        closest = images.closest(allowed, sit.image)
+        closest = images.closest(allowed, sit.image, tolerance)
         if closest is not None:
             rung, wrong, share = closest
             return Choice(rung, f"{name}: no fidelity's image is within the image table's limits over "

@@ -76,19 +76,22 @@ class ImageTable:
         return worst, None
 
 
-    def closest(self, rungs: tuple[str, ...], family: str) -> tuple[str, float, float] | None:
-        """Among ``rungs``, the one whose image over ``family`` is closest to the reference: the smallest share of
-        measured presses with the asymmetry wrong, then the smallest worst rms share; returned with both shares.
-        None if none of them was measured on the family."""
-        best = None
+    def closest(self, rungs: tuple[str, ...], family: str, tolerance: float) -> tuple[str, float, float] | None:
+        """Among ``rungs`` measured on ``family``: those whose worst force error is within ``tolerance`` (else the
+        one with the smallest), and of those the one whose image is closest to the reference (the smallest share of
+        presses with the asymmetry wrong, then the smallest worst rms share); returned with both shares. None if
+        none was measured."""
+        scored = {}
         for rung in rungs:
             rows = [r for r in self.rows if r.rung == rung and r.family == family and r.depth >= MIN_DEPTH - 1e-12]
-            if not rows:
-                continue
-            key = (sum(not r.asymmetry_ok for r in rows) / len(rows), max(r.rms_share for r in rows))
-            if best is None or key < best[1:]:
-                best = (rung, *key)
-        return best
+            if rows:
+                scored[rung] = (max(abs(r.force_error) for r in rows),
+                                sum(not r.asymmetry_ok for r in rows) / len(rows), max(r.rms_share for r in rows))
+        if not scored:
+            return None
+        within = [r for r, v in scored.items() if v[0] <= tolerance] or [min(scored, key=lambda r: scored[r][0])]
+        best = min(within, key=lambda r: scored[r][1:])
+        return best, scored[best][1], scored[best][2]
 
 
 def rows_from_scores(scores: list[ImageScore]) -> list[ImageRow]:
