@@ -106,6 +106,24 @@ def rows_from_scores(scores: list[ImageScore]) -> list[ImageRow]:
     return out
 
 
+def format_summary(rows: list[ImageRow]) -> str:
+    """The image columns as text: per rung, family and split, the worst |force error| and rms share over depths
+    from MIN_DEPTH, and how many cases have the asymmetry right at every such depth."""
+    lines = ["image against the 3-D FE (worst over depths >= 1 mm): rung, family, split, cases, |force error|, "
+             "rms share of the peak, cases with the asymmetry right"]
+    keys = sorted({(r.rung, r.family, r.split) for r in rows})
+    for rung, family, split in keys:
+        sel = [r for r in rows if (r.rung, r.family, r.split) == (rung, family, split) and r.depth >= MIN_DEPTH - 1e-12]
+        if not sel:
+            continue
+        cases = sorted({r.case for r in sel})
+        ok = sum(all(r.asymmetry_ok for r in sel if r.case == c) for c in cases)
+        force = 100 * max(abs(r.force_error) for r in sel)
+        lines.append(f"  {rung:<8} {family:<6} {split:<6} {len(cases):3d}  {force:5.1f}%  "
+                     f"{100 * max(r.rms_share for r in sel):5.1f}%  {ok}/{len(cases)}")
+    return "\n".join(lines)
+
+
 def table_document(rows: list[ImageRow], measured_with: dict) -> dict:
     """The JSON document of the image table."""
     return {"format": FORMAT, "version": VERSION, "measured_with": measured_with,
