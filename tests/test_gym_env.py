@@ -126,6 +126,8 @@ def test_bad_arguments_and_actions_are_refused(memory):
         ExploreEnv(memory=memory, press_model="fast")
     with pytest.raises(ValidationError, match="object 'Nope'"):
         ExploreEnv(memory=memory, object="Nope")
+    with pytest.raises(ValidationError, match=r"exploration.map = 'voxel'.*2-D maps"):
+        ExploreEnv("volumetric", memory=memory)
     env = ExploreEnv(memory=memory)
     with pytest.raises(ValidationError, match="reset"):
         env.step(0)

@@ -70,9 +70,10 @@ def test_a_copy_is_named_after_its_file(tmp_path, capsys):
 def test_sweep_files_are_listed_apart_from_scenarios(capsys):
     assert main(["scenarios", "list"]) == 0
     out = capsys.readouterr().out
-    scenarios, sweeps = out.split("\nsweeps (run one with: palpate sweep")
+    scenarios, sweeps = out.split("\nsweep files (palpate run refuses them")
     assert "sweeps/tiny " not in scenarios and "thesis_ch6" in scenarios
-    assert "sweeps/tiny " in sweeps and "sweeps/tiny_base" not in sweeps  # tiny_base is a scenario
+    assert f"palpate sweep {scenarios_dir() / 'sweeps' / 'tiny.toml'}" in sweeps
+    assert "sweeps/tiny_base" not in sweeps  # tiny_base is a scenario
     kinds = {i.name: i.kind for i in shipped_scenarios()}
     assert kinds["sweeps/tiny"] == "sweep" and kinds["sweeps/tiny_base"] == kinds["thesis_ch6"] == "scenario"
 

@@ -47,9 +47,9 @@ def _list(args: argparse.Namespace) -> int:
         print(f"{i.name:<{width}}  {i.description}")
     sweeps = [i for i in infos if i.kind == "sweep"]
     if sweeps:
-        print("\nsweeps (run one with: palpate sweep PATH, the path shown by palpate scenarios list --json):")
+        print("\nsweep files (palpate run refuses them; run one with the command shown):")
         for i in sweeps:
-            print(f"{i.name:<{width}}  {i.description}")
+            print(f"{i.name:<{width}}  palpate sweep {i.path}" + (f"  ({i.description})" if i.description else ""))
     print(f"\n(files in {scenarios_dir()}; run a scenario with: palpate run NAME)")
     return 0
 
