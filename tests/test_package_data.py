@@ -72,7 +72,7 @@ def test_sweep_files_are_listed_apart_from_scenarios(capsys):
     out = capsys.readouterr().out
     scenarios, sweeps = out.split("\nsweep files (palpate run refuses them")
     assert "sweeps/tiny " not in scenarios and "thesis_ch6" in scenarios
-    assert f"palpate sweep {scenarios_dir() / 'sweeps' / 'tiny.toml'}" in sweeps
+    assert f"palpate sweep {scenarios_dir() / 'sweeps' / 'tiny.toml'} --out DIR" in sweeps
     assert "sweeps/tiny_base" not in sweeps  # tiny_base is a scenario
     kinds = {i.name: i.kind for i in shipped_scenarios()}
     assert kinds["sweeps/tiny"] == "sweep" and kinds["sweeps/tiny_base"] == kinds["thesis_ch6"] == "scenario"

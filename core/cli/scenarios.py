@@ -49,7 +49,8 @@ def _list(args: argparse.Namespace) -> int:
     if sweeps:
         print("\nsweep files (palpate run refuses them; run one with the command shown):")
         for i in sweeps:
-            print(f"{i.name:<{width}}  palpate sweep {i.path}" + (f"  ({i.description})" if i.description else ""))
+            note = f"  ({i.description})" if i.description else ""
+            print(f"{i.name:<{width}}  palpate sweep {i.path} --out DIR{note}")
     print(f"\n(files in {scenarios_dir()}; run a scenario with: palpate run NAME)")
     return 0
 
