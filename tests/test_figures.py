@@ -171,3 +171,15 @@ def test_a_map_is_drawn_in_the_material_colours():
     p[0, [0, 1, 2], [0, 1, 2]] = 1.0
     assert np.allclose(fig.rgb_image(p)[0], fig.palette(3))
     assert fig.colour_legend(["a", "b"]) == f"{fig.COLOUR_NAMES[0]} = a · {fig.COLOUR_NAMES[1]} = b"
+
+
+def test_the_sim_vs_real_figure_labels_its_axes_with_units_and_refuses_to_be_empty(rng):
+    from palpate.core.io.realism_figures import sim_vs_real_figure
+    from palpate.core.perception.param_stats import PressTable
+
+    rows = tuple(rng.normal(1.0 + i, 0.1, (6, 6)) for i in range(2))
+    real = PressTable(("soft", "hard"), rows)
+    sim = PressTable(("soft", "hard"), tuple(r * 1.1 for r in rows))
+    assert _axes_labels_have_units(sim_vs_real_figure(sim, real)) == 4
+    with pytest.raises(ValidationError, match="no material has more than two"):
+        sim_vs_real_figure(sim, PressTable(("other",), rows[:1]))

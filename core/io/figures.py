@@ -57,8 +57,8 @@ class ProgressSeries:
     accuracy_explored: np.ndarray
 
 
-def _figure(width: float, height: float):
-    """A bare figure on an Agg canvas: no pyplot, so no global figure registry and no GUI backend."""
+def new_figure(width: float, height: float):
+    """A bare figure (inches) on an Agg canvas: no pyplot, so no global figure registry and no GUI backend."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -72,7 +72,7 @@ def warm_up() -> None:
     would otherwise pay. A background drawer calls it while the run still trains."""
     import io
 
-    fig = _figure(1, 1)
+    fig = new_figure(1, 1)
     ax = fig.add_subplot(projection="3d")
     ax.set_title("x")
     fig.savefig(io.BytesIO(), format="png", dpi=20)
@@ -119,7 +119,7 @@ def plot_training_series(path: Path, training: Mapping[str, Sequence[PressResult
 def training_series_figure(training: Mapping[str, Sequence[PressResult]]):
     """c_P, c_A (mm^2), c_D (mm) against time for every training press: one panel per feature, the materials one
     after the other on a shared scale (so their stiffness compares at a glance), presses laid end to end."""
-    fig = _figure(12, 7)
+    fig = new_figure(12, 7)
     axes = fig.subplots(3, 1, sharex=True)
     fig.subplots_adjust(left=0.08, right=0.98, bottom=0.08, top=0.9, hspace=0.08)
     colours = palette(len(training))
@@ -160,7 +160,7 @@ def plot_interaction_profiles(path: Path, training: Mapping[str, Sequence[PressR
 
 def interaction_profiles_figure(training: Mapping[str, Sequence[PressResult]]):
     """3-D scatter of (c_A, c_D, c_P) per material: the contact-interaction signature."""
-    fig = _figure(7, 5.5)
+    fig = new_figure(7, 5.5)
     ax = fig.add_subplot(projection="3d")
     fig.subplots_adjust(left=0.0, right=0.95, bottom=0.02, top=0.93)
     colours = palette(len(training))
@@ -247,7 +247,7 @@ def map_snapshots_figure(name: str, snapshots: Sequence[MapSnapshot], geometry: 
         raise ValidationError(f"{name}: no map snapshot and no ground truth to draw")
     ny, nx = (truth.shape if not snapshots else snapshots[0].probabilities.shape)[:2]
     panel_w, height = _panel_size(nx / ny, 2.6, 1.3)
-    fig = _figure(panel_w * len(panels) + 0.9, height)
+    fig = new_figure(panel_w * len(panels) + 0.9, height)
     axes = _map_axes(fig, len(panels), height)
     cell_cm = geometry.cell_size * 100
     for ax, snap in zip(axes, panels, strict=True):
@@ -293,7 +293,7 @@ def entropy_figure(name: str, before: np.ndarray, after: np.ndarray, geometry: M
     vmax = float(np.log(before.shape[-1]) / np.log(base))
     ny, nx = hb.shape
     panel_w, height = _panel_size(nx / ny, 3.0, 1.5)
-    fig = _figure(2 * panel_w + 2.3, height)
+    fig = new_figure(2 * panel_w + 2.3, height)
     axes = _map_axes(fig, 2, height, right=1.6)
     for ax, h, title in zip(axes, (hb, ha), ("final map", "after post-processing"), strict=True):
         im = _map_panel(ax, h, _extent(geometry, h.shape), f"{title}\nmean H = {h.mean():.3f}", vmin=0, vmax=vmax,
@@ -321,7 +321,7 @@ def progress_figure(series: Sequence[ProgressSeries], base: float = 10.0):
     Objects often follow the same curve (same layout, same policy), so each gets its own line style and hollow
     marker, and earlier lines are drawn wider underneath later ones: a line exactly under another stays visible.
     """
-    fig = _figure(10, 3.8)
+    fig = new_figure(10, 3.8)
     a1, a2 = fig.subplots(1, 2)
     fig.subplots_adjust(left=0.08, right=0.98, bottom=0.14, top=0.86, wspace=0.25)
     n = len(series)
@@ -355,7 +355,7 @@ def voxel_columns_figure(name: str, grid, post, materials: list[str]):
         raise ValidationError(f"{name}: no explored voxel column to draw")
     cols = explored_cols[: min(len(explored_cols), 24)]
     width = max(6.0, 0.45 * len(cols) + 2)
-    fig = _figure(width, 5.4)
+    fig = new_figure(width, 5.4)
     axes = fig.subplots(2, 1, squeeze=False)
     fig.subplots_adjust(left=0.9 / width, right=1 - 0.2 / width, bottom=0.2, top=0.88, hspace=0.9)
     for ax, g, title in ((axes[0, 0], grid, "explored"), (axes[1, 0], post, "after post-processing")):

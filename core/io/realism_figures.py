@@ -14,7 +14,7 @@ import numpy as np
 
 from palpate.core import files
 from palpate.core.errors import ValidationError
-from palpate.core.io.figures import palette
+from palpate.core.io.figures import new_figure, palette
 from palpate.core.perception.param_stats import PressTable
 
 # c_P is in counts (or N for a force channel), c_D in mm, c_A in mm^2: the laws' coefficients carry those units
@@ -35,21 +35,28 @@ def compared_materials(sim: PressTable, real: PressTable) -> list[str]:
 
 
 def plot_sim_vs_real(path: Path, sim: PressTable, real: PressTable, ddof: int = 0) -> Path:
-    """Draw the figure for the materials of ``sim`` that ``real`` also has; returns ``path``.
+    """Draw :func:`sim_vs_real_figure` into ``path``; returns ``path``."""
+    fig = sim_vs_real_figure(sim, real, ddof)
+    with files.writing(path):
+        fig.savefig(path, dpi=90)
+    return Path(path)
+
+
+def sim_vs_real_figure(sim: PressTable, real: PressTable, ddof: int = 0):
+    """The figure for the materials of ``sim`` that ``real`` also has (:func:`compared_materials`; ValidationError
+    when there is none: no empty figure).
 
     ``ddof``: the covariance estimator of the Gaussians (the memory's: 0 divides by n).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     names = compared_materials(sim, real)
-    if not names:  # nothing to compare: no figure rather than an empty one
-        raise ValidationError(f"{path}: no material has more than two simulated and two real presses to compare")
-    fig, axes = plt.subplots(2, max(len(names), 1), figsize=(4.2 * max(len(names), 1), 7.5), squeeze=False)
+    if not names:
+        raise ValidationError("sim vs real figure: no material has more than two simulated and two real presses to "
+                              "compare")
+    fig = new_figure(4.2 * len(names), 7.5)
+    axes = fig.subplots(2, len(names), squeeze=False)
+    colours = palette(len(names))
     for col, name in enumerate(names):
-        colour = palette(len(names))[col]
+        colour = colours[col]
         for row, (xlab, ylab, idx) in enumerate(_PLANES):
             ax = axes[row, col]
             for rows, style, label in ((real.of(name), "--", "real"), (sim.of(name), "-", "sim")):
@@ -70,7 +77,4 @@ def plot_sim_vs_real(path: Path, sim: PressTable, real: PressTable, ddof: int = 
             ax.legend(fontsize=7, loc="best")
     fig.suptitle("Per-press parameters, simulated vs real, with 1- and 2-sigma contours of the learned Gaussians")
     fig.tight_layout()
-    with files.writing(path):
-        fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return Path(path)
+    return fig
