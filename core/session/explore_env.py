@@ -217,7 +217,9 @@ def make_vector_env(num_envs: int, scenario: str | Path | Scenario = DEFAULT_SCE
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise ValidationError(f"num_envs must be an integer >= 1, got {num_envs!r}")
     sc = _scenario(scenario)
-    memory = kwargs.pop("memory", None) or train_env_memory(sc)
+    memory = kwargs.pop("memory", None)
+    if memory is None:
+        memory = train_env_memory(sc)
     return gym.vector.SyncVectorEnv([lambda: ExploreEnv(sc, memory=memory, **kwargs) for _ in range(num_envs)])
 
 
