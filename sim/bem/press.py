@@ -21,9 +21,9 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import local_material
-from palpate.sim.bem.solve import solve_contact
 from palpate.sim.bem.surface import Surface, build_surface
 from palpate.sim.bem.wall import WallTable
+from palpate.sim.contact.lcp import solve_contact
 from palpate.sim.controller import PressProfile
 from palpate.sim.limits import check_holds
 from palpate.sim.stability import check_depth, check_resolves_press

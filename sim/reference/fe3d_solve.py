@@ -12,8 +12,8 @@ How it is solved:
   that order, with diagonal pivots (it is symmetric positive definite), leaves in its trailing block the Schur
   complement of those nodes, whose inverse is the surface compliance. That replaces one solve per surface node;
   one solve checks it;
-- contact: the linear complementarity problem of :func:`.fe3d.solve_contact` at each depth, gap = the exact
-  sphere.
+- contact: the linear complementarity problem (:func:`palpate.sim.contact.lcp.solve_contact`) at each depth,
+  gap = the exact sphere.
 
 The half model (``half``: the block symmetric about y = 0) meshes y >= 0 with u_y = 0 on y = 0; its field is
 mirrored onto the whole top, the nodes on y = 0 doubled (the half model carries half their load).
@@ -27,7 +27,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.sim.reference.fe3d import BoxBlock, TensorGrid, block_grids, solve_contact
+from palpate.sim.contact.lcp import solve_contact
+from palpate.sim.reference.fe3d import BoxBlock, TensorGrid, block_grids
 
 
 @dataclass(frozen=True)
@@ -220,7 +221,7 @@ def contact_field(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.00
     force = np.zeros((len(d), len(rows), len(cols)))
     count = []
     for k, depth in enumerate(d):
-        f = solve_contact(compliance, depth - gap0)
+        f, _ = solve_contact(compliance, depth - gap0)
         if np.any(f[r_top > reach - 1.1 * h] > 0):
             raise ValidationError("fe3d_press: the contact reached the edge of the condensed surface; the top "
                                   "heaved into the sphere beyond its reach (a bug in the reach)")
@@ -233,3 +234,38 @@ def contact_field(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.00
         y = np.concatenate([-y[:0:-1], y])
     return SurfaceContact(depth=d, x=x, y=y, force=force, contact_nodes=np.array(count), dofs=int(basis.N),
                           h=float(h), half=half)
+
+
+@dataclass(frozen=True)
+class FE3DPress:
+    """The 3-D model's answer at each indentation.
+
+    Attributes:
+        depth: indentations, m, (n,); force: normal force on the whole (unhalved) block, N, (n,).
+        contact_nodes: top nodes in contact in the model solved (half or whole), (n,); dofs: degrees of freedom;
+            h: the element edge across the contact, m.
+    """
+
+    depth: np.ndarray
+    force: np.ndarray
+    contact_nodes: np.ndarray
+    dofs: int
+    h: float
+
+
+def fe3d_press(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.001,
+               growth: float = 1.3) -> FE3DPress:
+    """Force of a rigid frictionless sphere (radius ``tip_radius`` m) pressed ``depths`` (m) into the centre of
+    ``block``'s top (see the module docstring; the solve is :func:`contact_field`,
+    as a half model where the block is symmetric about y = 0).
+
+    Args:
+        block: the block.
+        tip_radius: m.
+        depths: indentations, m, each in (0, 0.9 tip_radius).
+        h: element edge (node spacing) across the contact, m.
+        growth: element size growth per cell away from the contact.
+    """
+    field = contact_field(block, tip_radius, depths, h=h, growth=growth)
+    return FE3DPress(depth=field.depth, force=field.force.sum(axis=(1, 2)), contact_nodes=field.contact_nodes,
+                     dofs=field.dofs, h=field.h)
