@@ -16,7 +16,7 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Material
 from palpate.sim.reference.fe3d import BoxBlock, TensorGrid, Wall
-from palpate.sim.reference.fe3d_solve import _stiffness, condensed_compliance, dissection_rank
+from palpate.sim.reference.fe3d_solve import _stiffness, condensed_compliance, dissection_rank, grid_indices
 from palpate.sim.reference.mesh import graded_line
 
 THICKNESS, HALF = 0.03, 0.04
@@ -30,10 +30,7 @@ def surface_response(block: BoxBlock, extent: float, h: float, growth: float = 1
     grid = TensorGrid(x=x, y=x.copy(), depth=graded_line(block.thickness, h, extent / 3.0, growth))
     basis, stiffness = _stiffness(block, grid)
     locs = basis.doflocs
-    heights = np.sort(block.thickness - grid.depth)
-    ix = np.clip(np.searchsorted(grid.x, locs[0] - 1e-9 * h), 0, len(grid.x) - 1)
-    iy = np.clip(np.searchsorted(grid.y, locs[1] - 1e-9 * h), 0, len(grid.y) - 1)
-    iz = np.clip(np.searchsorted(heights, locs[2] - 1e-9 * h), 0, len(heights) - 1)
+    heights, (ix, iy, iz) = grid_indices(block, grid, locs, h)
     uz = basis.get_dofs().all("u^3")
     free = np.flatnonzero(iz != 0)
     top = uz[iz[uz] == len(heights) - 1]

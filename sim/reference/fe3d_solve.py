@@ -99,6 +99,15 @@ def _stiffness(block: BoxBlock, grid: TensorGrid):
     return full, stiffness
 
 
+def grid_indices(block: BoxBlock, grid: TensorGrid, locs: np.ndarray, h: float):
+    """The mesh's node heights above the base (increasing, m) and each dof's (x, y, height) grid index, from the
+    dof locations ``locs`` (3, N) m of a mesh with spacing down to ``h`` m."""
+    heights = np.sort(block.thickness - grid.depth)
+    index = tuple(np.clip(np.searchsorted(axis, locs[k] - 1e-9 * h), 0, len(axis) - 1)
+                  for k, axis in enumerate((grid.x, grid.y, heights)))
+    return heights, index
+
+
 def dissection_rank(shape: tuple[int, int, int], leaf: int = 64) -> np.ndarray:
     """Elimination rank of each node of a tensor grid of ``shape`` nodes (C order) under geometric nested
     dissection: the two halves of a box before the plane of nodes between them, boxes of at most ``leaf`` nodes
@@ -193,10 +202,7 @@ def contact_field(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.00
     grid = block_grids(block, a_max, h, growth, half=half)
     basis, stiffness = _stiffness(block, grid)
     locs = basis.doflocs
-    heights = np.sort(block.thickness - grid.depth)
-    ix = np.clip(np.searchsorted(grid.x, locs[0] - 1e-9 * h), 0, len(grid.x) - 1)
-    iy = np.clip(np.searchsorted(grid.y, locs[1] - 1e-9 * h), 0, len(grid.y) - 1)
-    iz = np.clip(np.searchsorted(heights, locs[2] - 1e-9 * h), 0, len(heights) - 1)
+    heights, (ix, iy, iz) = grid_indices(block, grid, locs, h)
     dofs = basis.get_dofs()
     uy, uz = dofs.all("u^2"), dofs.all("u^3")
     fixed = np.flatnonzero(iz == 0)
