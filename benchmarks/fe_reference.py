@@ -5,9 +5,9 @@ Part 1 refines the mesh (surface spacing = smallest contact radius / 12 / refine
 nu = 0.45, bonded base) and on a 60 mm block (200 kPa, nu 0.3), printing each level's force and its change against
 the finest, and, for the 60 mm block, Sneddon's sphere times Dimitriadis et al.'s (2002) bonded-layer factor.
 
-Part 2 is what issue 12 measured: the `analytic` and `rigid` rungs return Hertz's force for a homogeneous block
-whatever its thickness; the table gives Hertz's error against the reference at 5-60 mm (E = 200 kPa, nu 0.3, tip
-radius 8 mm).
+Part 2 measures how far the cheap rungs are off with thickness: the `analytic` and `rigid` rungs return Hertz's
+force for a homogeneous block whatever its thickness; the table gives Hertz's error against the reference at 5-60 mm
+(E = 200 kPa, nu 0.3, tip radius 8 mm).
 
 Run: .venv/bin/python benchmarks/fe_reference.py [--quick]
 """

@@ -45,7 +45,7 @@ NEW_STACKS = (
     ("2 mm 20x 15 mm", 0.002, 20.0, 0.015, 0.4, 0.45),
     ("2 mm 20x 50 mm", 0.002, 20.0, 0.05, 0.4, 0.45),
     ("1.5 mm 40x 20 mm nu 0.3/0.49", 0.0015, 40.0, 0.02, 0.3, 0.49),
-    # written down before the Poisson axes were first evaluated on them (docs/architecture.md, 2026-11-24)
+    # written down before the Poisson axes were first evaluated on them (docs/results.md)
     ("2.5 mm 15x 35 mm nu 0.35/0.47", 0.0025, 15.0, 0.035, 0.35, 0.47),
     ("1.2 mm 30x 25 mm nu 0.33/0.42", 0.0012, 30.0, 0.025, 0.33, 0.42),
     ("3.5 mm 8x 45 mm nu 0.38/0.485", 0.0035, 8.0, 0.045, 0.38, 0.485),

@@ -5,7 +5,7 @@ cells at random, then PRESSES more presses chosen by info_gain, each followed by
 post-processing. Timed per choice (median, and the worst after the first): info_gain rescoring only around each
 press (the default), info_gain scoring every cell (the full computation), and a raster choice on the same map as
 the plain reference (it checks every column's entropy). Both info_gain variants see the same maps, and the table
-says whether every choice was the same. Goals (issue 15): <= 20 ms among 10^4 cells, <= 0.5 s among 10^6.
+says whether every choice was the same. Goals: <= 20 ms among 10^4 cells, <= 0.5 s among 10^6.
 
 Run: .venv/bin/python benchmarks/planning_scale.py [--sizes 100,316,1000] [--presses 12] [--full-up-to 316]
 """

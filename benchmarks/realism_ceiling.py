@@ -1,4 +1,4 @@
-"""What a perfect simulator would score on issue 13's realism targets: the sampling noise of 10 presses.
+"""What a perfect simulator would score on the realism targets: the sampling noise of 10 presses.
 
 Every target is checked on one seed's 10 presses per material, so even a simulator whose presses come from the real
 presses' own distribution misses some. This draws many synthetic "seeds" of 10 presses per material from a

@@ -1,4 +1,4 @@
-"""Issue 13's decision statistic: a profile's expected targets held per 6 seeds, with a standard error over seeds.
+"""The realism decision statistic: a profile's expected targets held per 6 seeds, with a standard error over seeds.
 
 A seed's count of the 12 targets is a statistic of its 10 presses per material, so counts on 24 seeds have a
 standard error of ~2 per 6 seeds. The quantity a user cares about is the simulator's *expected* count per seed,
@@ -9,7 +9,7 @@ press groups) with replacement, pools them and recomputes the expectation. Sever
 resampled on the same seed indices and drawn with the same uniforms (common random numbers), so their differences
 are paired. The Monte Carlo variance of each resample's finite draws is subtracted from the resamples' spread.
 
-Validation printed alongside (docs/realism.md, fifth round): each population's mean per-seed count with its
+Validation printed alongside (docs/realism.md): each population's mean per-seed count with its
 seed-bootstrap s.e. and the difference per-seed - pooled with its own; ``--perfect N`` adds N synthetic seeds drawn
 from the real table (a perfect simulator, whose expectation realism_ceiling.py gives) as a population.
 

@@ -3,11 +3,11 @@
 For each seed and reference material, every training press with its peak force (N), the object's indentation d and
 the pulp's compression delta at their deepest (mm), the press's factor on the pulp's stiffness, the perceived
 indentation c_D (mm) and contact area c_A (mm^2), the peak intensity c_P (counts), the active and saturated sensels
-of the peak frame, the fit's n1, n2 (counts: its sign is issue 13's n2 < 0 target) and a1, and
+of the peak frame, the fit's n1, n2 (counts: its sign is the realism targets' n2 < 0) and a1, and
 ``a1 / (n1 (c_D / c_A)^1.5)``. When the patch covers the pad before the press ends, both fits end at the same c_P,
 so a1 / n1 is (c_D / c_A)^1.5 at the deepest point whatever the pad's gain, non-linearity or saturation and the
 material's modulus: the last column stays near 1 and a1 follows n1 and where the press stops (docs/realism.md,
-sixth round). The last lines give per material the means over the seeds.
+press depth). The last lines give per material the means over the seeds.
 
     .venv/bin/python benchmarks/realism_presses.py [--seeds 101,102,103,104] [--scenario S.toml]
         [--profile NAME_OR_PATH] [--set KEY=VALUE ...] [--scenario-set training.depth_mm=1.8 ...] [--quiet]

@@ -1,4 +1,4 @@
-"""Issue 13's targets for scenarios/thesis_ch6.toml's training presses, on seeds the realism profile was not tuned on.
+"""The realism targets for scenarios/thesis_ch6.toml's training presses, on seeds the realism profile was not tuned on.
 
 For each seed (as the scenario seed of ``palpate run``; 6 is the main job's), simulate the training protocol with the
 scenario's realism profile and print, per material: the simulated / real CV of n1 and a1 (target within +-30%), the

@@ -1,4 +1,4 @@
-"""Candidate estimates of where a press would read other than the map says (issue 15), scored by
+"""Candidate estimates of where a press would read other than the map says, scored by
 benchmarks/risk_harness.py against the oracle's mark (benchmarks/oracle_risk.py).
 
 Every estimate takes a :class:`MapState` (what the planner knows before a choice: the measured map and its

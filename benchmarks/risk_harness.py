@@ -1,4 +1,4 @@
-"""How sharp is an estimate of where a press would read other than the map says? (issue 15)
+"""How sharp is an estimate of where a press would read other than the map says?
 
 With that signal exact, info_gain meets the worst-scene target on every tuning scene, and it needs about 90% of
 those cells marked at 10% false alarms (docs/exploration.md, "What the greedy planner lacks"). This harness runs

@@ -1,4 +1,4 @@
-"""Seeded scenes of many shape families, for measuring how exploration generalises (issue 15).
+"""Seeded scenes of many shape families, for measuring how exploration generalises.
 
 benchmarks/exploration.py's own generator makes axis-aligned boxes two or more cells wide with walls kept away from
 cell centres; settings tuned there need not hold elsewhere. Here each scene is a box whose surface layout is drawn

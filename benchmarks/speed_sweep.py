@@ -2,7 +2,7 @@
 
 Each repetition runs the same sweep into a fresh folder once with one worker and once with two (in alternating
 order, so a drift of the machine's load touches both), and the ratio is taken pair by pair; the median of the
-pairs is printed. The target (issue 11) is a ratio of at least 1.6 on ``scenarios/sweeps/thesis_policies.toml``
+pairs is printed. The target is a ratio of at least 1.6 on ``scenarios/sweeps/thesis_policies.toml``
 (six analytic variants).
 
 The wall ratio can only show a speed-up where the second worker gets a core of its own. So the script also

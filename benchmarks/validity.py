@@ -10,8 +10,7 @@ tuned (it is exact for layers; its axisymmetric averaging of lateral variation i
 correction was measured on homogeneous 1.7/3/7/14/30/70/150 mm blocks, none of which is a case here, and a stiff skin's
 on calibration plates (2-70x, 0.7-4.5 mm skins, 12-60 mm; benchmarks/flex_plate.py), none of which is a case here
 either. BLAS runs on one thread (unless OMP/OPENBLAS/MKL_NUM_THREADS say otherwise): on a busy machine its threads
-waited for cores and then spun beside the next press, which made the FE-backed rungs look slower (docs/architecture.md,
-issue 12).
+waited for cores and then spun beside the next press, which made the FE-backed rungs look slower (docs/results.md).
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 The axisymmetric FE (sim/reference) solves every surface hat at once, so SuperLU's solve calls level-3 BLAS on many
 small supernode blocks, which OpenBLAS splits over its threads. On a machine whose cores are busy those threads
 wait for a core, and after the call they keep spinning on one while MuJoCo steps; one thread gives the same numbers
-at a fraction of the time (docs/architecture.md, issue 12, "Lumps' cost", has the measurements).
+at a fraction of the time (docs/results.md, "BLAS threads", has the measurements).
 """
 
 from __future__ import annotations

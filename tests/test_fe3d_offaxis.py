@@ -66,7 +66,7 @@ def test_the_3d_fe_of_a_homogeneous_block_matches_the_axisymmetric_reference(nu)
 
 
 def test_the_law_is_within_ten_percent_of_the_3d_fe_beside_a_stiff_shallow_lump():
-    """Off-axis lumps (issue 12): a 20x lump 1 mm down, pressed over its edge and 3 mm beside it, at nu 0.45. The
+    """Off-axis lumps: a 20x lump 1 mm down, pressed over its edge and 3 mm beside it, at nu 0.45. The
     law's ring mixing (geometric mean) was chosen on the nu 0.3 rows of benchmarks/fe_offaxis.py; these rows were
     not used. The arithmetic ring mean it replaced was +46..+58% here."""
     cache: dict = {}

@@ -157,9 +157,9 @@ def test_the_lump_curve_fades_to_one_with_the_centring():
     (0.001, 0.0045, 20.0),  # hard, 1 mm down
 ])
 def test_flex_is_within_six_percent_of_the_fe_reference_on_held_out_lumps(top, radius, contrast):
-    """Issue 12: lumps the lump table never saw (benchmarks/flex_lump.py's NEW_LUMPS, written down before the
+    """Lumps the lump table never saw (benchmarks/flex_lump.py's NEW_LUMPS, written down before the
     correction was first evaluated on them), against the FE reference, at 0.5 / 1 / 2 / 4 mm: without the lump
-    correction up to 19% off (mean |error| 5.5%), with it within 5.2% (mean 2.0%; measured 2026-11-24)."""
+    correction up to 19% off (mean |error| 5.5%), with it within 5.2% (mean 2.0%)."""
     pytest.importorskip("mujoco")
     from palpate.sim.flex.calibrate import lump_sample
     from palpate.sim.reference.fe import fe_press
@@ -176,9 +176,9 @@ def test_flex_is_within_six_percent_of_the_fe_reference_on_held_out_lumps(top, r
 
 @pytest.mark.physics
 def test_a_press_over_a_soft_lumps_edge_is_not_corrected_as_a_centred_one():
-    """Issue 12, off the axis: a 20x softer box lump 1 mm down, its near face on the press axis (nu 0.45;
+    """Off the axis: a 20x softer box lump 1 mm down, its near face on the press axis (nu 0.45;
     sim/validity/offaxis.py's case), flex's force ratio with / without the lump against the 3-D FE's at 2 mm: -8.9%
-    with r faded off (the lump's edge: centring 0), -17.8% with the centred lumps' r (measured 2026-11-24)."""
+    with r faded off (the lump's edge: centring 0), -17.8% with the centred lumps' r."""
     pytest.importorskip("mujoco")
     from dataclasses import replace
 

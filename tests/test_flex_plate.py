@@ -137,10 +137,10 @@ def test_the_plate_is_the_top_layer_stiffer_than_what_lies_under_it():
     (0.0015, 40.0, 0.02, (0.3, 0.49)),  # other Poisson ratios too (+24% at 4 mm)
 ])
 def test_flex_is_within_eight_percent_of_the_layered_law_on_held_out_stiff_skins(skin, ratio, height, nus):
-    """Issue 12: stiff skins the plate table never saw (benchmarks/flex_plate.py), against the exact layered contact
+    """Stiff skins the plate table never saw (benchmarks/flex_plate.py), against the exact layered contact
     law (within 0.5% of the FE reference on the validity table's skins), at 0.5 / 1 / 2 / 4 mm: with the block's
     kappa alone up to 25% off (the 90 mm plate window; up to 108% in the 60 mm one); with the plate's within 6.2%
-    (90 mm) and 5.1% (60 mm, the table's Poisson axes; measured 2026-11-24)."""
+    (90 mm) and 5.1% (60 mm, the table's Poisson axes)."""
     pytest.importorskip("mujoco")
     from palpate.sim.contact.law import solve_contact_law
     from palpate.sim.flex.calibrate import plate_sample

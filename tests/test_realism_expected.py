@@ -1,4 +1,4 @@
-"""Issue 13's decision statistic (benchmarks/realism_expected.py): the expected targets of a population of presses
+"""The realism decision statistic (benchmarks/realism_expected.py): the expected targets of a population of presses
 pooled over seeds, and its seed-bootstrap standard error, paired between populations."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Issue 13's realism targets (core/perception/realism_targets.py) and what a perfect simulator scores on them
+"""The realism targets (core/perception/realism_targets.py) and what a perfect simulator scores on them
 (benchmarks/realism_ceiling.py): the checks on seed 000's own table, their edges, leave-one-out with copies held
 out together, and the resampling."""
 

@@ -1,4 +1,4 @@
-"""End to end in simulation (issue 3): rigid-fidelity presses -> core signal path -> haptic memory.
+"""End to end in simulation: rigid-fidelity presses -> core signal path -> haptic memory.
 
 Three reference materials (20 kPa, 200 kPa, 2 MPa blocks) are pressed the way a person would (human-like
 variability in speed, depth, force and position, seeded), each press goes through the same stack a hardware

@@ -80,7 +80,7 @@ def test_object_1_reads_the_rubber_strip_as_the_second_material(thesis):
 
 
 def test_the_run_reports_its_training_presses_against_the_seeds_tables(thesis):
-    """Issue 13's targets that the fitted profile meets on the main job's seed (6, never tuned on); the others are
+    """The realism targets that the fitted profile meets on the main job's seed (6, never tuned on); the others are
     reported in docs/realism.md with benchmarks/realism_targets.py's numbers over held-out seeds."""
     _, summary = thesis
     report = summary["sim_to_real"]
@@ -88,7 +88,7 @@ def test_the_run_reports_its_training_presses_against_the_seeds_tables(thesis):
     assert "figures/sim_vs_real.png" in summary["figures"]
     m = report["materials"]
     assert set(m) == {"Material_1", "Material_2", "Material_3"}
-    # on this seed the rubber's spread of n1 holds too (it held on 1 seed of 6 before issue 13's sixth round, 4 now),
+    # on this seed the rubber's spread of n1 holds too (it holds on 4 seeds of 6),
     # but the sponge's and the rubber's CV of a1 (0.70 and 0.58 of the real) and the hard foam's n2 < 0 (-4 presses)
     # do not; docs/realism.md has the counts over the held-out seeds
     for name in ("Material_1", "Material_2", "Material_3"):

@@ -172,7 +172,7 @@ def _flex_error(name: str, depths) -> np.ndarray:
 @pytest.mark.parametrize("name, depths", [("skin_stiff_1mm", (0.5e-3, 1e-3, 2e-3, 4e-3)),
                                           ("edge_15mm", (0.5e-3, 1e-3, 2e-3, 3e-3))])
 def test_flex_is_within_ten_percent_of_the_fe_reference_on_held_out_skins_and_an_edge(name, depths):
-    """Issue 12 on cases flex was not tuned on (tuned: skin_*_2mm, lump_*_3mm, edge_10mm), against the cached FE
+    """On cases flex was not tuned on (tuned: skin_*_2mm, lump_*_3mm, edge_10mm), against the cached FE
     reference: a 1 mm stiff skin (it bends: its own cells with incompatible modes) from 0.5 to 4 mm (at 4 mm it was
     +12.5% in the plate's wide window before the plate's kappa), and a cylinder whose free side is 15 mm from the
     press (meshed whole), from 0.5 to 3 mm. The soft skins: the next test."""
@@ -183,7 +183,7 @@ def test_flex_is_within_ten_percent_of_the_fe_reference_on_held_out_skins_and_an
 @pytest.mark.physics
 @pytest.mark.parametrize("name", ["skin_soft_1mm", "skin_soft_2mm", "skin_soft_4mm"])
 def test_flex_is_within_ten_percent_of_the_fe_reference_on_soft_skins_from_half_a_mm_to_four(name):
-    """Issue 12: a soft skin mixed into its 5 mm cells (the mixing correction: +30% and +17% at 0.5 and 2 mm on the
+    """A soft skin mixed into its 5 mm cells (the mixing correction: +30% and +17% at 0.5 and 2 mm on the
     4 mm skin before it), with the mesh correction read where the window's contact is as wide as the calibration
     block's (the mixed column's contact is 5-14% wider than a block's; read at sqrt(R d), the 1 and 2 mm skins were
     -8.6 / -8.3% at 1 mm and -9.0 / -10.7% at 4 mm). Tuned on skin_soft_2mm (nothing fitted), the 1 and 4 mm skins
@@ -195,7 +195,7 @@ def test_flex_is_within_ten_percent_of_the_fe_reference_on_soft_skins_from_half_
 @pytest.mark.physics
 @pytest.mark.parametrize("name", ["skin_stiff_1mm", "skin_stiff_2mm", "skin_stiff_4mm"])
 def test_a_stiff_skin_is_within_five_percent_from_half_a_mm_to_four(name):
-    """Issue 12: the default 30 mm window's pinned sides stiffened a stiff skin (a plate spreads its load far) by
+    """The default 30 mm window's pinned sides stiffened a stiff skin (a plate spreads its load far) by
     +25 / +30 / +40% at 4 mm on the 1 / 2 / 4 mm skins; the plate's wide graded window (sim/flex/grid.py, chosen on
     skin_stiff_2mm) left +12.5% at 4 mm on the 1 mm skin and -12.7% at 1 mm on the 4 mm one (the block's kappa
     over-corrects a plate); with the plate's kappa (sim/flex/plate.py, measured on calibration plates, none of
@@ -209,12 +209,12 @@ def test_a_stiff_skin_is_within_five_percent_from_half_a_mm_to_four(name):
 @pytest.mark.parametrize("name", ["lump_hard_1mm", "lump_hard_3mm", "lump_hard_6mm", "lump_soft_1mm",
                                   "lump_soft_3mm"])
 def test_flex_is_within_seven_percent_of_the_fe_reference_on_every_lump_from_half_a_mm_to_four(name):
-    """Issue 12: a 5 mm sphere 1 to 6 mm under the top, mixed into the 5 mm cells around the press axis, against the
+    """A 5 mm sphere 1 to 6 mm under the top, mixed into the 5 mm cells around the press axis, against the
     cached FE reference. The lateral mixing correction (sim/flex/mixing.py, nothing fitted) took the hard lump 1 mm
     down from -25 / -18 / -17% at 0.5 / 1 / 2 mm and the soft one 3 mm down from -12% at 0.5 mm to within 10%, but
     left lump_soft_1mm +15.6% at 2 mm (the contact's edge reaching the next ring of surface vertices over the soft
     pocket); the lump correction (sim/flex/lump.py, measured on calibration lumps, none of these five, which are all
-    held out from it) puts every row within 5.7% at 0.5-4 mm (measured 2026-11-24)."""
+    held out from it) puts every row within 5.7% at 0.5-4 mm."""
     err = _flex_error(name, (0.5e-3, 1e-3, 2e-3, 4e-3))
     assert np.all(np.abs(err) < 0.07), err
 
@@ -222,7 +222,7 @@ def test_flex_is_within_seven_percent_of_the_fe_reference_on_every_lump_from_hal
 @pytest.mark.physics
 @pytest.mark.parametrize("name", ["thick_2mm_nu0.45", "thick_2mm_nu0.49"])
 def test_flex_is_within_ten_percent_of_the_fe_reference_on_a_thin_nearly_incompressible_block(name):
-    """Issue 12: a 2 mm block pressed 0.5 and 1 mm, thinner than the 3 mm calibration block whose mesh correction it
+    """A 2 mm block pressed 0.5 and 1 mm, thinner than the 3 mm calibration block whose mesh correction it
     used to get (-10% and -16% at 1 mm); the 1.7 mm calibration block puts it between two measured thicknesses."""
     err = _flex_error(name, (0.5e-3, 1e-3))
     assert np.all(np.abs(err) < 0.10), err

@@ -1,4 +1,4 @@
-"""Issue 13's realism targets: how one training session's presses compare with a real per-press table.
+"""The realism targets: how one training session's presses compare with a real per-press table.
 
 Per reference material, four targets (docs/realism.md): the session's CV of n1 and of a1 within +-30% of the real
 table's, the number of presses of 10 with n2 < 0 within 2 of the real table's, and the leave-one-out mean posterior
@@ -102,7 +102,7 @@ def _cv(values: np.ndarray, what: str) -> float:
 
 
 def check_targets(sim: PressTable, real: PressTable, loo: np.ndarray, materials: Sequence[str]) -> TargetCheck:
-    """Issue 13's targets of a session's presses ``sim`` against ``real``, per material of ``materials`` (the
+    """The realism targets of a session's presses ``sim`` against ``real``, per material of ``materials`` (the
     scenario's references, in order; ``loo`` (M,) their leave-one-out self posteriors in that order).
 
     A CV target holds when the session's CV is within [0.7, 1.3] times the real one (so, where the real CV is 0,

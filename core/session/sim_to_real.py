@@ -5,7 +5,7 @@ variation and share of negative values (:func:`~palpate.core.perception.param_st
 distance between the two distributions: the energy distance of the standardised [n1, n2, a1, a2] rows
 (:func:`~palpate.core.perception.param_stats.material_distance`; 0 = the same distribution; two samples of 10 from
 one distribution typically give ~0.1-0.3). It also says, per material, how far the simulated CVs of n1 and a1 are
-from the real ones (ratio) and how many more presses of 10 have n2 < 0 (the targets of issue 13).
+from the real ones (ratio) and how many more presses of 10 have n2 < 0 (the realism targets).
 """
 
 from __future__ import annotations

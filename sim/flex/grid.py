@@ -52,7 +52,7 @@ LAYER_CELLS = 2
 #: skin_stiff_2mm at 4 mm). 60 mm (one 20 mm cell each side of the fine core, 6 x 6 cells) since the plate table
 #: is measured on this window with the base's Poisson ratio as an axis: half the cost of the 90 mm window (8 x 8)
 #: at the same error; a graded base or outer cells of 25 mm or more diverged on thin calibration plates
-#: (docs/architecture.md, issue 12).
+#: (docs/results.md).
 PLATE_WINDOW_SCALE = 2.0
 PLATE_CORE_CELLS = 2
 PLATE_GROWTH = 2.0

@@ -4,7 +4,7 @@ The lateral mixing correction (:func:`palpate.sim.flex.mixing.lateral_mixing_cor
 round the press axis average a lump's moduli; it does not see the kinematics of the collision vertices over them.
 Over a soft pocket as wide as two cells the contact's edge reaching the next ring of collision vertices, which are
 interpolated from nodes on the pocket's rim and held by the bulk's cells, steps the force up by ~19% between 1.2 and
-1.4 mm on the 8 mm tip (docs/architecture.md, issue 12); the homogeneous blocks' kappa does not know that step. A
+1.4 mm on the 8 mm tip (docs/results.md); the homogeneous blocks' kappa does not know that step. A
 press over a lump multiplies kappa and the mixing correction by
 
     r(a / cell, e1, e2) = [F_flex(lump) / F_flex(block) / mixing] / [F_FE(lump) / F_FE(block)]
@@ -20,7 +20,7 @@ before any held-out lump was evaluated, on the calibration lumps alone (r at 2 m
 the soft ones, from +32% at e1 0.15 to +5% at 0.78; deep lumps with e1 = 1 differ by e2).
 
 Every calibration lump is centred on the press axis (the four cells alike in each layer). Off the axis r was
-measured against the 3-D FE reference beside box lumps (docs/architecture.md, issue 12, off the axis): neutral on
+measured against the 3-D FE reference beside box lumps (docs/results.md, off-axis lumps): neutral on
 average but no rule: with a lump's edge at or beside the axis (a bulk cell beside a lump cell) it made 14 of 32 cases
 worse (one depth by 9 points) and 18 better, 3 mm inside a lump's edge 8 of 16 worse. So a press reads
 r ** (centring ** :data:`CENTRING_POWER`), ``centring`` (:func:`pocket_centring`) 1 over a centred pocket and 0
@@ -69,7 +69,7 @@ HARD_LUMP_POISSON = 0.4
 #: beyond both ends, flagged beyond the deep one).
 LUMP_DEPTHS = tuple(float(v) for v in np.geomspace(4.0e-4, 4.0e-3, 28))
 #: A press reads r ** (centring ** CENTRING_POWER) (:func:`pocket_centring`): r is measured on centred lumps only and
-#: did not help partly centred ones (presses 3 mm inside a box lump's edge, docs/architecture.md, issue 12), so it
+#: did not help partly centred ones (presses 3 mm inside a box lump's edge, docs/results.md), so it
 #: fades steeply; 12 is the smallest power (of 1, 4, 6, 8, 12, 16) leaving no nu 0.45 case over 0.1% worse than
 #: r = 1 in mean |error|.
 CENTRING_POWER = 12

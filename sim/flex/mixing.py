@@ -11,7 +11,7 @@ materials they hold. The press divides its force by F_continuum(window's cells) 
   (:func:`palpate.sim.contact.axisymmetric.azimuthal_materials`), solved on one coarse axisymmetric FE mesh, whose
   own error cancels in the ratio (as in :func:`palpate.sim.contact.axisymmetric.axisymmetric_law`). A sphere just
   under the top is spread over the cells around the press axis, whose mix is softer than a hard lump (stiffer than a
-  soft one) under a contact narrower than them (docs/architecture.md, issue 12, has the measurements).
+  soft one) under a contact narrower than them (docs/results.md has the measurements).
 """
 
 from __future__ import annotations
@@ -93,7 +93,7 @@ class MixingCorrection:
         ``contact`` table; held at its ends). The mesh correction ripples as the contact's edge crosses the rings
         of surface vertices, so the press reads it where the block's contact was as wide as the window's: at
         sqrt(R d) times this (a soft skin's column, whose contact is 5-14% wider than a block's, was read 6-11%
-        off in a / cell and out of phase with that ripple; docs/architecture.md, issue 12)."""
+        off in a / cell and out of phase with that ripple; docs/results.md)."""
         return 1.0 if self.contact is None else float(np.interp(depth, self.depth, self.contact))
 
 

@@ -52,7 +52,7 @@ REFERENCE_YOUNG = 2.0e5
 DENSITY = 1000.0
 #: MuJoCo's iteration limit (opt.iterations, its default) for the M + K solve and the constraint solve. On stiff
 #: skins the M + K solve stops at it on most steps (counted, :class:`palpate.sim.stability.SolverWarnings`); 1000
-#: clears it at 1.3-2.0x the CPU time (docs/architecture.md, issue 12).
+#: clears it at 1.3-2.0x the CPU time (docs/results.md).
 SOLVER_ITERATIONS = 100
 #: Name of the flexcomp (and the prefix of its bodies) in the model.
 NAME = "obj"

@@ -4,7 +4,7 @@ The block's mesh correction (:mod:`palpate.sim.flex.calibration`) is measured on
 loads a field concentrated within about a cell. A stiff skin spreads its load over a few bending lengths, which the
 5 mm cells resolve nearly as the continuum does, so the block's kappa over-corrects it, the more so the thicker
 the skin, while the plate window's coarse outer cells stiffen the spread load again, more as it spreads with depth
-(docs/architecture.md, issue 12, has the measurements). Neither is the block's, so a press over a stiff top layer
+(docs/results.md has the measurements). Neither is the block's, so a press over a stiff top layer
 multiplies the block's kappa by q = kappa_plate / kappa_block, measured here:
 
     q(a / cell, nu_skin, nu_base, t, E_skin / E_base, H) = (F_flex / F_law) / kappa_block

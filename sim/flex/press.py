@@ -234,7 +234,7 @@ def run_flex_press(scene: Scene, obj: ObjectSpec, target, profile, *, timestep: 
                                                   obj.height, cell / tip.radius)
     # a lump under the press: the surface vertices over its pocket, which neither kappa nor the mixing sees (flex_lump)
     pocket = pocket_at(obj, grid, fm.cell_young, fm.cell_poisson, x, y) if calibrate and fm.lateral else None
-    # r was measured on lumps centred on the axis; off it, it did not help (issue 12, off the axis): faded to 1
+    # r was measured on lumps centred on the axis; off it, it did not help (docs/results.md, off-axis lumps): faded to 1
     lump = None if pocket is None else lump_curve(load_lump_calibration() if tables is None else tables.lump,
                                                   pocket.moduli, cell / tip.radius, pocket.centring)
     qadr = model.jnt_qposadr[fm.tip_joint]
