@@ -11,7 +11,7 @@ reliability. Printed: the ECE of the most probable material, its accuracy and me
 cells with a wall within a press's reach (a neighbour sharing an edge holds another true material) and the others.
 The pooled ECE can hide a wall cell that is sure and wrong behind a clear cell that is right and unsure in the same
 bin; the "grouped" ECE, the two groups' ECEs weighted by their cells, cannot. The setting is chosen by the rule of
-docs/exploration.md ("Press, extrapolation and wall reliability chosen together"): the lowest mean grouped ECE over
+docs/results.md ("Press, extrapolation and wall reliability chosen together"): the lowest mean grouped ECE over
 the policies with every policy's pooled ECE at most MAX_POOLED_ECE.
 
 Choose on tuning seeds (--split tuning), report on the report seeds once chosen.
@@ -95,7 +95,7 @@ def scene_samples(fs, policies: list[str], settings: list[tuple[float, float, fl
 
 
 def chosen(scores: dict, pooled: dict, shipped: MapCalibration, max_pooled: float, near: float):
-    """The setting the rule picks (docs/exploration.md): the lowest score among those whose pooled ECE is at most
+    """The setting the rule picks (docs/results.md): the lowest score among those whose pooled ECE is at most
     ``max_pooled`` for every policy; one within ``near`` of it that moves the shipped press, then extrapolation,
     reliability less wins instead. None when no setting is allowed."""
     allowed = [s for s in scores if pooled[s] <= max_pooled]

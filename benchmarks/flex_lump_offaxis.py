@@ -9,7 +9,7 @@ once by flex to 4.12 mm and read at 0.5 / 1 / 2 / 4 mm. Printed: flex's force ra
 3-D FE's on one grid (its mesh error cancels), % error, with r = 1, with the calibration lumps' r in full and as
 shipped (r ** centring ** CENTRING_POWER), and each case's centring. None of these lumps is a calibration lump; the
 power was chosen on the nu 0.45 rows with 0 < centring < 1 (the nu 0.3 rows were not used by the rule but were seen
-beside them; docs/architecture.md).
+beside them; docs/results.md).
 """
 
 from __future__ import annotations

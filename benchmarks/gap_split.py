@@ -2,7 +2,7 @@
 
 After info_gain's starting lattice, a wall between two presses that read different materials lies somewhere in the
 unpressed run between them, and eq. 6.15 fills that run from its ends: where inside the gap the wall lies, nothing
-has pinned (docs/exploration.md, "Estimating where a press would read otherwise"). This policy enumerates those
+has pinned (docs/results.md, "Estimating where a press would read otherwise"). This policy enumerates those
 gaps along rows, columns and both diagonals (two presses at most ``spread_stride`` cells apart, only unpressed cells
 between, readings that differ) and, before each of info_gain's greedy choices, presses the unpressed cell that lies
 inside the most gaps (a greedy set cover, recomputed after every press so each reading re-splits what it touched;
@@ -12,7 +12,7 @@ but pass within ``gap_reach`` cells of a press of another material, at that weig
 split, then ``gap_every - 1`` greedy choices; ``gap_weight`` > 0 drops the priority and adds that many cells of value
 per gap to info_gain's instead. Nothing reads the scene generator or its families. A candidate, not shipped: on the
 tuning seeds it lowers the tail of the block its variants were chosen on and not of the other, at a higher median
-(docs/exploration.md, "Splitting the lattice's gaps").
+(docs/results.md, "Splitting the lattice's gaps").
 
 Run through benchmarks/exploration_families.py (``--policies ...,gap_split``, offline only; ``--info-gain`` settings
 apply to it, ``--gap FIELD=VALUE`` sets the fields below).

@@ -6,8 +6,8 @@ indentation c_D (mm) and contact area c_A (mm^2), the peak intensity c_P (counts
 of the peak frame, the fit's n1, n2 (counts: its sign is the realism targets' n2 < 0) and a1, and
 ``a1 / (n1 (c_D / c_A)^1.5)``. When the patch covers the pad before the press ends, both fits end at the same c_P,
 so a1 / n1 is (c_D / c_A)^1.5 at the deepest point whatever the pad's gain, non-linearity or saturation and the
-material's modulus: the last column stays near 1 and a1 follows n1 and where the press stops (docs/realism.md,
-press depth). The last lines give per material the means over the seeds.
+material's modulus: the last column stays near 1 and a1 follows n1 and where the press stops (docs/results.md,
+"The shipped profile"). The last lines give per material the means over the seeds.
 
     .venv/bin/python benchmarks/realism_presses.py [--seeds 101,102,103,104] [--scenario S.toml]
         [--profile NAME_OR_PATH] [--set KEY=VALUE ...] [--scenario-set training.depth_mm=1.8 ...] [--quiet]

@@ -21,7 +21,7 @@ scored). None of them reads the scene's family or generator: they model shapes f
 
 The Potts field couples cells at most two apart, so a stripe seen at two presses four or more cells apart does not
 carry into the cells between them (its samples follow the nearer lattice press); :func:`line_risk` does.
-Measurements: docs/exploration.md, "Estimating where a press would read otherwise".
+Measurements: docs/results.md, "Estimating where a press would read otherwise".
 """
 
 from __future__ import annotations
@@ -234,7 +234,7 @@ def wall_risk(s: MapState, *, radius: int = 4, slope_penalty: float = 0.3, decay
     ``slope_penalty``; the risk is its probability at the cell itself. A wall located by presses along it
     elsewhere is extrapolated to where the presses have not been; one-sided evidence leaves the risk low.
     Undecided cells: 1. Every cell is fitted at once (batched Newton steps on the padded window). The defaults
-    were chosen on the harness's tuning seeds 0-71 (docs/exploration.md)."""
+    were chosen on the harness's tuning seeds 0-71 (docs/results.md)."""
     ny, nx = s.explored.shape
     dy, dx = np.mgrid[-radius:radius + 1, -radius:radius + 1]
     cols = [np.ones(dy.size), dx.ravel() / radius, dy.ravel() / radius]

@@ -1,7 +1,7 @@
 """How sharp is an estimate of where a press would read other than the map says?
 
 With that signal exact, info_gain meets the worst-scene target on every tuning scene, and it needs about 90% of
-those cells marked at 10% false alarms (docs/exploration.md, "What the greedy planner lacks"). This harness runs
+those cells marked at 10% false alarms (docs/results.md, "What the greedy planner lacks"). This harness runs
 info_gain on scenes of benchmarks/scene_families.py (presses answered offline, stopped as the benchmark stops
 them), records the planner's state every ``--every``-th choice after the lattice (at most ``--snapshots`` a scene)
 and, for every unpressed cell, the oracle's label (:func:`oracle_risk.wrong_unpressed` against the felt map: a

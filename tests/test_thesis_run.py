@@ -81,7 +81,7 @@ def test_object_1_reads_the_rubber_strip_as_the_second_material(thesis):
 
 def test_the_run_reports_its_training_presses_against_the_seeds_tables(thesis):
     """The realism targets that the fitted profile meets on the main job's seed (6, never tuned on); the others are
-    reported in docs/realism.md with benchmarks/realism_targets.py's numbers over held-out seeds."""
+    reported in docs/results.md with benchmarks/realism_targets.py's numbers over held-out seeds."""
     _, summary = thesis
     report = summary["sim_to_real"]
     assert report["real_table"].endswith("seed000_tables_6_3_to_6_5.csv")
@@ -90,7 +90,7 @@ def test_the_run_reports_its_training_presses_against_the_seeds_tables(thesis):
     assert set(m) == {"Material_1", "Material_2", "Material_3"}
     # on this seed the rubber's spread of n1 holds too (it holds on 4 seeds of 6),
     # but the sponge's and the rubber's CV of a1 (0.70 and 0.58 of the real) and the hard foam's n2 < 0 (-4 presses)
-    # do not; docs/realism.md has the counts over the held-out seeds
+    # do not; docs/results.md has the counts over the held-out seeds
     for name in ("Material_1", "Material_2", "Material_3"):
         assert 0.7 <= m[name]["cv_ratio_n1"] <= 1.3, name
     assert 0.7 <= m["Material_3"]["cv_ratio_a1"] <= 1.3

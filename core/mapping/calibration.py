@@ -98,7 +98,7 @@ SEED_CALIBRATION = MapCalibration()
 #: What a scenario uses unless it says otherwise: chosen with physics presses on the tuning seeds of
 #: benchmarks/exploration_families.py (walls anywhere under 10-20 mm cells), whose report-only seeds measure it;
 #: the wall reliability on raster's maps of 48 tuning scenes, benchmarks/exploration_wall_sweep.py
-#: (docs/exploration.md, "Maps beside walls").
+#: (docs/results.md, "Maps beside walls").
 DEFAULT_CALIBRATION = MapCalibration(press_reliability=0.94, extrapolation_certainty=0.95, wall_reliability=0.7)
 
 

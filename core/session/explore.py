@@ -144,7 +144,7 @@ class MapPostprocessing:
     def planned_on(self, grid, calibration: MapCalibration, post):
         """The map the policies plan on and the stop rules read: ``post`` (:meth:`apply`'s) without the wall
         tempering. A tempered wall cell stays unsure however often it is pressed, so planning on it sends the
-        policies back to walls (measured in docs/exploration.md, "Maps beside walls"); the tempering says how far
+        policies back to walls (measured in docs/results.md, "Maps beside walls"); the tempering says how far
         the reported map can be trusted, not where to press."""
         if calibration.wall_reliability == 1.0 or isinstance(grid, VoxelGrid):
             return post

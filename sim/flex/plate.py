@@ -20,10 +20,10 @@ Interpolation (chosen in the earlier 90 mm window, not rechosen, on calibration 
 of 12x on 25 and 40 mm and 2.25 mm of 30x on 20 mm, not on the validity cases): linear in a / cell, log skin
 thickness, log modulus ratio and log height, clamped at the table's ends; linear in the skin's Poisson ratio and in
 log(K / G) of the base's (the plate window's pinned sides confine the base, more the less compressible it is; chosen
-over linear in nu on four stacks of bases at nu 0.4-0.48, docs/architecture.md). Below its first ratio (2x) q is
+over linear in nu on four stacks of bases at nu 0.4-0.48, docs/results.md). Below its first ratio (2x) q is
 that row's: the plate window's own difference from the free table's block (0.12-0.19 from 1 on bases of nu 0.3 and
 0.45, 0.38-0.40 on nu 0.49), which going to q = 1 at ratio 1 put 11% into a 1.3x skin on a base of nu 0.49 (chosen
-on three skins of 1.2-1.5x, docs/architecture.md).
+on three skins of 1.2-1.5x, docs/results.md).
 
 models/flex_plate_calibration.json holds the table for one cell size; ``benchmarks/flex_plate.py --calibrate``
 remeasures it (:func:`palpate.sim.flex.calibrate.measure_plate_calibration`); it depends on the block table, so it
