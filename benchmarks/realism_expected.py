@@ -10,8 +10,9 @@ resampled on the same seed indices and drawn with the same uniforms (common rand
 are paired. The Monte Carlo variance of each resample's finite draws is subtracted from the resamples' spread.
 
 Validation printed alongside (docs/results.md, "Deciding by the expected score"): each population's mean per-seed
-count with its seed-bootstrap s.e. and the difference per-seed - pooled with its own; ``--perfect N`` adds N synthetic seeds drawn
-from the real table (a perfect simulator, whose expectation realism_ceiling.py gives) as a population.
+count with its seed-bootstrap s.e. and the difference per-seed - pooled with its own; ``--perfect N`` adds N
+synthetic seeds drawn from the real table (a perfect simulator, whose expectation realism_ceiling.py gives) as a
+population.
 
 A simulated seed's presses share session-level draws (the same pad and finger for a material's 10 presses), so
 pooling presses over seeds widens their spread beyond a seed's. ``--session-levels`` keeps that structure: each
