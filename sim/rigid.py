@@ -93,11 +93,12 @@ def equivalent_radius(clearance: np.ndarray, radius: float) -> np.ndarray:
     return np.where(h < radius, np.sqrt(np.maximum(2.0 * radius * hc - hc * hc, 0.0)), np.inf)
 
 
-def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray) -> np.ndarray:
+def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
     """The law's pressure (Pa) at radii r_eq (..., m) for indentations ``depth`` (n,) m: shape (n, ...).
 
     Beyond the law's deepest tabulated depth the pressure grows as a Hertz contact would (d^0.5 at fixed r / a),
-    which only a runaway reaches (and the run then stops with its error)."""
+    which only a runaway reaches (and the run then stops with its error). ``rows``: a boolean mask (n,) of the
+    depths wanted; the others are left 0 (a table read at a few heights need not evaluate the rest)."""
     d = np.maximum(np.asarray(depth, dtype=float), 0.0)
     over = d > law.max_depth
     basis = law.basis_at(np.minimum(d, law.max_depth))
@@ -105,10 +106,20 @@ def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray) -> np.nda
     if over.any():
         scale[over] = np.sqrt(d[over] / law.max_depth)
     b, c = basis.radii * scale[:, None], basis.coeffs
-    shape = (len(d),) + (1,) * r_eq.ndim
-    rr = r_eq[None, ..., None] ** 2
-    p = np.sum(c.reshape(shape + (-1,)) * np.sqrt(np.maximum(b.reshape(shape + (-1,)) ** 2 - rr, 0.0)), axis=-1)
-    return p * scale.reshape(shape)
+    r_eq = np.asarray(r_eq, dtype=float)
+    # each distinct radius once (a pad or footprint on a flat top repeats its radii by symmetry), and only the
+    # (depth, radius) pairs inside the contact: each term evaluated as a dense sum over all pairs would be
+    r_u, inverse = np.unique(r_eq.reshape(-1), return_inverse=True)
+    rr = r_u**2
+    hit = rr[None, :] < (b[:, -1] ** 2)[:, None]
+    if rows is not None:
+        hit &= np.asarray(rows, dtype=bool)[:, None]
+    di, ri = np.nonzero(hit)
+    out = np.zeros((len(d), rr.size))
+    terms = c[di] * np.sqrt(np.maximum(b[di] ** 2 - rr[ri, None], 0.0))
+    out[di, ri] = np.sum(terms, axis=-1) * scale[di]
+    # C order, as a dense evaluation gives it: a BLAS product over it then sums in the same order
+    return np.ascontiguousarray(out[:, inverse.reshape(-1)]).reshape((len(d),) + r_eq.shape)
 
 
 def contact_geometry(obj: ObjectSpec, centre_xy: np.ndarray, tip, mesh=None, *, rings: int = 96, sectors: int = 24,
@@ -198,9 +209,13 @@ def run_rigid_press(
     n_tab = 1000
     s_tab = np.linspace(s_lo, s_hi, n_tab)
     d_tab = np.maximum(g_ref - s_tab, 0.0)
-    f_tab = law_pressure(law, d_tab, r_cells) @ areas
-    df_tab = np.gradient(f_tab, s_tab)
     inv_ds = (n_tab - 1) / (s_hi - s_lo)
+    # the table's deep half is there for a runaway: evaluated first only over the heights a tracking press
+    # reaches (the setpoint's deepest, with a margin), the rest if the tip ever goes lower (same values either way)
+    band = max(int((float(np.min(profile.z)) - radius - 0.5 * depth_cmd - 5e-4 - s_lo) * inv_ds) - 2, 0)
+    rows = np.arange(n_tab) >= band
+    f_tab = law_pressure(law, d_tab, r_cells, rows) @ areas
+    df_tab = np.gradient(f_tab, s_tab)  # exact from row band + 1 on
     tau = mat.damping
 
     n = int(np.ceil(profile.duration / timestep)) + 1
@@ -222,6 +237,7 @@ def run_rigid_press(
     ftab = f_tab.tolist()
     dftab = df_tab.tolist()
     top = n_tab - 1.000001
+    x_band = band + 1.0 if band > 0 else -1.0
     qpos, qvel, qfrc, dctrl = data.qpos, data.qvel, data.qfrc_applied, data.ctrl
     step = mujoco.mj_step
     for k in range(n):
@@ -232,6 +248,10 @@ def run_rigid_press(
             if x != x:  # NaN: stop and report below
                 break
             x = 0.0 if x < 0.0 else top  # beyond the table: deeper than any run can go, or out of contact
+        if x < x_band:  # deeper than the band: the whole table
+            f_tab = law_pressure(law, d_tab, r_cells) @ areas
+            df_tab = np.gradient(f_tab, s_tab)
+            ftab, dftab, x_band = f_tab.tolist(), df_tab.tolist(), -1.0
         i = int(x)
         w = x - i
         fk = ftab[i] + (ftab[i + 1] - ftab[i]) * w
@@ -267,9 +287,11 @@ def run_rigid_press(
     pressure = np.zeros((n,) + qpts.shape[:2])
     touching = indentation > 0
     if touching.any():
-        p_tab = law_pressure(law, d_tab, sensel_r) @ qw
         x = np.clip((s_run[touching] - s_lo) * inv_ds, 0.0, top)
         i = x.astype(int)
+        rows = np.zeros(n_tab, dtype=bool)
+        rows[i] = rows[i + 1] = True  # the heights the run reached, of the table's 1000
+        p_tab = law_pressure(law, d_tab, sensel_r, rows) @ qw
         w = (x - i)[:, None, None]
         p = p_tab[i] * (1.0 - w) + p_tab[i + 1] * w
         if tau > 0:

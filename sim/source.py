@@ -23,7 +23,7 @@ from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import material_under, run_analytic_press
 from palpate.sim.bem.press import run_bem_press
 from palpate.sim.bem.wall import load_wall_table
-from palpate.sim.blas import one_blas_thread
+from palpate.sim.blas import blas_controller, one_blas_thread
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profile
 from palpate.sim.flex.model import SOLVER_ITERATIONS
@@ -119,6 +119,7 @@ class SimSource:
         self._table = None  # the validity table, read on the first ``auto`` decision
         self._images = None  # its image columns, likewise
         self._walls = None  # the bem rung's wall table, read on its first press
+        self._blas = None  # the BLAS libraries' thread controller, found on the first contact law
         self.scene = scene
         self.fidelity = fidelity
         self.seed = int(seed)
@@ -142,7 +143,9 @@ class SimSource:
     def _law(self, obj: ObjectSpec, x: float, y: float, surface_z: float, max_depth: float):
         """The contact law at (x, y) (m), cached per press point; its FE solves (an inclusion, an edge within
         reach) run with BLAS on one thread."""
-        with one_blas_thread():
+        if self._blas is None:
+            self._blas = blas_controller()
+        with one_blas_thread(self._blas):
             return object_law(obj, x, y, surface_z, self.scene.fingertip.radius, max_depth, cache=self._laws)
 
     def explain(self, target: PressTarget) -> Choice:
