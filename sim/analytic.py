@@ -143,11 +143,16 @@ def law_sensel_pressure(law: ContactLaw, depth: np.ndarray, bounds: np.ndarray, 
     basis = law.basis_at(d)
     radii, coeffs = basis.radii, basis.coeffs
     radius = law.tip_radius
-    out = np.zeros((len(d),) + bounds.shape[:2])
-    for k in range(radii.shape[1]):
-        # c sqrt(b^2 - r^2) is a Hertz profile of a tip of radius R at depth b^2 / R with E* = c pi R / 2
-        out += hertz_sensel_pressure(radii[:, k] ** 2 / radius, coeffs[:, k] * np.pi * radius / 2.0, radius, bounds,
-                                     centre, order=order)
+    n, k_max = radii.shape
+    # c sqrt(b^2 - r^2) is a Hertz profile of a tip of radius R at depth b^2 / R with E* = c pi R / 2: every
+    # profile of every depth in one call (profile-major), summed profile by profile as separate calls would be
+    c = None if centre is None or np.asarray(centre).shape == (2,) else np.tile(np.asarray(centre, float), (k_max, 1))
+    every = hertz_sensel_pressure((radii**2 / radius).T.reshape(-1), (coeffs * np.pi * radius / 2.0).T.reshape(-1),
+                                  radius, bounds, centre if c is None else c, order=order)
+    every = every.reshape((k_max, n) + bounds.shape[:2])
+    out = np.zeros((n,) + bounds.shape[:2])
+    for k in range(k_max):
+        out += every[k]
     return np.maximum(out, 0.0)
 
 
