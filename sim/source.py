@@ -128,6 +128,7 @@ class SimSource:
         self._presses = 0
         self._meshes: dict = {}
         self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
+        self._pads: dict = {}  # the pad's sensel footprints by fingertip and contact centre (analytic)
         self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.press.run_flex_press)
         self._flex_tables: FlexTables | None = None  # its calibration tables, read on the first flex press
         self._session = (None if self.realism.is_ideal else
@@ -270,7 +271,7 @@ class SimSource:
             physics_profile = real.object_profile(profile)
             physics_profile = replace(physics_profile, meta=dict(physics_profile.meta, force_target=None))
         if fidelity == "analytic":
-            trace = run_analytic_press(self.scene, obj, physics_profile, law=law)
+            trace = run_analytic_press(self.scene, obj, physics_profile, law=law, pads=self._pads)
         elif fidelity == "bem":
             if self._walls is None:
                 self._walls = load_wall_table()
