@@ -35,7 +35,7 @@ from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.param_stats import table_from_csv, table_from_fits
 from palpate.core.session.actuators import open_actuators
-from palpate.core.session.ceiling import Ceiling, attainable_accuracy, ceiling_summary
+from palpate.core.session.ceiling import Ceiling, attainable_accuracy, ceiling_summary, is_full_raster
 from palpate.core.session.explore import MapPostprocessing, ObjectResult, explore_object
 from palpate.core.session.figure_jobs import FigureDrawer, FigureJob, object_jobs, progress_job, training_jobs
 from palpate.core.session.output_guard import check_output_file, prepare_output_folder
@@ -218,8 +218,10 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
 
     t0, c0 = time.perf_counter(), time.process_time()
     ceilings: list[Ceiling | None] = [None] * len(objects)
-    if scenario.outputs.attainable_accuracy and scenario.actuator.kind == "sim":
+    if scenario.actuator.kind == "sim":
         for i, (entry, obj) in enumerate(zip(scenario.objects, objects, strict=True)):
+            if not (scenario.outputs.attainable_accuracy or is_full_raster(obj)):
+                continue  # opt-in: a press on every cell more (a full raster is its own ceiling, free)
             ceilings[i] = attainable_accuracy(scenario, entry, memory, make_source, int(seeds[3]) + i, progress, obj,
                                               layers)
     timing["attainable_accuracy_s"] = time.perf_counter() - t0
