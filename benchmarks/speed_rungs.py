@@ -1,7 +1,8 @@
 """The analytic and rigid rungs against plain references of the same physics, measured in one run.
 
 One 4 mm press at 10 mm/s (about 1.4 s of press) on a 200 kPa block 30 mm thick, its contact law solved once (a
-SimSource keeps it, and the analytic rung's pad footprints: what every press after a point's first one pays):
+SimSource keeps it, with the analytic rung's pad footprints and the rigid rung's compiled model: what every press
+after a point's first one pays):
 
 - analytic: :func:`palpate.sim.analytic.run_analytic_press` (the law's force and per-sensel pressure at every taxel
   sample) against a vectorised numpy press of the same samples: Hertz's force and Hertz's pressure averaged over
@@ -91,6 +92,7 @@ def main() -> None:
 
     # the analytic rung's samples, for the reference
     pads: dict = {}  # the pad's footprints, kept as a SimSource keeps them
+    models: dict = {}  # the rigid rung's compiled model, likewise
     trace = run_analytic_press(scene, obj, profile, law=law, pads=pads)
     depth = trace.indentation
     points, weights = sensel_quadrature(tip, 6)
@@ -111,7 +113,7 @@ def main() -> None:
     cases = {
         "analytic": (lambda: run_analytic_press(scene, obj, profile, law=law, pads=pads),
                      lambda: numpy_press(depth, young_eff, tip.radius, points, weights)),
-        "rigid": (lambda: run_rigid_press(scene, obj, profile, timestep=TIMESTEP, law=law), bare),
+        "rigid": (lambda: run_rigid_press(scene, obj, profile, timestep=TIMESTEP, law=law, models=models), bare),
     }
     times: dict[str, list[tuple[float, float, float]]] = {k: [] for k in cases}
     for _ in range(args.rounds):

@@ -142,6 +142,7 @@ def run_rigid_press(
     scene: Scene, obj: ObjectSpec, profile: PressProfile, *, timestep: float = 0.002,
     drive: FingerDrive | None = None, rings: int = 96, sectors: int = 24, order: int = 6,
     young: float | None = None, mesh=None, law: ContactLaw | None = None, max_steps: int = MAX_STEPS,
+    models: dict | None = None,
 ) -> PhysicsTrace:
     """Press-and-release of the MuJoCo finger on ``obj`` under the contact law (see the module docstring).
 
@@ -157,6 +158,8 @@ def run_rigid_press(
         mesh: the object's pre-loaded trimesh mesh, if a mesh object.
         law: the press point's contact law (computed here when not given; a SimSource caches it).
         max_steps: step budget; a longer press is refused before it runs.
+        models: a dict the caller keeps for ``scene`` alone (a SimSource does): compiled press models by timestep,
+            drive, axis and mesh, moved to each press's start instead of compiled again.
 
     Raises:
         SimulationDiverged: MuJoCo warning, NaN, runaway penetration or speed, naming what to change.
@@ -189,9 +192,7 @@ def run_rigid_press(
     centres = profile.centres()
     start = centres[0]
     q_set = profile.z - profile.z[0]  # the centre is start + q * axis (see PressProfile.centres)
-    model, data = build_press_model(scene, start, axis, timestep=timestep, drive=drive,
-                                    meshes={obj.name: mesh} if mesh is not None else None)
-    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)  # the contact law is ours
+    model, data = press_model(scene, obj, start, axis, timestep, drive, mesh, models)
 
     # surface sampled under the deepest tip position (the tip moves on one axis)
     deepest = centres[int(np.argmin(profile.z))]
@@ -309,6 +310,28 @@ def run_rigid_press(
     )
     trace.check_finite()
     return trace
+
+
+def press_model(scene: Scene, obj: ObjectSpec, start: np.ndarray, axis: np.ndarray, timestep: float,
+                drive: FingerDrive, mesh=None, models: dict | None = None):
+    """(model, data) of :func:`palpate.sim.scene.build_press_model` with MuJoCo's contacts off (the law is ours),
+    the tip's body at ``start`` (m) and the data fresh. ``models``: compiled models of ``scene`` kept by the caller;
+    a kept one is moved to ``start`` and reset, which is what compiling it there gives."""
+    import mujoco
+
+    key = (float(timestep), drive, tuple(float(c) for c in axis), obj.name if mesh is not None else None)
+    kept = None if models is None else models.get(key)
+    if kept is None:
+        model, data = build_press_model(scene, start, axis, timestep=timestep, drive=drive,
+                                        meshes={obj.name: mesh} if mesh is not None else None)
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        if models is not None:
+            models[key] = (model, data)
+        return model, data
+    model, data = kept
+    model.body("fingertip").pos[:] = [float(c) for c in start]
+    mujoco.mj_resetData(model, data)
+    return model, data
 
 
 def rigid_depth_for_force(obj: ObjectSpec, centre_xy: np.ndarray, tip, law: ContactLaw, force: float,

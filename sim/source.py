@@ -129,6 +129,7 @@ class SimSource:
         self._meshes: dict = {}
         self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
         self._pads: dict = {}  # the pad's sensel footprints by fingertip and contact centre (analytic)
+        self._rigid_models: dict = {}  # compiled rigid press models (palpate.sim.rigid.press_model)
         self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.press.run_flex_press)
         self._flex_tables: FlexTables | None = None  # its calibration tables, read on the first flex press
         self._session = (None if self.realism.is_ideal else
@@ -279,7 +280,7 @@ class SimSource:
                 trace = run_bem_press(self.scene, obj, physics_profile, walls=self._walls)
         elif fidelity == "rigid":
             trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
-                                    max_steps=self.max_steps)
+                                    max_steps=self.max_steps, models=self._rigid_models)
         else:
             # flex has its own default step (up to 10 ms, see palpate.sim.flex.press.default_timestep): the rigid
             # default of 2 ms would make it 5x slower for nothing (its elasticity is integrated implicitly)

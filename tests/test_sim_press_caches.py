@@ -164,3 +164,25 @@ def test_the_source_keeps_one_blas_controller_across_presses():
     source.press(PressTarget(0.001, 0.0, depth=0.002, speed=0.01))
     assert first is not None and source._blas is first
 
+
+
+def test_a_kept_press_model_moved_to_the_next_start_presses_as_a_fresh_compile(law):
+    import mujoco
+
+    scene = Scene(objects=(_block(),), fingertip=FingertipSpec(radius=R))
+    obj = scene.objects[0]
+    models: dict = {}
+    for x, depth in ((0.0, 0.003), (0.004, 0.0025), (0.0, 0.003)):
+        profile = press_profile(PressTarget(x, 0.0, depth=depth, speed=0.01), obj.height, radius=R, timestep=0.002)
+        kept = rigid.run_rigid_press(scene, obj, profile, law=law, models=models)
+        fresh = rigid.run_rigid_press(scene, obj, profile, law=law)
+        for name in ("force", "indentation", "sensel_pressure", "tip_position", "t"):
+            assert np.array_equal(getattr(kept, name), getattr(fresh, name)), name
+    assert len(models) == 1
+    (model, data), = models.values()
+    # a warning of one press does not carry into the next (it would fail the press): the data are reset
+    data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 3
+    rigid.run_rigid_press(scene, obj, profile, law=law, models=models)
+    # another timestep is another model
+    rigid.run_rigid_press(scene, obj, profile, timestep=0.001, law=law, models=models)
+    assert len(models) == 2
