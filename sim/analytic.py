@@ -64,14 +64,12 @@ def _rect_integrals(a: np.ndarray, x0: np.ndarray, x1: np.ndarray, y0: np.ndarra
     # most pieces have zero width (a sensel inside the contact is one piece): they add 0, so they are left 0 and
     # the sum below runs over the same terms in the same order
     live = width[..., 0] > 0
-    y = lo[live] + width[live] * s  # (m, order)
-    a_p = np.broadcast_to(a[:, None], live.shape)[live]
-    b = np.sqrt(np.maximum(a_p[:, None] ** 2 - y**2, 0.0))
+    pi, ki = np.nonzero(live)
+    y = lo[pi, ki] + width[pi, ki] * s  # (m, order)
+    b = np.sqrt(np.maximum(a[pi, None] ** 2 - y**2, 0.0))
     bb, b_safe = b * b, np.maximum(b, 1e-300)
-    x0_p = np.broadcast_to(x0[:, None], live.shape)[live][:, None]
-    x1_p = np.broadcast_to(x1[:, None], live.shape)[live][:, None]
     strip = np.zeros(live.shape + (len(s),))
-    strip[live] = _chord_integral(x1_p, b, bb, b_safe) - _chord_integral(x0_p, b, bb, b_safe)
+    strip[pi, ki] = _chord_integral(x1[pi, None], b, bb, b_safe) - _chord_integral(x0[pi, None], b, bb, b_safe)
     return np.sum(strip * w * width, axis=(-1, -2))
 
 
