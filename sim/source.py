@@ -142,12 +142,16 @@ class SimSource:
             self._meshes[obj.name] = load_mesh(obj)
         return self._meshes[obj.name]
 
+    def _blas_controller(self):
+        """The BLAS libraries' thread controller, found once (palpate.sim.blas)."""
+        if self._blas is None:
+            self._blas = blas_controller()
+        return self._blas
+
     def _law(self, obj: ObjectSpec, x: float, y: float, surface_z: float, max_depth: float):
         """The contact law at (x, y) (m), cached per press point; its FE solves (an inclusion, an edge within
         reach) run with BLAS on one thread."""
-        if self._blas is None:
-            self._blas = blas_controller()
-        with one_blas_thread(self._blas):
+        with one_blas_thread(self._blas_controller()):
             return object_law(obj, x, y, surface_z, self.scene.fingertip.radius, max_depth, cache=self._laws)
 
     def explain(self, target: PressTarget) -> Choice:
@@ -276,11 +280,13 @@ class SimSource:
         elif fidelity == "bem":
             if self._walls is None:
                 self._walls = load_wall_table()
-            with one_blas_thread():
+            with one_blas_thread(self._blas_controller()):
                 trace = run_bem_press(self.scene, obj, physics_profile, walls=self._walls)
         elif fidelity == "rigid":
-            trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
-                                    max_steps=self.max_steps, models=self._rigid_models)
+            # its tables' BLAS products are small: other threads would only wait for a core and spin
+            with one_blas_thread(self._blas_controller()):
+                trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
+                                        max_steps=self.max_steps, models=self._rigid_models)
         else:
             # flex has its own default step (up to 10 ms, see palpate.sim.flex.press.default_timestep): the rigid
             # default of 2 ms would make it 5x slower for nothing (its elasticity is integrated implicitly)
