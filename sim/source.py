@@ -90,6 +90,10 @@ class SimSource:
             or a RealismProfile; None is ``ideal`` (the simulation exactly as without profiles). One source is one
             session (one pad equilibration, one clock synchronisation). Its finger pulp is in series with the
             press point's contact law; the validity table (``auto``) is about the mechanics alone.
+        laws: a dict of contact laws (and column FE energies) to share with other sources of the same fingertip,
+            e.g. every source of a run; each entry is keyed on its stack or press point and materials. A law
+            solved deeper than a press needs serves it, so a source's numbers may depend on what the others
+            pressed before, to within the law's tabulation.
     """
 
     #: modules every fidelity imports when it presses (checked by the run before any work starts)
@@ -98,7 +102,8 @@ class SimSource:
     def __init__(self, scene: Scene, fidelity: str = "auto", seed: int = 0,
                  variability: str | Variability = "robot", timestep: float | None = None,
                  tolerance: float = DEFAULT_TOLERANCE, max_steps: int = MAX_STEPS,
-                 realism: str | Path | RealismProfile | None = None, flex_iterations: int = SOLVER_ITERATIONS):
+                 realism: str | Path | RealismProfile | None = None, flex_iterations: int = SOLVER_ITERATIONS,
+                 laws: dict | None = None):
         if fidelity not in FIDELITIES:
             raise ValidationError(f"SimSource: fidelity must be one of {FIDELITIES}, got {fidelity!r}")
         if isinstance(variability, str) and variability not in ("robot", "human"):
@@ -127,7 +132,8 @@ class SimSource:
         self.timestep = timestep
         self._presses = 0
         self._meshes: dict = {}
-        self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
+        # contact laws by stack or press point (palpate.sim.contact.stack.point_law); given, shared with other sources
+        self._laws: dict = {} if laws is None else laws
         self._pads: dict = {}  # the pad's sensel footprints by fingertip and contact centre (analytic)
         self._rigid_models: dict = {}  # compiled rigid press models (palpate.sim.rigid.press_model)
         self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.press.run_flex_press)

@@ -186,3 +186,79 @@ def test_a_kept_press_model_moved_to_the_next_start_presses_as_a_fresh_compile(l
     # another timestep is another model
     rigid.run_rigid_press(scene, obj, profile, timestep=0.001, law=law, models=models)
     assert len(models) == 2
+
+
+def test_column_energies_are_shared_by_stacks_alike_up_to_one_modulus_factor(monkeypatch):
+    from palpate.sim.contact import stack as st
+    from palpate.sim.contact.axisymmetric import column_energy
+
+    solved = []
+
+    def spy(*args, **kwargs):
+        solved.append(args[0].bulk.young)
+        return column_energy(*args, **kwargs)
+
+    monkeypatch.setattr(st, "column_energy", spy)
+    cache: dict = {}
+    energies = {}
+    for young, poisson in ((1.5e5, 0.3), (4.2e5, 0.3), (1.5e5, 0.45)):
+        lookup = st.object_lookup(_block(young, poisson), 0.0, 0.0, 0.03)
+        energies[young, poisson] = st._column_energy(lookup, 0.03, [], R, 0.004, "bonded", cache)
+    # the stiffer block of the same Poisson ratio is the first one scaled: no FE of its own; another ratio is solved
+    assert solved == [1.5e5, 1.5e5]
+    shared = energies[4.2e5, 0.3]
+    fresh = column_energy(st.column_stack(st.object_lookup(_block(4.2e5, 0.3), 0.0, 0.0, 0.03), 0.03, []), R, 0.004)
+    # linear elasticity: the same shares, forces and pressures in proportion (to the rounding of two solves)
+    np.testing.assert_allclose(shared.element_energy, fresh.element_energy, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(shared.force, fresh.force, rtol=1e-9)
+    np.testing.assert_allclose(shared.pressure, fresh.pressure, rtol=1e-9, atol=1e-9 * fresh.pressure.max())
+    assert not np.allclose(energies[1.5e5, 0.45].element_energy, shared.element_energy, rtol=1e-3)
+
+
+def test_one_maker_shares_its_law_cache_among_the_sources_it_makes():
+    import tomllib
+
+    from test_run import SMALL
+
+    from palpate.core.session.sources import scenario_source_maker
+    from palpate.core.world.scenario_file import parse_scenario
+
+    scenario = parse_scenario(tomllib.loads(SMALL), "small.toml")
+    objects = (scenario.objects[0].spec,)
+    make, other = scenario_source_maker(scenario), scenario_source_maker(scenario)
+    first, second = make(objects, 1, "robot"), make(objects, 2, "robot")
+    assert first._laws is second._laws
+    assert other(objects, 1, "robot")._laws is not first._laws
+
+
+@pytest.mark.physics
+def test_a_run_sharing_laws_among_its_sources_gives_the_maps_of_one_that_does_not(monkeypatch, tmp_path):
+    """The stated tolerance of the shared cache: a column's FE energy shares reused for a stack alike up to one
+    modulus factor differ from a fresh solve's in the last bits; maps agree to 1e-12, summary numbers to 1e-9."""
+    import json
+    import tomllib
+
+    from test_run import SMALL
+
+    from palpate.core.session.run import run_scenario
+    from palpate.core.world.scenario_file import parse_scenario
+    from palpate.sim import source as source_mod
+
+    scenario = parse_scenario(tomllib.loads(SMALL.replace("attainable_accuracy = true", "figures = false")),
+                              "small.toml")
+    shared = run_scenario(scenario, tmp_path / "shared")
+    init = source_mod.SimSource.__init__
+
+    def alone(self, *args, laws=None, **kwargs):
+        init(self, *args, **kwargs)
+
+    monkeypatch.setattr(source_mod.SimSource, "__init__", alone)
+    apart = run_scenario(scenario, tmp_path / "apart")
+    for name in ("slab.npz", "slab_postprocessed.npz"):
+        a, b = np.load(tmp_path / "shared" / "maps" / name), np.load(tmp_path / "apart" / "maps" / name)
+        for key in a.files:
+            np.testing.assert_allclose(a[key], b[key], rtol=0, atol=1e-12)
+    a, b = json.loads(json.dumps(shared["objects"])), json.loads(json.dumps(apart["objects"]))
+    assert [r["cell"] for r in a[0]["per_press"]] == [r["cell"] for r in b[0]["per_press"]]
+    for ra, rb in zip(a[0]["per_press"], b[0]["per_press"], strict=True):
+        np.testing.assert_allclose(ra["posterior"], rb["posterior"], rtol=1e-9, atol=1e-15)
