@@ -29,7 +29,8 @@ from palpate.core.world.scene import Material
 from palpate.sim.hertz import sneddon_sphere_force_at_depth
 from palpate.sim.reference.bonded_layer import dimitriadis_factor
 from palpate.sim.reference.fe import fe_press
-from palpate.sim.reference.fe3d import BoxBlock, fe3d_press
+from palpate.sim.reference.fe3d import BoxBlock
+from palpate.sim.reference.fe3d_solve import fe3d_press
 from palpate.sim.reference.sample import AxisymmetricSample
 from palpate.sim.validity.offaxis import BULK_E, DEPTHS, HALF, THICKNESS, TIP, H, compare, offaxis_cases, soft_cases
 

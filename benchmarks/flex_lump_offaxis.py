@@ -24,7 +24,7 @@ import numpy as np
 from palpate.sim.flex.grid import DEFAULT_RESOLUTION
 from palpate.sim.flex.lump import CENTRING_POWER, load_lump_calibration, lump_curve, pocket_centring, pocket_moduli
 from palpate.sim.flex.press import reference_press
-from palpate.sim.reference.fe3d import fe3d_press
+from palpate.sim.reference.fe3d_solve import fe3d_press
 from palpate.sim.validity.measure import loading_force
 from palpate.sim.validity.offaxis import (
     BULK_E,

@@ -21,7 +21,7 @@ import numpy as np
 from palpate.core.world.scene import FingertipSpec, Material, TaxelSensorSpec
 from palpate.sim.reference.fe import fe_press
 from palpate.sim.reference.fe3d import BoxBlock, Wall
-from palpate.sim.reference.fe3d_image import fe3d_image
+from palpate.sim.reference.fe3d_image import fe3d_image, radial_image
 from palpate.sim.reference.sample import AxisymmetricSample
 from palpate.sim.validity.image import PressImage, active_sensels, asymmetry, image_errors
 from palpate.sim.validity.image_cases import HALF, THICKNESS, core_cases, image_cases, wall_case
@@ -94,9 +94,10 @@ def checks() -> None:
           f"{' '.join(f'{100 * v:+.3f}' for v in err.force_error)}; image rms % of peak "
           f"{' '.join(f'{100 * v:.3f}' for v in err.rms_share)}")
     axi = fe_press(AxisymmetricSample(m, THICKNESS), TIP.radius, depths, refinement=1.0)
+    err = image_errors(full, radial_image(axi.depth, axi.force, axi.r, axi.pressure, TIP), TIP)
     print(f"full model vs axisymmetric FE (refinement 1): force % "
-          f"{' '.join(f'{100 * v:+.2f}' for v in full.force / axi.force - 1)}; contact radius (axi) mm "
-          f"{' '.join(f'{1e3 * a:.2f}' for a in axi.contact_radius)}")
+          f"{' '.join(f'{100 * v:+.2f}' for v in err.force_error)}; image rms % of peak "
+          f"{' '.join(f'{100 * v:.2f}' for v in err.rms_share)}")
     wide, _ = fe3d_image(BoxBlock(m, THICKNESS, 1.5 * HALF, 1.5 * HALF), TIP, depths, h=H, growth=GROWTH)
     err = image_errors(half, wide, TIP)
     print(f"sides at {1e3 * HALF:g} mm vs {1.5e3 * HALF:g} mm: force % "

@@ -12,13 +12,11 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
-
 from palpate.sim.bem.wall import load_wall_table
 from palpate.sim.validity.image_cases import image_cases
 from palpate.sim.validity.image_measure import score
 from palpate.sim.validity.image_reference import load_image_reference
-from palpate.sim.validity.image_table import IMAGE_TABLE_PATH, rows_from_scores, table_document
+from palpate.sim.validity.image_table import IMAGE_TABLE_PATH, format_summary, rows_from_scores, table_document
 
 
 def main() -> None:
@@ -45,21 +43,8 @@ def main() -> None:
             print(f"{case.name:<44} {entry.split:<6} {rung:<8} {s.mixing:<7} "
                   f"{' '.join(f'{100 * v:+4.1f}' for v in e.force_error):>24} "
                   f"{' '.join(f'{100 * v:4.1f}' for v in e.rms_share):>24} {asym:>30} {s.cpu:6.2f}", flush=True)
-    print("\nworst over depths >= 1 mm, per rung, family and split: |force err| / rms share / asymmetry ok")
-    for rung in args.rungs.split(","):
-        for fam in sorted({s.family for s in rows}):
-            for split in ("tuning", "report"):
-                sel = [s for s in rows if s.rung == rung and s.family == fam and s.split == split]
-                if not sel:
-                    continue
-                deep = [s.errors.depth >= 0.999e-3 for s in sel]
-                f = max(np.abs(s.errors.force_error[k]).max() for s, k in zip(sel, deep, strict=True))
-                r = max(s.errors.rms_share[k].max() for s, k in zip(sel, deep, strict=True))
-                ok = sum(int(s.errors.asymmetry_ok()[k].all()) for s, k in zip(sel, deep, strict=True))
-                print(f"  {rung:<8} {fam:<6} {split:<6} cases {len(sel):2d}: force {100 * f:5.1f}%  "
-                      f"rms {100 * r:5.1f}%  asymmetry ok {ok}/{len(sel)}")
-
-
+    print()
+    print(format_summary(rows_from_scores(rows)))
     if args.write:
         if args.family is not None or args.wall_table is not None:
             raise SystemExit("--write needs every family and the shipped wall table")

@@ -7,7 +7,7 @@ rung and auto). Outcomes: ok (its force error against the contact law at the cen
 diverged / invalid (each with the message naming what to change and, for what a rung holds, its limit) / BUG (must
 be none: NaN, disorder, a silent miss or a silent wrong answer).
 
-    .venv/bin/python benchmarks/stability_matrix.py --quick   # analytic + rigid, ~1 min
+    .venv/bin/python benchmarks/stability_matrix.py --quick   # analytic, bem, rigid, ~2 min
     .venv/bin/python benchmarks/stability_matrix.py           # adds flex (~15 min)
     .venv/bin/python benchmarks/stability_matrix.py --json out.json
 """
@@ -23,14 +23,14 @@ from palpate.sim.extremes import audit_cells, matrix, outcome_counts, run_cell
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--quick", action="store_true", help="analytic and rigid only, fewer values")
+    ap.add_argument("--quick", action="store_true", help="analytic, bem and rigid only, fewer values")
     ap.add_argument("--json", default=None, help="also write every cell's outcome to this JSON file")
     args = ap.parse_args()
     if args.quick:
-        cells = matrix(fidelities=("analytic", "rigid"), youngs=(1e3, 1e5, 1e8), poissons=(0.0, 0.49),
+        cells = matrix(fidelities=("analytic", "bem", "rigid"), youngs=(1e3, 1e5, 1e8), poissons=(0.0, 0.49),
                        timesteps=(1e-4, 2e-3, 1e-2), speeds=(0.001, 0.01, 0.2))
     else:
-        cells = matrix(fidelities=("analytic", "rigid"), youngs=(1e3, 1e4, 1e5, 1e6, 1e7, 1e8))
+        cells = matrix(fidelities=("analytic", "bem", "rigid"), youngs=(1e3, 1e4, 1e5, 1e6, 1e7, 1e8))
         cells += matrix(fidelities=("flex",), youngs=(1e3, 1e5, 1e8), poissons=(0.3, 0.49), timesteps=(1e-3, 1e-2),
                         speeds=(0.01, 0.2))
     cells += audit_cells()

@@ -20,6 +20,7 @@ EXTRA_OF_MODULE = {
     "ray": "ray",
     "foxglove": "live",
     "sklearn": "learn",
+    "gymnasium": "gym",
     "websockets": "test", "pytest": "test", "hypothesis": "test",
 }
 

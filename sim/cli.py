@@ -2,7 +2,8 @@
 
 Writes tradeoff.txt (the table), tradeoff.json and pareto.png (:mod:`palpate.sim.tradeoff`), and validity.txt /
 validity.json (each fidelity's force against the FE reference over thickness, depth, Poisson ratio, skins, lumps
-and edges, with each fidelity's cost: :mod:`palpate.sim.validity`) into --out, and prints both (or the JSON with
+and edges, with each fidelity's cost: :mod:`palpate.sim.validity`) and image_validity.txt (analytic's and bem's taxel
+images against the 3-D FE image reference) into --out, and prints them (or the JSON with
 --json). ``--quick`` is the CI sweep (a few minutes on two cores): fewer settings, the validity subset; without it
 the workstation sweep and every validity case (``--write-table`` then also replaces the validity table ``auto``
 reads, models/validity_table.json).
@@ -77,15 +78,32 @@ def run_bench(args: argparse.Namespace) -> int:
     validity = measure.measure_table(chosen, reference.load_reference(), progress=case_done)
     validity_text = validity_report.format_table(validity)
     doc["validity"] = validity.to_dict()
+    image_text = _image_columns(args.quick)
     try:
         (args.out / "tradeoff.txt").write_text(table + "\n")
         (args.out / "tradeoff.json").write_text(json.dumps(doc, indent=1, allow_nan=False))
         (args.out / "validity.txt").write_text(validity_text + "\n")
         (args.out / "validity.json").write_text(json.dumps(doc["validity"], indent=1, allow_nan=False))
+        (args.out / "image_validity.txt").write_text(image_text + "\n")
         tradeoff_report.pareto_plot(report, args.out / "pareto.png")
         if args.write_table and not args.quick:
             validity_table.TABLE_PATH.write_text(json.dumps(doc["validity"], indent=1, allow_nan=False) + "\n")
     except OSError as exc:
         raise RecordingError(f"bench: cannot write into {args.out}: {exc}") from exc
-    print(json.dumps(doc, indent=1) if args.json else table + "\n\n" + validity_text)
+    print(json.dumps(doc, indent=1) if args.json else table + "\n\n" + validity_text + "\n\n" + image_text)
     return 0
+
+
+def _image_columns(quick: bool) -> str:
+    """The image columns measured now: analytic and bem on the image reference's cases (held-out ones only with
+    ``quick``)."""
+    from palpate.sim.validity.image_cases import image_cases
+    from palpate.sim.validity.image_measure import IMAGE_RUNGS, score
+    from palpate.sim.validity.image_reference import load_image_reference
+    from palpate.sim.validity.image_table import format_summary, rows_from_scores
+
+    ref = load_image_reference()
+    scores = [score(case, ref.cases[case.name].image, rung, ref.cases[case.name].split, ref.tip)
+              for case in image_cases() if case.name in ref.cases
+              and (not quick or ref.cases[case.name].split == "report") for rung in IMAGE_RUNGS]
+    return format_summary(rows_from_scores(scores))

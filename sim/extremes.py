@@ -170,7 +170,7 @@ def run_cell(cell: Cell, *, max_steps: int = MAX_STEPS) -> Outcome:
     if why:
         return Outcome(cell, "BUG", why, peak, sat, rung, solver_warning_steps=warned)
     error = float("nan")
-    if cell.location == "centre" and rung in ("rigid", "flex"):
+    if cell.location == "centre" and rung in ("bem", "rigid", "flex"):
         error = law_error(rec, obj, source.scene.fingertip.radius)
         if abs(error) > WRONG:
             return Outcome(cell, "BUG", f"silent wrong answer: {rung}'s force is {error:+.0%} off the contact law",

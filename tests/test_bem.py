@@ -15,9 +15,9 @@ from palpate.sim import simulate_press
 from palpate.sim.analytic import law_sensel_pressure
 from palpate.sim.bem.kernel import love_rectangle
 from palpate.sim.bem.press import solve_ladder
-from palpate.sim.bem.solve import solve_contact
 from palpate.sim.bem.surface import build_surface
 from palpate.sim.bem.wall import Wall, WallTable, find_wall, load_wall_table
+from palpate.sim.contact.lcp import solve_contact
 from palpate.sim.contact.stack import object_law
 from palpate.sim.fingertip import sensel_bounds
 from palpate.sim.validity.image import asymmetry

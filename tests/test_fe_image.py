@@ -215,3 +215,22 @@ def test_the_full_model_matches_the_half_model_and_a_wall_turned_a_quarter_turns
                                atol=1e-6 * along_y.pressure.max())
     with pytest.raises(ValidationError, match="not symmetric"):
         fe3d_image(wall_case(20, 115, 0.45, 90, 2).block, TIP, depths, h=0.001, half=True)
+
+
+@pytest.mark.physics
+def test_the_plain_block_image_matches_the_axisymmetric_fe():
+    # an independent solver (axisymmetric quadratic elements) on the same block's disc: its pressure profile over
+    # the sensel squares against the 3-D image (the benchmark: force +0.2..+0.7%, image rms 0.1-0.8% of the peak)
+    pytest.importorskip("skfem")
+    from palpate.sim.reference.fe import fe_press
+    from palpate.sim.reference.fe3d_image import fe3d_image, radial_image
+    from palpate.sim.reference.sample import AxisymmetricSample
+    from palpate.sim.validity.image_reference import GROWTH, H
+
+    case = next(c for c in image_cases() if c.name == "block_115kPa_nu0.45")
+    image, _ = fe3d_image(case.block, TIP, DEPTHS, h=H, growth=GROWTH)
+    axi = fe_press(AxisymmetricSample(case.block.material, case.block.thickness), TIP.radius, DEPTHS)
+    err = image_errors(image, radial_image(axi.depth, axi.force, axi.r, axi.pressure, TIP), TIP)
+    assert np.all(np.abs(err.force_error) < 0.015), err.force_error
+    assert np.all(err.rms_share < 0.02), err.rms_share
+    np.testing.assert_array_equal(err.active, err.reference_active)

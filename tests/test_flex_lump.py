@@ -183,7 +183,7 @@ def test_a_press_over_a_soft_lumps_edge_is_not_corrected_as_a_centred_one():
     from dataclasses import replace
 
     from palpate.sim.flex.press import reference_press
-    from palpate.sim.reference.fe3d import fe3d_press
+    from palpate.sim.reference.fe3d_solve import fe3d_press
     from palpate.sim.validity.measure import loading_force
     from palpate.sim.validity.offaxis import BULK_E, HALF, THICKNESS, TIP, H, OffAxisCase, case_block, case_object
 

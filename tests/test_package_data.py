@@ -57,6 +57,27 @@ def test_scenarios_list_show_and_copy(tmp_path, monkeypatch, capsys):
     assert "exists; not overwriting it" in capsys.readouterr().err
 
 
+def test_a_copy_is_named_after_its_file(tmp_path, capsys):
+    assert main(["scenarios", "copy", "thesis_ch6", str(tmp_path / "my_lab.toml")]) == 0
+    copy = load_scenario(tmp_path / "my_lab.toml")
+    assert copy.name == "my_lab" and load_scenario(find_scenario("thesis_ch6")).name == "thesis_ch6"
+    # everything else is the shipped file's (but the paths to the shipped models)
+    shipped = (scenarios_dir() / "thesis_ch6.toml").read_text().splitlines()
+    copied = (tmp_path / "my_lab.toml").read_text().splitlines()
+    assert [a for a, b in zip(shipped, copied, strict=True) if a != b and "models/" not in a] == ['name = "thesis_ch6"']
+
+
+def test_sweep_files_are_listed_apart_from_scenarios(capsys):
+    assert main(["scenarios", "list"]) == 0
+    out = capsys.readouterr().out
+    scenarios, sweeps = out.split("\nsweep files (palpate run refuses them")
+    assert "sweeps/tiny " not in scenarios and "thesis_ch6" in scenarios
+    assert f"palpate sweep {scenarios_dir() / 'sweeps' / 'tiny.toml'} --out DIR" in sweeps
+    assert "sweeps/tiny_base" not in sweeps  # tiny_base is a scenario
+    kinds = {i.name: i.kind for i in shipped_scenarios()}
+    assert kinds["sweeps/tiny"] == "sweep" and kinds["sweeps/tiny_base"] == kinds["thesis_ch6"] == "scenario"
+
+
 def test_missing_extras_name_the_extra():
     exc = ModuleNotFoundError("No module named 'mujoco'", name="mujoco")
     assert str(missing_extra(exc, "the 'sim' source")) == (

@@ -14,6 +14,7 @@ import pytest
 from mcap.reader import make_reader
 
 from palpate.core.cli import main
+from palpate.core.io.figures import palette
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.mapping.grids import Grid2D
@@ -95,8 +96,10 @@ def test_the_map_after_every_press_is_a_foxglove_grid_of_the_run_map(small_run):
     for j, name in enumerate(("soft", "medium", "hard")):
         np.testing.assert_allclose(cells[f"P_{name}"], grid.probabilities[..., j], rtol=1e-6)
     np.testing.assert_array_equal(cells["explored"].astype(bool), grid.explored)
-    # the colours the figures use: red, green, blue = P(material 1, 2, 3)
-    np.testing.assert_allclose(cells["red"], np.round(255 * grid.probabilities[..., 0]), atol=1)
+    # the colours the figures use: each material's palette colour weighted by its probability
+    rgb = np.clip(grid.probabilities @ palette(3), 0, 1)
+    for i, channel in enumerate(("red", "green", "blue")):
+        np.testing.assert_allclose(cells[channel], np.round(255 * rgb[..., i]), atol=1)
     pose = final["pose"]["position"]
     geo = summary["objects"][0]["grid"]
     assert (pose["x"], pose["y"]) == tuple(geo["origin_m"]) and pose["z"] == pytest.approx(0.040, abs=1e-3)

@@ -97,3 +97,49 @@ def test_loading_never_executes_code(tmp_path):
     d["scenario"]["name"] = "__import__('os').system('false')"
     s = parse_scenario(d, "t.toml")
     assert s.name.startswith("__import__")
+
+
+def test_a_misspelt_key_is_answered_with_the_key_meant():
+    d = _base()
+    d["objects"][0]["matrial"] = "a"
+    with pytest.raises(ValidationError, match=r"objects\[0\]\.matrial: unknown key \(did you mean 'material'\?"):
+        parse_scenario(d, "bad.toml")
+    d = _base()
+    d["scenario"]["xyzzy"] = 1  # nothing close: no guess
+    with pytest.raises(ValidationError) as err:
+        parse_scenario(d, "bad.toml")
+    assert "did you mean" not in str(err.value) and "scenario.xyzzy: unknown key" in str(err.value)
+
+
+def _with_inclusion(shape: str, center, size, obj_shape: str = "box") -> dict:
+    d = _base()
+    if obj_shape == "cylinder":
+        d["objects"][0].update(shape="cylinder", size_mm=[25, 30])
+    d["objects"][0]["inclusions"] = [{"material": "b", "shape": shape, "center_mm": center, "size_mm": size}]
+    return d
+
+
+@pytest.mark.parametrize("shape, center, size, obj_shape", [
+    ("box", [100, 0, 15], [10, 10, 10], "box"),       # beside the block (it spans x -25..25 mm)
+    ("sphere", [0, 0, 40], [5], "box"),               # above its top (30 mm up from the table)
+    ("box", [0, 0, -10], [10, 10, 10], "box"),        # under the table
+    ("column", [0, 40, 0], [10, 10], "box"),          # a column beside it
+    ("box", [24, 24, 15], [10, 10, 10], "cylinder"),  # in the corner of the cylinder's bounding square only
+])
+def test_an_inclusion_outside_its_object_is_refused_with_the_key(shape, center, size, obj_shape):
+    with pytest.raises(ValidationError) as err:
+        parse_scenario(_with_inclusion(shape, center, size, obj_shape), "bad.toml")
+    msg = str(err.value)
+    assert msg.startswith("bad.toml: objects[0].inclusions[0].center_mm: ") and "outside object 'o'" in msg, msg
+    assert "z up from the table" in msg
+
+
+@pytest.mark.parametrize("shape, center, size, obj_shape", [
+    ("box", [24, 0, 15], [10, 10, 10], "box"),        # reaching 1 mm into the block's side
+    ("sphere", [0, 0, 32], [5], "box"),               # poking 3 mm down into it from above
+    ("column", [0, 0, 0], [10, 10], "box"),
+    ("box", [15, 15, 15], [10, 10, 10], "cylinder"),  # its corner (10, 10) is inside the 25 mm radius
+])
+def test_an_inclusion_meeting_its_object_is_accepted_and_listed(shape, center, size, obj_shape):
+    s = parse_scenario(_with_inclusion(shape, center, size, obj_shape), "t.toml")
+    assert [m.name for m in s.objects[0].spec.materials()] == ["a", "b"]

@@ -143,3 +143,11 @@ def test_larger_subset_with_flex_and_edges():
                     speeds=(0.2,), depth_fractions=(0.1, 0.5), locations=("centre", "corner"))
     cells.append(Cell("flex", 1e3, 0.49, 2e-3, 0.01, 0.5, "centre"))
     _check([run_cell(c) for c in cells])
+
+
+def test_fuzz_of_the_bem_rung_has_no_silent_wrong_answer_and_names_every_limit():
+    """bem on random blocks, stacks and thin layers: never a NaN, a miss or a force off the contact law at the
+    centre; every refusal says what to change."""
+    outcomes = [run_cell(c) for c in fuzz_cells(24, seed=8, fidelities=("bem",), stacks=True)]
+    _check(outcomes)
+    assert outcome_counts(outcomes).get("ok", 0) >= 3

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -36,14 +37,21 @@ def _list(args: argparse.Namespace) -> int:
 
     infos = shipped_scenarios()
     if args.json:
-        json.dump([{"name": i.name, "path": str(i.path), "description": i.description} for i in infos], sys.stdout,
-                  indent=1)
+        json.dump([{"name": i.name, "path": str(i.path), "description": i.description, "kind": i.kind}
+                   for i in infos], sys.stdout, indent=1)
         sys.stdout.write("\n")
         return 0
     width = max(len(i.name) for i in infos)
-    for i in infos:
+    # sweep files are not scenarios (palpate run refuses them): listed apart, with the command that runs them
+    for i in (i for i in infos if i.kind == "scenario"):
         print(f"{i.name:<{width}}  {i.description}")
-    print(f"\n(files in {scenarios_dir()}; run one with: palpate run NAME)")
+    sweeps = [i for i in infos if i.kind == "sweep"]
+    if sweeps:
+        print("\nsweep files (palpate run refuses them; run one with the command shown):")
+        for i in sweeps:
+            note = f"  ({i.description})" if i.description else ""
+            print(f"{i.name:<{width}}  palpate sweep {i.path} --out DIR{note}")
+    print(f"\n(files in {scenarios_dir()}; run a scenario with: palpate run NAME)")
     return 0
 
 
@@ -63,8 +71,24 @@ def _show(args: argparse.Namespace) -> int:
     return 0
 
 
+def renamed(text: str, name: str) -> str:
+    """A scenario file's text with its ``[scenario]`` name set to ``name`` (a sweep file's text as it is)."""
+    head = re.search(r"^\[scenario\][ \t]*$", text, flags=re.M)
+    if head is None:
+        return text
+    tail = text[head.end():]
+    nxt = re.search(r"^\[", tail, flags=re.M)
+    body = tail[:nxt.start()] if nxt else tail
+    new_body, n = re.subn(r'^(name[ \t]*=[ \t]*)"[^"\n]*"', lambda m: f"{m.group(1)}{json.dumps(name)}", body,
+                          count=1, flags=re.M)
+    if n == 0:
+        new_body = f"\nname = {json.dumps(name)}" + body
+    return text[:head.end()] + new_body + tail[len(body):]
+
+
 def _copy(args: argparse.Namespace) -> int:
     from palpate.core.errors import ValidationError
+    from palpate.core.names import check_name
     from palpate.core.world.resources import models_dir
 
     src = _shipped(args.name)
@@ -76,6 +100,8 @@ def _copy(args: argparse.Namespace) -> int:
     # points at the installed models instead.
     for rel in ("../models/", "models/"):
         text = text.replace(f'"{rel}', f'"{models_dir().as_posix()}/')
+    # the copy is a scenario of its own: named after its file, so its default output folder is not the shipped one's
+    text = renamed(text, check_name(dest.stem, f"{dest}: the copy's scenario name (its file stem)"))
     files.write_text(dest, text)
     shutil.copymode(src, dest)
     print(f"copied {args.name} to {dest}")

@@ -3,8 +3,9 @@
 - ``training_series.png``: c_P, c_A, c_D over time for the training presses, one column per material (seed 000
   Fig. 6.8-6.10);
 - ``interaction_profiles.png``: (c_A, c_D, c_P) of every training press per material (Fig. 6.11);
-- ``<object>_map.png``: the map as an RGB probability image (red, green, blue = P(material 1, 2, 3), Fig. 6.22-6.26)
-  at k = 0, mid-way, final, and after post-processing, with the pressed cells outlined;
+- ``<object>_map.png``: the map as a probability image, each material's colour weighted by its probability
+  (Fig. 6.22-6.26), mid-way, final, and after post-processing, with the pressed cells outlined (the untouched map at
+  k = 0, one uniform colour, is left out);
 - ``<object>_entropy.png``: the entropy map before and after post-processing;
 - ``exploration_progress.png``: mean entropy and accuracy of explored cells against presses, one line per object;
 - voxel maps: ``<object>_columns.png`` (seed 001 Fig. 4 column view) and ``<object>_voxels_3d.png`` (pyvista).
@@ -12,6 +13,10 @@
 Figures are a run's slowest stage after the physics, so they are drawn the cheap way: a bare ``Figure`` on an Agg
 canvas (no pyplot state), fixed margins instead of a layout engine, a few explicit ticks, one artist per series
 rather than one per press or cell, and fast PNG compression.
+
+Materials are told apart by the Okabe-Ito colours (blue, orange, bluish green, ...), which readers with any common
+colour-vision deficiency still tell apart; every axis says its unit. Each ``plot_*`` function draws its ``*_figure``
+(the matplotlib Figure, which tests inspect) into a file.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from palpate.core import files
+from palpate.core.errors import ValidationError
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.probability import entropy
 from palpate.core.mapping.snapshot import MapSnapshot
@@ -33,8 +39,11 @@ if TYPE_CHECKING:  # the figure process need not import the perception stack
 
 DPI = 100
 PNG = {"compress_level": 1}  # zlib level 1: a few times faster than the default 6, files ~1.3x larger
-COLOUR_NAMES = ("red", "green", "blue", "yellow", "magenta", "cyan", "grey")
-_PALETTE = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, 0, 1], [0, 1, 1], [0.5, 0.5, 0.5]], float)
+# Okabe & Ito's colour-blind-safe palette (sRGB 0-255), most distinct pairs first: blue/orange is the pair that
+# stays apart under protanopia, deuteranopia and tritanopia.
+COLOUR_NAMES = ("blue", "orange", "bluish green", "reddish purple", "sky blue", "vermillion", "yellow")
+_PALETTE = np.array([[0, 114, 178], [230, 159, 0], [0, 158, 115], [204, 121, 167], [86, 180, 233], [213, 94, 0],
+                     [240, 228, 66]], float) / 255.0
 
 
 @dataclass(frozen=True)
@@ -48,8 +57,8 @@ class ProgressSeries:
     accuracy_explored: np.ndarray
 
 
-def _figure(width: float, height: float):
-    """A bare figure on an Agg canvas: no pyplot, so no global figure registry and no GUI backend."""
+def new_figure(width: float, height: float):
+    """A bare figure (inches) on an Agg canvas: no pyplot, so no global figure registry and no GUI backend."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -63,7 +72,7 @@ def warm_up() -> None:
     would otherwise pay. A background drawer calls it while the run still trains."""
     import io
 
-    fig = _figure(1, 1)
+    fig = new_figure(1, 1)
     ax = fig.add_subplot(projection="3d")
     ax.set_title("x")
     fig.savefig(io.BytesIO(), format="png", dpi=20)
@@ -84,33 +93,36 @@ def _nice_ticks(lo: float, hi: float, n: int = 4) -> np.ndarray:
 
 
 def palette(m: int) -> np.ndarray:
-    """(m, 3) display colour of each material: red, green, blue, then yellow, magenta, cyan, grey."""
+    """(m, 3) display colour of each material (:data:`COLOUR_NAMES`), grey past the seventh."""
     if m <= len(_PALETTE):
         return _PALETTE[:m]
     return np.vstack([_PALETTE, np.full((m - len(_PALETTE), 3), 0.5)])
 
 
 def rgb_image(probabilities: np.ndarray) -> np.ndarray:
-    """(…, M) probabilities -> (…, 3) RGB in [0, 1]: red, green, blue = P(material 1, 2, 3).
-
-    With more than three materials the rest mix in through a fixed palette; with two, blue stays 0.
-    """
+    """(…, M) probabilities -> (…, 3) RGB in [0, 1]: each material's :func:`palette` colour weighted by its
+    probability (a certain cell shows its material's colour, an unsure one a mix)."""
     p = np.asarray(probabilities, dtype=float)
     return np.clip(p @ palette(p.shape[-1]), 0.0, 1.0)
 
 
 def colour_legend(materials: Sequence[str]) -> str:
-    """'red = A · green = B · ...': which colour shows which material's probability."""
+    """'blue = A · orange = B · ...': which colour shows which material's probability."""
     return " · ".join(f"{c} = {m}" for c, m in zip(COLOUR_NAMES, materials, strict=False))
 
 
 def plot_training_series(path: Path, training: Mapping[str, Sequence[PressResult]]) -> Path:
+    """Draw :func:`training_series_figure` into ``path``."""
+    return _save(training_series_figure(training), path)
+
+
+def training_series_figure(training: Mapping[str, Sequence[PressResult]]):
     """c_P, c_A (mm^2), c_D (mm) against time for every training press: one panel per feature, the materials one
     after the other on a shared scale (so their stiffness compares at a glance), presses laid end to end."""
-    fig = _figure(12, 7)
+    fig = new_figure(12, 7)
     axes = fig.subplots(3, 1, sharex=True)
     fig.subplots_adjust(left=0.08, right=0.98, bottom=0.08, top=0.9, hspace=0.08)
-    colours = palette(len(training)) * 0.8  # a little darker: pure green on white is hard to read
+    colours = palette(len(training))
     t_off = 0.0
     for j, (name, results) in enumerate(training.items()):
         # One line per feature and material, NaN between presses: one artist instead of one per press.
@@ -138,12 +150,17 @@ def plot_training_series(path: Path, training: Mapping[str, Sequence[PressResult
         ax.set_ylabel(label)
     axes[2].set_xlabel("press phases of the training presses, laid end to end (s)")
     fig.suptitle("Contact features during the training presses (press phase of each press)", fontsize=11)
-    return _save(fig, path)
+    return fig
 
 
 def plot_interaction_profiles(path: Path, training: Mapping[str, Sequence[PressResult]]) -> Path:
+    """Draw :func:`interaction_profiles_figure` into ``path``."""
+    return _save(interaction_profiles_figure(training), path)
+
+
+def interaction_profiles_figure(training: Mapping[str, Sequence[PressResult]]):
     """3-D scatter of (c_A, c_D, c_P) per material: the contact-interaction signature."""
-    fig = _figure(7, 5.5)
+    fig = new_figure(7, 5.5)
     ax = fig.add_subplot(projection="3d")
     fig.subplots_adjust(left=0.0, right=0.95, bottom=0.02, top=0.93)
     colours = palette(len(training))
@@ -158,7 +175,7 @@ def plot_interaction_profiles(path: Path, training: Mapping[str, Sequence[PressR
     ax.set_zlabel("c_P (counts)")
     ax.legend(loc="upper left")
     ax.set_title("Contact-interaction profile per reference material")
-    return _save(fig, path)
+    return fig
 
 
 def _extent(geometry: MapGeometry, shape: tuple[int, int]) -> list[float]:
@@ -213,12 +230,24 @@ def _outline_cells(ax, explored: np.ndarray, ext: list[float], cell_cm: float) -
 
 def plot_map_snapshots(path: Path, name: str, snapshots: Sequence[MapSnapshot], geometry: MapGeometry,
                        truth: np.ndarray | None = None) -> Path:
-    """RGB probability maps at k = 0, mid-way, final and post-processed (2-D grid), plus the ground truth."""
+    """Draw :func:`map_snapshots_figure` into ``path``."""
+    return _save(map_snapshots_figure(name, snapshots, geometry, truth), path)
+
+
+def map_snapshots_figure(name: str, snapshots: Sequence[MapSnapshot], geometry: MapGeometry,
+                         truth: np.ndarray | None = None):
+    """Probability maps mid-way, final and post-processed (2-D grid), plus the ground truth. A snapshot with no
+    pressed cell (the map at k = 0: one uniform colour) is left out, unless nothing else would be drawn."""
     materials = list(geometry.materials)
-    panels: list[MapSnapshot | None] = list(snapshots) + ([None] if truth is not None else [])
+    shown = [s for s in snapshots if np.asarray(s.explored).any()]
+    if not shown and truth is None:
+        shown = list(snapshots[-1:])
+    panels: list[MapSnapshot | None] = shown + ([None] if truth is not None else [])
+    if not panels:
+        raise ValidationError(f"{name}: no map snapshot and no ground truth to draw")
     ny, nx = (truth.shape if not snapshots else snapshots[0].probabilities.shape)[:2]
     panel_w, height = _panel_size(nx / ny, 2.6, 1.3)
-    fig = _figure(panel_w * len(panels) + 0.9, height)
+    fig = new_figure(panel_w * len(panels) + 0.9, height)
     axes = _map_axes(fig, len(panels), height)
     cell_cm = geometry.cell_size * 100
     for ax, snap in zip(axes, panels, strict=True):
@@ -234,16 +263,29 @@ def plot_map_snapshots(path: Path, name: str, snapshots: Sequence[MapSnapshot], 
         if explored is not None and label != "post-processed":
             _outline_cells(ax, explored, ext, cell_cm)
     axes[0].set_ylabel("y (cm)")
-    fig.suptitle(f"{name}: P(material) as RGB ({colour_legend(materials)}); pressed cells outlined", fontsize=10)
-    return _save(fig, path)
+    fig.suptitle(f"{name}: P(material) as colour ({colour_legend(materials)}); pressed cells outlined", fontsize=10)
+    return fig
+
+
+def entropy_unit(base: float) -> str:
+    """The unit of an entropy in logarithms of ``base``: bit (2), nat (e), hartley (10), else "base-b unit"."""
+    for b, unit in ((2.0, "bit"), (float(np.e), "nat"), (10.0, "hartley")):
+        if abs(base - b) < 1e-12:
+            return unit
+    return f"base-{base:g} unit"
 
 
 def entropy_label(base: float) -> str:
-    """Colour-bar label of an entropy map: the logarithm's base names the unit, the colour scale itself is linear."""
-    return f"entropy H, base-{base:g} logarithm (linear colour scale)"
+    """Colour-bar label of an entropy map: the unit follows the logarithm's base, the colour scale is linear."""
+    return f"entropy H ({entropy_unit(base)}: base-{base:g} logarithm; linear colour scale)"
 
 
 def plot_entropy(path: Path, name: str, before: np.ndarray, after: np.ndarray, geometry: MapGeometry) -> Path:
+    """Draw :func:`entropy_figure` into ``path``."""
+    return _save(entropy_figure(name, before, after, geometry), path)
+
+
+def entropy_figure(name: str, before: np.ndarray, after: np.ndarray, geometry: MapGeometry):
     """Entropy per cell (in the map's entropy base) before and after post-processing, on one linear colour scale
     from 0 (certain) to the maximum for the number of materials (uniform)."""
     base = geometry.entropy_base
@@ -251,29 +293,35 @@ def plot_entropy(path: Path, name: str, before: np.ndarray, after: np.ndarray, g
     vmax = float(np.log(before.shape[-1]) / np.log(base))
     ny, nx = hb.shape
     panel_w, height = _panel_size(nx / ny, 3.0, 1.5)
-    fig = _figure(2 * panel_w + 2.3, height)
+    fig = new_figure(2 * panel_w + 2.3, height)
     axes = _map_axes(fig, 2, height, right=1.6)
     for ax, h, title in zip(axes, (hb, ha), ("final map", "after post-processing"), strict=True):
         im = _map_panel(ax, h, _extent(geometry, h.shape), f"{title}\nmean H = {h.mean():.3f}", vmin=0, vmax=vmax,
                         cmap="magma")
     axes[0].set_ylabel("y (cm)")
     width = fig.get_figwidth()
-    cax = fig.add_axes((1 - 1.35 / width, 0.55 / height, 0.15 / width, 1 - 1.3 / height))
+    cax = fig.add_axes((1 - 1.35 / width, 0.55 / height, 0.15 / width, 1 - 1.3 / height), label="<colorbar>")
     fig.colorbar(im, cax=cax).set_label(entropy_label(base), fontsize=8)
-    fig.suptitle(f"{name}: map entropy (0 = certain, {vmax:.3f} = all materials equally likely)", fontsize=10)
-    return _save(fig, path)
+    fig.suptitle(f"{name}: map entropy (0 = certain, {vmax:.3f} {entropy_unit(base)} = all materials equally "
+                 "likely)", fontsize=10)
+    return fig
 
 
 _STYLES = (("-", "o"), ("--", "s"), (":", "^"), ("-.", "D"), ((0, (5, 1, 1, 1)), "v"), ((0, (1, 1)), "P"))
 
 
-def plot_progress(path: Path, series: Sequence[ProgressSeries]) -> Path:
-    """Mean entropy and accuracy of the explored cells after each press, one line per object.
+def plot_progress(path: Path, series: Sequence[ProgressSeries], base: float = 10.0) -> Path:
+    """Draw :func:`progress_figure` into ``path``."""
+    return _save(progress_figure(series, base), path)
+
+
+def progress_figure(series: Sequence[ProgressSeries], base: float = 10.0):
+    """Mean entropy (logarithms of ``base``) and accuracy of the explored cells after each press, one line per object.
 
     Objects often follow the same curve (same layout, same policy), so each gets its own line style and hollow
     marker, and earlier lines are drawn wider underneath later ones: a line exactly under another stays visible.
     """
-    fig = _figure(10, 3.8)
+    fig = new_figure(10, 3.8)
     a1, a2 = fig.subplots(1, 2)
     fig.subplots_adjust(left=0.08, right=0.98, bottom=0.14, top=0.86, wspace=0.25)
     n = len(series)
@@ -283,34 +331,42 @@ def plot_progress(path: Path, series: Sequence[ProgressSeries]) -> Path:
                  "alpha": 0.9, "label": s.name, "zorder": 2 + i}
         a1.plot(s.k, s.mean_entropy, **style)
         a2.plot(s.k, s.accuracy_explored, **style)
-    a1.set_xlabel("press k")
-    a1.set_ylabel("mean entropy of the map")
-    a2.set_xlabel("press k")
-    a2.set_ylabel("accuracy of explored cells")
+    a1.set_xlabel("press k (presses)")
+    a1.set_ylabel(f"mean entropy of the map ({entropy_unit(base)})")
+    a2.set_xlabel("press k (presses)")
+    a2.set_ylabel("accuracy of explored cells (fraction)")
     a2.set_ylim(-0.05, 1.05)
     a1.legend(fontsize=8)
     fig.suptitle("Exploration progress per object (identical curves overlap: wider lines are underneath)",
                  fontsize=10)
-    return _save(fig, path)
+    return fig
 
 
 def plot_voxel_columns(path: Path, name: str, grid, post, materials: list[str]) -> Path:
-    """Seed 001 Fig. 4: explored columns as stacks of RGB voxels, before and after post-processing."""
+    """Draw :func:`voxel_columns_figure` into ``path``."""
+    return _save(voxel_columns_figure(name, grid, post, materials), path)
+
+
+def voxel_columns_figure(name: str, grid, post, materials: list[str]):
+    """Seed 001 Fig. 4: explored columns as stacks of coloured voxels, before and after post-processing.
+    ValidationError when no column was explored (the figure would be empty)."""
     explored_cols = np.argwhere(np.asarray(grid.explored).any(axis=2))
+    if not len(explored_cols):
+        raise ValidationError(f"{name}: no explored voxel column to draw")
     cols = explored_cols[: min(len(explored_cols), 24)]
     width = max(6.0, 0.45 * len(cols) + 2)
-    fig = _figure(width, 5.4)
+    fig = new_figure(width, 5.4)
     axes = fig.subplots(2, 1, squeeze=False)
-    fig.subplots_adjust(left=0.9 / width, right=1 - 0.2 / width, bottom=0.12, top=0.88, hspace=0.55)
+    fig.subplots_adjust(left=0.9 / width, right=1 - 0.2 / width, bottom=0.2, top=0.88, hspace=0.9)
     for ax, g, title in ((axes[0, 0], grid, "explored"), (axes[1, 0], post, "after post-processing")):
-        if len(cols):
-            strip = np.stack([rgb_image(g.probabilities[ix, iy]) for ix, iy in cols], axis=1)  # (nz, ncols, 3)
-            ax.imshow(strip, aspect="auto", interpolation="nearest")
-            ax.set_xticks(range(len(cols)), [f"{ix},{iy}" for ix, iy in cols], rotation=90, fontsize=7)
-        ax.set_ylabel("voxel layer\n(0 = surface)")
+        strip = np.stack([rgb_image(g.probabilities[ix, iy]) for ix, iy in cols], axis=1)  # (nz, ncols, 3)
+        ax.imshow(strip, aspect="auto", interpolation="nearest")
+        ax.set_xticks(range(len(cols)), [f"{ix},{iy}" for ix, iy in cols], rotation=90, fontsize=7)
+        ax.set_xlabel("explored column (cell index ix,iy)", fontsize=8)
+        ax.set_ylabel("voxel layer\n(layer index, 0 = surface)")
         ax.set_title(f"{name}: voxel columns (cell ix,iy), {title}", fontsize=10)
-    fig.suptitle(f"P(material) as RGB: {colour_legend(materials)}", fontsize=9)
-    return _save(fig, path)
+    fig.suptitle(f"P(material) as colour: {colour_legend(materials)}", fontsize=9)
+    return fig
 
 
 def render_voxels_3d(path: Path, grid, cell_size: float, name: str = "", materials: Sequence[str] = ()) -> Path | None:

@@ -1,9 +1,9 @@
 """``sim_vs_real.png``: simulated and real per-press parameters with the learned Gaussians (seed 000 Fig. 6.12-6.14).
 
 One column per material; the top row is the kinesthetic plane (n1, n2), the bottom row the cutaneous plane
-(a1, a2). Real presses are black crosses, simulated ones coloured dots; solid ellipses are the 1- and 2-sigma
-contours of the Gaussians the memory learned from the simulated presses, dashed ones those of the real table
-(the same estimator, so the two read alike).
+(a1, a2), in the units of c_P (counts, or N for a force channel). Real presses are black crosses, simulated
+ones coloured dots; solid ellipses are the 1- and 2-sigma contours of the Gaussians the memory learned from the
+simulated presses, dashed ones those of the real table (the same estimator, so the two read alike).
 """
 
 from __future__ import annotations
@@ -13,10 +13,12 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core import files
+from palpate.core.errors import ValidationError
+from palpate.core.io.figures import new_figure, palette
 from palpate.core.perception.param_stats import PressTable
 
-_PLANES = (("n1", "n2", (0, 1)), ("a1", "a2", (3, 4)))
-_COLOURS = ("tab:red", "tab:green", "tab:blue", "tab:orange", "tab:purple", "tab:brown")
+# c_P is in counts (or N for a force channel), c_D in mm, c_A in mm^2: the laws' coefficients carry those units
+_PLANES = (("n1 (c_P unit / mm^1.5)", "n2 (c_P unit)", (0, 1)), ("a1 (c_P unit / mm^3)", "a2 (c_P unit)", (3, 4)))
 
 
 def _ellipse(mean: np.ndarray, cov: np.ndarray, k: float, n: int = 90) -> np.ndarray:
@@ -27,20 +29,34 @@ def _ellipse(mean: np.ndarray, cov: np.ndarray, k: float, n: int = 90) -> np.nda
     return mean + circle @ v.T
 
 
+def compared_materials(sim: PressTable, real: PressTable) -> list[str]:
+    """The materials the figure compares: those with more than two presses in both tables."""
+    return [m for m in sim.materials if m in real.materials and len(sim.of(m)) > 2 and len(real.of(m)) > 2]
+
+
 def plot_sim_vs_real(path: Path, sim: PressTable, real: PressTable, ddof: int = 0) -> Path:
-    """Draw the figure for the materials of ``sim`` that ``real`` also has; returns ``path``.
+    """Draw :func:`sim_vs_real_figure` into ``path``; returns ``path``."""
+    fig = sim_vs_real_figure(sim, real, ddof)
+    with files.writing(path):
+        fig.savefig(path, dpi=90)
+    return Path(path)
+
+
+def sim_vs_real_figure(sim: PressTable, real: PressTable, ddof: int = 0):
+    """The figure for the materials of ``sim`` that ``real`` also has (:func:`compared_materials`; ValidationError
+    when there is none: no empty figure).
 
     ``ddof``: the covariance estimator of the Gaussians (the memory's: 0 divides by n).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    names = [m for m in sim.materials if m in real.materials and len(sim.of(m)) > 2 and len(real.of(m)) > 2]
-    fig, axes = plt.subplots(2, max(len(names), 1), figsize=(4.2 * max(len(names), 1), 7.5), squeeze=False)
+    names = compared_materials(sim, real)
+    if not names:
+        raise ValidationError("sim vs real figure: no material has more than two simulated and two real presses to "
+                              "compare")
+    fig = new_figure(4.2 * len(names), 7.5)
+    axes = fig.subplots(2, len(names), squeeze=False)
+    colours = palette(len(names))
     for col, name in enumerate(names):
-        colour = _COLOURS[col % len(_COLOURS)]
+        colour = colours[col]
         for row, (xlab, ylab, idx) in enumerate(_PLANES):
             ax = axes[row, col]
             for rows, style, label in ((real.of(name), "--", "real"), (sim.of(name), "-", "sim")):
@@ -61,7 +77,4 @@ def plot_sim_vs_real(path: Path, sim: PressTable, real: PressTable, ddof: int = 
             ax.legend(fontsize=7, loc="best")
     fig.suptitle("Per-press parameters, simulated vs real, with 1- and 2-sigma contours of the learned Gaussians")
     fig.tight_layout()
-    with files.writing(path):
-        fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return Path(path)
+    return fig

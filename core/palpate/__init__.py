@@ -51,9 +51,13 @@ _EXPORTS = {
 }
 
 __all__ = sorted(_EXPORTS)
+#: submodules reached as attributes too, imported on first use (not in __all__: ``palpate.gym`` needs gymnasium)
+_SUBMODULES = ("gym",)
 
 
 def __getattr__(name: str):
+    if name in _SUBMODULES:
+        return importlib.import_module(f"palpate.{name}")
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'palpate' has no attribute {name!r}")
@@ -63,4 +67,4 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+    return sorted(set(globals()) | set(_EXPORTS) | set(_SUBMODULES))

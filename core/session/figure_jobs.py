@@ -55,7 +55,9 @@ def object_jobs(obj: ObjectResult, render_3d: bool = True) -> list[FigureJob]:
                 FigureJob(f"{stem}_entropy.png", fig.plot_entropy,
                           (name, obj.snapshots[-2].probabilities, obj.snapshots[-1].probabilities, geometry))]
     materials = list(geometry.materials)
-    jobs = [FigureJob(f"{stem}_columns.png", fig.plot_voxel_columns, (name, obj.grid, obj.post, materials))]
+    # no explored column (no press fitted): no columns figure rather than an empty one
+    jobs = ([FigureJob(f"{stem}_columns.png", fig.plot_voxel_columns, (name, obj.grid, obj.post, materials))]
+            if np.asarray(obj.grid.explored).any() else [])
     if render_3d:
         jobs.append(FigureJob(f"{stem}_voxels_3d.png", fig.render_voxels_3d,
                               (obj.post, obj.grid.cell_size, name, materials)))
@@ -71,7 +73,8 @@ def progress_series(obj: ObjectResult) -> fig.ProgressSeries:
 
 def progress_job(objects: Sequence[ObjectResult]) -> FigureJob:
     """Mean entropy and accuracy against presses, every object in one figure."""
-    return FigureJob("exploration_progress.png", fig.plot_progress, ([progress_series(o) for o in objects],))
+    base = objects[0].geometry.entropy_base if objects else 10.0
+    return FigureJob("exploration_progress.png", fig.plot_progress, ([progress_series(o) for o in objects], base))
 
 
 class FigureDrawer:

@@ -28,7 +28,7 @@ import numpy as np
 
 from palpate.core import files, plugins
 from palpate.core.errors import ValidationError
-from palpate.core.io.realism_figures import plot_sim_vs_real
+from palpate.core.io.realism_figures import compared_materials, plot_sim_vs_real
 from palpate.core.perception.classifier_memory import HAPTIC_MEMORY, ClassifierMemory, classifier_for
 from palpate.core.perception.feature_extractors import extractor_name
 from palpate.core.perception.layered_memory import train_layered_memory
@@ -189,7 +189,7 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         real = table_from_csv(scenario.realism.real_params)
         sim = table_from_fits({name: [r.fit for r in rs] for name, rs in presses.items()})
         sim_to_real = sim_to_real_summary(sim, real, scenario.realism.real_params)
-        if draw:
+        if draw and compared_materials(sim, real):
             drawer.submit([FigureJob("sim_vs_real.png", plot_sim_vs_real, (sim, real, memory.ddof))])
     timing["training_s"] = time.perf_counter() - t0
     cpu["training_s"] = time.process_time() - c0

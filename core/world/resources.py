@@ -38,11 +38,13 @@ def scenarios_dir() -> Path:
 
 @dataclass(frozen=True)
 class ScenarioInfo:
-    """A shipped scenario: its name for ``palpate run NAME``, its file and its one-line description."""
+    """A shipped scenario: its name for ``palpate run NAME``, its file, its one-line description and its kind
+    ("scenario", or "sweep" for a sweep file, which ``palpate sweep`` runs and ``palpate run`` does not)."""
 
     name: str
     path: Path
     description: str
+    kind: str = "scenario"
 
 
 def shipped_scenarios() -> list[ScenarioInfo]:
@@ -56,7 +58,8 @@ def shipped_scenarios() -> list[ScenarioInfo]:
             doc = {}
         head = doc.get("scenario") or doc.get("sweep") or {}
         description = head.get("description", "") if isinstance(head, dict) else ""
-        out.append(ScenarioInfo(path.relative_to(root).with_suffix("").as_posix(), path, str(description)))
+        kind = "sweep" if "sweep" in doc and "scenario" not in doc else "scenario"
+        out.append(ScenarioInfo(path.relative_to(root).with_suffix("").as_posix(), path, str(description), kind))
     return out
 
 

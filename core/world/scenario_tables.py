@@ -6,6 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from palpate.core import files, limits
 from palpate.core.errors import ValidationError
 from palpate.core.files import brief
@@ -77,6 +79,38 @@ def material_named(r: TableReader, key: str, materials: dict[str, MaterialEntry]
     return materials[name].material
 
 
+def _height(shape: str, size: tuple[float, ...]) -> float:
+    return size[1] if shape == "cylinder" else size[2]
+
+
+def _span_mm(centre: float, size: tuple[float, ...], axis: int, shape: str) -> str:
+    half = size[0] if shape == "cylinder" else size[axis] / 2
+    return f"{1e3 * (centre - half):g} to {1e3 * (centre + half):g} mm"
+
+
+def inclusion_meets_object(inc: Inclusion, shape: str, size: tuple[float, ...], position: tuple[float, float]) -> bool:
+    """Whether an inclusion shares any volume with a box or cylinder object resting on the table (z from 0 up to
+    its height, m): the inclusion's bounding box against the object's (a cylinder: the nearest point of the box's
+    footprint within its radius)."""
+    c = np.asarray(inc.center, dtype=float)
+    if inc.shape == "sphere":
+        half = np.full(3, inc.size[0])
+    elif inc.shape == "box":
+        half = np.asarray(inc.size, dtype=float) / 2
+    else:  # a column runs through the whole height
+        half = np.array([inc.size[0] / 2, inc.size[1] / 2, np.inf])
+    top = _height(shape, size)
+    if c[2] + half[2] <= 0.0 or c[2] - half[2] >= top:
+        return False
+    lo, hi = c[:2] - half[:2], c[:2] + half[:2]
+    p = np.asarray(position, dtype=float)
+    if shape == "cylinder":
+        nearest = np.clip(p, lo, hi)
+        return bool(np.sum((nearest - p) ** 2) < size[0] ** 2)
+    ohalf = np.asarray(size[:2], dtype=float) / 2
+    return bool(np.all(hi > p - ohalf) and np.all(lo < p + ohalf))
+
+
 def object_entry(r: TableReader, materials: dict[str, MaterialEntry], base: Path) -> ObjectEntry:
     name = check_name(r.get("name", str), f"{r.file}: {r.path}.name")
     shape = r.choice("shape", ("box", "cylinder", "mesh"), "box")
@@ -96,10 +130,15 @@ def object_entry(r: TableReader, materials: dict[str, MaterialEntry], base: Path
         icount = {"sphere": 1, "box": 3, "column": 2}[ishape]
         centre = ir.numbers("center_mm", (2, 3), limit=MAX_POSITION_MM)
         centre3 = (centre[0] * 1e-3, centre[1] * 1e-3, (centre[2] if len(centre) == 3 else 0.0) * 1e-3)
-        inclusions.append(Inclusion(material_named(ir, "material", materials), ishape, centre3,
-                                    tuple(v * 1e-3 for v in ir.numbers("size_mm", icount, positive=True,
-                                                                        limit=MAX_SIZE_MM))))
+        inc = Inclusion(material_named(ir, "material", materials), ishape, centre3,
+                        tuple(v * 1e-3 for v in ir.numbers("size_mm", icount, positive=True, limit=MAX_SIZE_MM)))
         ir.finish()
+        if shape != "mesh" and not inclusion_meets_object(inc, shape, size, position):
+            raise ir.err("center_mm", f"the {ishape} at {brief(list(centre))} mm (x, y in the world frame, z up from "
+                         f"the table) lies wholly outside object {name!r} (x {_span_mm(position[0], size, 0, shape)}, "
+                         f"y {_span_mm(position[1], size, 1, shape)}, z 0 to {1e3 * _height(shape, size):g} mm); "
+                         "move it inside or remove it")
+        inclusions.append(inc)
     material_map = None
     map_path = r.get("material_map", str, "")
     if map_path:

@@ -3,6 +3,7 @@ key path and what was expected."""
 
 from __future__ import annotations
 
+import difflib
 import math
 from pathlib import Path
 from typing import Any
@@ -121,7 +122,9 @@ class TableReader:
     def finish(self) -> None:
         extra = sorted(set(self.table) - self.used)
         if extra:
-            raise self.err(extra[0], f"unknown key (known keys here: {', '.join(sorted(self.used))})")
+            close = difflib.get_close_matches(extra[0], sorted(self.used), n=1, cutoff=0.6)
+            hint = f"did you mean {close[0]!r}? " if close else ""
+            raise self.err(extra[0], f"unknown key ({hint}known keys here: {', '.join(sorted(self.used))})")
 
 
 def _kind_name(kinds: tuple) -> str:

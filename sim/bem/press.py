@@ -21,9 +21,9 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import local_material
-from palpate.sim.bem.solve import solve_contact
 from palpate.sim.bem.surface import Surface, build_surface
 from palpate.sim.bem.wall import WallTable
+from palpate.sim.contact.lcp import solve_contact
 from palpate.sim.controller import PressProfile
 from palpate.sim.limits import check_holds
 from palpate.sim.stability import check_depth, check_resolves_press
@@ -34,6 +34,10 @@ CELL = 0.5e-3
 LADDER = 10
 
 
+class ContactOutgrown(ValidationError):
+    """The contact reached the edge of the cells solved (a wider surface is needed)."""
+
+
 def solve_fields(surface: Surface, tip_radius: float, depths: np.ndarray) -> np.ndarray:
     """Cell pressures (Pa, (n, cells)) at increasing indentations ``depths`` (m), each solve started from the
     contact set Hertz would give (the cells whose gap exceeds half the depth) and the last one's."""
@@ -42,12 +46,12 @@ def solve_fields(surface: Surface, tip_radius: float, depths: np.ndarray) -> np.
         raise ValidationError("bem: the surface reaches beyond the tip's radius; press shallower")
     profile = tip_radius - np.sqrt(tip_radius**2 - r2)
     fields = np.zeros((len(depths), len(r2)))
-    edge = (np.sqrt(r2.max()) - 1.5 * surface.cell) ** 2
+    edge = (np.sqrt(r2.max()) - surface.cell) ** 2
     for k, d in enumerate(depths):
         gap = d - profile
         fields[k], active = solve_contact(surface.compliance, gap, gap > 0.5 * d)
         if active.any() and np.max(r2[active]) > edge:
-            raise ValidationError("bem: the contact reached the edge of the solved surface; a bug in its reach")
+            raise ContactOutgrown(f"bem: the contact reached the edge of the solved surface at {d * 1e3:.2f} mm deep")
     return fields
 
 
@@ -133,15 +137,25 @@ def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate:
     pressure = np.zeros((len(t), tip.rows, tip.cols))
     mixing = "none"
     if d_max > 0:
-        # cells beyond the contact carry nothing; the pad's corners past it need no cells
-        reach = min(1.2 * math.sqrt(radius * d_max) + 2 * cell, 0.97 * radius)
-        surface = build_surface(obj, profile.x, profile.y, profile.surface_z, tip, reach, cell,
-                                math.sqrt(radius * d_max), walls)
-        mixing = surface.mixing
         nodes = d_max * (np.arange(1, ladder + 1) / ladder) ** 2
+        # cells beyond the contact carry nothing; the pad's corners past it need no cells. A stiff top spreads
+        # the contact wider than Hertz's radius: the surface grows until the contact fits inside it
+        reach = min(1.2 * math.sqrt(radius * d_max) + 2 * cell, 0.995 * radius)
+        while True:
+            surface = build_surface(obj, profile.x, profile.y, profile.surface_z, tip, reach, cell,
+                                    math.sqrt(radius * d_max), walls)
+            try:
+                fields = solve_fields(surface, radius, nodes)
+                break
+            except ContactOutgrown:
+                if reach >= 0.995 * radius:
+                    raise ValidationError(f"bem: the contact outgrows the tip's footprint ({reach * 1e3:.1f} mm) "
+                                          "at this depth; press shallower or use fidelity 'rigid'") from None
+                reach = min(1.3 * reach, 0.995 * radius)
+        mixing = surface.mixing
         # the release retraces the press (quasi-static elasticity): each distinct depth is computed once
         unique, back = np.unique(np.round(depth, 12), return_inverse=True)
-        f_u, p_u = between(surface, nodes, solve_fields(surface, radius, nodes), unique)
+        f_u, p_u = between(surface, nodes, fields, unique)
         force = f_u[back]
         pressure = p_u[back].reshape(len(t), tip.rows, tip.cols)
     normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)

@@ -193,7 +193,7 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
             along = np.abs((centres @ tangent)[:, None] - (centres @ tangent)[None, :])
             nu = 0.5 * (stacks[soft].poisson[0] + stacks[stiff].poisson[0])
             contrast = compliance_at[soft] / compliance_at[stiff]
-            share = wall_share(walls, nu, contrast, u[:, None], u[None, :], along)
+            share = wall_share(walls, nu, contrast, u, along)
             compliance = _stack_matrix(stacks[soft], cell, span, di, dj) * contrast ** (share - 1.0)
         else:
             mixing = "local"

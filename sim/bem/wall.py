@@ -100,28 +100,17 @@ def _bracket(grid: np.ndarray, value: float) -> tuple[int, int, float]:
     return k, k + 1, float((value - grid[k]) / (grid[k + 1] - grid[k]))
 
 
-def _trilinear(cube: np.ndarray, grid_u: np.ndarray, grid_v: np.ndarray, u1: np.ndarray, u2: np.ndarray,
-               v: np.ndarray) -> np.ndarray:
-    """Linear interpolation of cube (U, U, V) at (u1, u2, v), all clamped to the grid."""
-    def locate(grid, x):
-        x = np.clip(x, grid[0], grid[-1])
-        k = np.clip(np.searchsorted(grid, x) - 1, 0, len(grid) - 2)
-        return k, (x - grid[k]) / (grid[k + 1] - grid[k])
-
-    i, a = locate(grid_u, u1)
-    j, b = locate(grid_u, u2)
-    k, c = locate(grid_v, v)
-    out = np.zeros(np.broadcast(u1, u2, v).shape)
-    for di, wi in ((0, 1 - a), (1, a)):
-        for dj, wj in ((0, 1 - b), (1, b)):
-            for dk, wk in ((0, 1 - c), (1, c)):
-                out = out + wi * wj * wk * cube[i + di, j + dj, k + dk]
-    return out
+def _locate(grid: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower node index and weight of each x on ``grid`` (clamped to its ends)."""
+    x = np.clip(x, grid[0], grid[-1])
+    k = np.clip(np.searchsorted(grid, x) - 1, 0, len(grid) - 2)
+    return k, (x - grid[k]) / (grid[k + 1] - grid[k])
 
 
-def wall_share(table: WallTable, poisson: float, contrast: float, u1: np.ndarray, u2: np.ndarray,
-               along: np.ndarray) -> np.ndarray:
-    """lambda for points at signed distances u1, u2 from the wall (m, + stiff side) and ``along`` it apart (m).
+def wall_share(table: WallTable, poisson: float, contrast: float, u: np.ndarray, along: np.ndarray) -> np.ndarray:
+    """lambda (n, n) between points at signed distances ``u`` (n,) from the wall (m, + stiff side), ``along``
+    (n, n) apart along it (m): the table interpolated linearly in Poisson ratio, log contrast and the three
+    distances (clamped to the table).
 
     Raises:
         ValidationError: a contrast below 1 or a Poisson ratio outside the table.
@@ -131,19 +120,23 @@ def wall_share(table: WallTable, poisson: float, contrast: float, u1: np.ndarray
     if not table.poisson[0] - 1e-9 <= poisson <= table.poisson[-1] + 1e-9:
         raise ValidationError(f"bem: a wall at Poisson ratio {poisson:g} is outside the wall table's "
                               f"{table.poisson[0]:g}-{table.poisson[-1]:g}")
-    h = table.spacing
-    # a point nearer the wall than a node takes its own side's nearest node (the wall's node is half of each)
-    near = NEAR_WALL * h
-    u1 = np.where(u1 > 0, np.maximum(u1, near), np.minimum(u1, -near))
-    u2 = np.where(u2 > 0, np.maximum(u2, near), np.minimum(u2, -near))
     p0, p1, wp = _bracket(table.poisson, poisson)
     c0, c1, wc = _bracket(np.log(table.contrast), math.log(max(contrast, 1.0)))
-    out = 0.0
-    for p, w1 in ((p0, 1 - wp), (p1, wp)):
-        for c, w2 in ((c0, 1 - wc), (c1, wc)):
-            if w1 * w2 > 0:
-                out = out + w1 * w2 * _trilinear(table.share[p, c], table.offsets, table.along, u1, u2, along)
-    return out
+    cube = sum(w1 * w2 * table.share[p, c] for p, w1 in ((p0, 1 - wp), (p1, wp))
+               for c, w2 in ((c0, 1 - wc), (c1, wc)) if w1 * w2 > 0)
+    # a point nearer the wall than a node takes its own side's nearest node (the wall's node is half of each)
+    near = NEAR_WALL * table.spacing
+    u = np.where(u > 0, np.maximum(u, near), np.minimum(u, -near))
+    # along the first offset per point (n, U, V), then bilinear in (second offset, along) per pair
+    i0, a = _locate(table.offsets, u)
+    first = (1 - a)[:, None, None] * cube[i0] + a[:, None, None] * cube[i0 + 1]
+    k0, c = _locate(table.along, along)
+    n_u, n_v = cube.shape[1], cube.shape[2]
+    flat = first.reshape(-1)
+    base = (np.arange(len(u))[:, None] * n_u + i0[None, :]) * n_v + k0
+    b = a[None, :]
+    return ((1 - b) * ((1 - c) * flat[base] + c * flat[base + 1])
+            + b * ((1 - c) * flat[base + n_v] + c * flat[base + n_v + 1]))
 
 
 @dataclass(frozen=True)

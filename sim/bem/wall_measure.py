@@ -16,7 +16,7 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Material
 from palpate.sim.reference.fe3d import BoxBlock, TensorGrid, Wall
-from palpate.sim.reference.fe3d_solve import _stiffness, condensed_compliance, dissection_rank
+from palpate.sim.reference.fe3d_solve import _stiffness, condensed_compliance, dissection_rank, grid_indices
 from palpate.sim.reference.mesh import graded_line
 
 THICKNESS, HALF = 0.03, 0.04
@@ -30,10 +30,7 @@ def surface_response(block: BoxBlock, extent: float, h: float, growth: float = 1
     grid = TensorGrid(x=x, y=x.copy(), depth=graded_line(block.thickness, h, extent / 3.0, growth))
     basis, stiffness = _stiffness(block, grid)
     locs = basis.doflocs
-    heights = np.sort(block.thickness - grid.depth)
-    ix = np.clip(np.searchsorted(grid.x, locs[0] - 1e-9 * h), 0, len(grid.x) - 1)
-    iy = np.clip(np.searchsorted(grid.y, locs[1] - 1e-9 * h), 0, len(grid.y) - 1)
-    iz = np.clip(np.searchsorted(heights, locs[2] - 1e-9 * h), 0, len(heights) - 1)
+    heights, (ix, iy, iz) = grid_indices(block, grid, locs, h)
     uz = basis.get_dofs().all("u^3")
     free = np.flatnonzero(iz != 0)
     top = uz[iz[uz] == len(heights) - 1]
@@ -63,7 +60,10 @@ def measure_share(poisson: float, contrast: float, *, extent: float = 9e-3, h: f
     wall = surface_response(wall_block(poisson, contrast), extent, h)
     if soft is None:
         soft = surface_response(wall_block(poisson, 1.0), extent, h)
-    share = np.log(contrast * wall["compliance"] / soft["compliance"]) / math.log(contrast)
+    # far apart on a nearly incompressible block the settlement can change sign (the surface heaves); there both
+    # are a tiny share of the near ones and the factor is floored (lambda >= -1)
+    ratio = contrast * wall["compliance"] / soft["compliance"]
+    share = np.log(np.where(ratio > 1.0 / contrast, ratio, 1.0 / contrast)) / math.log(contrast)
     n = int(round(extent / h))
     offsets = np.arange(-n, n + 1) * h
     along = np.arange(n + 1) * h

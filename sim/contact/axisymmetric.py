@@ -27,6 +27,7 @@ import math
 from dataclasses import replace
 
 import numpy as np
+from scipy.optimize import nnls
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Material
@@ -166,7 +167,13 @@ def _fit_coeffs(fe) -> np.ndarray:
     for a, p in zip(fe.contact_radius, fe.pressure, strict=True):
         b = a * np.arange(1, BASIS + 1) / BASIS
         design = np.sqrt(np.maximum(b[None, :] ** 2 - fe.r[:, None] ** 2, 0.0))
-        rows.append(np.linalg.lstsq(design, p, rcond=None)[0])
+        coef = np.linalg.lstsq(design, p, rcond=None)[0]
+        if np.any(coef < 0):
+            # with few FE nodes inside a small contact the plain fit is rank-deficient, and its huge cancelling
+            # coefficients put garbage between the nodes (1e17 Pa on a sensel while the force stays right): the
+            # profiles are kept non-negative instead (a pressure falling from the axis, as a contact's does)
+            coef = nnls(design, p)[0]
+        rows.append(coef)
     return np.array(rows)
 
 

@@ -181,23 +181,6 @@ class BoxBlock:
 
 
 @dataclass(frozen=True)
-class FE3DPress:
-    """The 3-D model's answer at each indentation.
-
-    Attributes:
-        depth: indentations, m, (n,); force: normal force on the whole (unhalved) block, N, (n,).
-        contact_nodes: top nodes in contact in the model solved (half or whole), (n,); dofs: degrees of freedom;
-            h: the element edge across the contact, m.
-    """
-
-    depth: np.ndarray
-    force: np.ndarray
-    contact_nodes: np.ndarray
-    dofs: int
-    h: float
-
-
-@dataclass(frozen=True)
 class TensorGrid:
     """Grid lines of the tensor-product mesh, m: x and y from the press axis, depth below the top."""
 
@@ -252,45 +235,3 @@ def block_grids(block: BoxBlock, a_max: float, h: float, growth: float = 1.3, ha
             y = _flank(y, at, h)
     z = graded_line(block.thickness, h, 0.25 * a_max, growth, bz)
     return TensorGrid(x=x, y=y, depth=z)
-
-
-def solve_contact(compliance: np.ndarray, gap: np.ndarray, max_iter: int = 500) -> np.ndarray:
-    """Nodal forces f >= 0 (N) with ``compliance`` @ f >= ``gap`` (m), equality where f > 0: the frictionless
-    contact of the condensed surface (an LCP, solved by active-set iteration)."""
-    active = gap > 0
-    if not np.any(active):
-        return np.zeros(len(gap))
-    f = np.zeros(len(gap))
-    for _ in range(max_iter):
-        f = np.zeros(len(gap))
-        idx = np.flatnonzero(active)
-        f[idx] = np.linalg.solve(compliance[np.ix_(idx, idx)], gap[idx])
-        negative = f < 0
-        # penetration of the free nodes, relative to the deepest gap so round-off does not cycle
-        penetrating = (~active) & (compliance @ f < gap - 1e-10 * float(gap.max()))
-        if not negative.any() and not penetrating.any():
-            return f
-        active = (active & ~negative) | penetrating
-        if not active.any():
-            active[int(np.argmax(gap))] = True
-    raise ValidationError("fe3d: the contact active set did not settle; refine the mesh (smaller h)")
-
-
-def fe3d_press(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.001,
-               growth: float = 1.3) -> FE3DPress:
-    """Force of a rigid frictionless sphere (radius ``tip_radius`` m) pressed ``depths`` (m) into the centre of
-    ``block``'s top (see the module docstring; the solve is :func:`palpate.sim.reference.fe3d_solve.contact_field`,
-    as a half model where the block is symmetric about y = 0).
-
-    Args:
-        block: the block.
-        tip_radius: m.
-        depths: indentations, m, each in (0, 0.9 tip_radius).
-        h: element edge (node spacing) across the contact, m.
-        growth: element size growth per cell away from the contact.
-    """
-    from palpate.sim.reference.fe3d_solve import contact_field
-
-    field = contact_field(block, tip_radius, depths, h=h, growth=growth)
-    return FE3DPress(depth=field.depth, force=field.force.sum(axis=(1, 2)), contact_nodes=field.contact_nodes,
-                     dofs=field.dofs, h=field.h)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from palpate.core.world.scene import FingertipSpec
-from palpate.sim.fingertip import sensel_bounds
+from palpate.sim.fingertip import sensel_bounds, sensel_quadrature
 from palpate.sim.reference.fe3d import BoxBlock
 from palpate.sim.reference.fe3d_solve import SurfaceContact, contact_field
 from palpate.sim.validity.image import PressImage
@@ -57,3 +57,13 @@ def fe3d_image(block: BoxBlock, tip: FingertipSpec, depths, *, h: float = 0.001,
     :func:`palpate.sim.reference.fe3d_solve.contact_field`)."""
     field = contact_field(block, tip.radius, depths, h=h, growth=growth, half=half)
     return field_image(field, tip), field
+
+
+def radial_image(depth, force, r, pressure, tip: FingertipSpec, order: int = 16) -> PressImage:
+    """The pad's image of an axisymmetric pressure (the axisymmetric FE's ``r`` m, ``pressure`` Pa (n, m), zero
+    beyond its last radius) centred on the press axis: each sensel's mean by a tensor Gauss rule of ``order``
+    points a side (to check the 3-D image against :mod:`.fe` on a plain block)."""
+    points, weights = sensel_quadrature(tip, order)
+    radius = np.hypot(points[..., 0], points[..., 1])
+    p = np.stack([(np.interp(radius, r, row, right=0.0) * weights).sum(axis=-1) for row in np.asarray(pressure)])
+    return PressImage(depth=np.asarray(depth), force=np.asarray(force), pressure=p)

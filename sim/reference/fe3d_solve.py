@@ -12,8 +12,8 @@ How it is solved:
   that order, with diagonal pivots (it is symmetric positive definite), leaves in its trailing block the Schur
   complement of those nodes, whose inverse is the surface compliance. That replaces one solve per surface node;
   one solve checks it;
-- contact: the linear complementarity problem of :func:`.fe3d.solve_contact` at each depth, gap = the exact
-  sphere.
+- contact: the linear complementarity problem (:func:`palpate.sim.contact.lcp.solve_contact`) at each depth,
+  gap = the exact sphere.
 
 The half model (``half``: the block symmetric about y = 0) meshes y >= 0 with u_y = 0 on y = 0; its field is
 mirrored onto the whole top, the nodes on y = 0 doubled (the half model carries half their load).
@@ -27,7 +27,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.sim.reference.fe3d import BoxBlock, TensorGrid, block_grids, solve_contact
+from palpate.sim.contact.lcp import solve_contact
+from palpate.sim.reference.fe3d import BoxBlock, TensorGrid, block_grids
 
 
 @dataclass(frozen=True)
@@ -96,6 +97,15 @@ def _stiffness(block: BoxBlock, grid: TensorGrid):
     stiffness = (asm(shear, full, mu=np.repeat(mu[:, None], full.X.shape[1], axis=1))
                  + asm(volume, reduced, lam=np.repeat(lam[:, None], reduced.X.shape[1], axis=1)))
     return full, stiffness
+
+
+def grid_indices(block: BoxBlock, grid: TensorGrid, locs: np.ndarray, h: float):
+    """The mesh's node heights above the base (increasing, m) and each dof's (x, y, height) grid index, from the
+    dof locations ``locs`` (3, N) m of a mesh with spacing down to ``h`` m."""
+    heights = np.sort(block.thickness - grid.depth)
+    index = tuple(np.clip(np.searchsorted(axis, locs[k] - 1e-9 * h), 0, len(axis) - 1)
+                  for k, axis in enumerate((grid.x, grid.y, heights)))
+    return heights, index
 
 
 def dissection_rank(shape: tuple[int, int, int], leaf: int = 64) -> np.ndarray:
@@ -192,10 +202,7 @@ def contact_field(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.00
     grid = block_grids(block, a_max, h, growth, half=half)
     basis, stiffness = _stiffness(block, grid)
     locs = basis.doflocs
-    heights = np.sort(block.thickness - grid.depth)
-    ix = np.clip(np.searchsorted(grid.x, locs[0] - 1e-9 * h), 0, len(grid.x) - 1)
-    iy = np.clip(np.searchsorted(grid.y, locs[1] - 1e-9 * h), 0, len(grid.y) - 1)
-    iz = np.clip(np.searchsorted(heights, locs[2] - 1e-9 * h), 0, len(heights) - 1)
+    heights, (ix, iy, iz) = grid_indices(block, grid, locs, h)
     dofs = basis.get_dofs()
     uy, uz = dofs.all("u^2"), dofs.all("u^3")
     fixed = np.flatnonzero(iz == 0)
@@ -220,7 +227,7 @@ def contact_field(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.00
     force = np.zeros((len(d), len(rows), len(cols)))
     count = []
     for k, depth in enumerate(d):
-        f = solve_contact(compliance, depth - gap0)
+        f, _ = solve_contact(compliance, depth - gap0)
         if np.any(f[r_top > reach - 1.1 * h] > 0):
             raise ValidationError("fe3d_press: the contact reached the edge of the condensed surface; the top "
                                   "heaved into the sphere beyond its reach (a bug in the reach)")
@@ -233,3 +240,38 @@ def contact_field(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.00
         y = np.concatenate([-y[:0:-1], y])
     return SurfaceContact(depth=d, x=x, y=y, force=force, contact_nodes=np.array(count), dofs=int(basis.N),
                           h=float(h), half=half)
+
+
+@dataclass(frozen=True)
+class FE3DPress:
+    """The 3-D model's answer at each indentation.
+
+    Attributes:
+        depth: indentations, m, (n,); force: normal force on the whole (unhalved) block, N, (n,).
+        contact_nodes: top nodes in contact in the model solved (half or whole), (n,); dofs: degrees of freedom;
+            h: the element edge across the contact, m.
+    """
+
+    depth: np.ndarray
+    force: np.ndarray
+    contact_nodes: np.ndarray
+    dofs: int
+    h: float
+
+
+def fe3d_press(block: BoxBlock, tip_radius: float, depths, *, h: float = 0.001,
+               growth: float = 1.3) -> FE3DPress:
+    """Force of a rigid frictionless sphere (radius ``tip_radius`` m) pressed ``depths`` (m) into the centre of
+    ``block``'s top (see the module docstring; the solve is :func:`contact_field`,
+    as a half model where the block is symmetric about y = 0).
+
+    Args:
+        block: the block.
+        tip_radius: m.
+        depths: indentations, m, each in (0, 0.9 tip_radius).
+        h: element edge (node spacing) across the contact, m.
+        growth: element size growth per cell away from the contact.
+    """
+    field = contact_field(block, tip_radius, depths, h=h, growth=growth)
+    return FE3DPress(depth=field.depth, force=field.force.sum(axis=(1, 2)), contact_nodes=field.contact_nodes,
+                     dofs=field.dofs, h=field.h)

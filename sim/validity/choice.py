@@ -9,7 +9,8 @@ A press is placed in the table by what it feels (contact radius a = sqrt(R d) at
 Each applicable family predicts an error: the largest over its rows within a factor 1.5 of the press's value (or,
 past the table's largest value, the rows there: farther from the edge or thicker only helps); a press smaller than
 anything measured has no prediction. A fidelity's predicted error is the worst over the families. Geometry rules
-out what a fidelity cannot see: ``analytic`` needs a flat top under the whole contact, ``flex`` a box or cylinder;
+out what a fidelity cannot see: ``analytic`` and ``bem`` need a flat top under the whole contact (bem also 2 mm of
+it beyond the contact), ``flex`` a box or cylinder;
 and what a fidelity refuses (:mod:`palpate.sim.limits`: a press too deep for the material over the base, a Poisson
 ratio or a layer it does not hold) rules it out the same way (every rung ruled out: ValidationError with the reasons).
 Where the material changes off the press axis within reach (a wall, a map's boundary, a lump beside the axis), the
@@ -148,12 +149,15 @@ def situation(obj: ObjectSpec, x: float, y: float, surface_z: float, depth: floa
     notes: list[str] = []
     poisson = float((material_under(obj, x, y, surface_z) or obj.materials()[0]).poisson)
     if obj.shape == "mesh":
-        excluded["analytic"] = "a mesh top is curved or faceted"
+        excluded["analytic"] = excluded["bem"] = "a mesh top is curved or faceted"
         excluded["flex"] = "flex models boxes and cylinders only"
     else:
         edge = _edge_distance(obj, x, y)
         if edge < 1.2 * a:
             excluded["analytic"] = f"the contact reaches the edge {edge * 1e3:.1f} mm away"
+        if edge < 1.2 * a + 2e-3:
+            # bem leaves the free side's compliance out (cells off the object carry nothing)
+            excluded["bem"] = f"the contact comes within 2 mm of the edge {edge * 1e3:.1f} mm away"
         if edge < REACH_A * a + surface_z:
             edge_value = max(edge, 1e-6) / a
             if obj.shape == "box":
@@ -262,13 +266,15 @@ def choose(table: ValidityTable, sit: Situation, tolerance: float, name: str,
         raise ValidationError(f"{name}: no fidelity holds this press: {'; '.join(reasons)}")
     if (sit.image is not None and images is not None and images.measures(sit.image)
             and not any(math.isfinite(v) for v in errs.values())):
-        # no rung's image holds the family: the closest image, said as such
+        # no rung's image holds the family: the closest image among the rungs whose force holds it (else the
+        # rung whose force is nearest), said as such
         allowed = tuple(r for r in ORDER if r not in sit.excluded)
-        closest = images.closest(allowed, sit.image)
+        closest = images.closest(allowed, sit.image, tolerance)
         if closest is not None:
-            rung, share = closest
+            rung, wrong, share = closest
             return Choice(rung, f"{name}: no fidelity's image is within the image table's limits over "
-                          f"{sit.image}s; {rung} has the closest (rms up to {share:.0%} of the peak per sensel; "
+                          f"{sit.image}s; {rung}'s is the closest (asymmetry wrong in {wrong:.0%} of the measured "
+                          f"presses, rms up to {share:.0%} of the peak per sensel; "
                           f"validity table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)
     finite = {k: v for k, v in errs.items() if math.isfinite(v)}
     # with nothing measured to prefer, the cheapest rung the geometry allows (bem holds no validity-table rows)

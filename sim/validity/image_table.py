@@ -76,17 +76,22 @@ class ImageTable:
         return worst, None
 
 
-    def closest(self, rungs: tuple[str, ...], family: str) -> tuple[str, float] | None:
-        """Among ``rungs``, the one whose image over ``family`` is closest to the reference (right asymmetry
-        everywhere, smallest worst rms share), with that share; None if none has the asymmetry right."""
-        best = None
+    def closest(self, rungs: tuple[str, ...], family: str, tolerance: float) -> tuple[str, float, float] | None:
+        """Among ``rungs`` measured on ``family``: those whose worst force error is within ``tolerance`` (else the
+        one with the smallest), and of those the one whose image is closest to the reference (the smallest share of
+        presses with the asymmetry wrong, then the smallest worst rms share); returned with both shares. None if
+        none was measured."""
+        scored = {}
         for rung in rungs:
             rows = [r for r in self.rows if r.rung == rung and r.family == family and r.depth >= MIN_DEPTH - 1e-12]
-            if rows and all(r.asymmetry_ok for r in rows):
-                share = max(r.rms_share for r in rows)
-                if best is None or share < best[1]:
-                    best = (rung, share)
-        return best
+            if rows:
+                scored[rung] = (max(abs(r.force_error) for r in rows),
+                                sum(not r.asymmetry_ok for r in rows) / len(rows), max(r.rms_share for r in rows))
+        if not scored:
+            return None
+        within = [r for r, v in scored.items() if v[0] <= tolerance] or [min(scored, key=lambda r: scored[r][0])]
+        best = min(within, key=lambda r: scored[r][1:])
+        return best, scored[best][1], scored[best][2]
 
 
 def rows_from_scores(scores: list[ImageScore]) -> list[ImageRow]:
@@ -99,6 +104,24 @@ def rows_from_scores(scores: list[ImageScore]) -> list[ImageRow]:
             out.append(ImageRow(s.case, s.family, s.split, s.rung, float(d), float(e.force_error[k]),
                                 float(e.rms_share[k]), bool(ok[k]), int(e.active[k]), int(e.reference_active[k])))
     return out
+
+
+def format_summary(rows: list[ImageRow]) -> str:
+    """The image columns as text: per rung, family and split, the worst |force error| and rms share over depths
+    from MIN_DEPTH, and how many cases have the asymmetry right at every such depth."""
+    lines = ["image against the 3-D FE (worst over depths >= 1 mm): rung, family, split, cases, |force error|, "
+             "rms share of the peak, cases with the asymmetry right"]
+    keys = sorted({(r.rung, r.family, r.split) for r in rows})
+    for rung, family, split in keys:
+        sel = [r for r in rows if (r.rung, r.family, r.split) == (rung, family, split) and r.depth >= MIN_DEPTH - 1e-12]
+        if not sel:
+            continue
+        cases = sorted({r.case for r in sel})
+        ok = sum(all(r.asymmetry_ok for r in sel if r.case == c) for c in cases)
+        force = 100 * max(abs(r.force_error) for r in sel)
+        lines.append(f"  {rung:<8} {family:<6} {split:<6} {len(cases):3d}  {force:5.1f}%  "
+                     f"{100 * max(r.rms_share for r in sel):5.1f}%  {ok}/{len(cases)}")
+    return "\n".join(lines)
 
 
 def table_document(rows: list[ImageRow], measured_with: dict) -> dict:

@@ -21,7 +21,8 @@ import numpy as np
 
 from palpate.core.world.scene import Inclusion, Material, ObjectSpec
 from palpate.sim.contact.stack import object_law
-from palpate.sim.reference.fe3d import BoxBlock, BoxLump, fe3d_press
+from palpate.sim.reference.fe3d import BoxBlock, BoxLump
+from palpate.sim.reference.fe3d_solve import fe3d_press
 
 TIP = 0.008
 THICKNESS = 0.02

@@ -50,4 +50,4 @@ def solve_contact(compliance: np.ndarray, gap: np.ndarray, active: np.ndarray | 
         active = (active & ~negative) | penetrating
         if not active.any():
             active[int(np.argmax(gap))] = True
-    raise ValidationError("bem: the contact's active set did not settle; use a finer surface grid (smaller cell)")
+    raise ValidationError("contact: the active set did not settle; refine the surface (smaller cells or elements)")
