@@ -7,7 +7,10 @@ Two devices on two computers stamp samples with two clocks: an unknown offset (s
 1. coarse, needing no prior: each contact's c_P peak (taxel clock) against each reversal of the fingertip's motion
    (pose clock, :mod:`~palpate.core.alignment.events`). Every pairing proposes an offset; the one that pairs the
    most presses wins. When another offset, more than the match tolerance away, pairs nearly as many (presses at a
-   steady rhythm look the same one period later), the estimate is refused as ambiguous.
+   steady rhythm look the same one period later), the fine step below settles it: at the right offset the
+   per-press offsets agree to milliseconds, at one a press-period away each press is laid on its neighbour's motion
+   and they scatter with the rhythm's irregularity. The one candidate whose per-press offsets agree (rms within
+   ``TIE_RESIDUAL``) wins; when several or none do, the estimate is refused as ambiguous.
 2. fine, per paired press: the pose-time shift that makes the press's c_P one function of its indentation on the
    way in and on the way out (a wrong shift moves the loading branch one way and the unloading branch the other);
    indentation along the press's own motion. The shift is the zero of the branches' mean separation, found on a
@@ -33,8 +36,14 @@ from palpate.core.perception.streams import PoseSample, TaxelFrame, frames_to_ar
 
 #: A c_P peak and a reversal this close (s) after shifting are the same press.
 MATCH_TOLERANCE = 0.15
-#: Another offset pairing at least this fraction of the best's presses makes the estimate ambiguous.
+#: Another offset pairing at least this fraction of the best's presses is a rival, settled by the fine step.
 AMBIGUOUS_FRACTION = 0.75
+#: Rival offsets tried finely besides the best (the ones pairing the most presses).
+MAX_RIVALS = 3
+#: Per-press fine offsets agreeing within this rms (s) about one clock map single out a candidate offset: a few ms
+#: at the right offset under tracker noise; tens of ms at one a press-period away, where each press's c_P is laid
+#: on its neighbour's motion and the rhythm's irregularity scatters them.
+TIE_RESIDUAL = 0.008
 #: Fine search half-width around the coarse offset, s, and its grid step, s.
 FINE_HALF_WIDTH = 0.15
 FINE_STEP = 0.001
@@ -139,7 +148,30 @@ def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
     if not turns:
         raise ValidationError("clock estimate: the fingertip never reverses its motion in the pose stream (no "
                               "press to align on)")
-    coarse, pairs = _coarse(found, turns, max_offset)
+    candidates = _coarse(found, turns, max_offset)
+    if len(candidates) == 1:
+        return _fine_map(t, c_p, tp, pos, *candidates[0][:2])
+    # rivals: the fine step settles which offset the presses agree on
+    agreeing = []
+    for offset, pairs, _ in candidates:
+        try:
+            cmap = _fine_map(t, c_p, tp, pos, offset, pairs)
+        except ValidationError:
+            continue
+        if cmap.residual is not None and cmap.residual <= TIE_RESIDUAL:
+            agreeing.append(cmap)
+    if len(agreeing) == 1:
+        return agreeing[0]
+    (best, _, n_best), (other, _, n_other) = candidates[0], candidates[1]
+    why = ("the presses' fine offsets agree at both" if agreeing else "the presses' fine offsets agree at neither")
+    raise ValidationError(
+        f"clock estimate is ambiguous: an offset of {best:.3f} s pairs {n_best} presses and one of {other:.3f} s "
+        f"pairs {n_other}, and {why} (presses at a steady rhythm look alike one period apart); give the offset "
+        "(--clock-offset) or bound the search (--max-offset)")
+
+
+def _fine_map(t, c_p, tp, pos, coarse: float, pairs: list[Contact]) -> ClockMap:
+    """The clock map fitted to the fine offsets of the paired presses around a coarse offset (s)."""
     fine = []
     for contact in pairs:
         shift = _fine_offset(t, c_p, tp, pos, contact, coarse)
@@ -151,7 +183,9 @@ def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
     return _fit_line(np.array(fine), tp, t)
 
 
-def _coarse(found: list[Contact], turns, max_offset: float | None) -> tuple[float, list[Contact]]:
+def _coarse(found: list[Contact], turns, max_offset: float | None) -> list[tuple[float, list[Contact], int]]:
+    """Candidate offsets (s), each with the contacts it pairs and their number: the best first, then its rivals
+    (offsets more than twice the match tolerance away pairing at least ``AMBIGUOUS_FRACTION`` as many)."""
     peaks = np.array([c.t_peak for c in found])
     revs = np.array([r.t for r in turns])
     cand = (peaks[:, None] - revs[None, :]).reshape(-1)
@@ -177,17 +211,18 @@ def _coarse(found: list[Contact], turns, max_offset: float | None) -> tuple[floa
         raise ValidationError(f"clock estimate: no clock offset pairs two c_P peaks with reversals of the fingertip "
                               f"({len(peaks)} contacts, {len(revs)} reversals); the streams may not overlap or not "
                               "be of the same presses; give the offset with --clock-offset")
-    # the best offset's neighbourhood: refine to the median of its pairs
-    offset = float(cand[best])
-    rivals = (np.abs(cand - offset) > 2 * MATCH_TOLERANCE) & (score >= max(2, AMBIGUOUS_FRACTION * n_best))
-    if rivals.any():
-        other = float(cand[rivals][np.argmax(score[rivals])])
-        raise ValidationError(
-            f"clock estimate is ambiguous: an offset of {offset:.3f} s pairs {n_best} presses and one of {other:.3f} s "
-            f"pairs {int(score[rivals].max())} (presses at a steady rhythm look alike one period apart); give the "
-            "offset (--clock-offset) or bound the search (--max-offset)")
-    mask = paired(offset)
-    return offset, [c for c, m in zip(found, mask, strict=True) if m]
+    chosen = [float(cand[best])]
+    rivals = (np.abs(cand - chosen[0]) > 2 * MATCH_TOLERANCE) & (score >= max(2, AMBIGUOUS_FRACTION * n_best))
+    for k in np.flatnonzero(rivals)[np.argsort(-score[rivals], kind="stable")]:
+        if len(chosen) > MAX_RIVALS:
+            break
+        if all(abs(float(cand[k]) - c) > 2 * MATCH_TOLERANCE for c in chosen):
+            chosen.append(float(cand[k]))
+    out = []
+    for offset in chosen:
+        mask = paired(offset)
+        out.append((offset, [c for c, m in zip(found, mask, strict=True) if m], int(mask.sum())))
+    return out
 
 
 def _fine_offset(t, c_p, tp, pos, contact: Contact, coarse: float) -> float | None:
