@@ -18,14 +18,16 @@ Two devices on two computers stamp samples with two clocks: an unknown offset (s
    ``OUTLIER_SIGMAS`` spreads) are left out and counted.
 
 The per-press offsets are then fitted with a line in time: its value at ``t_ref`` (the presses' mean time) is the
-offset, its slope the rate difference (drift), both with standard errors from the scatter. With fewer than
-``MIN_PRESSES_FOR_DRIFT`` presses or a span under ``MIN_SPAN_FOR_DRIFT`` the drift is taken as 0 and said so.
+offset, its slope the rate difference (drift), both with standard errors from the scatter. The offset's
+uncertainty also carries each device's timestamp resolution (:func:`stamp_resolution`: a Liberty stamps whole ms):
+averaging presses does not remove it, because every stamp of a device is rounded or truncated the same way. With
+fewer than ``MIN_PRESSES_FOR_DRIFT`` presses or a span under ``MIN_SPAN_FOR_DRIFT`` the drift is taken as 0 and said so.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -75,6 +77,8 @@ class ClockMap:
         outliers: paired presses left out of the fit.
         residual: rms of the per-press offsets about the fitted line, s.
         per_press: (taxel time s, offset s) of each press used, for reports.
+        resolution: the two streams' timestamp resolutions' share of ``offset_std``, s (half a tick of each,
+            in quadrature).
     """
 
     offset: float
@@ -87,6 +91,7 @@ class ClockMap:
     outliers: int = 0
     residual: float | None = None
     per_press: tuple[tuple[float, float], ...] = field(default_factory=tuple)
+    resolution: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("offset", "rate", "t_ref"):
@@ -109,7 +114,8 @@ class ClockMap:
         """One line for people (ms and ppm)."""
         if self.method == "given":
             return f"clock offset {self.offset:.4f} s, drift {self.drift_ppm:.1f} ppm (given)"
-        off = f"clock offset {self.offset:.4f} s +- {1e3 * (self.offset_std or 0):.1f} ms (1 sigma)"
+        ticks = f", {1e3 * self.resolution:.1f} ms of it timestamp resolution" if self.resolution else ""
+        off = f"clock offset {self.offset:.4f} s +- {1e3 * (self.offset_std or 0):.1f} ms (1 sigma{ticks})"
         drift = (f"drift {self.drift_ppm:.1f} +- {1e6 * (self.rate_std or 0):.1f} ppm" if self.method == "estimated"
                  else "drift not estimated (taken as 0)")
         left = f", {self.outliers} left out" if self.outliers else ""
@@ -120,7 +126,8 @@ class ClockMap:
         """JSON-ready (a recording's metadata)."""
         return {"offset_s": self.offset, "rate": self.rate, "drift_ppm": self.drift_ppm, "t_ref_s": self.t_ref,
                 "offset_std_s": self.offset_std, "rate_std": self.rate_std, "method": self.method,
-                "presses": self.presses, "outliers": self.outliers, "residual_s": self.residual}
+                "presses": self.presses, "outliers": self.outliers, "residual_s": self.residual,
+                "stamp_resolution_s": self.resolution}
 
 
 def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
@@ -148,9 +155,11 @@ def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
     if not turns:
         raise ValidationError("clock estimate: the fingertip never reverses its motion in the pose stream (no "
                               "press to align on)")
+    # a stamp is off by up to half a tick (rounded) or half a tick on average (truncated), the same way at every press
+    ticks = 0.5 * math.hypot(stamp_resolution(t), stamp_resolution(tp))
     candidates = _coarse(found, turns, max_offset)
     if len(candidates) == 1:
-        return _fine_map(t, c_p, tp, pos, *candidates[0][:2])
+        return _with_resolution(_fine_map(t, c_p, tp, pos, *candidates[0][:2]), ticks)
     # rivals: the fine step settles which offset the presses agree on
     agreeing = []
     for offset, pairs, _ in candidates:
@@ -161,13 +170,37 @@ def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
         if cmap.residual is not None and cmap.residual <= TIE_RESIDUAL:
             agreeing.append(cmap)
     if len(agreeing) == 1:
-        return agreeing[0]
+        return _with_resolution(agreeing[0], ticks)
     (best, _, n_best), (other, _, n_other) = candidates[0], candidates[1]
     why = ("the presses' fine offsets agree at both" if agreeing else "the presses' fine offsets agree at neither")
     raise ValidationError(
         f"clock estimate is ambiguous: an offset of {best:.3f} s pairs {n_best} presses and one of {other:.3f} s "
         f"pairs {n_other}, and {why} (presses at a steady rhythm look alike one period apart); give the offset "
         "(--clock-offset) or bound the search (--max-offset)")
+
+
+def stamp_resolution(times, *, quantum: float = 1e-6) -> float:
+    """The tick a stream's timestamps come in, s: the greatest common divisor of the steps between them (counted in
+    ``quantum`` s), or 0 when that is the sampling period itself (stamps computed as start + k period have no tick
+    finer than their period and no rounding to speak of).
+
+    A Liberty at 240 Hz stamps whole ms: its steps of 4 and 5 ms give 1 ms. Stamps in floating point give
+    ``quantum``.
+    """
+    t = np.asarray(times, dtype=float)
+    steps = np.rint(np.diff(t) / quantum).astype(np.int64)
+    steps = steps[steps > 0]
+    if len(steps) == 0:
+        return 0.0
+    tick = int(np.gcd.reduce(steps))
+    if tick >= int(np.median(steps)):
+        return 0.0
+    return tick * quantum
+
+
+def _with_resolution(cmap: ClockMap, ticks: float) -> ClockMap:
+    std = math.hypot(cmap.offset_std or 0.0, ticks)
+    return replace(cmap, offset_std=std, resolution=ticks)
 
 
 def _fine_map(t, c_p, tp, pos, coarse: float, pairs: list[Contact]) -> ClockMap:
