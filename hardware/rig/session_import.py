@@ -6,9 +6,10 @@ Steps (each printed):
 1. the pad's frames: a Tekscan ASCII/CSV export (times ``--start-time`` + frame number x period) or an MCAP
    recording with one taxel topic (``palpate import tekscan`` output, or a bridge's);
 2. the poses: an MCAP recording with a pose topic (``palpate record liberty``; ``--station`` picks one);
-3. the clock map pose -> pad: given (``--clock-offset`` s, ``--clock-drift-ppm``), or estimated from the presses
-   themselves with its uncertainty (:mod:`palpate.core.alignment.clock`); refused, with the reason, when the
-   streams do not overlap or the estimate is ambiguous;
+3. the clock map pose -> pad: given (``--clock-offset`` s, ``--clock-drift-ppm``; checked against the presses),
+   or estimated from the presses themselves with its uncertainty (:mod:`palpate.core.alignment.clock`); refused,
+   with the reason, when the streams do not overlap, the estimate is ambiguous or a given map does not pair the
+   presses;
 4. the workspace: the tracker frame placed on the grid from three touches (``--calibration TOUCHES.mcap``, see
    :mod:`palpate.core.alignment.calibration`) or a transform file (``--workspace T.json``); without either, positions
    stay in the tracker's frame;
@@ -33,7 +34,7 @@ from palpate.core.alignment.calibration import (
     touches_from_poses,
     transform_from_touches,
 )
-from palpate.core.alignment.clock import ClockMap, estimate_clock_map
+from palpate.core.alignment.clock import ClockMap, check_clock_map, estimate_clock_map
 from palpate.core.alignment.merge import merge_session
 from palpate.core.errors import ValidationError
 from palpate.core.files import write_text
@@ -146,6 +147,8 @@ def import_session(taxels, poses, out, *, region: str | None = None, start_time:
     samples, pose_source = read_poses(poses, station=station)
     transform = workspace_of(calibration, workspace, station)
     try:  # the streams of the two files disagree: name both
+        if clock is not None:
+            check_clock_map(frames, samples, clock)
         cmap = clock if clock is not None else estimate_clock_map(frames, samples, max_offset=max_offset)
         merged = merge_session(frames, samples, cmap, transform, sensor_id="fingertip")
     except ValidationError as exc:
