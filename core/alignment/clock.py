@@ -114,8 +114,8 @@ class ClockMap:
         """One line for people (ms and ppm)."""
         if self.method == "given":
             return f"clock offset {self.offset:.4f} s, drift {self.drift_ppm:.1f} ppm (given)"
-        ticks = f", {1e3 * self.resolution:.1f} ms of it timestamp resolution" if self.resolution else ""
-        off = f"clock offset {self.offset:.4f} s +- {1e3 * (self.offset_std or 0):.1f} ms (1 sigma{ticks})"
+        ticks = f" incl. {1e3 * self.resolution:.1f} ms of timestamp resolution" if self.resolution else ""
+        off = f"clock offset {self.offset:.4f} s +- {1e3 * (self.offset_std or 0):.1f} ms (1 sigma){ticks}"
         drift = (f"drift {self.drift_ppm:.1f} +- {1e6 * (self.rate_std or 0):.1f} ppm" if self.method == "estimated"
                  else "drift not estimated (taken as 0)")
         left = f", {self.outliers} left out" if self.outliers else ""
