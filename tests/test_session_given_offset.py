@@ -6,7 +6,8 @@ from __future__ import annotations
 import pytest
 from clock_streams import human_streams
 
-from palpate.core.alignment.clock import ClockMap, check_clock_map
+from palpate.core.alignment.clock import ClockMap
+from palpate.core.alignment.clock_check import check_clock_map
 from palpate.core.cli import main
 from palpate.core.errors import ValidationError
 from palpate.core.io.mcap_writer import RecordingWriter

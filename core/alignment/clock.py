@@ -143,11 +143,19 @@ def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
         ValidationError: no contact or no reversal; no offset pairs two presses; ambiguous; per-press offsets that
             do not agree on one map; an implausible drift; streams that do not overlap once mapped.
     """
-    if max_offset is not None and not (math.isfinite(max_offset) and max_offset > 0):
-        raise ValidationError(f"clock estimate: max_offset must be a finite number of seconds > 0, got {max_offset!r}")
     t, counts, _ = frames_to_arrays(frames)
     tp, pos, _ = poses_to_arrays(poses)
-    c_p = counts.reshape(len(t), -1).sum(axis=1, dtype=np.int64).astype(float)
+    return estimate_clock_map_arrays(t, counts.reshape(len(t), -1).sum(axis=1, dtype=np.int64).astype(float), tp,
+                                     pos, max_offset=max_offset)
+
+
+def estimate_clock_map_arrays(t: np.ndarray, c_p: np.ndarray, tp: np.ndarray, pos: np.ndarray, *,
+                              max_offset: float | None = None) -> ClockMap:
+    """:func:`estimate_clock_map` from arrays: frame times (s, taxel clock) and each frame's c_P (sum of counts),
+    pose times (s, pose clock) and positions (n, 3) m; what a streamed import keeps of its frames."""
+    if max_offset is not None and not (math.isfinite(max_offset) and max_offset > 0):
+        raise ValidationError(f"clock estimate: max_offset must be a finite number of seconds > 0, got {max_offset!r}")
+    t, c_p = np.asarray(t, dtype=float), np.asarray(c_p, dtype=float)
     found = contacts(t, c_p)
     if not found:
         raise ValidationError("clock estimate: the taxel stream shows no finished contact (no press to align on)")
@@ -177,39 +185,6 @@ def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
         f"clock estimate is ambiguous: an offset of {best:.3f} s pairs {n_best} presses and one of {other:.3f} s "
         f"pairs {n_other}, and {why} (presses at a steady rhythm look alike one period apart); give the offset "
         "(--clock-offset) or bound the search (--max-offset)")
-
-
-def check_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], cmap: ClockMap) -> int:
-    """Check a given clock map against the presses: the number of presses that confirm it, or ValidationError.
-
-    With the poses mapped by ``cmap``, each c_P peak inside the mapped pose span must meet a reversal of the
-    fingertip within the match tolerance (at least half of them, and two), and the fine offsets of the paired
-    presses must agree on one map (rms within ``TIE_RESIDUAL``): what the estimate asks of its own answer. Poses of
-    other presses meet few peaks, and those they meet disagree finely.
-    """
-    t, counts, _ = frames_to_arrays(frames)
-    tp, pos, _ = poses_to_arrays(poses)
-    check_overlap(cmap, tp, t)
-    mapped = cmap.to_taxel(tp)
-    c_p = counts.reshape(len(t), -1).sum(axis=1, dtype=np.int64).astype(float)
-    found = [c for c in contacts(t, c_p) if mapped[0] <= c.t_peak <= mapped[-1]]
-    revs = np.sort([r.t for r in reversals(mapped, pos)])
-    if not found or len(revs) == 0:
-        raise ValidationError(f"the given clock map pairs no press: {len(found)} contact(s) in the pose span, "
-                              f"{len(revs)} reversal(s) of the fingertip; the files may not be of the same presses")
-    near = np.min(np.abs(np.array([c.t_peak for c in found])[:, None] - revs[None, :]), axis=1)
-    pairs = [c for c, d in zip(found, near, strict=True) if d <= MATCH_TOLERANCE]
-    if len(pairs) < max(2, 0.5 * len(found)):
-        raise ValidationError(f"the given clock offset pairs {len(pairs)} of {len(found)} presses with reversals of "
-                              "the fingertip; the files are not of the same presses, or the offset is wrong")
-    try:
-        fit = _fine_map(t, c_p, mapped, pos, 0.0, pairs)
-    except ValidationError as exc:
-        raise ValidationError(f"the given clock offset does not hold finely: {exc}") from None
-    if fit.residual is not None and fit.residual > TIE_RESIDUAL:
-        raise ValidationError(f"the given clock offset pairs {len(pairs)} presses but their fine offsets disagree "
-                              f"(rms {fit.residual * 1e3:.0f} ms); the files are not of the same presses")
-    return fit.presses
 
 
 def stamp_resolution(times, *, quantum: float = 1e-6) -> float:
