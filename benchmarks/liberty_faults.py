@@ -31,14 +31,13 @@ def main() -> None:
     # (format, byte substitution rate, false header every N records, garbage before every N records)
     rows = [("binary", 1e-4, 0, 0), ("binary", 1e-3, 0, 0), ("binary", 1e-3, 5, 0), ("binary", 1e-3, 0, 20),
             ("binary", 1e-2, 0, 0), ("binary", 3e-2, 0, 20), ("ascii", 1e-3, 0, 0), ("ascii", 1e-2, 0, 0)]
-    print(f"{'format':<7} {'byte err':>8} {'headers':>7} {'garbage':>7} {'sent':>7} {'damaged':>7} {'accepted':>8} {'wrong':>5} "
-          f"{'lost good':>9} {'rejected %':>10} {'max err mm':>10} {'max err deg':>11}")
+    print(f"{'format':<7} {'byte err':>8} {'headers':>7} {'garbage':>7} {'sent':>7} {'damaged':>7} {'accepted':>8} "
+          f"{'wrong':>5} {'lost good':>9} {'rejected %':>10} {'max err mm':>10} {'max err deg':>11}")
     for fmt, rate, headers, garbage in rows:
         tot = dict(sent=0, damaged=0, accepted=0, wrong=0, lost=0, pos=0.0, ang=0.0)
         for seed in seeds:
             t = run_trial(Faults(byte_error_rate=rate, false_header_every=headers, corrupt_every=garbage),
-                          binary=fmt == "binary",
-                          seconds=seconds, seed=seed)
+                          binary=fmt == "binary", seconds=seconds, seed=seed)
             tot["sent"] += t.sent
             tot["damaged"] += t.damaged
             tot["accepted"] += t.accepted
