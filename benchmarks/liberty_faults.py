@@ -7,8 +7,8 @@ false record headers before every 5th record in the "headers" rows, 7 garbage by
 "garbage" rows), and compares every accepted pose with what
 the emulator sent (:mod:`palpate.hardware.polhemus.fault_trial`: wrong = no such record, or > 2 mm or > 1 degree
 from it). The checks' bounds are the physical defaults of ``Plausibility`` and the records' format; its rules were
-chosen looking at seeds 3, 100-102, 200-219 and 500-519 (not the default 10-14, nor 300-319 or 400-419: docs/real_rig.md has
-the 400-419 table). One seed gives one outcome whatever the host's timing.
+chosen looking at seeds 3, 100-102, 200-219 and 500-519 (not the default 10-14, nor 300-319, 400-419 or 800-819:
+docs/real_rig.md has the 400-419 and 800-819 tables). One seed gives one outcome whatever the host's timing.
 """
 
 from __future__ import annotations
