@@ -4,6 +4,7 @@ resting pad for longer and longer)."""
 
 from __future__ import annotations
 
+import gc
 import tracemalloc
 
 import numpy as np
@@ -53,6 +54,7 @@ def _write_session(d, rest: float, size: int = 24, seconds: float = 30.0):
 
 
 def _peak(export, poses, out) -> int:
+    gc.collect()
     tracemalloc.start()
     try:
         summary = import_session(export, poses, out, region="1:5,1:5")
@@ -72,7 +74,9 @@ def test_peak_memory_does_not_follow_the_export_length(tmp_path):
     peak_large = _peak(large, poses, tmp_path / "large.mcap")
     # holding the export costs at least its counts (576 bytes a frame) and a frame object each; streamed, what grows
     # is each frame's time and c_P (16 bytes)
-    assert peak_large - peak_small < 0.1 * grown, (peak_small, peak_large, grown)
+    # (held whole it grew by half the added text; streamed, by 5-11 % of it: the blocks' parse varies with where
+    # their boundaries fall)
+    assert peak_large - peak_small < 0.25 * grown, (peak_small, peak_large, grown)
     a, b = read_recording(tmp_path / "small.mcap"), read_recording(tmp_path / "large.mcap")
     assert (len(a.frames), len(b.frames)) == (3500, 7500) and len(a.poses) == len(b.poses)
     np.testing.assert_array_equal(np.array([f.counts for f in a.frames]),

@@ -21,12 +21,15 @@ records before it becomes a pose:
   ``max_angular_accel``; its speed from the last good pose is at most ``max_speed``. When it does not fit, either
   it or its successor is off the path: the record after the successor decides (it is kept when it fits between
   its predecessor and that record and the successor does not fit between them). Dropping a good record for a bad
-  successor would widen the gap round the bad one, and the bound grows with the gap.
+  successor would widen the gap round the bad one, and the bound grows with the gap: so the two records a record
+  is checked between lie at most ``vouch_span`` frames apart (``damaged_span`` on a line that has just damaged two
+  records); beyond that the record is dropped and the station locks in again.
 
 A stream starts (and restarts after ``relock_after`` s of host time without a good record, unless that record
 continues the station's frame counter and clock: a host that stalled reads the buffered frames late) by three
 consecutive records that agree with each other; until then nothing is trusted, and a record that disagrees with
-those held replaces them. Rejected records are counted by reason; nothing is repaired or invented. The cost is one
+those held replaces them. Locking in again within a running stream keeps only the middle of the three (the one
+checked between the others). Rejected records are counted by reason; nothing is repaired or invented. The cost is one
 record of delay per station (4 ms at 240 Hz), two when a record does not fit.
 
 The bound is physical, so a damaged position that stays within it next to a long gap (records lost on either side)
