@@ -5,7 +5,7 @@ so the law comes from the axisymmetric FE (sim/contact/axisymmetric.py); each ro
 ``palpate.sim.blas.one_blas_thread`` (shipped) and once with it replaced by a no-op (BLAS's default threads, the
 plain reference), interleaved so the machine's load hits both alike. Prints the median wall and CPU time of each
 and their ratio. On a machine whose cores are busy, BLAS's threads wait for a core and then spin: the ratio is
-largest there (docs/results.md, "BLAS threads").
+largest there (docs/results.md, "Lumps' cost").
 
 Run: .venv/bin/python benchmarks/blas_threads.py [--rounds 4]
 """

@@ -17,6 +17,8 @@ averaged around the axis. The measured error against the FE reference per situat
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from palpate.core.errors import ValidationError
@@ -31,11 +33,14 @@ from palpate.sim.stability import check_depth, check_resolves_press, law_depth
 from palpate.sim.trace import PhysicsTrace
 
 
-def _chord_integral(x: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Antiderivative of sqrt(b^2 - x^2) in x, with x clipped to [-b, b] (b >= 0)."""
+def _chord_integral(x: np.ndarray, b: np.ndarray, bb: np.ndarray | None = None,
+                    b_safe: np.ndarray | None = None) -> np.ndarray:
+    """Antiderivative of sqrt(b^2 - x^2) in x, with x clipped to [-b, b] (b >= 0); ``bb`` = b * b and ``b_safe`` =
+    max(b, 1e-300) when the caller has them (both ends of a strip share them)."""
+    bb = b * b if bb is None else bb
     xb = np.minimum(np.maximum(x, -b), b)
-    ratio = xb / np.maximum(b, 1e-300)
-    return 0.5 * (xb * np.sqrt(np.maximum(b * b - xb * xb, 0.0)) + b * b * np.arcsin(ratio))
+    ratio = xb / (np.maximum(b, 1e-300) if b_safe is None else b_safe)
+    return 0.5 * (xb * np.sqrt(np.maximum(bb - xb * xb, 0.0)) + bb * np.arcsin(ratio))
 
 
 def _rect_integrals(a: np.ndarray, x0: np.ndarray, x1: np.ndarray, y0: np.ndarray, y1: np.ndarray,
@@ -56,15 +61,52 @@ def _rect_integrals(a: np.ndarray, x0: np.ndarray, x1: np.ndarray, y0: np.ndarra
     s = s * s * (3.0 - 2.0 * s)
     lo = edges[:, :-1, None]
     width = edges[:, 1:, None] - lo  # (P, 5, 1)
-    y = lo + width * s  # (P, 5, order)
-    b = np.sqrt(np.maximum(a[:, None, None] ** 2 - y**2, 0.0))
-    strip = _chord_integral(x1[:, None, None], b) - _chord_integral(x0[:, None, None], b)
+    # most pieces have zero width (a sensel inside the contact is one piece): they add 0, so they are left 0 and
+    # the sum below runs over the same terms in the same order
+    live = width[..., 0] > 0
+    pi, ki = np.nonzero(live)
+    y = lo[pi, ki] + width[pi, ki] * s  # (m, order)
+    b = np.sqrt(np.maximum(a[pi, None] ** 2 - y**2, 0.0))
+    bb, b_safe = b * b, np.maximum(b, 1e-300)
+    strip = np.zeros(live.shape + (len(s),))
+    strip[pi, ki] = _chord_integral(x1[pi, None], b, bb, b_safe) - _chord_integral(x0[pi, None], b, bb, b_safe)
     return np.sum(strip * w * width, axis=(-1, -2))
+
+
+@dataclass(frozen=True)
+class PadSets:
+    """A pad's sensels about a fixed contact centre: ``area`` (S,) m^2 per sensel, ``uniq`` (U, 4) the rectangles
+    integrated (x0, x1, y0, y1 relative to the centre, m), ``inverse`` (S,) which of them each sensel is."""
+
+    area: np.ndarray
+    uniq: np.ndarray
+    inverse: np.ndarray
+
+
+def pad_sets(bounds: np.ndarray, centre: np.ndarray | None = None, share_symmetric: bool = True) -> PadSets:
+    """The rectangles :func:`hertz_sensel_pressure` integrates for sensel footprints ``bounds`` (rows, cols, 4), m,
+    about a fixed ``centre`` (2,) m (default the axis): one per set of mirror images with ``share_symmetric``."""
+    rect = bounds.reshape(-1, 4)
+    area = (rect[:, 1] - rect[:, 0]) * (rect[:, 3] - rect[:, 2])
+    c = np.zeros(2) if centre is None else np.asarray(centre, dtype=float)
+    rel = rect - np.array([c[0], c[0], c[1], c[1]])
+    if not share_symmetric:
+        return PadSets(area, rel, np.arange(len(rel)))
+    # mirror each rectangle into x0 + x1 >= 0, y0 + y1 >= 0, then order the two axes: mirror images about the
+    # centre collapse onto one key
+    xs = np.where((rel[:, :1] + rel[:, 1:2]) < 0, -rel[:, 1::-1], rel[:, :2])
+    ys = np.where((rel[:, 2:3] + rel[:, 3:4]) < 0, -rel[:, 3:1:-1], rel[:, 2:])
+    swap = (xs[:, 0] > ys[:, 0]) | ((xs[:, 0] == ys[:, 0]) & (xs[:, 1] > ys[:, 1]))
+    canon = np.where(swap[:, None], np.hstack([ys, xs]), np.hstack([xs, ys]))
+    keys: dict[tuple, int] = {}
+    inverse = np.array([keys.setdefault(tuple(row), len(keys)) for row in np.round(canon, 12).tolist()])
+    uniq = canon[[int(np.argmax(inverse == u)) for u in range(len(keys))]]
+    return PadSets(area, uniq, inverse)
 
 
 def hertz_sensel_pressure(
     depth: np.ndarray, young_eff: float, radius: float, bounds: np.ndarray, centre: np.ndarray | None = None,
-    order: int = 6, share_symmetric: bool = True,
+    order: int = 6, share_symmetric: bool = True, pad: PadSets | None = None,
 ) -> np.ndarray:
     """Mean Hertz pressure over each sensel, Pa.
 
@@ -77,6 +119,7 @@ def hertz_sensel_pressure(
         order: Gauss-Legendre points per smooth piece along y.
         share_symmetric: with a fixed centre, integrate once per set of sensels that are mirror images of
             each other about the centre (the pressure is radially symmetric), e.g. 3 of 16 for a centred pad.
+        pad: :func:`pad_sets` of ``bounds`` and the fixed ``centre``, when the caller keeps it (presses of one pad).
 
     Returns:
         (n, rows, cols) mean pressure, Pa (0 where not in contact).
@@ -84,26 +127,12 @@ def hertz_sensel_pressure(
     d = np.maximum(np.atleast_1d(np.asarray(depth, dtype=float)), 0.0)
     n = d.shape[0]
     rows, cols = bounds.shape[:2]
-    rect = bounds.reshape(-1, 4)
-    area = (rect[:, 1] - rect[:, 0]) * (rect[:, 3] - rect[:, 2])
     a_all = np.sqrt(radius * d)
     fixed = centre is None or np.asarray(centre).shape == (2,)
     if fixed:
-        c = np.zeros(2) if centre is None else np.asarray(centre, dtype=float)
-        rel = rect - np.array([c[0], c[0], c[1], c[1]])
-        if share_symmetric:
-            # mirror each rectangle into x0 + x1 >= 0, y0 + y1 >= 0, then order the two axes: mirror images
-            # about the centre collapse onto one key
-            xs = np.where((rel[:, :1] + rel[:, 1:2]) < 0, -rel[:, 1::-1], rel[:, :2])
-            ys = np.where((rel[:, 2:3] + rel[:, 3:4]) < 0, -rel[:, 3:1:-1], rel[:, 2:])
-            swap = (xs[:, 0] > ys[:, 0]) | ((xs[:, 0] == ys[:, 0]) & (xs[:, 1] > ys[:, 1]))
-            canon = np.where(swap[:, None], np.hstack([ys, xs]), np.hstack([xs, ys]))
-            keys: dict[tuple, int] = {}
-            inverse = np.array([keys.setdefault(tuple(row), len(keys)) for row in np.round(canon, 12).tolist()])
-            uniq = canon[[int(np.argmax(inverse == u)) for u in range(len(keys))]]
-        else:
-            inverse = np.arange(len(rel))
-            uniq = rel
+        if pad is None:
+            pad = pad_sets(bounds, centre, share_symmetric)
+        area, inverse, uniq = pad.area, pad.inverse, pad.uniq
         gap_x = np.maximum(np.maximum(uniq[:, 0], -uniq[:, 1]), 0.0)
         gap_y = np.maximum(np.maximum(uniq[:, 2], -uniq[:, 3]), 0.0)
         hit = (gap_x**2 + gap_y**2)[None, :] < a_all[:, None] ** 2  # (n, U)
@@ -113,6 +142,8 @@ def hertz_sensel_pressure(
             vals[hit] = _rect_integrals(a_all[ti], uniq[ui, 0], uniq[ui, 1], uniq[ui, 2], uniq[ui, 3], order)
         integral = vals[:, inverse.reshape(-1)]
     else:
+        rect = bounds.reshape(-1, 4)
+        area = (rect[:, 1] - rect[:, 0]) * (rect[:, 3] - rect[:, 2])
         c = np.asarray(centre, dtype=float)
         if c.shape != (n, 2):
             raise ValidationError(f"hertz_sensel_pressure: centre must have shape (2,) or ({n}, 2), got {c.shape}")
@@ -136,18 +167,25 @@ def hertz_sensel_pressure(
 
 
 def law_sensel_pressure(law: ContactLaw, depth: np.ndarray, bounds: np.ndarray, centre: np.ndarray | None = None,
-                        order: int = 6) -> np.ndarray:
+                        order: int = 6, pad: PadSets | None = None) -> np.ndarray:
     """Mean pressure (Pa) of ``law``'s contact over each sensel at indentations ``depth`` (m), (n, rows, cols):
-    the sum of the law's Hertz profiles, each integrated by :func:`hertz_sensel_pressure`."""
+    the sum of the law's Hertz profiles, each integrated by :func:`hertz_sensel_pressure` (``pad``: its
+    :func:`pad_sets` for a fixed ``centre``, when the caller keeps them)."""
     d = np.maximum(np.atleast_1d(np.asarray(depth, dtype=float)), 0.0)
     basis = law.basis_at(d)
     radii, coeffs = basis.radii, basis.coeffs
     radius = law.tip_radius
-    out = np.zeros((len(d),) + bounds.shape[:2])
-    for k in range(radii.shape[1]):
-        # c sqrt(b^2 - r^2) is a Hertz profile of a tip of radius R at depth b^2 / R with E* = c pi R / 2
-        out += hertz_sensel_pressure(radii[:, k] ** 2 / radius, coeffs[:, k] * np.pi * radius / 2.0, radius, bounds,
-                                     centre, order=order)
+    n, k_max = radii.shape
+    # c sqrt(b^2 - r^2) is a Hertz profile of a tip of radius R at depth b^2 / R with E* = c pi R / 2: every
+    # profile of every depth in one call (profile-major), summed profile by profile as separate calls would be
+    c = None if centre is None or np.asarray(centre).shape == (2,) else np.tile(np.asarray(centre, float), (k_max, 1))
+    every = hertz_sensel_pressure((radii**2 / radius).T.reshape(-1), (coeffs * np.pi * radius / 2.0).T.reshape(-1),
+                                  radius, bounds, centre if c is None else c, order=order,
+                                  pad=pad if c is None else None)
+    every = every.reshape((k_max, n) + bounds.shape[:2])
+    out = np.zeros((n,) + bounds.shape[:2])
+    for k in range(k_max):
+        out += every[k]
     return np.maximum(out, 0.0)
 
 
@@ -167,7 +205,7 @@ def local_material(obj: ObjectSpec, x: float, y: float, surface_z: float) -> Mat
 
 def run_analytic_press(
     scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None, order: int = 6,
-    law: ContactLaw | None = None,
+    law: ContactLaw | None = None, pads: dict | None = None,
 ) -> PhysicsTrace:
     """The press-and-release under the contact law, sampled at ``rate`` Hz (sensors interpolate between samples).
 
@@ -180,6 +218,8 @@ def run_analytic_press(
             point of the profile is sampled as well.
         order: Gauss-Legendre order of the sensel integration.
         law: the press point's contact law (computed here when not given; a SimSource caches it).
+        pads: a dict the caller keeps (a SimSource does) for the pad's sensel footprints and their symmetric sets,
+            by fingertip and contact centre: the presses of one pad share them.
 
     Raises:
         ValidationError: a press deeper than 0.75 tip radii, or too short for the sampling rate.
@@ -214,7 +254,14 @@ def run_analytic_press(
     centre = -radius * normal[:2]
     contact = np.array([profile.x, profile.y, profile.surface_z])
     pos = contact[None, :] + normal[None, :] * (z - profile.surface_z)[:, None]
-    pressure = law_sensel_pressure(law, depth, sensel_bounds(tip), centre, order=order)
+    key = (tip, float(centre[0]), float(centre[1]))
+    found = None if pads is None else pads.get(key)
+    if found is None:
+        bounds = sensel_bounds(tip)
+        found = (bounds, pad_sets(bounds, centre))
+        if pads is not None:
+            pads[key] = found
+    pressure = law_sensel_pressure(law, depth, found[0], centre, order=order, pad=found[1])
     quat = np.tile([1.0, 0.0, 0.0, 0.0], (n_samples, 1))
     trace = PhysicsTrace(
         t=t, tip_position=pos, tip_quaternion=quat, sensel_pressure=pressure,

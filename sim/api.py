@@ -18,6 +18,9 @@ def simulate_press(
 ) -> PressRecording:
     """Simulate one press-and-release on a block of one material (SI units).
 
+    Each call builds its own source, so its contact law is solved again: for many presses of one block, keep a
+    :class:`~palpate.sim.source.SimSource` and call its ``press`` (the law, the pad and the rigid model are kept).
+
     Args:
         young: Young's modulus, Pa.  poisson: Poisson ratio.
         fidelity: "analytic", "bem", "rigid", "flex" or "auto".

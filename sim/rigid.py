@@ -93,11 +93,12 @@ def equivalent_radius(clearance: np.ndarray, radius: float) -> np.ndarray:
     return np.where(h < radius, np.sqrt(np.maximum(2.0 * radius * hc - hc * hc, 0.0)), np.inf)
 
 
-def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray) -> np.ndarray:
+def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
     """The law's pressure (Pa) at radii r_eq (..., m) for indentations ``depth`` (n,) m: shape (n, ...).
 
     Beyond the law's deepest tabulated depth the pressure grows as a Hertz contact would (d^0.5 at fixed r / a),
-    which only a runaway reaches (and the run then stops with its error)."""
+    which only a runaway reaches (and the run then stops with its error). ``rows``: a boolean mask (n,) of the
+    depths wanted; the others are left 0 (a table read at a few heights need not evaluate the rest)."""
     d = np.maximum(np.asarray(depth, dtype=float), 0.0)
     over = d > law.max_depth
     basis = law.basis_at(np.minimum(d, law.max_depth))
@@ -105,10 +106,20 @@ def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray) -> np.nda
     if over.any():
         scale[over] = np.sqrt(d[over] / law.max_depth)
     b, c = basis.radii * scale[:, None], basis.coeffs
-    shape = (len(d),) + (1,) * r_eq.ndim
-    rr = r_eq[None, ..., None] ** 2
-    p = np.sum(c.reshape(shape + (-1,)) * np.sqrt(np.maximum(b.reshape(shape + (-1,)) ** 2 - rr, 0.0)), axis=-1)
-    return p * scale.reshape(shape)
+    r_eq = np.asarray(r_eq, dtype=float)
+    # each distinct radius once (a pad or footprint on a flat top repeats its radii by symmetry), and only the
+    # (depth, radius) pairs inside the contact: each term evaluated as a dense sum over all pairs would be
+    r_u, inverse = np.unique(r_eq.reshape(-1), return_inverse=True)
+    rr = r_u**2
+    hit = rr[None, :] < (b[:, -1] ** 2)[:, None]
+    if rows is not None:
+        hit &= np.asarray(rows, dtype=bool)[:, None]
+    di, ri = np.nonzero(hit)
+    out = np.zeros((len(d), rr.size))
+    terms = c[di] * np.sqrt(np.maximum(b[di] ** 2 - rr[ri, None], 0.0))
+    out[di, ri] = np.sum(terms, axis=-1) * scale[di]
+    # C order, as a dense evaluation gives it: a BLAS product over it then sums in the same order
+    return np.ascontiguousarray(out[:, inverse.reshape(-1)]).reshape((len(d),) + r_eq.shape)
 
 
 def contact_geometry(obj: ObjectSpec, centre_xy: np.ndarray, tip, mesh=None, *, rings: int = 96, sectors: int = 24,
@@ -131,6 +142,7 @@ def run_rigid_press(
     scene: Scene, obj: ObjectSpec, profile: PressProfile, *, timestep: float = 0.002,
     drive: FingerDrive | None = None, rings: int = 96, sectors: int = 24, order: int = 6,
     young: float | None = None, mesh=None, law: ContactLaw | None = None, max_steps: int = MAX_STEPS,
+    models: dict | None = None,
 ) -> PhysicsTrace:
     """Press-and-release of the MuJoCo finger on ``obj`` under the contact law (see the module docstring).
 
@@ -146,6 +158,8 @@ def run_rigid_press(
         mesh: the object's pre-loaded trimesh mesh, if a mesh object.
         law: the press point's contact law (computed here when not given; a SimSource caches it).
         max_steps: step budget; a longer press is refused before it runs.
+        models: a dict the caller keeps for ``scene`` alone (a SimSource does): compiled press models by timestep,
+            drive, axis and mesh, moved to each press's start instead of compiled again.
 
     Raises:
         SimulationDiverged: MuJoCo warning, NaN, runaway penetration or speed, naming what to change.
@@ -178,9 +192,7 @@ def run_rigid_press(
     centres = profile.centres()
     start = centres[0]
     q_set = profile.z - profile.z[0]  # the centre is start + q * axis (see PressProfile.centres)
-    model, data = build_press_model(scene, start, axis, timestep=timestep, drive=drive,
-                                    meshes={obj.name: mesh} if mesh is not None else None)
-    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)  # the contact law is ours
+    model, data = press_model(scene, obj, start, axis, timestep, drive, mesh, models)
 
     # surface sampled under the deepest tip position (the tip moves on one axis)
     deepest = centres[int(np.argmin(profile.z))]
@@ -198,9 +210,13 @@ def run_rigid_press(
     n_tab = 1000
     s_tab = np.linspace(s_lo, s_hi, n_tab)
     d_tab = np.maximum(g_ref - s_tab, 0.0)
-    f_tab = law_pressure(law, d_tab, r_cells) @ areas
-    df_tab = np.gradient(f_tab, s_tab)
     inv_ds = (n_tab - 1) / (s_hi - s_lo)
+    # the table's deep half is there for a runaway: evaluated first only over the heights a tracking press
+    # reaches (the setpoint's deepest, with a margin), the rest if the tip ever goes lower (same values either way)
+    band = max(int((float(np.min(profile.z)) - radius - 0.5 * depth_cmd - 5e-4 - s_lo) * inv_ds) - 2, 0)
+    rows = np.arange(n_tab) >= band
+    f_tab = law_pressure(law, d_tab, r_cells, rows) @ areas
+    df_tab = np.gradient(f_tab, s_tab)  # exact from row band + 1 on
     tau = mat.damping
 
     n = int(np.ceil(profile.duration / timestep)) + 1
@@ -222,6 +238,7 @@ def run_rigid_press(
     ftab = f_tab.tolist()
     dftab = df_tab.tolist()
     top = n_tab - 1.000001
+    x_band = band + 1.0 if band > 0 else -1.0
     qpos, qvel, qfrc, dctrl = data.qpos, data.qvel, data.qfrc_applied, data.ctrl
     step = mujoco.mj_step
     for k in range(n):
@@ -232,6 +249,10 @@ def run_rigid_press(
             if x != x:  # NaN: stop and report below
                 break
             x = 0.0 if x < 0.0 else top  # beyond the table: deeper than any run can go, or out of contact
+        if x < x_band:  # deeper than the band: the whole table
+            f_tab = law_pressure(law, d_tab, r_cells) @ areas
+            df_tab = np.gradient(f_tab, s_tab)
+            ftab, dftab, x_band = f_tab.tolist(), df_tab.tolist(), -1.0
         i = int(x)
         w = x - i
         fk = ftab[i] + (ftab[i + 1] - ftab[i]) * w
@@ -267,9 +288,11 @@ def run_rigid_press(
     pressure = np.zeros((n,) + qpts.shape[:2])
     touching = indentation > 0
     if touching.any():
-        p_tab = law_pressure(law, d_tab, sensel_r) @ qw
         x = np.clip((s_run[touching] - s_lo) * inv_ds, 0.0, top)
         i = x.astype(int)
+        rows = np.zeros(n_tab, dtype=bool)
+        rows[i] = rows[i + 1] = True  # the heights the run reached, of the table's 1000
+        p_tab = law_pressure(law, d_tab, sensel_r, rows) @ qw
         w = (x - i)[:, None, None]
         p = p_tab[i] * (1.0 - w) + p_tab[i + 1] * w
         if tau > 0:
@@ -287,6 +310,28 @@ def run_rigid_press(
     )
     trace.check_finite()
     return trace
+
+
+def press_model(scene: Scene, obj: ObjectSpec, start: np.ndarray, axis: np.ndarray, timestep: float,
+                drive: FingerDrive, mesh=None, models: dict | None = None):
+    """(model, data) of :func:`palpate.sim.scene.build_press_model` with MuJoCo's contacts off (the law is ours),
+    the tip's body at ``start`` (m) and the data fresh. ``models``: compiled models of ``scene`` kept by the caller;
+    a kept one is moved to ``start`` and reset, which is what compiling it there gives."""
+    import mujoco
+
+    key = (float(timestep), drive, tuple(float(c) for c in axis), obj.name if mesh is not None else None)
+    kept = None if models is None else models.get(key)
+    if kept is None:
+        model, data = build_press_model(scene, start, axis, timestep=timestep, drive=drive,
+                                        meshes={obj.name: mesh} if mesh is not None else None)
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        if models is not None:
+            models[key] = (model, data)
+        return model, data
+    model, data = kept
+    model.body("fingertip").pos[:] = [float(c) for c in start]
+    mujoco.mj_resetData(model, data)
+    return model, data
 
 
 def rigid_depth_for_force(obj: ObjectSpec, centre_xy: np.ndarray, tip, law: ContactLaw, force: float,

@@ -23,7 +23,7 @@ from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import material_under, run_analytic_press
 from palpate.sim.bem.press import run_bem_press
 from palpate.sim.bem.wall import load_wall_table
-from palpate.sim.blas import one_blas_thread
+from palpate.sim.blas import blas_controller, one_blas_thread
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profile
 from palpate.sim.flex.model import SOLVER_ITERATIONS
@@ -90,6 +90,10 @@ class SimSource:
             or a RealismProfile; None is ``ideal`` (the simulation exactly as without profiles). One source is one
             session (one pad equilibration, one clock synchronisation). Its finger pulp is in series with the
             press point's contact law; the validity table (``auto``) is about the mechanics alone.
+        laws: a dict of contact laws (and column FE energies) to share with other sources of the same fingertip,
+            e.g. every source of a run; each entry is keyed on its stack or press point and materials. A law
+            solved deeper than a press needs serves it, so a source's numbers may depend on what the others
+            pressed before, to within the law's tabulation.
     """
 
     #: modules every fidelity imports when it presses (checked by the run before any work starts)
@@ -98,7 +102,8 @@ class SimSource:
     def __init__(self, scene: Scene, fidelity: str = "auto", seed: int = 0,
                  variability: str | Variability = "robot", timestep: float | None = None,
                  tolerance: float = DEFAULT_TOLERANCE, max_steps: int = MAX_STEPS,
-                 realism: str | Path | RealismProfile | None = None, flex_iterations: int = SOLVER_ITERATIONS):
+                 realism: str | Path | RealismProfile | None = None, flex_iterations: int = SOLVER_ITERATIONS,
+                 laws: dict | None = None):
         if fidelity not in FIDELITIES:
             raise ValidationError(f"SimSource: fidelity must be one of {FIDELITIES}, got {fidelity!r}")
         if isinstance(variability, str) and variability not in ("robot", "human"):
@@ -119,6 +124,7 @@ class SimSource:
         self._table = None  # the validity table, read on the first ``auto`` decision
         self._images = None  # its image columns, likewise
         self._walls = None  # the bem rung's wall table, read on its first press
+        self._blas = None  # the BLAS libraries' thread controller, found on the first contact law
         self.scene = scene
         self.fidelity = fidelity
         self.seed = int(seed)
@@ -126,7 +132,10 @@ class SimSource:
         self.timestep = timestep
         self._presses = 0
         self._meshes: dict = {}
-        self._laws: dict = {}  # contact laws by stack or press point (palpate.sim.contact.stack.point_law)
+        # contact laws by stack or press point (palpate.sim.contact.stack.point_law); given, shared with other sources
+        self._laws: dict = {} if laws is None else laws
+        self._pads: dict = {}  # the pad's sensel footprints by fingertip and contact centre (analytic)
+        self._rigid_models: dict = {}  # compiled rigid press models (palpate.sim.rigid.press_model)
         self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.press.run_flex_press)
         self._flex_tables: FlexTables | None = None  # its calibration tables, read on the first flex press
         self._session = (None if self.realism.is_ideal else
@@ -139,10 +148,16 @@ class SimSource:
             self._meshes[obj.name] = load_mesh(obj)
         return self._meshes[obj.name]
 
+    def _blas_controller(self):
+        """The BLAS libraries' thread controller, found once (palpate.sim.blas)."""
+        if self._blas is None:
+            self._blas = blas_controller()
+        return self._blas
+
     def _law(self, obj: ObjectSpec, x: float, y: float, surface_z: float, max_depth: float):
         """The contact law at (x, y) (m), cached per press point; its FE solves (an inclusion, an edge within
         reach) run with BLAS on one thread."""
-        with one_blas_thread():
+        with one_blas_thread(self._blas_controller()):
             return object_law(obj, x, y, surface_z, self.scene.fingertip.radius, max_depth, cache=self._laws)
 
     def explain(self, target: PressTarget) -> Choice:
@@ -267,15 +282,17 @@ class SimSource:
             physics_profile = real.object_profile(profile)
             physics_profile = replace(physics_profile, meta=dict(physics_profile.meta, force_target=None))
         if fidelity == "analytic":
-            trace = run_analytic_press(self.scene, obj, physics_profile, law=law)
+            trace = run_analytic_press(self.scene, obj, physics_profile, law=law, pads=self._pads)
         elif fidelity == "bem":
             if self._walls is None:
                 self._walls = load_wall_table()
-            with one_blas_thread():
+            with one_blas_thread(self._blas_controller()):
                 trace = run_bem_press(self.scene, obj, physics_profile, walls=self._walls)
         elif fidelity == "rigid":
-            trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
-                                    max_steps=self.max_steps)
+            # its tables' BLAS products are small: other threads would only wait for a core and spin
+            with one_blas_thread(self._blas_controller()):
+                trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
+                                        max_steps=self.max_steps, models=self._rigid_models)
         else:
             # flex has its own default step (up to 10 ms, see palpate.sim.flex.press.default_timestep): the rigid
             # default of 2 ms would make it 5x slower for nothing (its elasticity is integrated implicitly)

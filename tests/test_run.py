@@ -64,6 +64,7 @@ size_mm = [20, 40]
 
 [outputs]
 render_3d = false
+attainable_accuracy = true
 """
 
 
@@ -99,6 +100,12 @@ def test_summary_follows_the_documented_schema(small_run):
     assert set(obj["accuracy"]) == {"explored_before_postprocessing", "all_cells_before_postprocessing",
                                     "all_cells_after_postprocessing", "by_walls_after_postprocessing"}
     assert set(summary["timing"]) == {"training_s", "exploration_s", "attainable_accuracy_s", "maps_s", "figures_s"}
+    cpu = summary["cpu"]
+    assert set(cpu) == set(summary["timing"]) | {"presses", "per_press_s"}
+    # every press counted: 3 materials x 5 training presses, 4 exploration presses, 24 for the ceiling (6 x 4 cells)
+    assert cpu["presses"] == 15 + 4 + 24
+    spent = cpu["training_s"] + cpu["exploration_s"] + cpu["attainable_accuracy_s"]
+    assert cpu["per_press_s"] == pytest.approx(spent / 43, abs=1e-5) and cpu["per_press_s"] > 0
 
 
 def test_summary_reports_calibration_and_attainable_accuracy(small_run):

@@ -7,7 +7,10 @@ Two devices on two computers stamp samples with two clocks: an unknown offset (s
 1. coarse, needing no prior: each contact's c_P peak (taxel clock) against each reversal of the fingertip's motion
    (pose clock, :mod:`~palpate.core.alignment.events`). Every pairing proposes an offset; the one that pairs the
    most presses wins. When another offset, more than the match tolerance away, pairs nearly as many (presses at a
-   steady rhythm look the same one period later), the estimate is refused as ambiguous.
+   steady rhythm look the same one period later), the fine step below settles it: at the right offset the
+   per-press offsets agree to milliseconds, at one a press-period away each press is laid on its neighbour's motion
+   and they scatter with the rhythm's irregularity. The one candidate whose per-press offsets agree (rms within
+   ``TIE_RESIDUAL``) wins; when several or none do, the estimate is refused as ambiguous.
 2. fine, per paired press: the pose-time shift that makes the press's c_P one function of its indentation on the
    way in and on the way out (a wrong shift moves the loading branch one way and the unloading branch the other);
    indentation along the press's own motion. The shift is the zero of the branches' mean separation, found on a
@@ -15,14 +18,16 @@ Two devices on two computers stamp samples with two clocks: an unknown offset (s
    ``OUTLIER_SIGMAS`` spreads) are left out and counted.
 
 The per-press offsets are then fitted with a line in time: its value at ``t_ref`` (the presses' mean time) is the
-offset, its slope the rate difference (drift), both with standard errors from the scatter. With fewer than
-``MIN_PRESSES_FOR_DRIFT`` presses or a span under ``MIN_SPAN_FOR_DRIFT`` the drift is taken as 0 and said so.
+offset, its slope the rate difference (drift), both with standard errors from the scatter. The offset's
+uncertainty also carries each device's timestamp resolution (:func:`stamp_resolution`: a Liberty stamps whole ms):
+averaging presses does not remove it, because every stamp of a device is rounded or truncated the same way. With
+fewer than ``MIN_PRESSES_FOR_DRIFT`` presses or a span under ``MIN_SPAN_FOR_DRIFT`` the drift is taken as 0 and said so.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -33,8 +38,14 @@ from palpate.core.perception.streams import PoseSample, TaxelFrame, frames_to_ar
 
 #: A c_P peak and a reversal this close (s) after shifting are the same press.
 MATCH_TOLERANCE = 0.15
-#: Another offset pairing at least this fraction of the best's presses makes the estimate ambiguous.
+#: Another offset pairing at least this fraction of the best's presses is a rival, settled by the fine step.
 AMBIGUOUS_FRACTION = 0.75
+#: Rival offsets tried finely besides the best (the ones pairing the most presses).
+MAX_RIVALS = 3
+#: Per-press fine offsets agreeing within this rms (s) about one clock map single out a candidate offset: a few ms
+#: at the right offset under tracker noise; tens of ms at one a press-period away, where each press's c_P is laid
+#: on its neighbour's motion and the rhythm's irregularity scatters them.
+TIE_RESIDUAL = 0.008
 #: Fine search half-width around the coarse offset, s, and its grid step, s.
 FINE_HALF_WIDTH = 0.15
 FINE_STEP = 0.001
@@ -66,6 +77,8 @@ class ClockMap:
         outliers: paired presses left out of the fit.
         residual: rms of the per-press offsets about the fitted line, s.
         per_press: (taxel time s, offset s) of each press used, for reports.
+        resolution: the two streams' timestamp resolutions' share of ``offset_std``, s (half a tick of each,
+            in quadrature).
     """
 
     offset: float
@@ -78,6 +91,7 @@ class ClockMap:
     outliers: int = 0
     residual: float | None = None
     per_press: tuple[tuple[float, float], ...] = field(default_factory=tuple)
+    resolution: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("offset", "rate", "t_ref"):
@@ -100,7 +114,8 @@ class ClockMap:
         """One line for people (ms and ppm)."""
         if self.method == "given":
             return f"clock offset {self.offset:.4f} s, drift {self.drift_ppm:.1f} ppm (given)"
-        off = f"clock offset {self.offset:.4f} s +- {1e3 * (self.offset_std or 0):.1f} ms (1 sigma)"
+        ticks = f" incl. {1e3 * self.resolution:.1f} ms of timestamp resolution" if self.resolution else ""
+        off = f"clock offset {self.offset:.4f} s +- {1e3 * (self.offset_std or 0):.1f} ms (1 sigma){ticks}"
         drift = (f"drift {self.drift_ppm:.1f} +- {1e6 * (self.rate_std or 0):.1f} ppm" if self.method == "estimated"
                  else "drift not estimated (taken as 0)")
         left = f", {self.outliers} left out" if self.outliers else ""
@@ -111,7 +126,8 @@ class ClockMap:
         """JSON-ready (a recording's metadata)."""
         return {"offset_s": self.offset, "rate": self.rate, "drift_ppm": self.drift_ppm, "t_ref_s": self.t_ref,
                 "offset_std_s": self.offset_std, "rate_std": self.rate_std, "method": self.method,
-                "presses": self.presses, "outliers": self.outliers, "residual_s": self.residual}
+                "presses": self.presses, "outliers": self.outliers, "residual_s": self.residual,
+                "stamp_resolution_s": self.resolution}
 
 
 def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
@@ -127,11 +143,19 @@ def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
         ValidationError: no contact or no reversal; no offset pairs two presses; ambiguous; per-press offsets that
             do not agree on one map; an implausible drift; streams that do not overlap once mapped.
     """
-    if max_offset is not None and not (math.isfinite(max_offset) and max_offset > 0):
-        raise ValidationError(f"clock estimate: max_offset must be a finite number of seconds > 0, got {max_offset!r}")
     t, counts, _ = frames_to_arrays(frames)
     tp, pos, _ = poses_to_arrays(poses)
-    c_p = counts.reshape(len(t), -1).sum(axis=1, dtype=np.int64).astype(float)
+    return estimate_clock_map_arrays(t, counts.reshape(len(t), -1).sum(axis=1, dtype=np.int64).astype(float), tp,
+                                     pos, max_offset=max_offset)
+
+
+def estimate_clock_map_arrays(t: np.ndarray, c_p: np.ndarray, tp: np.ndarray, pos: np.ndarray, *,
+                              max_offset: float | None = None) -> ClockMap:
+    """:func:`estimate_clock_map` from arrays: frame times (s, taxel clock) and each frame's c_P (sum of counts),
+    pose times (s, pose clock) and positions (n, 3) m; what a streamed import keeps of its frames."""
+    if max_offset is not None and not (math.isfinite(max_offset) and max_offset > 0):
+        raise ValidationError(f"clock estimate: max_offset must be a finite number of seconds > 0, got {max_offset!r}")
+    t, c_p = np.asarray(t, dtype=float), np.asarray(c_p, dtype=float)
     found = contacts(t, c_p)
     if not found:
         raise ValidationError("clock estimate: the taxel stream shows no finished contact (no press to align on)")
@@ -139,7 +163,56 @@ def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
     if not turns:
         raise ValidationError("clock estimate: the fingertip never reverses its motion in the pose stream (no "
                               "press to align on)")
-    coarse, pairs = _coarse(found, turns, max_offset)
+    # a stamp is off by up to half a tick (rounded) or half a tick on average (truncated), the same way at every press
+    ticks = 0.5 * math.hypot(stamp_resolution(t), stamp_resolution(tp))
+    candidates = _coarse(found, turns, max_offset)
+    if len(candidates) == 1:
+        return _with_resolution(_fine_map(t, c_p, tp, pos, *candidates[0][:2]), ticks)
+    # rivals: the fine step settles which offset the presses agree on
+    agreeing = []
+    for offset, pairs, _ in candidates:
+        try:
+            cmap = _fine_map(t, c_p, tp, pos, offset, pairs)
+        except ValidationError:
+            continue
+        if cmap.residual is not None and cmap.residual <= TIE_RESIDUAL:
+            agreeing.append(cmap)
+    if len(agreeing) == 1:
+        return _with_resolution(agreeing[0], ticks)
+    (best, _, n_best), (other, _, n_other) = candidates[0], candidates[1]
+    why = ("the presses' fine offsets agree at both" if agreeing else "the presses' fine offsets agree at neither")
+    raise ValidationError(
+        f"clock estimate is ambiguous: an offset of {best:.3f} s pairs {n_best} presses and one of {other:.3f} s "
+        f"pairs {n_other}, and {why} (presses at a steady rhythm look alike one period apart); give the offset "
+        "(--clock-offset) or bound the search (--max-offset)")
+
+
+def stamp_resolution(times, *, quantum: float = 1e-6) -> float:
+    """The tick a stream's timestamps come in, s: the greatest common divisor of the steps between them (counted in
+    ``quantum`` s), or 0 when that is the sampling period itself (stamps computed as start + k period have no tick
+    finer than their period and no rounding to speak of).
+
+    A Liberty at 240 Hz stamps whole ms: its steps of 4 and 5 ms give 1 ms. Stamps in floating point give
+    ``quantum``.
+    """
+    t = np.asarray(times, dtype=float)
+    steps = np.rint(np.diff(t) / quantum).astype(np.int64)
+    steps = steps[steps > 0]
+    if len(steps) == 0:
+        return 0.0
+    tick = int(np.gcd.reduce(steps))
+    if tick >= int(np.median(steps)):
+        return 0.0
+    return tick * quantum
+
+
+def _with_resolution(cmap: ClockMap, ticks: float) -> ClockMap:
+    std = math.hypot(cmap.offset_std or 0.0, ticks)
+    return replace(cmap, offset_std=std, resolution=ticks)
+
+
+def _fine_map(t, c_p, tp, pos, coarse: float, pairs: list[Contact]) -> ClockMap:
+    """The clock map fitted to the fine offsets of the paired presses around a coarse offset (s)."""
     fine = []
     for contact in pairs:
         shift = _fine_offset(t, c_p, tp, pos, contact, coarse)
@@ -151,7 +224,9 @@ def estimate_clock_map(frames: list[TaxelFrame], poses: list[PoseSample], *,
     return _fit_line(np.array(fine), tp, t)
 
 
-def _coarse(found: list[Contact], turns, max_offset: float | None) -> tuple[float, list[Contact]]:
+def _coarse(found: list[Contact], turns, max_offset: float | None) -> list[tuple[float, list[Contact], int]]:
+    """Candidate offsets (s), each with the contacts it pairs and their number: the best first, then its rivals
+    (offsets more than twice the match tolerance away pairing at least ``AMBIGUOUS_FRACTION`` as many)."""
     peaks = np.array([c.t_peak for c in found])
     revs = np.array([r.t for r in turns])
     cand = (peaks[:, None] - revs[None, :]).reshape(-1)
@@ -177,17 +252,18 @@ def _coarse(found: list[Contact], turns, max_offset: float | None) -> tuple[floa
         raise ValidationError(f"clock estimate: no clock offset pairs two c_P peaks with reversals of the fingertip "
                               f"({len(peaks)} contacts, {len(revs)} reversals); the streams may not overlap or not "
                               "be of the same presses; give the offset with --clock-offset")
-    # the best offset's neighbourhood: refine to the median of its pairs
-    offset = float(cand[best])
-    rivals = (np.abs(cand - offset) > 2 * MATCH_TOLERANCE) & (score >= max(2, AMBIGUOUS_FRACTION * n_best))
-    if rivals.any():
-        other = float(cand[rivals][np.argmax(score[rivals])])
-        raise ValidationError(
-            f"clock estimate is ambiguous: an offset of {offset:.3f} s pairs {n_best} presses and one of {other:.3f} s "
-            f"pairs {int(score[rivals].max())} (presses at a steady rhythm look alike one period apart); give the "
-            "offset (--clock-offset) or bound the search (--max-offset)")
-    mask = paired(offset)
-    return offset, [c for c, m in zip(found, mask, strict=True) if m]
+    chosen = [float(cand[best])]
+    rivals = (np.abs(cand - chosen[0]) > 2 * MATCH_TOLERANCE) & (score >= max(2, AMBIGUOUS_FRACTION * n_best))
+    for k in np.flatnonzero(rivals)[np.argsort(-score[rivals], kind="stable")]:
+        if len(chosen) > MAX_RIVALS:
+            break
+        if all(abs(float(cand[k]) - c) > 2 * MATCH_TOLERANCE for c in chosen):
+            chosen.append(float(cand[k]))
+    out = []
+    for offset in chosen:
+        mask = paired(offset)
+        out.append((offset, [c for c, m in zip(found, mask, strict=True) if m], int(mask.sum())))
+    return out
 
 
 def _fine_offset(t, c_p, tp, pos, contact: Contact, coarse: float) -> float | None:

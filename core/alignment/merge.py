@@ -46,8 +46,14 @@ class MergedSession:
 
     def metadata(self) -> dict:
         """What the session file records about how it was made (JSON-ready)."""
-        return {"clock": self.clock.to_dict(), "workspace": self.transform.to_dict(),
-                "dropped_poses": self.dropped_poses, "perception": dict(SESSION_PIPELINE)}
+        return session_metadata(self.clock, self.transform, self.dropped_poses)
+
+
+def session_metadata(clock: ClockMap, transform: WorkspaceTransform, dropped_poses: int) -> dict:
+    """What a session file records about how it was made (JSON-ready): clock map, transform, dropped poses and
+    how to perceive it."""
+    return {"clock": clock.to_dict(), "workspace": transform.to_dict(), "dropped_poses": dropped_poses,
+            "perception": dict(SESSION_PIPELINE)}
 
 
 def merge_session(frames: list[TaxelFrame], poses: list[PoseSample], clock: ClockMap,
@@ -65,6 +71,16 @@ def merge_session(frames: list[TaxelFrame], poses: list[PoseSample], clock: Cloc
         ValidationError: the streams do not overlap once mapped, or fewer than two poses remain.
     """
     t, _, _ = frames_to_arrays(frames)
+    kept, dropped = map_poses(t[0], t[-1], poses, clock, transform, sensor_id=sensor_id)
+    return MergedSession(list(frames), kept, clock, transform, dropped)
+
+
+def map_poses(t_first: float, t_last: float, poses: list[PoseSample], clock: ClockMap,
+              transform: WorkspaceTransform = IDENTITY, *, sensor_id: str | None = None
+              ) -> tuple[list[PoseSample], int]:
+    """The poses on the taxel clock and in the grid frame that fall within the taxel span ``t_first``..``t_last``
+    (s, with ``MARGIN``), and how many were dropped; see :func:`merge_session`."""
+    t = np.array([t_first, t_last], dtype=float)
     tp, _, _ = poses_to_arrays(poses)
     check_overlap(clock, tp, t)
     mapped = clock.to_taxel(tp)
@@ -75,7 +91,7 @@ def merge_session(frames: list[TaxelFrame], poses: list[PoseSample], clock: Cloc
         raise ValidationError("the clock map puts pose times out of order (a drift near -1?)")
     kept = [PoseSample(float(tm), p.position, p.quaternion, sensor_id or p.sensor_id)
             for p, tm, k in zip(poses, mapped, keep, strict=True) if k]
-    return MergedSession(list(frames), transform.apply(kept), clock, transform, int(np.count_nonzero(~keep)))
+    return transform.apply(kept), int(np.count_nonzero(~keep))
 
 
 def perception_of(metadata) -> dict | None:

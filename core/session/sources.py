@@ -91,7 +91,7 @@ def load_source(name: str):
 def scenario_source_maker(scenario: Scenario, name: str = "sim"):
     """``make(objects, seed, variability)`` building the registered source ``name`` on the scenario's fingertip and
     sensors (and its ``[realism]`` profile, when not ideal): the shape every exploration and training loop asks for a
-    source in."""
+    source in. A source that takes ``laws`` gets one dict shared by every source the maker makes."""
     factory = load_source(name)
     # the scenario's tolerance for ``auto`` and flex's iteration limit, given to the sources that take them;
     # its realism profile when not ideal
@@ -101,6 +101,10 @@ def scenario_source_maker(scenario: Scenario, name: str = "sim"):
         extra["flex_iterations"] = scenario.flex_iterations
     if scenario.realism.profile != "ideal":
         extra["realism"] = scenario.realism.profile
+    if "laws" in takes:
+        # one dict for every source this maker makes (training, each object, the ceiling): what a source solved
+        # for a stack or a press point serves the others
+        extra["laws"] = {}
 
     def make(objects: tuple[ObjectSpec, ...], seed: int, variability: str):
         scene = Scene(objects, scenario.fingertip, scenario.taxels, scenario.pose)

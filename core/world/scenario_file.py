@@ -220,7 +220,7 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
         figures=out.get("figures", bool, True),
         haptic_material=out.get("haptic_material", bool, True),
         render_3d=out.get("render_3d", bool, True),
-        attainable_accuracy=out.get("attainable_accuracy", bool, True),
+        attainable_accuracy=out.get("attainable_accuracy", bool, False),
     )
     out.finish()
     actuator = _actuator(top.sub("actuator"), base)

@@ -21,12 +21,15 @@ records before it becomes a pose:
   ``max_angular_accel``; its speed from the last good pose is at most ``max_speed``. When it does not fit, either
   it or its successor is off the path: the record after the successor decides (it is kept when it fits between
   its predecessor and that record and the successor does not fit between them). Dropping a good record for a bad
-  successor would widen the gap round the bad one, and the bound grows with the gap.
+  successor would widen the gap round the bad one, and the bound grows with the gap: so the two records a record
+  is checked between lie at most ``vouch_span`` frames apart (``damaged_span`` on a line that has just damaged two
+  records); beyond that the record is dropped and the station locks in again.
 
 A stream starts (and restarts after ``relock_after`` s of host time without a good record, unless that record
 continues the station's frame counter and clock: a host that stalled reads the buffered frames late) by three
 consecutive records that agree with each other; until then nothing is trusted, and a record that disagrees with
-those held replaces them. Rejected records are counted by reason; nothing is repaired or invented. The cost is one
+those held replaces them. Locking in again within a running stream keeps only the middle of the three (the one
+checked between the others). Rejected records are counted by reason; nothing is repaired or invented. The cost is one
 record of delay per station (4 ms at 240 Hz), two when a record does not fit.
 
 The bound is physical, so a damaged position that stays within it next to a long gap (records lost on either side)
@@ -44,7 +47,8 @@ import numpy as np
 #: At lock-in the three records must be at most this many frames apart (a clean stream has them consecutive).
 LOCK_SKIP = 3
 #: Reasons a record is rejected (StreamStats.rejected keys).
-REASONS = ("frame counter", "timestamp", "position jump", "orientation jump", "speed", "no lock", "quaternion norm")
+REASONS = ("frame counter", "timestamp", "position jump", "orientation jump", "speed", "no lock", "quaternion norm",
+           "gap")
 #: How many of a station's latest good records the clock phase is checked against: enough to hold every phase of
 #: the ms rounding at 240 Hz (it repeats every 6 frames) twice.
 PHASE_FRAMES = 12
@@ -73,6 +77,15 @@ class Plausibility:
             norm by at most 2 h. A damaged byte in a component near 0, which turns the sensor by a degree or two,
             moves the norm by ~1e-4 (a component of 0.01 adds 5e-5): caught in binary and six-decimal ASCII, not
             always with four decimals. Raise it for a tracker whose quaternions are less exactly unit.
+        vouch_span: the two records a record is checked between may lie at most this many frames apart (3: one
+            lost record beside it). Across a longer gap the bound a hand's acceleration allows grows past the few
+            mm a damaged byte moves a float32 position (steps of 1.25 mm at 20-30 cm), so such a record is dropped
+            and the station locks in again; 0 checks no span (records without a frame counter are never held to
+            it).
+        damaged_span: the span allowed instead on a damaged line: one where two records of the station were
+            rejected for their values within ``damage_memory`` s. At 240 Hz a span of 3 lets a record stray
+            2.3 mm (acceleration term 0.9 mm plus the noise term 1.4 mm), one of 2 (its own neighbours) 1.8 mm:
+            under the 2 mm that misleads. A single damaged record on a clean line still costs only itself.
     """
 
     max_speed: float = 5.0
@@ -87,6 +100,9 @@ class Plausibility:
     frame_locked_clock: bool = True
     clock_tick: float = 0.001
     quaternion_norm: float = 1e-6
+    vouch_span: int = 3
+    damaged_span: int = 2
+    damage_memory: float = 0.25
 
 
 @dataclass
@@ -108,6 +124,7 @@ class _Station:
     period_error: float = 0.0  # its bound, s per frame: the two ends' rounding differs by less than a tick
     first: _Pose | None = None  # the first accepted record since lock-in
     recent: deque = field(default_factory=lambda: deque(maxlen=PHASE_FRAMES))  # (frame, t) of the latest good ones
+    damage: deque = field(default_factory=lambda: deque(maxlen=2))  # device times of the latest value rejections
 
 
 class RecordGate:
@@ -134,6 +151,8 @@ class RecordGate:
         quat = np.asarray(quaternion, dtype=float)
         if not abs(float(np.linalg.norm(quat)) - 1.0) <= self.limits.quaternion_norm + quaternion_rounding:
             self.rejected["quaternion norm"] += 1
+            if st.accepted:
+                st.damage.append(st.accepted[-1].t)
             return []
         pose = _Pose(0.0, timestamp_ms, frame, np.asarray(position, dtype=float), quat / np.linalg.norm(quat), record,
                      t_host)
@@ -147,6 +166,7 @@ class RecordGate:
             pose.t, why = self._sequence(st, st.accepted[-1], timestamp_ms, frame, t_host)
             if why is not None:
                 self.rejected[why] += 1
+                st.damage.append(st.accepted[-1].t)
                 return []
             st.pending.append(pose)
             return self._decide(st)
@@ -234,9 +254,19 @@ class RecordGate:
 
 
     # ---- motion --------------------------------------------------------------------------------------------
-    def _fits_between(self, a: _Pose, c: _Pose, b: _Pose) -> str | None:
-        """Why ``c`` cannot lie between ``a`` and ``b`` (None when it can)."""
+    def _span(self, st: _Station, t: float) -> int:
+        """Most frames between the two records that check one at device time ``t`` (s): ``vouch_span``, or
+        ``damaged_span`` on a line that has just damaged two records."""
         lim = self.limits
+        recent = sum(1 for x in st.damage if 0.0 <= t - x <= lim.damage_memory)
+        return lim.damaged_span if recent >= 2 else lim.vouch_span
+
+    def _fits_between(self, a: _Pose, c: _Pose, b: _Pose, span: int = 0) -> str | None:
+        """Why ``c`` cannot lie between ``a`` and ``b`` (None when it can; ``span``: most frames from a to b, 0 for
+        any)."""
+        lim = self.limits
+        if _frames_apart(a, b) > span > 0:
+            return "gap"
         span = b.t - a.t
         if span <= 0 or not a.t < c.t < b.t:
             # host stamps (no timestamp item): records read together share a time; only their order is known
@@ -269,11 +299,19 @@ class RecordGate:
     def _lock_in(self, st: _Station) -> list[tuple[float, object]]:
         while len(st.pending) >= 3:
             a, c, b = st.pending[-3:]
-            if self._fits_between(a, c, b) is None and _same_rhythm(a, c, b, self.limits.time_slack):
-                st.accepted = [a, c]
+            if self._fits_between(a, c, b, self._span(st, c.t)) is None and \
+                    _same_rhythm(a, c, b, self.limits.time_slack):
+                # only c was checked between two others: a damaged a shows at c by half its damage at most. At the
+                # stream's start a is kept (a configured device's first records); locking in again after a gap
+                # in a running stream (a damaged line) it is dropped
+                restart = st.first is not None
+                st.accepted = [c] if restart else [a, c]
                 st.pending = [b]
                 self._learn_period(st, a, c)
                 self._learn_period(st, c, b)
+                if restart:
+                    self.rejected["no lock"] += 1
+                    return [(c.t, c.record)]
                 return [(a.t, a.record), (c.t, c.record)]
             self.rejected["no lock"] += 1
             st.pending.pop(0)
@@ -284,15 +322,20 @@ class RecordGate:
         while len(st.pending) >= 2:
             a = st.accepted[-1]
             c, b = st.pending[0], st.pending[1]
-            why = self._fits_between(a, c, b)
+            span = self._span(st, c.t)
+            why = self._fits_between(a, c, b, span)
             if why is not None:
                 # c or b is off the path: wait for the record after b to tell which. Dropping a good c for a bad
                 # b would widen the gap round b, and with it the bound a bad record is checked against.
                 if len(st.pending) < 3:
                     break
                 d = st.pending[2]
-                if self._fits_between(a, c, d) is None and self._fits_between(c, b, d) is not None:
+                if self._fits_between(a, c, d, span) is None and self._fits_between(c, b, d, span) is not None:
                     why = None
+            if why == "gap":
+                # the last good record is too far back to vouch for c: lock in again from the records held
+                st.accepted = []
+                return out + self._lock_in(st)
             if why is None:
                 self._learn_period(st, a, c)
                 st.accepted = [a, c]
@@ -300,6 +343,7 @@ class RecordGate:
             else:
                 # c, or its successor, is not on a hand's path: drop c; a bad successor fails in its turn
                 self.rejected[why] += 1
+                st.damage.append(c.t)
             st.pending.pop(0)
         return out
 
@@ -313,6 +357,13 @@ def _slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
         return q / np.linalg.norm(q)
     theta = math.acos(min(1.0, dot))
     return (math.sin((1 - s) * theta) * q0 + math.sin(s * theta) * q1) / math.sin(theta)
+
+
+def _frames_apart(a: _Pose, b: _Pose) -> int:
+    """Frames from ``a`` to ``b`` (0 when either has no frame counter)."""
+    if a.frame is None or b.frame is None:
+        return 0
+    return (b.frame - a.frame) % (1 << 32)
 
 
 def _same_rhythm(a: _Pose, c: _Pose, b: _Pose, slack: float) -> bool:

@@ -6,9 +6,10 @@ Steps (each printed):
 1. the pad's frames: a Tekscan ASCII/CSV export (times ``--start-time`` + frame number x period) or an MCAP
    recording with one taxel topic (``palpate import tekscan`` output, or a bridge's);
 2. the poses: an MCAP recording with a pose topic (``palpate record liberty``; ``--station`` picks one);
-3. the clock map pose -> pad: given (``--clock-offset`` s, ``--clock-drift-ppm``), or estimated from the presses
-   themselves with its uncertainty (:mod:`palpate.core.alignment.clock`); refused, with the reason, when the
-   streams do not overlap or the estimate is ambiguous;
+3. the clock map pose -> pad: given (``--clock-offset`` s, ``--clock-drift-ppm``; checked against the presses),
+   or estimated from the presses themselves with its uncertainty (:mod:`palpate.core.alignment.clock`); refused,
+   with the reason, when the streams do not overlap, the estimate is ambiguous or a given map does not pair the
+   presses;
 4. the workspace: the tracker frame placed on the grid from three touches (``--calibration TOUCHES.mcap``, see
    :mod:`palpate.core.alignment.calibration`) or a transform file (``--workspace T.json``); without either, positions
    stay in the tracker's frame;
@@ -19,12 +20,14 @@ Steps (each printed):
 from __future__ import annotations
 
 import argparse
-import heapq
 import json
 import math
 import os
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from palpate.core.alignment.calibration import (
     IDENTITY,
@@ -33,16 +36,17 @@ from palpate.core.alignment.calibration import (
     touches_from_poses,
     transform_from_touches,
 )
-from palpate.core.alignment.clock import ClockMap, estimate_clock_map
-from palpate.core.alignment.merge import merge_session
+from palpate.core.alignment.clock import ClockMap, estimate_clock_map_arrays
+from palpate.core.alignment.clock_check import check_clock_map_arrays
+from palpate.core.alignment.merge import map_poses, session_metadata
 from palpate.core.errors import ValidationError
 from palpate.core.files import write_text
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
-from palpate.core.perception.streams import PoseSample, TaxelFrame
+from palpate.core.perception.streams import PoseSample, TaxelFrame, frames_to_arrays, poses_to_arrays
 from palpate.core.session.output_guard import check_output_file
-from palpate.hardware.tekscan.importer import file_sha256, parse_start_time
-from palpate.hardware.tekscan.reader import movie_frames, read_tekscan, select_region
+from palpate.hardware.tekscan.importer import file_sha256, parse_start_time, region_blocks, region_of
+from palpate.hardware.tekscan.stream import open_export
 
 MCAP_MAGIC = b"\x89MCAP"
 
@@ -68,9 +72,29 @@ class SessionSummary:
                 f"({self.dropped_poses} outside the taxel span dropped)")
 
 
+@dataclass(frozen=True)
+class TaxelStream:
+    """One pad's frames as the import needs them: the times and c_P of every frame at once (16 bytes a frame, what
+    the clock estimate works on) and the frames themselves again on demand, so a Tekscan export of any length is
+    read twice in bounded memory instead of held whole.
+
+    Attributes:
+        t: frame times, s (taxel clock).
+        c_p: each frame's sum of counts.
+        source: the description written to the session's metadata.
+        frames: a fresh iterator over the frames, in time order, at each call.
+    """
+
+    t: np.ndarray
+    c_p: np.ndarray
+    source: dict
+    frames: Callable[[], Iterator[TaxelFrame]]
+
+
 def read_taxels(path, *, region: str | None = None, start_time: float = 0.0, sensor_id: str | None = None,
-                full_scale_pa: float | None = None) -> tuple[list[TaxelFrame], dict]:
-    """The pad's frames from a Tekscan export or an MCAP recording, and a source description for the metadata."""
+                full_scale_pa: float | None = None) -> TaxelStream:
+    """The pad's frames from a Tekscan export (streamed) or an MCAP recording, and a source description for the
+    metadata."""
     path = Path(path)
     if _is_mcap(path):
         rec = read_recording(path)
@@ -81,15 +105,33 @@ def read_taxels(path, *, region: str | None = None, start_time: float = 0.0, sen
         frames = [f for f in rec.frames if f.sensor_id == wanted]
         if not frames:
             raise ValidationError(f"{path}: no taxel frames{f' of {wanted!r}' if wanted else ''} (topics /taxels/...)")
-        return frames, {"kind": "mcap", "file": path.name, "sensor_id": wanted, "sources": rec.metadata.get("sources")}
-    movie = read_tekscan(path, full_scale_pa=full_scale_pa)
-    if region is not None:
-        movie = select_region(movie, region)
+        t, counts, _ = frames_to_arrays(frames)
+        return TaxelStream(t, counts.reshape(len(t), -1).sum(axis=1, dtype=np.int64).astype(float),
+                           {"kind": "mcap", "file": path.name, "sensor_id": wanted,
+                            "sources": rec.metadata.get("sources")}, lambda: iter(frames))
     sid = sensor_id or "tekscan"
-    return movie_frames(movie, start_time=start_time, sensor_id=sid), {
+    stream = open_export(path, full_scale_pa=full_scale_pa)
+    box = region_of(stream, region)
+    header = stream.header
+    times, c_ps = [], []
+    for t, counts, _, _ in region_blocks(stream, box, start_time):
+        times.append(t)
+        c_ps.append(counts.reshape(len(t), -1).sum(axis=1, dtype=np.int64).astype(float))
+    t = np.concatenate(times)
+    if np.any(np.diff(t) <= 0):
+        raise ValidationError(f"{path.name}: frame times do not increase (check SECONDS_PER_FRAME)")
+
+    def frames() -> Iterator[TaxelFrame]:
+        # the second reading: the file was read whole once, so it is the same export unless changed meanwhile
+        again = open_export(path, full_scale_pa=full_scale_pa)
+        for ts, counts, _, _ in region_blocks(again, box, start_time):
+            for ti, c in zip(ts, counts, strict=True):
+                yield TaxelFrame(float(ti), c, header.sensel_area, sid)
+
+    return TaxelStream(t, np.concatenate(c_ps), {
         "kind": "tekscan_ascii", "file": path.name, "sha256": file_sha256(path), "sensor_id": sid,
-        "region": list(movie.region), "start_time": start_time, "seconds_per_frame": movie.seconds_per_frame,
-        "noise_threshold_counts": movie.noise_threshold}
+        "region": list(box), "start_time": start_time, "seconds_per_frame": header.seconds_per_frame,
+        "noise_threshold_counts": header.noise_counts}, frames)
 
 
 def read_poses(path, *, station: str | None = None) -> tuple[list[PoseSample], dict]:
@@ -141,31 +183,43 @@ def import_session(taxels, poses, out, *, region: str | None = None, start_time:
     for src in (taxels, poses, calibration, workspace):
         if src is not None and out.exists() and out.resolve() == Path(src).resolve():
             raise ValidationError(f"--out {out} is one of the inputs; write the session elsewhere")
-    frames, taxel_source = read_taxels(taxels, region=region, start_time=start_time, sensor_id=taxel_sensor,
-                                       full_scale_pa=full_scale_pa)
+    taxels_in = read_taxels(taxels, region=region, start_time=start_time, sensor_id=taxel_sensor,
+                            full_scale_pa=full_scale_pa)
     samples, pose_source = read_poses(poses, station=station)
     transform = workspace_of(calibration, workspace, station)
+    t, c_p = taxels_in.t, taxels_in.c_p
     try:  # the streams of the two files disagree: name both
-        cmap = clock if clock is not None else estimate_clock_map(frames, samples, max_offset=max_offset)
-        merged = merge_session(frames, samples, cmap, transform, sensor_id="fingertip")
+        tp, pos, _ = poses_to_arrays(samples)
+        if clock is not None:
+            check_clock_map_arrays(t, c_p, tp, pos, clock)
+        cmap = clock if clock is not None else estimate_clock_map_arrays(t, c_p, tp, pos, max_offset=max_offset)
+        kept, dropped = map_poses(float(t[0]), float(t[-1]), samples, cmap, transform, sensor_id="fingertip")
     except ValidationError as exc:
         raise ValidationError(f"--taxels {taxels} with --poses {poses}: {exc}") from None
-    metadata = {"scenario": None, "sources": [taxel_source, pose_source], "session": merged.metadata()}
+    del samples
+    metadata = {"scenario": None, "sources": [taxels_in.source, pose_source],
+                "session": session_metadata(cmap, transform, dropped)}
     partial = out.with_name(out.name + ".partial")
+    n_frames = 0
     try:
         with RecordingWriter(partial, metadata) as w:
-            stream = heapq.merge(((f.t, 0, i) for i, f in enumerate(merged.frames)),
-                                 ((p.t, 1, i) for i, p in enumerate(merged.poses)))
-            for _, kind, i in stream:
-                if kind == 0:
-                    w.write_taxel(merged.frames[i])
-                else:
-                    w.write_pose(merged.poses[i])
+            k = 0  # poses written; a pose at a frame's time goes after the frame
+            for frame in taxels_in.frames():
+                while k < len(kept) and kept[k].t < frame.t:
+                    w.write_pose(kept[k])
+                    k += 1
+                w.write_taxel(frame)
+                n_frames += 1
+            for pose in kept[k:]:
+                w.write_pose(pose)
+        if n_frames != len(t):
+            raise ValidationError(f"--taxels {taxels}: the export changed while it was read ({len(t)} frames, then "
+                                  f"{n_frames})")
         os.replace(partial, out)
     except BaseException:
         partial.unlink(missing_ok=True)
         raise
-    return SessionSummary(out, len(merged.frames), len(merged.poses), merged.dropped_poses, cmap, transform)
+    return SessionSummary(out, n_frames, len(kept), dropped, cmap, transform)
 
 
 def _is_mcap(path: Path) -> bool:

@@ -6,6 +6,7 @@ import argparse
 import hashlib
 import os
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -19,7 +20,7 @@ from palpate.core.session.output_guard import check_output_file
 from palpate.hardware.tekscan.body import to_counts
 from palpate.hardware.tekscan.header import NUMBER_UNIT, PRESSURE, unit_key
 from palpate.hardware.tekscan.reader import TekscanWarning, parse_region
-from palpate.hardware.tekscan.stream import MAX_EXPORT_BYTES, open_export
+from palpate.hardware.tekscan.stream import MAX_EXPORT_BYTES, ExportStream, open_export
 
 
 @dataclass(frozen=True)
@@ -116,10 +117,7 @@ def import_tekscan(path, out, *, region: str | None = None, start_time: float = 
         raise ValidationError(f"--out {out} is the Tekscan export being imported; write the recording elsewhere")
     stream = open_export(path, full_scale_pa=full_scale_pa, max_bytes=max_bytes)
     h = stream.header
-    r0, r1, c0, c1 = parse_region(region) if region is not None else (0, h.rows, 0, h.cols)
-    if not (0 <= r0 < r1 <= h.rows and 0 <= c0 < c1 <= h.cols):
-        raise ValidationError(f"{path.name}: region {r0}:{r1},{c0}:{c1} lies outside the {h.rows}x{h.cols} map "
-                              f"(rows 0..{h.rows}, cols 0..{h.cols}, half-open)")
+    r0, r1, c0, c1 = region_of(stream, region)
     metadata = {
         "scenario": None,
         "sources": [{"kind": "tekscan_ascii", "file": path.name, "sha256": file_sha256(path), "sensor_id": sensor_id,
@@ -134,19 +132,10 @@ def import_tekscan(path, out, *, region: str | None = None, start_time: float = 
     stats = _Stats(np.zeros((r1 - r0, c1 - c0), dtype=bool))
     try:
         with RecordingWriter(partial, metadata, chunk_size=64 * 1024) as w:
-            for block in stream.blocks():
-                counts, over = to_counts(block, h.scale, path.name)
-                counts = counts[:, r0:r1, c0:c1]
-                t = start_time + stream.times(block.numbers)
-                if not t[-1] < MAX_LOG_TIME:
-                    k = int(np.argmax(~(t < MAX_LOG_TIME)))
-                    raise ValidationError(f"{path.name}:{int(block.line_of_frame[k])}: Frame {block.numbers[k]} "
-                                          f"falls {t[k]:.4g} s after 1970, later than a recording can hold "
-                                          f"({_LAST_DATE}); check the frame numbers, SECONDS_PER_FRAME and "
-                                          "--start-time")
+            for t, counts, is_b, over in region_blocks(stream, (r0, r1, c0, c1), start_time):
                 for ti, c in zip(t, counts, strict=True):
                     w.write_taxel(TaxelFrame(float(ti), c, h.sensel_area, sensor_id))
-                stats.add(t, counts, block.is_b[:, r0:r1, c0:c1], over, h.noise_counts)
+                stats.add(t, counts, is_b, over, h.noise_counts)
             w.write_annotation(stats.t1, "tekscan_import", {
                 "frames": stats.frames, "frame_numbers":
                 [stream.first_number, stream.last_number], "sensor_mask": (~stats.b_any).astype(int).tolist()})
@@ -161,6 +150,32 @@ def import_tekscan(path, out, *, region: str | None = None, start_time: float = 
         out=out, frames=stats.frames, shape=(r1 - r0, c1 - c0), duration=stats.t1 - stats.t0, start_time=stats.t0,
         sensel_area=h.sensel_area, b_cells=int(stats.b_any.sum()), peak_c_P=stats.peak_c_p,
         peak_active=stats.peak_active, region=(r0, r1, c0, c1))
+
+
+def region_of(stream: ExportStream, region: str | None) -> tuple[int, int, int, int]:
+    """(r0, r1, c0, c1) of ``region`` (``R0:R1,C0:C1``; None: the whole map), checked against the export's map."""
+    h = stream.header
+    r0, r1, c0, c1 = parse_region(region) if region is not None else (0, h.rows, 0, h.cols)
+    if not (0 <= r0 < r1 <= h.rows and 0 <= c0 < c1 <= h.cols):
+        raise ValidationError(f"{stream.name}: region {r0}:{r1},{c0}:{c1} lies outside the {h.rows}x{h.cols} map "
+                              f"(rows 0..{h.rows}, cols 0..{h.cols}, half-open)")
+    return r0, r1, c0, c1
+
+
+def region_blocks(stream: ExportStream, region: tuple[int, int, int, int], start_time: float = 0.0
+                  ) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:
+    """An export's frames block by block, in bounded memory: (times s from ``start_time``, counts (n, rows, cols)
+    uint8 of the region, its ``B`` cells (n, rows, cols) bool, values clipped at saturation)."""
+    r0, r1, c0, c1 = region
+    for block in stream.blocks():
+        counts, over = to_counts(block, stream.header.scale, stream.name)
+        t = start_time + stream.times(block.numbers)
+        if not t[-1] < MAX_LOG_TIME:
+            k = int(np.argmax(~(t < MAX_LOG_TIME)))
+            raise ValidationError(f"{stream.name}:{int(block.line_of_frame[k])}: Frame {block.numbers[k]} "
+                                  f"falls {t[k]:.4g} s after 1970, later than a recording can hold "
+                                  f"({_LAST_DATE}); check the frame numbers, SECONDS_PER_FRAME and --start-time")
+        yield t, np.ascontiguousarray(counts[:, r0:r1, c0:c1]), block.is_b[:, r0:r1, c0:c1], over
 
 
 def file_sha256(path: Path) -> str:

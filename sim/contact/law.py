@@ -207,9 +207,12 @@ def solve_contact_law(stack: AxisymmetricSample, tip_radius: float, max_depth: f
     t_top = float(stack_arrays(stack).thickness[0])
     a_grid = a_top * (np.arange(1, radii + 1) / radii) ** 1.0
     depth, force, coeffs = [0.0], [0.0], [np.zeros(BASIS)]
+    rules: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # one eigenproblem per node count, not per radius
     for a in a_grid:
         n = int(np.clip(np.ceil(6.0 * a / t_top), 24, 240))
-        xg, wg = np.polynomial.legendre.leggauss(n)
+        if n not in rules:
+            rules[n] = np.polynomial.legendre.leggauss(n)
+        xg, wg = rules[n]
         t = 0.5 * a * (xg + 1.0)
         w = 0.5 * a * wg
         kern = (np.interp(np.abs(t[:, None] - t[None, :]), x, m_tab) + np.interp(t[:, None] + t[None, :], x, m_tab))

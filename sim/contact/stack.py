@@ -10,7 +10,7 @@ averaged around the press axis and solved axisymmetrically (:mod:`.axisymmetric`
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -219,21 +219,30 @@ def point_law(lookup, thickness: float, breaks: list[float], tip_radius: float, 
 
 def _column_energy(lookup, thickness: float, breaks: list[float], tip_radius: float, max_depth: float, base: str,
                    cache: dict | None):
-    """The press point column's FE energy shares (:func:`.axisymmetric.column_energy`), cached by its stack."""
+    """The press point column's FE energy shares (:func:`.axisymmetric.column_energy`), cached by its stack.
+
+    Linear elasticity: moduli all scaled by one factor leave the energy shares as they are and scale the forces and
+    pressures by it, so stacks alike but for that factor (blocks of two materials of one Poisson ratio) share one
+    FE: the kept answer's shares, its forces and pressures scaled (shares equal to ~1e-15, as two solves give)."""
     stack = column_stack(lookup, thickness, breaks, base)
-    key = ("energy", tip_radius, round(max_depth, 7), _signature(stack))  # its shares depend on the depths
+    top = stack.layers[0].material.young if stack.layers else stack.bulk.young
+    key = ("energy", tip_radius, round(max_depth, 7), _signature(stack, top))  # its shares depend on the depths
     hit = cache.get(key) if cache is not None else None
     if hit is not None:
-        return hit
+        energy, young = hit
+        if young == top:
+            return energy
+        return replace(energy, force=energy.force * (top / young), pressure=energy.pressure * (top / young))
     energy = column_energy(stack, tip_radius, max_depth, breaks)
     if cache is not None:
-        cache[key] = energy
+        cache[key] = (energy, top)
     return energy
 
 
-def _signature(stack: AxisymmetricSample) -> tuple:
-    return (stack.base, round(stack.thickness, 9), stack.bulk.young, stack.bulk.poisson,
-            tuple((round(la.thickness, 9), la.material.young, la.material.poisson) for la in stack.layers))
+def _signature(stack: AxisymmetricSample, unit: float = 1.0) -> tuple:
+    """The stack as a key, moduli in ``unit`` Pa (the top's modulus: stacks alike up to one factor share a key)."""
+    return (stack.base, round(stack.thickness, 9), stack.bulk.young / unit, stack.bulk.poisson,
+            tuple((round(la.thickness, 9), la.material.young / unit, la.material.poisson) for la in stack.layers))
 
 
 def object_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip_radius: float,
