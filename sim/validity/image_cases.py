@@ -117,7 +117,8 @@ def wall_columns(wall: Wall, half_x: float, half_y: float, thickness: float) -> 
     return out
 
 
-def _block(bulk: Material, **kw) -> BoxBlock:
+def reference_block(bulk: Material, **kw) -> BoxBlock:
+    """The reference's block (30 mm thick, 80 x 80 mm) of ``bulk``; ``kw``: BoxBlock's wall, lump or skin."""
     return BoxBlock(bulk, THICKNESS, HALF, HALF, **kw)
 
 
@@ -126,7 +127,7 @@ def wall_case(near_kpa: float, far_kpa: float, poisson: float, angle_deg: float,
     """A wall case (see the module docstring): ``near_kpa`` | ``far_kpa`` moduli, kPa; offset mm; angle deg."""
     near, far = material(near_kpa * 1e3, poisson), material(far_kpa * 1e3, poisson)
     name = f"wall_{near_kpa:g}-{far_kpa:g}kPa_t{angle_deg:g}_o{offset_mm:+g}mm_nu{poisson:g}"
-    return ImageCase(name, "wall", _block(near, wall=Wall(far, math.radians(angle_deg), offset_mm * 1e-3)),
+    return ImageCase(name, "wall", reference_block(near, wall=Wall(far, math.radians(angle_deg), offset_mm * 1e-3)),
                      split=split)
 
 
@@ -136,7 +137,8 @@ def lump_case(near_mm: float | None, split: str = "tuning") -> ImageCase:
     near = -length / 2 if near_mm is None else near_mm * 1e-3
     lump = BoxLump(material(2e6, 0.45), near, length, 0.01, 0.001, 0.005)
     label = "under" if near_mm is None else f"near{near_mm:g}mm"
-    return ImageCase(f"lump_2000-115kPa_{label}", "lump", _block(material(115e3, 0.45), lump=lump), split=split)
+    block = reference_block(material(115e3, 0.45), lump=lump)
+    return ImageCase(f"lump_2000-115kPa_{label}", "lump", block, split=split)
 
 
 def core_cases() -> list[ImageCase]:
@@ -148,7 +150,7 @@ def core_cases() -> list[ImageCase]:
 
 def image_cases() -> list[ImageCase]:
     """Every case of the reference (see the module docstring), names unique."""
-    cases = [ImageCase(f"block_115kPa_nu{nu:g}", "block", _block(material(115e3, nu)), split=split)
+    cases = [ImageCase(f"block_115kPa_nu{nu:g}", "block", reference_block(material(115e3, nu)), split=split)
              for nu, split in ((0.3, "tuning"), (0.45, "tuning"), (0.49, "report"))]
     report = {  # (near, far, nu, angle): offsets held out
         (20, 115, 0.45, 0): (-6, -1, 4), (50, 100, 0.45, 0): (1, -6), (10, 200, 0.45, 0): (-1, 6),
@@ -167,6 +169,6 @@ def image_cases() -> list[ImageCase]:
     cases += [lump_case(n, split) for n, split in ((0, "tuning"), (2, "report"), (4, "tuning"), (6, "tuning"),
                                                     (None, "report"))]
     for skin_mm, split in ((0.5, "tuning"), (1.0, "report")):
-        block = _block(material(200e3, 0.45), skin=Layer(material(20e3, 0.45), skin_mm * 1e-3))
+        block = reference_block(material(200e3, 0.45), skin=Layer(material(20e3, 0.45), skin_mm * 1e-3))
         cases.append(ImageCase(f"skin_20-200kPa_{skin_mm:g}mm", "skin", block, split=split))
     return cases
