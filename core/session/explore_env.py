@@ -24,11 +24,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
 from palpate.core.errors import ValidationError
+from palpate.core.extras import require_extra
+
+try:
+    import gymnasium as gym
+    from gymnasium import spaces
+except ModuleNotFoundError:  # said as the extra to install, by name
+    require_extra("the Gymnasium environment", "gymnasium")
+    raise
 from palpate.core.mapping.accuracy import map_accuracy
 from palpate.core.mapping.grids import new_map
 from palpate.core.mapping.probability import entropy_unchecked
