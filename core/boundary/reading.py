@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from palpate.core.boundary.templates import BoundaryTemplates
+from palpate.core.boundary.templates import REFERENCE_MODULUS, BoundaryTemplates
 from palpate.core.errors import ValidationError
 
 #: Model error per sensel, a share of its predicted reading (the image rung against the 3-D FE is 5-15% of peak rms
@@ -66,6 +66,8 @@ class BoundaryReading:
             sum to 1.
         p_plain: probability of one material.
         angles, offsets: the grid of ``posterior`` (rad in the reading's frame, m).
+        log_soft, log_hard: posterior means, given a wall, of the log moduli of the softer and the harder side, and
+            log_plain: the log modulus of one material: log(Pa x image units per Pa) (see :meth:`moduli`).
     """
 
     p_boundary: float
@@ -79,6 +81,15 @@ class BoundaryReading:
     p_plain: float
     angles: np.ndarray
     offsets: np.ndarray
+    log_soft: float = float("nan")
+    log_hard: float = float("nan")
+    log_plain: float = float("nan")
+
+    def moduli(self, gain: float) -> tuple[float, float, float]:
+        """The softer side's, the harder side's and the one-material modulus, Pa, for images in units of ``gain``
+        per Pa (counts: the pad's gain; Pa: 1). Linear elasticity on the templates' block: a thinner or layered
+        object reads stiffer, alike for every press on it."""
+        return tuple(float(np.exp(v) / gain) for v in (self.log_soft, self.log_hard, self.log_plain))
 
     @property
     def normal(self) -> np.ndarray:
@@ -91,8 +102,8 @@ class BoundaryReading:
         return self.offset * self.normal
 
 
-def _log_likelihood(image: np.ndarray, templates: np.ndarray, noise: NoiseModel) -> np.ndarray:
-    """Log-likelihood of ``image`` (S,) under each template (H, S) scaled by its best factor."""
+def _log_likelihood(image: np.ndarray, templates: np.ndarray, noise: NoiseModel) -> tuple[np.ndarray, np.ndarray]:
+    """Log-likelihood of ``image`` (S,) under each template (H, S) scaled by its best factor, and that factor."""
     t = templates
     # Least-squares scale first, then once more weighted by the spread that scale implies.
     scale = (t @ image) / np.maximum(np.einsum("hs,hs->h", t, t), 1e-300)
@@ -110,7 +121,7 @@ def _log_likelihood(image: np.ndarray, templates: np.ndarray, noise: NoiseModel)
     # Likewise a saturated reading says only "at least the ceiling".
     full = image[None, :] >= noise.ceiling
     resid = np.where(full, np.maximum(noise.ceiling - pred, 0.0), resid)
-    return -0.5 * np.sum(resid**2 / var + np.log(var), axis=1)
+    return -0.5 * np.sum(resid**2 / var + np.log(var), axis=1), np.maximum(scale, 1e-300)
 
 
 def read_boundary(image: np.ndarray, depth: float, templates: BoundaryTemplates, noise: NoiseModel, *,
@@ -147,7 +158,7 @@ def read_boundary(image: np.ndarray, depth: float, templates: BoundaryTemplates,
     wall, plain = templates.at_depth(depth)
     n_a, n_o, n_c = wall.shape[:3]
     flat = np.concatenate([wall.reshape(-1, img.size), plain.reshape(1, -1)])
-    ll = _log_likelihood(img.ravel(), flat, noise)
+    ll, scale = _log_likelihood(img.ravel(), flat, noise)
     prior = np.full(ll.shape, (1 - prior_plain) / (ll.size - 1))
     prior[-1] = prior_plain
     logp = ll + np.log(prior)
@@ -156,17 +167,23 @@ def read_boundary(image: np.ndarray, depth: float, templates: BoundaryTemplates,
     p_plain = float(p[-1])
     walls = p[:-1].reshape(n_a, n_o, n_c)
     post = walls.sum(axis=2)
-    return _summary(post, walls.sum(axis=(0, 1)), p_plain, templates, yaw, reach)
+    log_soft = np.log(scale[:-1]).reshape(n_a, n_o, n_c)
+    mass = max(float(walls.sum()), 1e-300)
+    log_soft_mean = float(np.sum(walls * log_soft) / mass)
+    log_hard_mean = float(np.sum(walls * (log_soft + np.log(templates.contrasts))) / mass)
+    scales = (log_soft_mean, log_hard_mean, float(np.log(scale[-1])))
+    return _summary(post, walls.sum(axis=(0, 1)), p_plain, templates, yaw, reach, scales)
 
 
 def _summary(post: np.ndarray, by_contrast: np.ndarray, p_plain: float, templates: BoundaryTemplates, yaw: float,
-             reach: float) -> BoundaryReading:
+             reach: float, scales: tuple[float, float, float]) -> BoundaryReading:
+    log_moduli = tuple(v + np.log(REFERENCE_MODULUS) for v in scales)
     angles = templates.angles + yaw
     offsets = templates.offsets
     total = post.sum()
     if total <= 0:
         return BoundaryReading(0.0, 0.0, np.pi, 0.0, float(np.ptp(offsets)), 1.0, reach, post, p_plain, angles,
-                               offsets)
+                               offsets, *log_moduli)
     pa = post.sum(axis=1) / total
     vec = np.sum(pa * np.exp(1j * angles))
     angle = float(np.angle(vec))
@@ -183,4 +200,4 @@ def _summary(post: np.ndarray, by_contrast: np.ndarray, p_plain: float, template
     within = np.abs(offsets) <= reach
     p_boundary = float(post[:, within].sum())
     return BoundaryReading(p_boundary, angle, angle_sd, offset, offset_sd, contrast, reach, post, p_plain, angles,
-                           offsets)
+                           offsets, *log_moduli)

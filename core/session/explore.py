@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from palpate.core.alignment.merge import perception_of, pipeline_for
+from palpate.core.boundary.reading import BoundaryReading
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import map_accuracy
 from palpate.core.mapping.calibration import SEED_CALIBRATION, MapCalibration
@@ -44,6 +45,7 @@ class PressStep:
         mean_entropy, mean_entropy_postprocessed: of the map after the press (map's entropy base).
         accuracy_explored: of the explored cells before post-processing (None without truth).
         accuracy_postprocessed: of all cells after post-processing (None without truth).
+        boundary: the press's boundary reading (world frame), when the exploration was given a reader.
     """
 
     k: int
@@ -57,6 +59,7 @@ class PressStep:
     mean_entropy_postprocessed: float
     accuracy_explored: float | None
     accuracy_postprocessed: float | None
+    boundary: BoundaryReading | None = None
 
 
 @dataclass(frozen=True)
@@ -210,7 +213,7 @@ def _region_row(grid, cell: tuple[int, int]) -> tuple[float, ...]:
 
 def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory, make_source, seed: int,
                    progress: Progress, log: PressLog | None = None,
-                   layers: LayeredMemory | None = None) -> ObjectResult:
+                   layers: LayeredMemory | None = None, boundary_reader=None) -> ObjectResult:
     """Explore one object with the scenario's policy.
 
     Per press: policy (next target from the map) -> actuator -> perception -> map update -> post-processing ->
@@ -227,6 +230,9 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
         progress: progress display.
         log: when given, every press is laid on the run's timeline (and recorded).
         layers: voxel maps: the per-layer judges (default: every layer judged by ``memory``).
+        boundary_reader: ``read(recording, result)`` returning the press's boundary reading or None (e.g.
+            :func:`palpate.core.boundary.press.read_press` with templates and a noise model bound); each step holds
+            it. The map itself does not use it.
     """
     ex = scenario.exploration
     geometry = object_geometry(scenario, entry)
@@ -296,6 +302,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
                     "target_m": [x, y]}
             rec = log.add(rec, {**info, "perception": perception} if perception else info)
         res = perceive_press(rec, pipeline_for(perception) if perception else None).at_target((x, y))
+        boundary = boundary_reader(rec, res) if boundary_reader is not None else None
         posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y), calibration=ex.calibration)
         post = postprocess()
         plan = planned_on(post)
@@ -304,7 +311,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
         last = cell
         steps.append(PressStep(k + 1, cell, (x, y), depth, target.score, res, posterior, float(grid.mean_entropy()),
                                float(post.mean_entropy()), map_accuracy(grid.probabilities, truth, grid.explored),
-                               map_accuracy(post.probabilities, truth)))
+                               map_accuracy(post.probabilities, truth), boundary))
         if ex.policy == "predefined" and (k + 1) % len(regions0) == 0:
             cycles.append(tuple(_region_row(grid, c) for c in regions0))
         if (k + 1) == budget // 2:

@@ -1,0 +1,159 @@
+"""A fine material map (1 mm by default) under a 2-D cell map, sharpened by the presses' boundary readings
+(:mod:`palpate.core.boundary`).
+
+The cell map says which material each cell holds; a press's boundary reading says where, near the press, one
+material gives way to a harder one. Each fine point's distribution mixes:
+
+- its own cell's distribution, with a small weight (what is known without a reading);
+- per press with a reading, weighted by closeness to the press (a Gaussian of ``reach``): when the press read a
+  wall (probability p_boundary), the distribution of the nearest cell on the point's side whose centre is clear of
+  the wall (a press there felt one material; cells astride a wall are judged on a mixture), each side in proportion
+  to the probability that the point lies there given the reading's offset and angle spreads; when it read none
+  (1 - p_boundary), the press's own cell's distribution.
+
+The cell map itself (the seed's grid and eq. 6.15) is unchanged; this layer is computed from it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import ndtr
+
+from palpate.core.boundary.moduli import MaterialModuli
+from palpate.core.boundary.reading import BoundaryReading
+from palpate.core.errors import ValidationError
+from palpate.core.mapping.geometry import MapGeometry
+
+#: Side of a fine map's square point, m.
+RESOLUTION = 1e-3
+#: Weight of a point's own cell against the readings near it.
+CELL_WEIGHT = 0.05
+#: Distance from a press over which its reading's weight falls by e, m (about the contact radius at depth).
+REACH = 6e-3
+
+
+@dataclass(frozen=True)
+class FineMap:
+    """Material probabilities on a fine raster over a 2-D map.
+
+    Attributes:
+        origin: (x0, y0) of the raster's corner, m (the cell map's).
+        resolution: side of one point's square, m.
+        probabilities: (ny, nx, M), per point a distribution over the cell map's materials.
+        materials: their names.
+    """
+
+    origin: tuple[float, float]
+    resolution: float
+    probabilities: np.ndarray
+    materials: tuple[str, ...]
+
+    def centres(self) -> np.ndarray:
+        """(ny, nx, 2) point centres, m."""
+        ny, nx = self.probabilities.shape[:2]
+        xs = self.origin[0] + (np.arange(nx) + 0.5) * self.resolution
+        ys = self.origin[1] + (np.arange(ny) + 0.5) * self.resolution
+        gx, gy = np.meshgrid(xs, ys)
+        return np.stack([gx, gy], axis=-1)
+
+    def labels(self) -> np.ndarray:
+        """(ny, nx) index of each point's most probable material."""
+        return np.argmax(self.probabilities, axis=-1)
+
+
+def _cell_of(geometry: MapGeometry, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    nx, ny = geometry.plane_shape
+    ix = np.clip(np.floor((xy[..., 0] - geometry.origin[0]) / geometry.cell_size).astype(int), 0, nx - 1)
+    iy = np.clip(np.floor((xy[..., 1] - geometry.origin[1]) / geometry.cell_size).astype(int), 0, ny - 1)
+    return ix, iy
+
+
+def _clear_cell(geometry: MapGeometry, probs: np.ndarray, astride: np.ndarray, foot: np.ndarray, step: np.ndarray,
+                clear: float) -> np.ndarray:
+    """The distribution of the first cell along ``step`` (a unit vector) from the wall's foot whose centre lies at
+    least ``clear`` from the wall and whose own press did not read a wall within ``clear`` (a press there felt one
+    material); the nearest cell clear of this wall if none is."""
+    nx, ny = geometry.plane_shape
+    first = None
+    for k in range(1, 4 * max(nx, ny)):
+        ix, iy = _cell_of(geometry, foot + step * (k * geometry.cell_size / 4))
+        centre = np.array(geometry.origin) + (np.array([ix, iy]) + 0.5) * geometry.cell_size
+        if abs(float((centre - foot) @ step)) < clear:
+            continue
+        first = probs[iy, ix] if first is None else first
+        if astride[iy, ix] < 0.5:
+            return probs[iy, ix]
+    return first if first is not None else probs[_cell_of(geometry, foot)[::-1]]
+
+
+def _astride(geometry: MapGeometry, readings, clear: float) -> np.ndarray:
+    """Per cell, the probability that its (last) press read a wall within ``clear`` of its axis (0 when none
+    read)."""
+    nx, ny = geometry.plane_shape
+    out = np.zeros((ny, nx))
+    for (x0, y0), r in readings:
+        ix, iy = _cell_of(geometry, np.array([x0, y0]))
+        out[iy, ix] = float(r.posterior[:, np.abs(r.offsets) < clear].sum())
+    return out
+
+
+def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tuple[tuple[float, float],
+             BoundaryReading]], *, resolution: float = RESOLUTION, reach: float = REACH,
+             cell_weight: float = CELL_WEIGHT, clear: float = REACH, moduli: MaterialModuli | None = None) -> FineMap:
+    """The fine map of a 2-D cell map (see the module docstring).
+
+    Args:
+        geometry: the cell map's geometry (2-D only).
+        probabilities: the cell map's distributions, (ny, nx, M) (e.g. the post-processed map's).
+        readings: per press, its measured (x, y) location, m, and its boundary reading in the world's frame.
+        resolution: fine point side, m; reach: distance scale of a reading's weight, m; cell_weight: see above;
+            clear: distance from a wall at which a cell's centre counts as clear of it, m (about the contact radius).
+        moduli: the reference materials' moduli as the reading reads them (:mod:`palpate.core.boundary.moduli`):
+            when given, each side of a read wall is the material its read modulus matches, not a neighbour cell's.
+
+    Raises:
+        ValidationError: a voxel geometry, probabilities of another shape, or a resolution that is not a positive
+            fraction of the cell size.
+    """
+    if geometry.voxel:
+        raise ValidationError("fine_map: 2-D maps only")
+    nx, ny = geometry.plane_shape
+    probs = np.asarray(probabilities, dtype=float)
+    if probs.shape[:2] != (ny, nx) or probs.ndim != 3:
+        raise ValidationError(f"fine_map: probabilities must be ({ny}, {nx}, M), got {probs.shape}")
+    if not (0 < resolution <= geometry.cell_size and reach > 0 and cell_weight > 0):
+        raise ValidationError("fine_map: resolution must be in (0, cell size], reach and cell_weight > 0")
+    n = int(round(geometry.cell_size / resolution))
+    out = FineMap(geometry.origin, geometry.cell_size / n, np.zeros((ny * n, nx * n, probs.shape[2])),
+                  geometry.materials)
+    pts = out.centres()
+    ix, iy = _cell_of(geometry, pts)
+    acc = cell_weight * probs[iy, ix]
+    weight = np.full(pts.shape[:2], cell_weight)
+    astride = _astride(geometry, readings, clear)
+    for (x0, y0), r in readings:
+        rel = pts - np.array([x0, y0])
+        w = np.exp(-np.sum(rel**2, axis=-1) / reach**2)
+        own = probs[_cell_of(geometry, np.array([x0, y0]))[::-1]]
+        n_vec = r.normal
+        foot = np.array([x0, y0]) + r.foot
+        if moduli is not None:
+            own = own * moduli.probabilities(r.log_plain, geometry.materials)
+            own = own / own.sum() if own.sum() > 0 else probs[_cell_of(geometry, np.array([x0, y0]))[::-1]]
+            hard = moduli.probabilities(r.log_hard, geometry.materials)
+            soft = moduli.probabilities(r.log_soft, geometry.materials)
+        else:
+            hard = _clear_cell(geometry, probs, astride, foot, n_vec, clear)
+            soft = _clear_cell(geometry, probs, astride, foot, -n_vec, clear)
+        s = rel @ n_vec - r.offset
+        along = np.abs(rel @ np.array([-n_vec[1], n_vec[0]]))
+        spread = np.sqrt(r.offset_sd**2 + (r.angle_sd * along) ** 2 + (0.25 * out.resolution) ** 2)
+        q = ndtr(s / spread)[..., None]
+        wall = q * hard + (1 - q) * soft
+        p_wall = 1.0 - r.p_plain
+        dist = p_wall * wall + (1 - p_wall) * own
+        acc += w[..., None] * dist
+        weight += w
+    return FineMap(out.origin, out.resolution, acc / weight[..., None], out.materials)

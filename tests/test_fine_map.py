@@ -1,0 +1,89 @@
+"""The fine material map under a cell map: a wall inside a cell, read by presses, is drawn where it lies and each
+side named by its read modulus; bad input is refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from palpate.core.boundary.moduli import MaterialModuli, material_moduli
+from palpate.core.boundary.reading import NoiseModel, read_boundary
+from palpate.core.boundary.templates import read_templates
+from palpate.core.errors import ValidationError
+from palpate.core.mapping.fine import fine_map
+from palpate.core.mapping.geometry import MapGeometry
+
+DEPTH = 0.004
+GAIN = 1.2e-3  # counts per Pa
+NOISE = NoiseModel(0.58, 2.0, 255.0)
+
+
+@pytest.fixture(scope="module")
+def templates():
+    return read_templates()
+
+
+def _image(templates, soft: float, wall_at: float | None, x0: float, contrast: float) -> np.ndarray:
+    """Counts a press at x0 reads beside a wall at x = wall_at (harder side +x), or on one material of modulus
+    ``soft`` (Pa) when wall_at is None: the templates themselves, scaled and rounded."""
+    wall, plain = templates.at_depth(DEPTH)
+    scale = soft / 1e5 * GAIN
+    if wall_at is None:
+        img = plain
+    else:
+        o = int(np.argmin(np.abs(templates.offsets - (wall_at - x0))))
+        c = int(np.argmin(np.abs(templates.contrasts - contrast)))
+        img = wall[int(np.argmin(np.abs(templates.angles))), o, c]
+    counts = np.clip(np.rint(img * scale), 0, 255)
+    counts[counts <= 2] = 0
+    return counts
+
+
+def test_a_wall_inside_a_cell_is_drawn_where_it_lies(templates):
+    soft, hard = 20e3, 120e3
+    geometry = MapGeometry("grid2d", ("soft", "hard"), (0.0, 0.0), 0.01, (5, 2))
+    # the cell map got the cell astride the wall (20-30 mm, wall at 23 mm) wrong, as a press there feels both
+    probs = np.zeros((2, 5, 2))
+    probs[:, :2] = [0.9, 0.1]
+    probs[:, 2:] = [0.1, 0.9]
+    wall_at = 0.023
+    readings = []
+    for ix in range(5):
+        for iy in range(2):
+            x0, y0 = 0.005 + 0.01 * ix, 0.005 + 0.01 * iy
+            near = abs(wall_at - x0) < 0.007
+            img = _image(templates, soft if near or x0 < wall_at else hard, wall_at if near else None, x0, hard / soft)
+            readings.append(((x0, y0), read_boundary(img, DEPTH, templates, NOISE)))
+    refs = {name: [read_boundary(_image(templates, e, None, 0, 1), DEPTH, templates, NOISE)]
+            for name, e in (("soft", soft), ("hard", hard))}
+    moduli = material_moduli(refs)
+    fine = fine_map(geometry, probs, readings, moduli=moduli)
+    x = fine.centres()[..., 0]
+    truth = (x > wall_at).astype(int)
+    cells = np.argmax(probs, axis=-1).repeat(10, axis=0).repeat(10, axis=1)
+    assert np.mean(cells == truth) < 0.95
+    assert np.mean(fine.labels() == truth) >= 0.97
+    # the drawn wall is within a millimetre of the true one on every row
+    first_hard = np.argmax(fine.labels() == 1, axis=1) * fine.resolution
+    assert np.all(np.abs(first_hard - wall_at) <= 1.01e-3)
+    assert np.allclose(fine.probabilities.sum(axis=-1), 1.0)
+
+
+def test_moduli_name_a_side_by_the_nearest_reference():
+    m = MaterialModuli(("a", "b", "c"), np.log([10.0, 100.0, 1000.0]), np.full(3, 0.2))
+    assert np.argmax(m.probabilities(np.log(90.0))) == 1
+    p = m.probabilities(np.log(12.0), order=("c", "a", "x"))
+    assert np.argmax(p) == 1 and p[2] == 0.0 and p.sum() == pytest.approx(1.0)
+    with pytest.raises(ValidationError, match="no reading"):
+        material_moduli({"a": []})
+
+
+def test_bad_maps_are_refused():
+    geometry = MapGeometry("grid2d", ("a", "b"), (0.0, 0.0), 0.01, (3, 2))
+    with pytest.raises(ValidationError, match="probabilities"):
+        fine_map(geometry, np.full((3, 2, 2), 0.5), [])
+    with pytest.raises(ValidationError, match="resolution"):
+        fine_map(geometry, np.full((2, 3, 2), 0.5), [], resolution=0.02)
+    voxel = MapGeometry("voxel", ("a", "b"), (0.0, 0.0), 0.01, (3, 2, 2), z_top=0.03)
+    with pytest.raises(ValidationError, match="2-D"):
+        fine_map(voxel, np.full((2, 3, 2), 0.5), [])
