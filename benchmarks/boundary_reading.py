@@ -13,9 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core.boundary.press import noise_of
 from palpate.core.boundary.templates import read_templates
 from palpate.core.world.scene import TaxelSensorSpec
-from palpate.sim.validity.boundary_reading import check_readings, noise_model
+from palpate.sim.validity.boundary_reading import check_readings
 from palpate.sim.validity.image_reference import load_image_reference
 
 
@@ -50,7 +51,7 @@ def main() -> None:
     args = parser.parse_args()
     templates = read_templates(args.templates)
     spec = TaxelSensorSpec()
-    noise = noise_model(spec) if args.model_error is None else noise_model(spec, model_error=args.model_error)
+    noise = noise_of(spec) if args.model_error is None else noise_of(spec, model_error=args.model_error)
     rows = check_readings(load_image_reference(), templates, seeds=range(args.seeds), spec=spec, noise=noise)
     print(f"noise {noise.noise:.2f} counts, floor {noise.floor:g}, model error {noise.model_error:g}; "
           f"{args.seeds} noise seeds; walls within 5 mm of the axis (pos: mm, ang: deg)")

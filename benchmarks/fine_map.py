@@ -17,7 +17,7 @@ from scipy.ndimage import distance_transform_edt
 
 from palpate.api import load_scenario
 from palpate.core.boundary.moduli import material_moduli
-from palpate.core.boundary.press import read_press
+from palpate.core.boundary.press import noise_of, read_press
 from palpate.core.boundary.templates import read_templates
 from palpate.core.mapping.fine import fine_map
 from palpate.core.perception.press import perceive_press
@@ -27,7 +27,6 @@ from palpate.core.session.sources import PressTarget, load_source
 from palpate.core.session.training import TRAINING_BLOCK, train_memory, training_seeds
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.core.world.workspace import ground_truth_cells
-from palpate.sim.validity.boundary_reading import noise_model
 
 
 def make_source_for(scenario):
@@ -74,7 +73,7 @@ def main() -> None:
     sc = dataclasses.replace(sc, exploration=ex)
     make = make_source_for(sc)
     memory = train_memory(sc, make, training_seeds(sc), Progress(enabled=False)).memory
-    reader = functools.partial(read_press, templates=read_templates(), noise=noise_model(sc.taxels))
+    reader = functools.partial(read_press, templates=read_templates(), noise=noise_of(sc.taxels))
     res = explore_object(sc, entry, memory, make, args.seed, Progress(enabled=False),
                          boundary_reader=lambda rec, r: reader(rec, r))
     readings = [(s.result.location, s.boundary) for s in res.steps if s.boundary is not None]

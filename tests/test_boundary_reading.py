@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from palpate.core.boundary.press import read_press, yaw_of
+from palpate.core.boundary.press import noise_of, read_press, yaw_of
 from palpate.core.boundary.reading import NoiseModel, read_boundary
 from palpate.core.boundary.templates import read_templates, templates_from_document
 from palpate.core.errors import ValidationError
@@ -20,7 +20,7 @@ from palpate.core.world.scene import FingertipSpec, Scene, TaxelSensorSpec
 from palpate.sim.bem.templates import make_templates
 from palpate.sim.bem.wall import load_wall_table
 from palpate.sim.source import SimSource
-from palpate.sim.validity.boundary_reading import check_readings, noise_model
+from palpate.sim.validity.boundary_reading import check_readings
 from palpate.sim.validity.image_cases import image_cases, wall_case
 from palpate.sim.validity.image_reference import load_image_reference, reference_image
 
@@ -68,7 +68,7 @@ def _fe_counts(name: str, depth: float, seed: int = 0) -> tuple[np.ndarray, floa
 @pytest.mark.parametrize("name", ["wall_20-115kPa_t0_o+2mm_nu0.45", "wall_20-115kPa_t45_o-2mm_nu0.45"])
 def test_reading_turns_and_mirrors_with_the_image(templates, name):
     counts, depth = _fe_counts(name, 0.003)
-    noise = noise_model(TaxelSensorSpec())
+    noise = noise_of(TaxelSensorSpec())
     base = read_boundary(counts, depth, templates, noise)
     # row 0 is the pad's +y: np.rot90 turns the image by +90 deg, [:, ::-1] mirrors x
     turned = read_boundary(np.rot90(counts), depth, templates, noise)
@@ -99,7 +99,7 @@ def test_templates_spread_by_symmetry_match_a_direct_solve():
 def test_a_simulated_press_beside_a_wall_is_read_from_its_stream(templates):
     obj = wall_case(20, 115, 0.45, 0, 0.0).object_spec()
     source = SimSource(Scene(objects=(obj,)), fidelity="bem", seed=3)
-    noise = noise_model(TaxelSensorSpec())
+    noise = noise_of(TaxelSensorSpec())
     for x in (-0.002, 0.001):
         rec = source.press(PressTarget(x, 0.0, depth=0.004))
         res = perceive_press(rec)

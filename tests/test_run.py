@@ -222,3 +222,22 @@ def test_replay_of_a_recording_without_annotations_finds_every_press_and_reads_i
         assert int(np.argmax(rows[i]["posterior"])) == int(np.argmax(row["posterior"]))
     grid = Grid2D.load(tmp_path / "replay" / "maps" / "recording.npz")
     assert grid.explored.sum() >= 2 and np.all(np.isfinite(grid.probabilities))
+
+
+def test_run_writes_a_fine_map_and_replay_rebuilds_it_bit_for_bit(small_run, tmp_path):
+    _, summary, out = small_run
+    (obj,) = summary["objects"]
+    fine = obj["fine_map"]
+    assert fine["resolution_m"] == pytest.approx(0.001) and fine["presses_read"] == 4
+    assert fine["sides_named_by"] == "modulus"  # the references' training presses were read too
+    assert 0.0 <= fine["area_accuracy"]["fine_map"] <= 1.0
+    assert "figures/slab_fine_map.png" in summary["figures"]
+    with np.load(out / "maps" / "slab_fine.npz", allow_pickle=False) as ran:
+        p = ran["probabilities"]
+        assert p.shape == (40, 60, 3) and float(ran["resolution_m"]) == pytest.approx(0.001)
+        np.testing.assert_allclose(p.sum(axis=-1), 1.0)
+        assert list(ran["materials"]) == ["soft", "medium", "hard"]
+        assert main(["replay", str(out / "run.mcap"), "--memory", str(out / "memory.json"), "--out", str(tmp_path),
+                     "--quiet"]) == 0
+        with np.load(tmp_path / "maps" / "slab_fine.npz", allow_pickle=False) as replayed:
+            np.testing.assert_array_equal(replayed["probabilities"], p)

@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import distance_transform_edt
 from scipy.special import ndtr
 
 from palpate.core.boundary.moduli import MaterialModuli
@@ -157,3 +158,23 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         acc += w[..., None] * dist
         weight += w
     return FineMap(out.origin, out.resolution, acc / weight[..., None], out.materials)
+
+
+def _edges(labels: np.ndarray) -> np.ndarray:
+    e = np.zeros(labels.shape, dtype=bool)
+    e[:, 1:] |= labels[:, 1:] != labels[:, :-1]
+    e[1:, :] |= labels[1:, :] != labels[:-1, :]
+    return e
+
+
+def boundary_error(labels: np.ndarray, truth: np.ndarray, mask: np.ndarray, resolution: float) -> tuple[float, float]:
+    """How far a labelled raster's boundaries lie from the true ones: the median and 90th percentile, over the true
+    boundary points inside ``mask``, of the distance to the nearest boundary point of ``labels``, m (infinite when
+    ``labels`` has no boundary; NaN when the truth has none in ``mask``)."""
+    mine, true = _edges(labels), _edges(truth) & mask
+    if not true.any():
+        return float("nan"), float("nan")
+    if not mine.any():
+        return float("inf"), float("inf")
+    dist = distance_transform_edt(~mine) * resolution
+    return float(np.median(dist[true])), float(np.percentile(dist[true], 90))

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core.io import figure_worker
+from palpate.core.io import figure_worker, fine_figures
 from palpate.core.io import figures as fig
 from palpate.core.names import file_stem, inside
 from palpate.core.perception.press import PressResult
@@ -146,3 +146,13 @@ class FigureDrawer:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+
+
+def fine_map_job(obj: ObjectResult, fine, truth: np.ndarray | None) -> FigureJob:
+    """An object's fine map beside its cell map and the truth (:mod:`palpate.core.io.fine_figures`)."""
+    n = fine.probabilities.shape[0] // obj.post.probabilities.shape[0]
+    cells = np.kron(obj.post.probabilities, np.ones((n, n, 1)))
+    walls = [(tuple(np.asarray(s.result.location) + s.boundary.foot), tuple(s.boundary.normal)) for s in obj.steps
+             if s.boundary is not None and s.boundary.p_boundary > 0.5]
+    return FigureJob(f"{file_stem(obj.name)}_fine_map.png", fine_figures.plot_fine_map,
+                     (obj.name, fine, cells, truth, walls))

@@ -28,6 +28,7 @@ from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.io.recording import Annotation, recording_to_press_recording
 from palpate.core.mapping.calibration import MapCalibration
+from palpate.core.mapping.fine import fine_map
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
 from palpate.core.mapping.snapshot import MapSnapshot
@@ -37,6 +38,7 @@ from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.pipeline import presses_from_recording
 from palpate.core.perception.press import PressResult, perceive_press, press_result
 from palpate.core.perception.streams import GroundTruth, PressRecording
+from palpate.core.session.boundaries import replay_reader, save_fine_map, training_moduli
 from palpate.core.session.explore import MapPostprocessing, apply_press
 from palpate.core.session.output_guard import prepare_output_folder
 from palpate.core.session.progress import Progress
@@ -84,6 +86,7 @@ class _Replayed:
     geometry: MapGeometry
     grid: object
     rows: list = field(default_factory=list)
+    readings: list = field(default_factory=list)
 
 
 @dataclass
@@ -167,6 +170,17 @@ def press_window(data, where: str) -> PressWindow:
     return PressWindow(phase, obj, t_start, t_end, (float(target[0]), float(target[1])), k, cell)
 
 
+def _training_readings(presses, annotations, timeline, reader) -> dict[str, list]:
+    """Per reference material, the boundary readings of its training presses in the recording."""
+    out: dict[str, list] = {}
+    for w in presses:
+        material = annotations[id(w)].data.get("material") if w.phase == "training" else None
+        if isinstance(material, str):
+            sub = timeline.window(w.t_start, w.t_end)
+            out.setdefault(material, []).append(reader(sub, perceive_press(sub)))
+    return out
+
+
 def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path, *,
                      layers: LayeredMemory | None = None, cell_size: float = 0.01, progress: Progress | None = None,
                      figures: bool = True, force: bool = False, inputs=(), salvage: bool = False, live=None,
@@ -220,6 +234,10 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
     playback = None if live is None else _Playback(RecordingWriter(None, {}, live=live), float(live_speed))
     timeline = _Timeline.of(stream)
     annotations = {id(w): rec.annotations[i] for (i, _), w in zip(windows, presses_all, strict=True)}
+    reader = replay_reader(rec.metadata, str(path))
+    moduli = None
+    if windows and reader is not None:  # the references' moduli from their training presses, as the run read them
+        moduli = training_moduli(_training_readings(presses, annotations, timeline, reader))
     if windows:
         progress.start("replaying presses", len(explore))
         for i, w in enumerate(explore):
@@ -237,6 +255,8 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
                 raise ValidationError(f"{path}: press annotation {windows[presses_all.index(w)][0]} "
                                       f"({brief(w.object)}, {w.t_start:g}..{w.t_end:g} s): {exc}"
                                       f"{timeline.span()}") from None
+            if reader is not None and not state.geometry.voxel:
+                state.readings.append((res.location, reader(sub, res)))
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
                                     fallback_xy=w.target, calibration=calibration)
             state.rows.append(_row(w.k if w.k is not None else len(state.rows) + 1, w.cell, res, posterior,
@@ -286,6 +306,12 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             "mean_entropy_after_each_press": [r["mean_entropy"] for r in state.rows],
             "mean_entropy_after_postprocessing": float(post.mean_entropy()),
         })
+        if state.readings:
+            fine = fine_map(g, post.probabilities, [(xy, r) for xy, r in state.readings if r is not None],
+                            moduli=moduli)
+            save_fine_map(inside(out, out / "maps" / f"{stems[name]}_fine.npz"), fine)
+            summary_objects[-1]["fine_map"] = {"resolution_m": fine.resolution, "presses_read": len(state.readings),
+                                               "sides_named_by": "modulus" if moduli else "neighbour cells"}
         if figures and not g.voxel:
             (out / "figures").mkdir(exist_ok=True)
             fig.plot_map_snapshots(inside(out, out / "figures" / f"{stems[name]}_map.png"), name,

@@ -29,15 +29,32 @@ import numpy as np
 from palpate.core import files, plugins
 from palpate.core.errors import ValidationError
 from palpate.core.io.realism_figures import compared_materials, plot_sim_vs_real
+from palpate.core.names import file_stem, inside
 from palpate.core.perception.classifier_memory import HAPTIC_MEMORY, ClassifierMemory, classifier_for
 from palpate.core.perception.feature_extractors import extractor_name
 from palpate.core.perception.layered_memory import train_layered_memory
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.param_stats import table_from_csv, table_from_fits
 from palpate.core.session.actuators import open_actuators
+from palpate.core.session.boundaries import (
+    NOISE_KEY,
+    boundary_reader,
+    fine_truth,
+    noise_metadata,
+    object_fine_map,
+    save_fine_map,
+    training_moduli,
+)
 from palpate.core.session.ceiling import Ceiling, attainable_accuracy, ceiling_summary, is_full_raster
 from palpate.core.session.explore import MapPostprocessing, ObjectResult, explore_object
-from palpate.core.session.figure_jobs import FigureDrawer, FigureJob, object_jobs, progress_job, training_jobs
+from palpate.core.session.figure_jobs import (
+    FigureDrawer,
+    FigureJob,
+    fine_map_job,
+    object_jobs,
+    progress_job,
+    training_jobs,
+)
 from palpate.core.session.output_guard import check_output_file, prepare_output_folder
 from palpate.core.session.outputs import write_maps
 from palpate.core.session.press_log import PressLog
@@ -108,7 +125,8 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                         "sources": [source] if kind == "sim" else [source, kind],
                         "maps": {name: g.to_dict() for name, g in geometries.items()},
                         "map_calibration": scenario.exploration.calibration.to_dict(),
-                        "map_postprocessing": MapPostprocessing.of(scenario.exploration).to_dict()}, live=live)
+                        "map_postprocessing": MapPostprocessing.of(scenario.exploration).to_dict(),
+                        NOISE_KEY: noise_metadata(scenario)}, live=live)
         try:
             return _run(scenario, out, progress, *makers, seeds, log, classifier, origins)
         finally:
@@ -145,12 +163,12 @@ def check_classifier_fits(scenario: Scenario, classifier: ClassifierMemory) -> N
 
 
 def _memory(scenario: Scenario, make_source, seeds, progress: Progress, log: PressLog,
-            classifier: ClassifierMemory | None = None) -> tuple[HapticMemory | ClassifierMemory,
-                                                                  TrainingResult | None]:
+            classifier: ClassifierMemory | None = None, reader=None) -> tuple[HapticMemory | ClassifierMemory,
+                                                                               TrainingResult | None]:
     """The scenario's trained memory file, or a memory (or ``classifier``) trained now (with its cross-validation
     and presses)."""
     if scenario.training.memory is None:
-        training = train_memory(scenario, make_source, seeds[4:], progress, log, classifier)
+        training = train_memory(scenario, make_source, seeds[4:], progress, log, classifier, reader)
         return training.memory, training
     memory = HapticMemory.load(scenario.training.memory)
     if list(memory.materials) != list(scenario.references):
@@ -173,7 +191,8 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
     cpu: dict[str, float] = {}  # this process's CPU seconds per stage (the figures are drawn in another process)
     draw = scenario.outputs.figures
     t0, c0 = time.perf_counter(), time.process_time()
-    memory, training = _memory(scenario, make_source, seeds, progress, log, classifier)
+    reader, no_reader = boundary_reader(scenario)
+    memory, training = _memory(scenario, make_source, seeds, progress, log, classifier, reader)
     memory.save(out / "memory.json")
     layers = None
     ex = scenario.exploration
@@ -205,7 +224,8 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
     objects: list[ObjectResult] = []
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
-        objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers))
+        objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers,
+                                      reader))
         _warn(progress, saturation_warning(entry.spec.name, saturation([s.result for s in objects[-1].steps])))
         _warn(progress, solver_warning(entry.spec.name, solver_warnings([s.result for s in objects[-1].steps])))
         if draw:
@@ -229,6 +249,14 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
 
     t0, c0 = time.perf_counter(), time.process_time()
     write_maps(out, objects, scenario)
+    moduli = None if training is None else training_moduli(training.readings)
+    fines = [None if reader is None else object_fine_map(o, e, scenario, moduli)
+             for o, e in zip(objects, scenario.objects, strict=True)]
+    for obj, entry, fine in zip(objects, scenario.objects, fines, strict=True):
+        if fine is not None:
+            save_fine_map(inside(out, out / "maps" / f"{file_stem(obj.name)}_fine.npz"), fine.fine)
+            if draw:
+                drawer.submit([fine_map_job(obj, fine.fine, fine_truth(entry, scenario, fine.fine))])
     timing["maps_s"] = time.perf_counter() - t0
     cpu["maps_s"] = time.process_time() - c0
 
@@ -271,8 +299,9 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         "sim_to_real": sim_to_real,
         "map_calibration": ex.calibration.to_dict(),
         "map_postprocessing": MapPostprocessing.of(ex).to_dict(),
-        "objects": [object_summary(o) | {"attainable_accuracy": ceiling_summary(o, c)}
-                    for o, c in zip(objects, ceilings, strict=True)],
+        "objects": [object_summary(o) | {"attainable_accuracy": ceiling_summary(o, c),
+                                         "fine_map": f.summary if f is not None else {"skipped": no_reader}}
+                    for o, c, f in zip(objects, ceilings, fines, strict=True)],
         "calibration": run_calibration(objects),
         "figures": [str(Path(f).relative_to(out)) for f in figures],
         "timing": {k: round(v, 4) for k, v in timing.items()},

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -40,15 +40,17 @@ def training_seeds(scenario: Scenario) -> np.ndarray:
 @dataclass(frozen=True)
 class TrainingResult:
     """A trained memory, its leave-one-out cross-validation, and every training press as perceived (by material,
-    in the scenario's reference order)."""
+    in the scenario's reference order), with its boundary reading when training was given a reader."""
 
     memory: HapticMemory | ClassifierMemory
     crossval: CrossValidation
     presses: dict[str, tuple[PressResult, ...]]
+    readings: dict[str, tuple] = field(default_factory=dict)
 
 
 def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
-                 log: PressLog | None = None, classifier: ClassifierMemory | None = None) -> TrainingResult:
+                 log: PressLog | None = None, classifier: ClassifierMemory | None = None,
+                 boundary_reader=None) -> TrainingResult:
     """Press every reference material ``training.presses_per_material`` times on a thick block and fit the memory.
 
     Args:
@@ -60,13 +62,15 @@ def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
         log: when given, every press is laid on the run's timeline (and recorded).
         classifier: an unfitted classifier memory (with its feature extractor) to fit instead of the haptic
             memory; it is fitted in place and cross-validated leave-one-out the same way.
+        boundary_reader: ``read(recording, result)``: when given, each press's boundary reading is kept too
+            (:mod:`palpate.core.session.boundaries`).
     """
     tr = scenario.training
     # an actuator may perceive its presses its own way (options.perception); training perceives alike
     perception = getattr(scenario.actuator.options, "perception", None)
     force = bool(perception) and perception.get("channel") == "force"
     config = pipeline_for(perception) if perception else None
-    params, labels, by_material = [], [], {}
+    params, labels, by_material, readings = [], [], {}, {}
     for m, name in enumerate(scenario.references):
         mat = scenario.materials[name].material
         block = ObjectSpec(f"sample_{name}", "box", TRAINING_BLOCK, (0.0, 0.0), mat)
@@ -82,6 +86,8 @@ def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
                 rec = log.add(rec, {"phase": "training", "material": name, "k": k + 1})
             res = perceive_press(rec, config)
             results.append(res)
+            if boundary_reader is not None:
+                readings.setdefault(name, []).append(boundary_reader(rec, res))
             if res.fit is not None:
                 params.append(res.fit.params)
                 labels.append(name)
@@ -91,13 +97,14 @@ def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
         if usable < MIN_FITTED:
             raise PalpateError(f"training: only {usable} of {tr.presses_per_material} presses on {name} could be "
                                "fitted; press deeper (training.depth_mm) or lower the taxel threshold")
+    readings = {name: tuple(rs) for name, rs in readings.items()}
     if classifier is not None:
-        return _train_classifier(classifier, by_material)
+        return replace(_train_classifier(classifier, by_material), readings=readings)
     P = np.vstack(params)
     memory = HapticMemory(materials=list(scenario.references), features=config.features if config else "both").fit(
         P, labels)
     crossval = leave_one_out(P, labels, materials=list(scenario.references), features=memory.features)
-    return TrainingResult(memory, crossval, by_material)
+    return TrainingResult(memory, crossval, by_material, readings)
 
 
 def _train_classifier(classifier: ClassifierMemory, presses: dict[str, tuple[PressResult, ...]]) -> TrainingResult:

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from palpate.core.boundary.press import noise_of
 from palpate.core.boundary.reading import NoiseModel, read_boundary
 from palpate.core.boundary.templates import BoundaryTemplates
 from palpate.core.world.scene import TaxelSensorSpec
@@ -19,11 +20,6 @@ from palpate.sim.validity.image_reference import ImageReference, reference_image
 
 #: Depths the reading is checked at, m (the reference's deeper presses: the contact spans the pad).
 DEPTHS = (0.002, 0.003, 0.004)
-
-
-def noise_model(spec: TaxelSensorSpec, **kw) -> NoiseModel:
-    """The reading's sensor model for raw counts of ``spec``: its noise and rounding, floor and 8-bit ceiling."""
-    return NoiseModel(math.hypot(spec.noise_std, math.sqrt(1 / 12)), float(spec.threshold), 255.0, **kw)
 
 
 @dataclass(frozen=True)
@@ -74,7 +70,7 @@ def check_readings(reference: ImageReference, templates: BoundaryTemplates, *, s
                    splits=("tuning", "report")) -> list[ReadingCheck]:
     """Read every wall and block case of ``reference`` at ``depths`` with each noise seed."""
     spec = spec or TaxelSensorSpec()
-    noise = noise or noise_model(spec)
+    noise = noise or noise_of(spec)
     out = []
     for case in image_cases():
         if case.family not in ("wall", "block") or case.split not in splits:

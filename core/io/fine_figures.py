@@ -1,0 +1,50 @@
+"""The fine material map's figure: the cell map, the fine map with the walls the presses read, and the truth, on
+one 1 mm raster."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from palpate.core.io.figures import _map_axes, _map_panel, _panel_size, _save, colour_legend, new_figure, rgb_image
+from palpate.core.mapping.fine import FineMap
+
+#: Half the length of a read wall's drawn segment, cm.
+SEGMENT_CM = 0.4
+
+
+def plot_fine_map(path: Path, name: str, fine: FineMap, cells: np.ndarray, truth: np.ndarray | None,
+                  walls: list[tuple[tuple[float, float], tuple[float, float]]]) -> Path:
+    """Draw :func:`fine_map_figure` into ``path``."""
+    return _save(fine_map_figure(name, fine, cells, truth, walls), path)
+
+
+def fine_map_figure(name: str, fine: FineMap, cells: np.ndarray, truth: np.ndarray | None,
+                    walls: list[tuple[tuple[float, float], tuple[float, float]]]):
+    """Panels: the cell map's probabilities on the fine raster (``cells``: (ny, nx, M)), the fine map's with each
+    read wall (``walls``: its foot (x, y) and normal, m) as a white segment, and the truth (index per point, -1:
+    none) when known."""
+    materials = list(fine.materials)
+    panels = [(rgb_image(cells), "cell map"), (rgb_image(fine.probabilities), "fine map, read walls in white")]
+    if truth is not None and (truth >= 0).any():
+        p = np.zeros(truth.shape + (len(materials),))
+        p[truth >= 0] = np.eye(len(materials))[truth[truth >= 0]]
+        panels.append((rgb_image(p), "ground truth"))
+    ny, nx = fine.probabilities.shape[:2]
+    panel_w, height = _panel_size(nx / ny, 2.6, 1.3)
+    fig = new_figure(panel_w * len(panels) + 0.9, height)
+    axes = _map_axes(fig, len(panels), height)
+    x0, y0 = fine.origin
+    ext = [x0 * 100, (x0 + nx * fine.resolution) * 100, y0 * 100, (y0 + ny * fine.resolution) * 100]
+    for ax, (img, title) in zip(axes, panels, strict=True):
+        _map_panel(ax, img, ext, title)
+    for foot, normal in walls:
+        f, t = np.asarray(foot) * 100, np.array([-normal[1], normal[0]]) * SEGMENT_CM
+        axes[1].plot([f[0] - t[0], f[0] + t[0]], [f[1] - t[1], f[1] + t[1]], color="white", lw=1.2)
+    axes[1].set_xlim(ext[0], ext[1])
+    axes[1].set_ylim(ext[2], ext[3])
+    axes[0].set_ylabel("y (cm)")
+    fig.suptitle(f"{name}: P(material) as colour ({colour_legend(materials)}) on a {fine.resolution * 1e3:g} mm "
+                 "raster", fontsize=10)
+    return fig

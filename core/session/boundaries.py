@@ -1,0 +1,125 @@
+"""Boundaries in a run: each press's boundary reading (:mod:`palpate.core.boundary`), the reference materials'
+moduli from their training presses, and per 2-D object a fine material map (:mod:`palpate.core.mapping.fine`)
+written beside the cell map and scored on a 1 mm raster where the truth is known.
+
+Readings need boundary templates made for the scenario's pad; without them (another pad, a finger without one,
+a voxel map) a run has no fine map and says why in its summary.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from palpate.core.boundary.moduli import MaterialModuli, material_moduli
+from palpate.core.boundary.press import noise_of, pad_matches, read_press
+from palpate.core.boundary.reading import NoiseModel
+from palpate.core.boundary.templates import read_templates
+from palpate.core.errors import ValidationError
+from palpate.core.files import writing
+from palpate.core.mapping.fine import FineMap, boundary_error, fine_map
+from palpate.core.world.scenario import ObjectEntry, Scenario
+from palpate.core.world.workspace import ground_truth_cells
+
+
+def boundary_reader(scenario: Scenario):
+    """``(read(recording, result), reason)``: the scenario's per-press boundary reader, or None and why not."""
+    if scenario.exploration.map != "grid2d":
+        return None, "boundary readings make fine maps of 2-D maps only"
+    try:
+        templates = read_templates()
+    except ValidationError as exc:
+        return None, str(exc)
+    if not pad_matches(templates, scenario.fingertip):
+        return None, ("the shipped boundary templates are for another pad (make templates for this one with "
+                      "benchmarks/boundary_templates.py)")
+    return functools.partial(read_press, templates=templates, noise=noise_of(scenario.taxels)), None
+
+
+#: Recording metadata key holding the reading's noise model, so that a replay reads every press as the run did.
+NOISE_KEY = "boundary_noise"
+
+
+def noise_metadata(scenario: Scenario) -> dict:
+    """The run's boundary-reading noise model, as a recording's metadata holds it."""
+    n = noise_of(scenario.taxels)
+    return {"noise": n.noise, "floor": n.floor, "ceiling": n.ceiling, "model_error": n.model_error}
+
+
+def replay_reader(metadata: dict, where: str):
+    """The reader a run recorded with (its noise model in ``metadata``), or None when the recording has none or
+    the templates are missing; ValidationError naming ``where`` for a malformed entry."""
+    doc = metadata.get(NOISE_KEY)
+    if doc is None:
+        return None
+    try:
+        noise = NoiseModel(float(doc["noise"]), float(doc["floor"]), float(doc["ceiling"]), float(doc["model_error"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValidationError(f"{where}: metadata {NOISE_KEY} must hold numbers noise, floor, ceiling and "
+                              f"model_error ({exc})") from None
+    try:
+        templates = read_templates()
+    except ValidationError:
+        return None
+    return functools.partial(read_press, templates=templates, noise=noise)
+
+
+def training_moduli(readings: dict[str, tuple]) -> MaterialModuli | None:
+    """The reference materials' moduli from their training presses' readings; None when a material has none."""
+    try:
+        return material_moduli({name: list(rs) for name, rs in readings.items()})
+    except ValidationError:
+        return None
+
+
+@dataclass(frozen=True)
+class FineResult:
+    """An object's fine map and what summary.json says of it."""
+
+    fine: FineMap
+    summary: dict
+
+
+def fine_truth(entry: ObjectEntry, scenario: Scenario, fine: FineMap) -> np.ndarray:
+    """The true reference-material index (-1: none) at each fine point, half-way down the planned press."""
+    pts = fine.centres()
+    z = np.full(pts.shape[0] * pts.shape[1], entry.spec.height - scenario.exploration.depth / 2)
+    return ground_truth_cells(entry, scenario, pts.reshape(-1, 2), z).reshape(pts.shape[:2])
+
+
+def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: MaterialModuli | None) -> FineResult | None:
+    """The fine map of an explored 2-D object from its post-processed cell map and its presses' readings (None for
+    voxel maps), with its summary: walls read, and with ground truth the share of the area each map labels right on
+    the fine raster and how far their boundaries lie from the true ones."""
+    if obj.geometry.voxel:
+        return None
+    readings = [(s.result.location, s.boundary) for s in obj.steps if s.boundary is not None]
+    fine = fine_map(obj.geometry, obj.post.probabilities, readings, moduli=moduli)
+    summary = {"resolution_m": fine.resolution, "presses_read": len(readings),
+               "walls_read": sum(1 for _, r in readings if r.p_boundary > 0.5),
+               "sides_named_by": "modulus" if moduli is not None else "neighbour cells"}
+    truth = fine_truth(entry, scenario, fine)
+    known = truth >= 0
+    if known.any():
+        n = fine.probabilities.shape[0] // obj.post.probabilities.shape[0]
+        cells = np.kron(np.argmax(obj.post.probabilities, axis=-1), np.ones((n, n), dtype=int))
+        cell_err, fine_err = (boundary_error(lab, truth, known, fine.resolution) for lab in (cells, fine.labels()))
+        summary["area_accuracy"] = {"cell_map": float(np.mean(cells[known] == truth[known])),
+                                    "fine_map": float(np.mean(fine.labels()[known] == truth[known]))}
+        summary["boundary_error_m"] = {name: {"median": _finite(e[0]), "p90": _finite(e[1])}
+                                       for name, e in (("cell_map", cell_err), ("fine_map", fine_err))}
+    return FineResult(fine, summary)
+
+
+def _finite(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None
+
+
+def save_fine_map(path: Path, fine: FineMap) -> None:
+    """``path`` (.npz, no pickled objects): probabilities (ny, nx, M), origin_m, resolution_m, materials."""
+    with writing(path):
+        np.savez_compressed(path, probabilities=fine.probabilities, origin_m=np.asarray(fine.origin),
+                            resolution_m=np.asarray(fine.resolution), materials=np.asarray(fine.materials))

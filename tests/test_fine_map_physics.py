@@ -1,0 +1,21 @@
+"""The fine map on the shipped heterogeneous scene with physics presses (the image rung near walls)."""
+
+from __future__ import annotations
+
+import pytest
+
+from palpate.api import load_scenario
+from palpate.core.session.run import run_scenario
+
+pytestmark = pytest.mark.physics
+
+
+def test_heterogeneous_scene_fine_map_beats_the_cell_map(tmp_path):
+    summary = run_scenario(load_scenario("heterogeneous"), tmp_path / "run")
+    (obj,) = summary["objects"]
+    fine = obj["fine_map"]
+    assert fine["walls_read"] >= 8
+    area = fine["area_accuracy"]
+    assert area["fine_map"] >= 0.88 and area["fine_map"] >= area["cell_map"] + 0.05
+    err = fine["boundary_error_m"]
+    assert err["fine_map"]["median"] <= 1e-3 < err["cell_map"]["median"]
