@@ -169,8 +169,8 @@ def test_a_profile_changes_the_streams_and_says_what_it_drew():
 
 def test_ideal_keeps_todays_numbers():
     """The fits of two human-like analytic presses as the simulation gave them before realism profiles existed
-    (main at afd7437; re-pinned at issue-phys 9a52b9f, where analytic gained the finite-thickness contact law,
-    before it was merged with the profiles). If the contact mechanics change on purpose, these numbers change with
+    (commit afd7437; re-pinned at 9a52b9f, where analytic gained the finite-thickness contact law, before it
+    was merged with the profiles). If the contact mechanics change on purpose, these numbers change with
     them; the ideal profile itself must never change them."""
     from palpate.core.perception.press import perceive_press
     from palpate.sim import simulate_press

@@ -63,6 +63,7 @@ class Predefined:
 
     @property
     def budget(self) -> int:
+        """Presses the list makes: its cells times its repeats."""
         return len(self.cells) * self.repeats
 
     def next_target(self, grid, post=None, last=None) -> Target | None:
@@ -118,6 +119,7 @@ class RandomCells:
     _rng: np.random.Generator | None = field(default=None, init=False)
 
     def next_target(self, grid, post=None, last=None) -> Target | None:
+        """A random unexplored cell (then a random uncertain one), or None when every cell is certain."""
         if self._rng is None:
             self._rng = np.random.default_rng(self.seed)
         free = ~explored_plane(grid)

@@ -164,6 +164,8 @@ class ExploreEnv(gym.Env):
 
     # -- the Gymnasium API ---------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start a new exploration of the object: an empty map (and, with ``press_model="sim"``, a new source seeded
+        from ``seed``). Returns the observation (``probabilities``, ``explored``, ``features``) and the info dict."""
         super().reset(seed=seed)
         self._grid = new_map(self.geometry)
         self._features = np.zeros(N_FEATURES, np.float32)
@@ -176,6 +178,9 @@ class ExploreEnv(gym.Env):
         return self._obs(), self._info()
 
     def step(self, action):
+        """Press the cell ``action`` (index ``iy * nx + ix``) and fuse what it read. Returns (observation, reward:
+        the change of the map's score, terminated: a stop rule fired, truncated: the budget is spent, info).
+        Raises ValidationError before :meth:`reset` or on an action outside the map."""
         if self._grid is None:
             raise ValidationError("step before reset: call env.reset(seed=...) first")
         if not self.action_space.contains(action):
