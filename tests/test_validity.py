@@ -226,3 +226,20 @@ def test_flex_is_within_ten_percent_of_the_fe_reference_on_a_thin_nearly_incompr
     used to get (-10% and -16% at 1 mm); the 1.7 mm calibration block puts it between two measured thicknesses."""
     err = _flex_error(name, (0.5e-3, 1e-3))
     assert np.all(np.abs(err) < 0.10), err
+
+
+@pytest.mark.parametrize("height", [0.03, 0.04, 0.08])
+def test_a_wall_reaching_the_surface_is_a_wall_whatever_the_objects_height(height):
+    soft, hard = Material("soft", 2e4), Material("hard", 1e5, 0.45)
+
+    def split(edge: float) -> ObjectSpec:  # the hard material fills x > edge, top to bottom
+        return ObjectSpec("w", "box", (0.2, 0.2, height), (0.0, 0.0), soft,
+                          inclusions=(Inclusion(hard, "column", ((edge + 0.1) / 2, 0.0, height / 2),
+                                                (0.1 - edge, 0.2)),))
+
+    assert situation(split(0.003), 0.0, 0.0, height, 0.004, R).image == "wall"
+    # far beyond the image's reach, found only by a deep, wide ring: not a lump, and no image family
+    assert situation(split(0.015), 0.0, 0.0, height, 0.004, R).image is None
+    buried = ObjectSpec("l", "box", (0.2, 0.2, height), (0.0, 0.0), soft,
+                        inclusions=(Inclusion(hard, "sphere", (0.004, 0.0, height - 0.006), (0.004,)),))
+    assert situation(buried, 0.0, 0.0, height, 0.004, R).image == "lump"

@@ -41,6 +41,8 @@ ORDER = ("analytic", "bem", "rigid", "flex")
 WALL_DEPTH = 0.5e-3
 #: The families a press can be placed by, in the order its reason lists them.
 FEATURES = ("thickness", "edge", "skin", "lump")
+#: Depth of the first sample of a lateral change, m: just under the surface.
+SURFACE_SAMPLE = 0.1e-3
 #: Reach of a lateral feature: 1.5 contact radii plus its depth (as the contact law's homogenisation).
 REACH_A = 1.5
 #: Rows within this factor of the press's feature count.
@@ -110,18 +112,23 @@ def _edge_distance(obj: ObjectSpec, x: float, y: float) -> float:
 
 @dataclass(frozen=True)
 class LateralChange:
-    """The shallowest material change off the press axis within reach: its depth below the top, m, and whether
-    it is centred on the axis (the same material all round each ring: an on-axis lump)."""
+    """The shallowest material change off the press axis within reach: its depth below the top, m, whether it is
+    centred on the axis (the same material all round each ring: an on-axis lump), and whether the material found
+    there also differs at the surface (a wall beyond the surface's reach, found by a deeper, wider ring)."""
 
     depth: float
     centred: bool
+    surface: bool = False
 
 
 def _lateral_depth(obj: ObjectSpec, x: float, y: float, surface_z: float, a: float) -> LateralChange | None:
     """The shallowest material change off the press axis within reach; None if the object is laterally uniform
     within reach."""
     names = [m.name for m in obj.materials()]
+    # the slab midpoints, led by one just under the surface: a change that reaches the surface is a wall whatever
+    # the object's height (the first midpoint of a 40 mm block lies 0.5 mm down, at WALL_DEPTH itself)
     depths = np.linspace(0.0, surface_z, 41)[:-1] + surface_z / 80.0
+    depths = np.concatenate([[min(SURFACE_SAMPLE, depths[0])], depths])
     theta = np.arange(12) * np.pi / 6.0
     for z in depths:
         radius = REACH_A * a + z
@@ -137,7 +144,11 @@ def _lateral_depth(obj: ObjectSpec, x: float, y: float, surface_z: float, a: flo
             # centred: the same material all round each ring (an on-axis lump), else off the axis
             rings_same = idx.reshape(-1) if len(idx) != len(pts) else idx.reshape(len(rings), len(theta))
             centred = bool(len(idx) == len(pts) and np.all(rings_same == rings_same[:, :1]))
-            return LateralChange(depth=float(z), centred=centred)
+            top = surface_z - depths[0]
+            odd = p3[idx != axis]
+            at_top = material_index_at(obj, np.column_stack([odd[:, :2], np.full(len(odd), top)]), names)
+            axis_top = material_index_at(obj, np.array([[x, y, top]]), names)[0]
+            return LateralChange(depth=float(z), centred=centred, surface=bool(np.all(at_top != axis_top)))
     return None
 
 
@@ -169,7 +180,8 @@ def situation(obj: ObjectSpec, x: float, y: float, surface_z: float, depth: floa
     if lateral is not None:
         lump = max(lateral.depth, 0.5e-3) / a
         if not lateral.centred:
-            image = "wall" if lateral.depth < WALL_DEPTH else "lump"
+            # a wall found only by a deeper, wider ring lies beyond the image's reach: no image family applies
+            image = "wall" if lateral.depth < WALL_DEPTH else (None if lateral.surface else "lump")
             notes.append("material changing off the press axis (the table's lumps are on it)")
     for rung in ORDER:  # what a rung would refuse (palpate.sim.limits) rules it out too
         why = refusal(rung, obj, depth, surface_z)
