@@ -160,7 +160,8 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     return FineMap(out.origin, out.resolution, acc / weight[..., None], out.materials)
 
 
-def _edges(labels: np.ndarray) -> np.ndarray:
+def edges(labels: np.ndarray) -> np.ndarray:
+    """Points of a label raster whose label differs from the point before them along x or y."""
     e = np.zeros(labels.shape, dtype=bool)
     e[:, 1:] |= labels[:, 1:] != labels[:, :-1]
     e[1:, :] |= labels[1:, :] != labels[:-1, :]
@@ -171,7 +172,7 @@ def boundary_error(labels: np.ndarray, truth: np.ndarray, mask: np.ndarray, reso
     """How far a labelled raster's boundaries lie from the true ones: the median and 90th percentile, over the true
     boundary points inside ``mask``, of the distance to the nearest boundary point of ``labels``, m (infinite when
     ``labels`` has no boundary; NaN when the truth has none in ``mask``)."""
-    mine, true = _edges(labels), _edges(truth) & mask
+    mine, true = edges(labels), edges(truth) & mask
     if not true.any():
         return float("nan"), float("nan")
     if not mine.any():

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.ndimage import distance_transform_edt
 
 from palpate.core.boundary.moduli import MaterialModuli, material_moduli
 from palpate.core.boundary.press import noise_of, pad_matches, read_press
@@ -20,7 +21,8 @@ from palpate.core.boundary.reading import NoiseModel
 from palpate.core.boundary.templates import read_templates
 from palpate.core.errors import ValidationError
 from palpate.core.files import writing
-from palpate.core.mapping.fine import FineMap, boundary_error, fine_map
+from palpate.core.mapping.calibration import calibration_sample, reliability_table
+from palpate.core.mapping.fine import FineMap, boundary_error, edges, fine_map
 from palpate.core.world.scenario import ObjectEntry, Scenario
 from palpate.core.world.workspace import ground_truth_cells
 
@@ -38,6 +40,9 @@ def boundary_reader(scenario: Scenario):
                       "benchmarks/boundary_templates.py)")
     return functools.partial(read_press, templates=templates, noise=noise_of(scenario.taxels)), None
 
+
+#: Points within this distance of a true boundary are "near" it in the calibration summary, m.
+NEAR_BOUNDARY = 5e-3
 
 #: Recording metadata key holding the reading's noise model, so that a replay reads every press as the run did.
 NOISE_KEY = "boundary_noise"
@@ -111,6 +116,12 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
                                     "fine_map": float(np.mean(fine.labels()[known] == truth[known]))}
         summary["boundary_error_m"] = {name: {"median": _finite(e[0]), "p90": _finite(e[1])}
                                        for name, e in (("cell_map", cell_err), ("fine_map", fine_err))}
+        # calibration of the fine map's most probable material, over all points and over those within 5 mm of a
+        # true boundary (where the cell map cannot be sure)
+        near = distance_transform_edt(~edges(truth)) * fine.resolution <= NEAR_BOUNDARY
+        summary["calibration_ece"] = {
+            where: reliability_table(*calibration_sample(fine.probabilities[mask], truth[mask])[:2]).ece
+            for where, mask in (("all", known), ("near_boundary", known & near)) if mask.any()}
     return FineResult(fine, summary)
 
 
