@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core.boundary.press import noise_of
 from palpate.core.boundary.templates import read_templates
+from palpate.core.session.boundaries import noise_of, shipped_templates
 from palpate.core.world.scene import TaxelSensorSpec
 from palpate.sim.validity.boundary_reading import check_readings
 from palpate.sim.validity.image_reference import load_image_reference
@@ -49,7 +49,7 @@ def main() -> None:
     parser.add_argument("--model-error", type=float)
     parser.add_argument("--cases", action="store_true", help="also print each wall case at 4 mm")
     args = parser.parse_args()
-    templates = read_templates(args.templates)
+    templates = read_templates(args.templates) if args.templates else shipped_templates()
     spec = TaxelSensorSpec()
     noise = noise_of(spec) if args.model_error is None else noise_of(spec, model_error=args.model_error)
     rows = check_readings(load_image_reference(), templates, seeds=range(args.seeds), spec=spec, noise=noise)

@@ -9,11 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from palpate.core.boundary.press import noise_of, read_press, yaw_of
+from palpate.core.boundary.press import read_press, yaw_of
 from palpate.core.boundary.reading import NoiseModel, read_boundary
 from palpate.core.boundary.templates import read_templates, templates_from_document
 from palpate.core.errors import ValidationError
 from palpate.core.perception.press import perceive_press
+from palpate.core.session.boundaries import noise_of, shipped_templates
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.resources import models_dir
 from palpate.core.world.scene import FingertipSpec, Scene, TaxelSensorSpec
@@ -27,7 +28,7 @@ from palpate.sim.validity.image_reference import load_image_reference, reference
 
 @pytest.fixture(scope="module")
 def templates():
-    return read_templates()
+    return shipped_templates()
 
 
 @pytest.fixture(scope="module")

@@ -8,10 +8,10 @@ import pytest
 
 from palpate.core.boundary.moduli import MaterialModuli, material_moduli
 from palpate.core.boundary.reading import NoiseModel, read_boundary
-from palpate.core.boundary.templates import read_templates
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.fine import fine_map
 from palpate.core.mapping.geometry import MapGeometry
+from palpate.core.session.boundaries import shipped_templates
 
 DEPTH = 0.004
 GAIN = 1.2e-3  # counts per Pa
@@ -20,7 +20,7 @@ NOISE = NoiseModel(0.58, 2.0, 255.0)
 
 @pytest.fixture(scope="module")
 def templates():
-    return read_templates()
+    return shipped_templates()
 
 
 def _image(templates, soft: float, wall_at: float | None, x0: float, contrast: float) -> np.ndarray:

@@ -3,28 +3,13 @@ read against boundary templates (:func:`.reading.read_boundary`). Works the same
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from palpate.core.boundary.reading import BoundaryReading, NoiseModel, read_boundary
-from palpate.core.boundary.templates import BoundaryTemplates, Pad
+from palpate.core.boundary.templates import BoundaryTemplates
 from palpate.core.errors import ValidationError
 from palpate.core.perception.press import PressResult
-from palpate.core.perception.streams import SATURATED, PressRecording
-from palpate.core.world.scene import FingertipSpec, TaxelSensorSpec
-
-
-def noise_of(spec: TaxelSensorSpec, **kw) -> NoiseModel:
-    """The reading's sensor model for raw counts of a taxel array described by ``spec``: its noise and rounding
-    together, its floor and its 8-bit ceiling (``kw``: NoiseModel's model_error)."""
-    return NoiseModel(math.hypot(spec.noise_std, math.sqrt(1 / 12)), float(spec.threshold), float(SATURATED), **kw)
-
-
-def pad_matches(templates: BoundaryTemplates, tip: FingertipSpec) -> bool:
-    """True when ``templates`` were made for ``tip``'s pad."""
-    return templates.pad.matches(Pad(tip.radius, tip.rows, tip.cols, tip.pitch, tip.sensel_size))
-
+from palpate.core.perception.streams import PressRecording
 
 #: Relative mismatch of the recording's sensel area to the templates' pad that is still the same pad.
 AREA_TOLERANCE = 0.02

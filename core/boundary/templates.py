@@ -17,7 +17,6 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.files import number_array, read_json
-from palpate.core.world.resources import models_dir
 
 FORMAT = "palpate-boundary-templates"
 VERSION = 1
@@ -150,13 +149,14 @@ def templates_from_document(doc: object, source: str) -> BoundaryTemplates:
     return BoundaryTemplates(pad, poisson, depths, rad, offsets, contrasts, full, plain)
 
 
-def read_templates(path: str | Path | None = None) -> BoundaryTemplates:
-    """The templates in ``path`` (default: the shipped models/boundary_templates.json), validated.
+def read_templates(path: str | Path) -> BoundaryTemplates:
+    """The templates in ``path``, validated (the shipped ones:
+    :func:`palpate.core.session.boundaries.shipped_templates`).
 
     Raises:
         ValidationError: missing, not JSON, of another format, or any array of the wrong shape or out of range.
     """
-    path = models_dir() / TEMPLATES_FILE if path is None else Path(path)
+    path = Path(path)
     if not path.exists():
         raise ValidationError(f"{path}: boundary templates not found; make them with "
                               "`python benchmarks/boundary_templates.py --write`")

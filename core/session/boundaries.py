@@ -9,6 +9,7 @@ a voxel map) a run has no fine map and says why in its summary.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,15 +17,34 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt
 
 from palpate.core.boundary.moduli import MaterialModuli, material_moduli
-from palpate.core.boundary.press import noise_of, pad_matches, read_press
+from palpate.core.boundary.press import read_press
 from palpate.core.boundary.reading import NoiseModel
-from palpate.core.boundary.templates import read_templates
+from palpate.core.boundary.templates import TEMPLATES_FILE, BoundaryTemplates, Pad, read_templates
 from palpate.core.errors import ValidationError
 from palpate.core.files import writing
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
 from palpate.core.mapping.fine import FineMap, boundary_error, edges, fine_map
+from palpate.core.perception.streams import SATURATED
+from palpate.core.world.resources import models_dir
 from palpate.core.world.scenario import ObjectEntry, Scenario
+from palpate.core.world.scene import FingertipSpec, TaxelSensorSpec
 from palpate.core.world.workspace import ground_truth_cells
+
+
+def shipped_templates() -> BoundaryTemplates:
+    """The shipped boundary templates (models/boundary_templates.json), validated."""
+    return read_templates(models_dir() / TEMPLATES_FILE)
+
+
+def noise_of(spec: TaxelSensorSpec, **kw) -> NoiseModel:
+    """The reading's sensor model for raw counts of a taxel array described by ``spec``: its noise and rounding
+    together, its floor and its 8-bit ceiling (``kw``: NoiseModel's model_error)."""
+    return NoiseModel(math.hypot(spec.noise_std, math.sqrt(1 / 12)), float(spec.threshold), float(SATURATED), **kw)
+
+
+def pad_matches(templates: BoundaryTemplates, tip: FingertipSpec) -> bool:
+    """True when ``templates`` were made for ``tip``'s pad."""
+    return templates.pad.matches(Pad(tip.radius, tip.rows, tip.cols, tip.pitch, tip.sensel_size))
 
 
 def boundary_reader(scenario: Scenario):
@@ -32,7 +52,7 @@ def boundary_reader(scenario: Scenario):
     if scenario.exploration.map != "grid2d":
         return None, "boundary readings make fine maps of 2-D maps only"
     try:
-        templates = read_templates()
+        templates = shipped_templates()
     except ValidationError as exc:
         return None, str(exc)
     if not pad_matches(templates, scenario.fingertip):
@@ -66,7 +86,7 @@ def replay_reader(metadata: dict, where: str):
         raise ValidationError(f"{where}: metadata {NOISE_KEY} must hold numbers noise, floor, ceiling and "
                               f"model_error ({exc})") from None
     try:
-        templates = read_templates()
+        templates = shipped_templates()
     except ValidationError:
         return None
     return functools.partial(read_press, templates=templates, noise=noise)

@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from palpate.core.boundary.press import noise_of
 from palpate.core.boundary.reading import NoiseModel, read_boundary
 from palpate.core.boundary.templates import BoundaryTemplates
+from palpate.core.session.boundaries import noise_of
 from palpate.core.world.scene import TaxelSensorSpec
 from palpate.sim.sensors import taxel_counts
 from palpate.sim.validity.image_cases import image_cases
