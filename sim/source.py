@@ -11,7 +11,7 @@ the table and the reason it returns says where and with what predicted errors.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +37,7 @@ from palpate.sim.rigid import rigid_depth_for_force, run_rigid_press
 from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, check_iterations, law_depth
+from palpate.sim.trace import PhysicsTrace
 from palpate.sim.validity.choice import Choice, choose, situation
 from palpate.sim.validity.image_table import ImageTable, load_image_table
 from palpate.sim.validity.table import ValidityTable, load_table
@@ -44,6 +45,27 @@ from palpate.sim.validity.table import ValidityTable, load_table
 FIDELITIES = ("auto", "analytic", "bem", "rigid", "flex")
 #: Default tolerance of ``auto``: the largest predicted force error against the reference, fraction.
 DEFAULT_TOLERANCE = 0.05
+
+
+@dataclass(frozen=True)
+class PlannedPress:
+    """A press planned by a source, before its physics: what it presses, its trajectory (``profile`` as commanded,
+    ``physics_profile`` what the physics follows), its contact law when its rung uses one, its realism (or None),
+    its physics step (s) and profile seed, the seeds of its taxel and pose noise, and its index in the source."""
+
+    target: PressTarget
+    obj: ObjectSpec
+    choice: Choice
+    mesh: object
+    profile: PressProfile
+    physics_profile: PressProfile
+    law: object
+    real: object
+    timestep: float
+    seed: int
+    s_taxel: np.random.SeedSequence
+    s_pose: np.random.SeedSequence
+    index: int
 
 
 def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, *, tolerance: float = DEFAULT_TOLERANCE,
@@ -189,6 +211,12 @@ class SimSource:
 
     def press(self, target: PressTarget) -> PressRecording:
         """One press-and-release at ``target``: taxel frames, pose samples and ground truth."""
+        plan = self._plan(target)
+        return self._record(plan, *self._sense(plan, self._physics(plan)))
+
+    def _plan(self, target: PressTarget) -> PlannedPress:
+        """Everything of a press before its physics, in press order (it draws the press's seeds and advances the
+        source's press count): :func:`palpate.sim.batch.simulate_presses` plans a batch with it."""
         obj = self.scene.object_under(target.x, target.y)
         if obj is None:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
@@ -281,6 +309,14 @@ class SimSource:
             # pulp and the softened material, applied after the physics: the physics is held to the depth alone
             physics_profile = real.object_profile(profile)
             physics_profile = replace(physics_profile, meta=dict(physics_profile.meta, force_target=None))
+        return PlannedPress(target, obj, choice, mesh, profile, physics_profile, law, real, timestep, seed, s_taxel,
+                            s_pose, self._presses - 1)
+
+    def _physics(self, plan: PlannedPress) -> PhysicsTrace:
+        """The press's physics at its fidelity (the one step a batch backend may take over for analytic presses)."""
+        obj, physics_profile, law, timestep, mesh = (plan.obj, plan.physics_profile, plan.law, plan.timestep,
+                                                      plan.mesh)
+        fidelity, target, seed = plan.choice.fidelity, plan.target, plan.seed
         if fidelity == "analytic":
             trace = run_analytic_press(self.scene, obj, physics_profile, law=law, pads=self._pads)
         elif fidelity == "bem":
@@ -301,16 +337,33 @@ class SimSource:
             trace = run_flex_press(self.scene, obj, target, physics_profile, timestep=self.timestep, seed=seed,
                                    models=self._flex_models, max_steps=self.max_steps,
                                    iterations=self.flex_iterations, tables=self._flex_tables)
+        return trace
+
+    def _sense(self, plan: PlannedPress, trace: PhysicsTrace):
+        """The trace as the sensors see it: (trace, pose spec, tracker latency s, taxel response or None) after the
+        press's realism, when it has one."""
+        real, profile = plan.real, plan.profile
         pose_spec, latency, response = self.scene.pose, 0.0, None
         if real is not None:
             trace = real.finish(trace, profile)
             pose_spec, latency, response = real.pose_spec(pose_spec), real.latency, real.taxel_response
-        frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel), response=response)
-        poses = sample_poses(trace, pose_spec, np.random.default_rng(s_pose), latency=latency)
+        return trace, pose_spec, latency, response
+
+    def _record(self, plan: PlannedPress, trace: PhysicsTrace, pose_spec, latency: float, response,
+                frames=None, poses=None) -> PressRecording:
+        """The press's recording: its sensors sampled from ``trace`` (or the ``frames`` and ``poses`` a batch
+        sampled alike), ground truth and provenance."""
+        real, profile, target, obj = plan.real, plan.profile, plan.target, plan.obj
+        fidelity, choice, tip = plan.choice.fidelity, plan.choice, self.scene.fingertip
+        if frames is None:
+            frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(plan.s_taxel),
+                                   response=response)
+        if poses is None:
+            poses = sample_poses(trace, pose_spec, np.random.default_rng(plan.s_pose), latency=latency)
         meta = {
             "source": "sim", "fidelity": fidelity, "fidelity_reason": choice.reason, "object": obj.name,
             "material": trace.material,
-            "seed": self.seed, "press_index": self._presses - 1,
+            "seed": self.seed, "press_index": plan.index,
             "target": {"x": target.x, "y": target.y, "depth": target.depth, "force": target.force,
                        "speed": target.speed, "hold": target.hold, "label": target.label},
             "profile": {k: v for k, v in profile.meta.items() if k != "phases"}, "phases": profile.meta["phases"],

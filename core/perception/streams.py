@@ -81,6 +81,54 @@ class PoseSample:
         object.__setattr__(self, "quaternion", quat / norm)
 
 
+def taxel_frames(t: np.ndarray, counts: np.ndarray, sensel_area: float, sensor_id: str = "taxels") -> list[TaxelFrame]:
+    """Taxel frames from arrays: times (n,) s and counts (n, rows, cols) uint8, checked once for all frames (the
+    checks of :class:`TaxelFrame`); equal to building each frame alone, at a fraction of the cost for long
+    streams (each frame's counts is a view of ``counts``)."""
+    t = np.asarray(t, dtype=float)
+    counts = np.asarray(counts)
+    if counts.ndim != 3 or len(counts) != len(t):
+        raise ValidationError(f"taxel_frames: counts must have shape (n, rows, cols) with n = {len(t)} times, got "
+                              f"{counts.shape}")
+    if counts.dtype != np.uint8:
+        raise ValidationError(f"taxel_frames: counts must be uint8 raw counts (0..255), got dtype {counts.dtype}")
+    if not np.all(np.isfinite(t)):
+        raise ValidationError("taxel_frames: every time must be finite")
+    if not (np.isfinite(sensel_area) and sensel_area > 0):
+        raise ValidationError(f"TaxelFrame.sensel_area must be a positive area in m^2, got {sensel_area!r}")
+    return [_trusted(TaxelFrame, t=ts, counts=c, sensel_area=sensel_area, sensor_id=sensor_id)
+            for ts, c in zip(t.tolist(), counts, strict=True)]
+
+
+def pose_samples(t: np.ndarray, position: np.ndarray, quaternion: np.ndarray, sensor_id: str = "pose") -> list[
+        PoseSample]:
+    """Pose samples from arrays: times (n,) s, positions (n, 3) m, quaternions (n, 4) (w, x, y, z), checked and
+    normalised once for all samples as :class:`PoseSample` does one; equal to building each sample alone."""
+    t = np.asarray(t, dtype=float)
+    pos = np.asarray(position, dtype=float)
+    quat = np.asarray(quaternion, dtype=float)
+    n = len(t)
+    if pos.shape != (n, 3) or not np.all(np.isfinite(pos)):
+        raise ValidationError(f"pose_samples: positions must be ({n}, 3) finite numbers (m), got shape {pos.shape}")
+    if quat.shape != (n, 4) or not np.all(np.isfinite(quat)):
+        raise ValidationError(f"pose_samples: quaternions must be ({n}, 4) finite numbers, got shape {quat.shape}")
+    norm = np.linalg.norm(quat, axis=1)
+    if np.any(norm < 1e-9):
+        raise ValidationError("PoseSample.quaternion has zero norm")
+    if not np.all(np.isfinite(t)):
+        raise ValidationError("pose_samples: every time must be finite")
+    unit = quat / norm[:, None]
+    return [_trusted(PoseSample, t=ts, position=p, quaternion=q, sensor_id=sensor_id)
+            for ts, p, q in zip(t.tolist(), pos, unit, strict=True)]
+
+
+def _trusted(cls, **fields):
+    """An instance of the frozen dataclass ``cls`` from fields already checked in bulk (no per-item checks)."""
+    obj = object.__new__(cls)
+    obj.__dict__.update(fields)
+    return obj
+
+
 @dataclass(frozen=True)
 class ContactSample:
     """Contact features at one taxel time (eq. 6.2-6.4 of seed 000).
