@@ -214,6 +214,13 @@ class SimSource:
         plan = self._plan(target)
         return self._record(plan, *self._sense(plan, self._physics(plan)))
 
+    def press_many(self, targets, backend: str = "cpu") -> list[PressRecording]:
+        """``[self.press(t) for t in targets]``, the analytic presses' physics batched on ``backend``
+        (:func:`palpate.sim.batch.press_batch`)."""
+        from palpate.sim.batch.press import press_batch  # the batch module builds on this one
+
+        return press_batch(self, targets, backend)
+
     def _plan(self, target: PressTarget) -> PlannedPress:
         """Everything of a press before its physics, in press order (it draws the press's seeds and advances the
         source's press count): :func:`palpate.sim.batch.simulate_presses` plans a batch with it."""

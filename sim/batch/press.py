@@ -1,0 +1,68 @@
+"""Many presses of simulated sources at once, equal to pressing them one at a time.
+
+Each press is planned by its source in the order given (:meth:`SimSource._plan`: its seeds, trajectory, contact
+law and realism draws, exactly as one press plans them, so the source's state moves as in a loop); the analytic
+presses' physics then runs as one batch on the chosen backend; the other rungs (bem, rigid, flex) run one at a
+time, as :meth:`SimSource.press` runs them; every press is then sensed and recorded as one press is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from palpate.core.errors import ValidationError
+from palpate.core.perception.streams import PressRecording
+from palpate.core.session.sources import PressTarget
+from palpate.sim.batch.analytic import AnalyticJob
+from palpate.sim.batch.backends import DEFAULT_BACKEND, resolve_backend
+from palpate.sim.source import PlannedPress, SimSource
+
+#: The rungs whose physics a batch backend takes; the others run press by press.
+BATCHED_FIDELITIES = ("analytic",)
+
+
+def press_batch(source: SimSource, targets: Sequence[PressTarget],
+                backend: str = DEFAULT_BACKEND) -> list[PressRecording]:
+    """``[source.press(t) for t in targets]``, with the analytic presses' physics batched on ``backend``.
+
+    Args:
+        source: the simulated source (its n-th press draws from (seed, n), as in a loop).
+        targets: the presses, in order.
+        backend: ``"cpu"`` (numpy, the default) or a registered backend (:mod:`palpate.sim.batch.backends`).
+
+    Returns:
+        one PressRecording per target, equal to the loop's.
+
+    Raises:
+        ValidationError: an unknown backend (before any press is planned), a target that is not a PressTarget, or
+            what :meth:`SimSource.press` raises for a press; the source has then planned every press up to the
+            failing one (a loop would also have run their physics).
+    """
+    physics = resolve_backend(backend)
+    targets = list(targets)
+    for k, t in enumerate(targets):
+        if not isinstance(t, PressTarget):
+            raise ValidationError(f"press_batch: target {k} must be a PressTarget, got {type(t).__name__}")
+    return run_planned([(source, source._plan(t)) for t in targets], physics)
+
+
+def run_planned(planned: Sequence[tuple[SimSource, PlannedPress]], physics) -> list[PressRecording]:
+    """Run the physics of planned presses (analytic ones as one call of ``physics``, the rest one by one) and
+    record each with its own source."""
+    traces: list = [None] * len(planned)
+    batched = [i for i, (_, plan) in enumerate(planned) if plan.choice.fidelity in BATCHED_FIDELITIES]
+    if batched:
+        jobs = [AnalyticJob(planned[i][0].scene, planned[i][1].obj, planned[i][1].physics_profile, planned[i][1].law,
+                            planned[i][0]._pads) for i in batched]
+        got = list(physics(jobs))
+        if len(got) != len(jobs):
+            raise ValidationError(f"batch backend returned {len(got)} traces for {len(jobs)} presses; it must return "
+                                  "one per press, in order")
+        for i, trace in zip(batched, got, strict=True):
+            traces[i] = trace
+    out = []
+    for (source, plan), trace in zip(planned, traces, strict=True):
+        if trace is None:
+            trace = source._physics(plan)
+        out.append(source._record(plan, *source._sense(plan, trace)))
+    return out
