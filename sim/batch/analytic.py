@@ -54,36 +54,42 @@ def batch_sensel_pressure(samples: Sequence[AnalyticSamples]) -> list[np.ndarray
     return out
 
 
+#: Hertz profiles integrated per call: the arrays of one call stay in the CPU's cache (a call over every profile of
+#: a large batch at once is slower per profile than a press alone).
+CHUNK = 1024
+
+
 def _group_pressure(group: list[AnalyticSamples]) -> list[np.ndarray]:
-    """Pressures of presses on one pad (see :func:`batch_sensel_pressure`)."""
+    """Pressures of presses on one pad (see :func:`batch_sensel_pressure`): each law's distinct depths integrated
+    once (presses of one robot protocol repeat them), their profiles in chunks, summed profile by profile."""
     first = group[0]
-    radius = first.law.tip_radius
-    # one basis evaluation per law over the depths of all its presses (np.interp is elementwise)
+    radius, order, bounds, centre, pad = first.law.tip_radius, first.order, first.bounds, first.centre, first.pad
+    rows, cols = bounds.shape[:2]
     by_law: dict[int, list[int]] = {}
     for i, s in enumerate(group):
         by_law.setdefault(id(s.law), []).append(i)
     depths = [np.maximum(np.atleast_1d(np.asarray(s.depth, dtype=float)), 0.0) for s in group]
-    radii: list[np.ndarray | None] = [None] * len(group)
-    coeffs: list[np.ndarray | None] = [None] * len(group)
+    out: list[np.ndarray | None] = [None] * len(group)
     for members in by_law.values():
         law = group[members[0]].law
-        basis = law.basis_at(np.concatenate([depths[i] for i in members]))
-        cut = np.cumsum([len(depths[i]) for i in members])[:-1]
-        for i, r, c in zip(members, np.split(basis.radii, cut), np.split(basis.coeffs, cut), strict=True):
-            radii[i], coeffs[i] = r, c
-    # profile-major within each press, as one press lays them out; presses one after another
-    sq = np.concatenate([(r**2 / radius).T.reshape(-1) for r in radii])
-    ye = np.concatenate([(c * np.pi * radius / 2.0).T.reshape(-1) for c in coeffs])
-    every = hertz_sensel_pressure(sq, ye, radius, first.bounds, first.centre, order=first.order, pad=first.pad)
-    rows, cols = first.bounds.shape[:2]
-    k_max = first.law.coeffs.shape[1]
-    out, start = [], 0
-    for d in depths:
-        n = len(d)
-        mine = every[start:start + k_max * n].reshape((k_max, n, rows, cols))
-        start += k_max * n
+        every_depth = np.concatenate([depths[i] for i in members])
+        uniq, inverse = np.unique(every_depth, return_inverse=True)
+        basis = law.basis_at(uniq)  # np.interp: elementwise, so a depth's basis is the one a press alone gets
+        # profile-major, as law_sensel_pressure lays them out
+        sq = (basis.radii**2 / radius).T
+        ye = (basis.coeffs * np.pi * radius / 2.0).T
+        k_max, n = sq.shape
+        every = np.empty((k_max, n, rows, cols))
+        for start in range(0, n, max(CHUNK // k_max, 1)):
+            stop = min(start + max(CHUNK // k_max, 1), n)
+            part = hertz_sensel_pressure(sq[:, start:stop].reshape(-1), ye[:, start:stop].reshape(-1), radius,
+                                         bounds, centre, order=order, pad=pad)
+            every[:, start:stop] = part.reshape(k_max, stop - start, rows, cols)
         acc = np.zeros((n, rows, cols))
         for k in range(k_max):
-            acc += mine[k]
-        out.append(np.maximum(acc, 0.0))
+            acc += every[k]
+        pressure = np.maximum(acc, 0.0)
+        cut = np.cumsum([len(depths[i]) for i in members])[:-1]
+        for i, idx in zip(members, np.split(inverse.reshape(-1), cut), strict=True):
+            out[i] = pressure[idx]
     return out
