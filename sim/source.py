@@ -156,6 +156,7 @@ class SimSource:
         self._meshes: dict = {}
         # contact laws by stack or press point (palpate.sim.contact.stack.point_law); given, shared with other sources
         self._laws: dict = {} if laws is None else laws
+        self._law_memo: dict = {}  # the last law of each press point's arguments, while the law cache is unchanged
         self._pads: dict = {}  # the pad's sensel footprints by fingertip and contact centre (analytic)
         self._rigid_models: dict = {}  # compiled rigid press models (palpate.sim.rigid.press_model)
         self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.press.run_flex_press)
@@ -179,8 +180,21 @@ class SimSource:
     def _law(self, obj: ObjectSpec, x: float, y: float, surface_z: float, max_depth: float):
         """The contact law at (x, y) (m), cached per press point; its FE solves (an inclusion, an edge within
         reach) run with BLAS on one thread."""
+        # the law a point gets is a function of its arguments and of what the cache holds: while the cache holds
+        # the same laws (no solve since, here or in a source sharing it), the last answer for these arguments stands
+        # (saves the lookup's material probe of every repeated press point)
+        key = (id(obj), obj, x, y, surface_z, max_depth)
+        held = tuple(map(id, self._laws.values()))
+        hit = self._law_memo.get(key)
+        if hit is not None and hit[1] == held:
+            return hit[0]
         with one_blas_thread(self._blas_controller()):
-            return object_law(obj, x, y, surface_z, self.scene.fingertip.radius, max_depth, cache=self._laws)
+            law = object_law(obj, x, y, surface_z, self.scene.fingertip.radius, max_depth, cache=self._laws)
+        if len(self._law_memo) > 512:
+            self._law_memo.clear()
+        kept = tuple(self._laws.values())  # held, so that no id in the snapshot is reused while it is kept
+        self._law_memo[key] = (law, tuple(map(id, kept)), kept)
+        return law
 
     def explain(self, target: PressTarget) -> Choice:
         """The fidelity a press at ``target`` would use, and why (for ``auto``: the rule that chose it)."""

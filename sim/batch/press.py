@@ -10,11 +10,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.sim.batch.analytic import AnalyticJob
 from palpate.sim.batch.backends import DEFAULT_BACKEND, resolve_backend
+from palpate.sim.batch.sensors import Sensing, sense_many
 from palpate.sim.source import PlannedPress, SimSource
 
 #: The rungs whose physics a batch backend takes; the others run press by press.
@@ -60,9 +63,14 @@ def run_planned(planned: Sequence[tuple[SimSource, PlannedPress]], physics) -> l
                                   "one per press, in order")
         for i, trace in zip(batched, got, strict=True):
             traces[i] = trace
-    out = []
-    for (source, plan), trace in zip(planned, traces, strict=True):
+    sensed = []
+    for k, ((source, plan), trace) in enumerate(zip(planned, traces, strict=True)):
         if trace is None:
-            trace = source._physics(plan)
-        out.append(source._record(plan, *source._sense(plan, trace)))
-    return out
+            traces[k] = trace = source._physics(plan)
+        sensed.append(source._sense(plan, trace))
+    streams = sense_many([Sensing(trace, source.scene.taxels, source.scene.fingertip,
+                                  np.random.default_rng(plan.s_taxel), response, pose,
+                                  np.random.default_rng(plan.s_pose), latency)
+                          for (source, plan), (trace, pose, latency, response) in zip(planned, sensed, strict=True)])
+    return [source._record(plan, *seen, frames=frames, poses=poses)
+            for (source, plan), seen, (frames, poses) in zip(planned, sensed, streams, strict=True)]

@@ -53,10 +53,13 @@ def simulate_presses(specs: Sequence[PressSpec], backend: str = DEFAULT_BACKEND)
             raise ValidationError(f"simulate_presses: spec {k} must be a PressSpec, got {type(s).__name__}")
     laws: dict = {}
     planned = []
+    blas = None
     for k, s in enumerate(specs):
         group = _law_group(s, k)
         source, target = press_setup(s.young, s.poisson, s.fidelity, s.depth, s.speed, s.seed,
                                      laws=laws.setdefault(group, {}), **s.options)
+        # the process's BLAS libraries, found once for the batch rather than once per fresh source (a file read)
+        blas = source._blas = blas if blas is not None else source._blas_controller()
         planned.append((source, source._plan(target)))
     return run_planned(planned, physics)
 
