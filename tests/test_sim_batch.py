@@ -14,7 +14,14 @@ from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, Scene
 from palpate.sim.api import simulate_press
-from palpate.sim.batch import PressSpec, press_batch, register_backend, simulate_presses, unregister_backend
+from palpate.sim.batch import (
+    PressSpec,
+    press_across,
+    press_batch,
+    register_backend,
+    simulate_presses,
+    unregister_backend,
+)
 from palpate.sim.batch.analytic import cpu_analytic_traces
 from palpate.sim.source import SimSource
 
@@ -138,3 +145,20 @@ def test_other_rungs_fall_back_to_the_loop_inside_the_batch():
     assert len(calls) == 1 and len(calls[0]) == 2  # the rigid press ran alone, not on the backend
     for spec, rec in zip(specs, got, strict=True):
         assert_same(simulate_press(spec.young, spec.poisson, spec.fidelity, spec.depth, spec.speed, spec.seed), rec)
+
+
+def test_presses_across_sources_equal_each_sources_loop():
+    def sources():
+        mats = [Material("soft", 30e3, 0.45), Material("hard", 600e3, 0.3)]
+        return [SimSource(Scene((ObjectSpec("b", "box", (0.1, 0.1, 0.03), (0.0, 0.0), m),)), fidelity="analytic",
+                          seed=s, variability="human") for s, m in zip((1, 2), mats, strict=True)]
+
+    targets = [PressTarget(0.001 * k, 0.0, depth=0.002 + 0.0003 * k) for k in range(4)]
+    a, b = sources(), sources()
+    order = [(0, 0), (1, 0), (1, 1), (0, 1), (0, 2), (1, 2)]
+    expected = [a[s].press(targets[k]) for s, k in order]
+    got = press_across([(b[s], targets[k]) for s, k in order])
+    for x, y in zip(expected, got, strict=True):
+        assert_same(x, y)
+    with pytest.raises(ValidationError, match="item 0 must be a \\(SimSource, PressTarget\\) pair"):
+        press_across([targets[0]])

@@ -8,7 +8,9 @@ time, as :meth:`SimSource.press` runs them; every press is then sensed and recor
 
 from __future__ import annotations
 
+import gc
 from collections.abc import Sequence
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -41,17 +43,47 @@ def press_batch(source: SimSource, targets: Sequence[PressTarget],
             what :meth:`SimSource.press` raises for a press; the source has then planned every press up to the
             failing one (a loop would also have run their physics).
     """
+    return press_across([(source, t) for t in targets], backend)
+
+
+def press_across(pairs: Sequence[tuple[SimSource, PressTarget]],
+                 backend: str = DEFAULT_BACKEND) -> list[PressRecording]:
+    """``[source.press(target) for source, target in pairs]``: presses of several sources (the environments of a
+    vector, the variants of a sweep) in one batch, each source's presses in the order given (see
+    :func:`press_batch`)."""
     physics = resolve_backend(backend)
-    targets = list(targets)
-    for k, t in enumerate(targets):
-        if not isinstance(t, PressTarget):
-            raise ValidationError(f"press_batch: target {k} must be a PressTarget, got {type(t).__name__}")
-    return run_planned([(source, source._plan(t)) for t in targets], physics)
+    pairs = list(pairs)
+    for k, pair in enumerate(pairs):
+        if not (isinstance(pair, tuple) and len(pair) == 2 and isinstance(pair[0], SimSource)):
+            raise ValidationError(f"press_across: item {k} must be a (SimSource, PressTarget) pair, got "
+                                  f"{type(pair).__name__}")
+        if not isinstance(pair[1], PressTarget):
+            raise ValidationError(f"batched presses: target {k} must be a PressTarget, got {type(pair[1]).__name__}")
+    return run_planned([(source, source._plan(t)) for source, t in pairs], physics)
+
+
+@contextmanager
+def _collector_paused():
+    """The cyclic garbage collector paused (when it runs) while a batch builds its recordings: some 80 small objects
+    a press, none of them garbage, that a loop would hand out one press at a time but a batch keeps until the end,
+    so the collector would walk the growing heap of them again and again for nothing."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
 
 
 def run_planned(planned: Sequence[tuple[SimSource, PlannedPress]], physics) -> list[PressRecording]:
     """Run the physics of planned presses (analytic ones as one call of ``physics``, the rest one by one) and
     record each with its own source."""
+    with _collector_paused():
+        return _run_planned(planned, physics)
+
+
+def _run_planned(planned: Sequence[tuple[SimSource, PlannedPress]], physics) -> list[PressRecording]:
     traces: list = [None] * len(planned)
     batched = [i for i, (_, plan) in enumerate(planned) if plan.choice.fidelity in BATCHED_FIDELITIES]
     if batched:
