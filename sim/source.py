@@ -183,7 +183,11 @@ class SimSource:
         # the law a point gets is a function of its arguments and of what the cache holds: while the cache holds
         # the same laws (no solve since, here or in a source sharing it), the last answer for these arguments stands
         # (saves the lookup's material probe of every repeated press point)
-        key = (id(obj), obj, x, y, surface_z, max_depth)
+        key = (obj, x, y, surface_z, max_depth)
+        try:
+            hash(key)
+        except TypeError:  # an object that cannot be hashed (e.g. its material map): by identity, kept alive below
+            key = (id(obj), x, y, surface_z, max_depth)
         held = tuple(map(id, self._laws.values()))
         hit = self._law_memo.get(key)
         if hit is not None and hit[1] == held:
@@ -193,7 +197,7 @@ class SimSource:
         if len(self._law_memo) > 512:
             self._law_memo.clear()
         kept = tuple(self._laws.values())  # held, so that no id in the snapshot is reused while it is kept
-        self._law_memo[key] = (law, tuple(map(id, kept)), kept)
+        self._law_memo[key] = (law, tuple(map(id, kept)), kept, obj)
         return law
 
     def explain(self, target: PressTarget) -> Choice:

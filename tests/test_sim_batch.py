@@ -162,3 +162,16 @@ def test_presses_across_sources_equal_each_sources_loop():
         assert_same(x, y)
     with pytest.raises(ValidationError, match="item 0 must be a \\(SimSource, PressTarget\\) pair"):
         press_across([targets[0]])
+
+
+def test_a_kept_law_is_dropped_when_a_shared_cache_changes():
+    # two sources sharing one law cache: B's deeper press at the same point replaces the law A was given, and A's
+    # next press there is served what the cache now holds, as without the kept answer
+    laws: dict = {}
+    scene = Scene((ObjectSpec("b", "box", (0.1, 0.1, 0.03), (0.0, 0.0), Material("m", 5e4, 0.4)),))
+    a = SimSource(scene, fidelity="analytic", laws=laws)
+    b = SimSource(scene, fidelity="analytic", laws=laws)
+    first = a.press(PressTarget(0.0, 0.0, depth=0.002)).meta["physics"]["contact_law_max_depth"]
+    deeper = b.press(PressTarget(0.0, 0.0, depth=0.004)).meta["physics"]["contact_law_max_depth"]
+    again = a.press(PressTarget(0.0, 0.0, depth=0.002)).meta["physics"]["contact_law_max_depth"]
+    assert deeper > first and again == deeper

@@ -52,14 +52,20 @@ def simulate_presses(specs: Sequence[PressSpec], backend: str = DEFAULT_BACKEND)
         if not isinstance(s, PressSpec):
             raise ValidationError(f"simulate_presses: spec {k} must be a PressSpec, got {type(s).__name__}")
     laws: dict = {}
+    memos: dict = {}
+    pads: dict = {}
     planned = []
     blas = None
     for k, s in enumerate(specs):
         group = _law_group(s, k)
         source, target = press_setup(s.young, s.poisson, s.fidelity, s.depth, s.speed, s.seed,
                                      laws=laws.setdefault(group, {}), **s.options)
-        # the process's BLAS libraries, found once for the batch rather than once per fresh source (a file read)
+        # what fresh sources would each find alike, found once: the process's BLAS libraries (a file read), the
+        # pad's footprints (keyed on fingertip and contact centre), and, within a law group, the laws a press point
+        # was last given (kept only while the group's law cache is unchanged, see SimSource._law)
         blas = source._blas = blas if blas is not None else source._blas_controller()
+        source._pads = pads
+        source._law_memo = memos.setdefault(group, {})
         planned.append((source, source._plan(target)))
     return run_planned(planned, physics)
 
