@@ -11,7 +11,7 @@ the table and the reason it returns says where and with what predicted errors.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +30,7 @@ from palpate.sim.flex.model import SOLVER_ITERATIONS
 from palpate.sim.flex.press import run_flex_press
 from palpate.sim.flex.tables import FlexTables, load_flex_tables
 from palpate.sim.limits import MAX_DEPTH_OVER_THICKNESS, depth_refusal, layer_refusal, poisson_refusal
+from palpate.sim.planned import PlannedPress
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import resolve_profile
 from palpate.sim.realism.stage import RealismSession
@@ -45,27 +46,6 @@ from palpate.sim.validity.table import ValidityTable, load_table
 FIDELITIES = ("auto", "analytic", "bem", "rigid", "flex")
 #: Default tolerance of ``auto``: the largest predicted force error against the reference, fraction.
 DEFAULT_TOLERANCE = 0.05
-
-
-@dataclass(frozen=True)
-class PlannedPress:
-    """A press planned by a source, before its physics: what it presses, its trajectory (``profile`` as commanded,
-    ``physics_profile`` what the physics follows), its contact law when its rung uses one, its realism (or None),
-    its physics step (s) and profile seed, the seeds of its taxel and pose noise, and its index in the source."""
-
-    target: PressTarget
-    obj: ObjectSpec
-    choice: Choice
-    mesh: object
-    profile: PressProfile
-    physics_profile: PressProfile
-    law: object
-    real: object
-    timestep: float
-    seed: int
-    s_taxel: np.random.SeedSequence
-    s_pose: np.random.SeedSequence
-    index: int
 
 
 def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, *, tolerance: float = DEFAULT_TOLERANCE,

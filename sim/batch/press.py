@@ -20,7 +20,8 @@ from palpate.core.session.sources import PressTarget
 from palpate.sim.batch.analytic import AnalyticJob
 from palpate.sim.batch.backends import DEFAULT_BACKEND, resolve_backend
 from palpate.sim.batch.sensors import Sensing, sense_many
-from palpate.sim.source import PlannedPress, SimSource
+from palpate.sim.planned import PlannedPress
+from palpate.sim.source import SimSource
 
 #: The rungs whose physics a batch backend takes; the others run press by press.
 BATCHED_FIDELITIES = ("analytic",)
