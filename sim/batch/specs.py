@@ -34,6 +34,17 @@ class PressSpec:
     seed: int = 0
     options: dict = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        for name in ("young", "poisson", "speed") + (("depth",) if self.depth is not None else ()):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise ValidationError(f"PressSpec.{name} must be a number (SI units), got {value!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
+            raise ValidationError(f"PressSpec.seed must be an integer, got {self.seed!r}")
+        if not isinstance(self.options, dict):
+            raise ValidationError(f"PressSpec.options must be a dict of simulate_press's scene options, got "
+                                  f"{type(self.options).__name__}")
+
 
 def simulate_presses(specs: Sequence[PressSpec], backend: str = DEFAULT_BACKEND) -> list[PressRecording]:
     """``[simulate_press(...) for spec in specs]`` with the analytic presses' physics batched on ``backend``.
@@ -74,12 +85,12 @@ def _law_group(spec: PressSpec, index: int):
     """Specs with one key solve one contact law (a robot's press is the same whatever its seed); a spec with
     options that cannot be compared has a key of its own."""
     robot = spec.options.get("variability", "robot") == "robot"
+    if not all(np.isfinite(v) for v in (spec.young, spec.poisson, spec.speed)):
+        return ("own", index)  # simulate_press refuses it, with its own message
     try:
         key = (spec.young, spec.poisson, spec.fidelity, spec.depth, spec.speed, None if robot else spec.seed,
                tuple(sorted(spec.options.items())))
         hash(key)
     except TypeError:
         return ("own", index)
-    if not all(np.isfinite(v) for v in (spec.young, spec.poisson, spec.speed)):
-        return ("own", index)  # simulate_press refuses it, with its own message
     return key
