@@ -96,8 +96,13 @@ def taxel_frames(t: np.ndarray, counts: np.ndarray, sensel_area: float, sensor_i
         raise ValidationError("taxel_frames: every time must be finite")
     if not (np.isfinite(sensel_area) and sensel_area > 0):
         raise ValidationError(f"TaxelFrame.sensel_area must be a positive area in m^2, got {sensel_area!r}")
-    return [_trusted(TaxelFrame, t=ts, counts=c, sensel_area=sensel_area, sensor_id=sensor_id)
-            for ts, c in zip(t.tolist(), counts, strict=True)]
+    out = []
+    for ts, c in zip(t.tolist(), list(counts), strict=True):
+        frame = _new(TaxelFrame)
+        d = frame.__dict__
+        d["t"], d["counts"], d["sensel_area"], d["sensor_id"] = ts, c, sensel_area, sensor_id
+        out.append(frame)
+    return out
 
 
 def pose_samples(t: np.ndarray, position: np.ndarray, quaternion: np.ndarray, sensor_id: str = "pose") -> list[
@@ -118,15 +123,17 @@ def pose_samples(t: np.ndarray, position: np.ndarray, quaternion: np.ndarray, se
     if not np.all(np.isfinite(t)):
         raise ValidationError("pose_samples: every time must be finite")
     unit = quat / norm[:, None]
-    return [_trusted(PoseSample, t=ts, position=p, quaternion=q, sensor_id=sensor_id)
-            for ts, p, q in zip(t.tolist(), pos, unit, strict=True)]
+    out = []
+    for ts, p, q in zip(t.tolist(), list(pos), list(unit), strict=True):
+        sample = _new(PoseSample)
+        d = sample.__dict__
+        d["t"], d["position"], d["quaternion"], d["sensor_id"] = ts, p, q, sensor_id
+        out.append(sample)
+    return out
 
 
-def _trusted(cls, **fields):
-    """An instance of the frozen dataclass ``cls`` from fields already checked in bulk (no per-item checks)."""
-    obj = object.__new__(cls)
-    obj.__dict__.update(fields)
-    return obj
+#: An instance of a frozen dataclass without its __init__: the builders above fill its fields, checked in bulk.
+_new = object.__new__
 
 
 @dataclass(frozen=True)
