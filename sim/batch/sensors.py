@@ -77,19 +77,20 @@ def _taxels(items: Sequence[Sensing]) -> list[list[TaxelFrame]]:
                  for p, q, it in zip(np.split(flat, cut), queries, items, strict=True)]
     pressures = [p if it.response is None else it.response(q, p)
                  for p, q, it in zip(pressures, queries, items, strict=True)]
-    raw = []
+    every = np.concatenate(pressures)
+    if not np.all(np.isfinite(every)):
+        raise SimulationDiverged("non-finite sensel pressure reached the taxel model; reduce the timestep")
+    sizes = [len(q) for q in queries]
+    shape = (-1,) + (1,) * (every.ndim - 1)
+    raw = every * np.repeat([it.taxels.gain for it in items], sizes).reshape(shape)
+    start = 0
     for p, it in zip(pressures, items, strict=True):
-        if not np.all(np.isfinite(p)):
-            raise SimulationDiverged("non-finite sensel pressure reached the taxel model; reduce the timestep")
-        r = p * it.taxels.gain
-        if it.taxels.noise_std > 0:
-            r = r + it.taxels.noise_std * it.taxel_rng.standard_normal(p.shape)
-        raw.append(r)
+        if it.taxels.noise_std > 0:  # each press's own draw, in its order; p * gain + std * noise as one press adds
+            raw[start:start + len(p)] += it.taxels.noise_std * it.taxel_rng.standard_normal(p.shape)
+        start += len(p)
     # rounding, saturation and the threshold: elementwise over every press, each press's own threshold
-    counts = np.clip(np.rint(np.concatenate(raw)), 0, 255)
-    threshold = np.concatenate([np.full(len(q), float(it.taxels.threshold)) for q, it in zip(queries, items,
-                                                                                          strict=True)])
-    counts[counts <= threshold.reshape((-1,) + (1,) * (counts.ndim - 1))] = 0
+    counts = np.clip(np.rint(raw), 0, 255)
+    counts[counts <= np.repeat([float(it.taxels.threshold) for it in items], sizes).reshape(shape)] = 0
     counts = counts.astype(np.uint8)
     out, start = [], 0
     for q, it in zip(queries, items, strict=True):
