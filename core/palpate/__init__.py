@@ -46,8 +46,6 @@ _EXPORTS = {
     "CrossValidation": "palpate.core.perception.crossval",
     "PressRecording": "palpate.core.perception.streams",
     "PressResult": "palpate.core.perception.press",
-    "simulate_presses": "palpate.sim.batch",
-    "PressSpec": "palpate.sim.batch",
     "PalpateError": "palpate.core.errors",
     "ValidationError": "palpate.core.errors",
 }

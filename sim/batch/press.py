@@ -21,13 +21,12 @@ from palpate.sim.batch.analytic import AnalyticJob
 from palpate.sim.batch.backends import DEFAULT_BACKEND, resolve_backend
 from palpate.sim.batch.sensors import Sensing, sense_many
 from palpate.sim.planned import PlannedPress
-from palpate.sim.source import SimSource
 
 #: The rungs whose physics a batch backend takes; the others run press by press.
 BATCHED_FIDELITIES = ("analytic",)
 
 
-def press_batch(source: SimSource, targets: Sequence[PressTarget],
+def press_batch(source, targets: Sequence[PressTarget],
                 backend: str = DEFAULT_BACKEND) -> list[PressRecording]:
     """``[source.press(t) for t in targets]``, with the analytic presses' physics batched on ``backend``.
 
@@ -47,7 +46,7 @@ def press_batch(source: SimSource, targets: Sequence[PressTarget],
     return press_across([(source, t) for t in targets], backend)
 
 
-def press_across(pairs: Sequence[tuple[SimSource, PressTarget]],
+def press_across(pairs: Sequence[tuple[object, PressTarget]],
                  backend: str = DEFAULT_BACKEND) -> list[PressRecording]:
     """``[source.press(target) for source, target in pairs]``: presses of several sources (the environments of a
     vector, the variants of a sweep) in one batch, each source's presses in the order given (see
@@ -55,7 +54,8 @@ def press_across(pairs: Sequence[tuple[SimSource, PressTarget]],
     physics = resolve_backend(backend)
     pairs = list(pairs)
     for k, pair in enumerate(pairs):
-        if not (isinstance(pair, tuple) and len(pair) == 2 and isinstance(pair[0], SimSource)):
+        # a SimSource by what it does (this module is what SimSource.press_many calls: no import of it here)
+        if not (isinstance(pair, tuple) and len(pair) == 2 and callable(getattr(pair[0], "_plan", None))):
             raise ValidationError(f"press_across: item {k} must be a (SimSource, PressTarget) pair, got "
                                   f"{type(pair).__name__}")
         if not isinstance(pair[1], PressTarget):
@@ -77,14 +77,14 @@ def _collector_paused():
             gc.enable()
 
 
-def run_planned(planned: Sequence[tuple[SimSource, PlannedPress]], physics) -> list[PressRecording]:
+def run_planned(planned: Sequence[tuple[object, PlannedPress]], physics) -> list[PressRecording]:
     """Run the physics of planned presses (analytic ones as one call of ``physics``, the rest one by one) and
     record each with its own source."""
     with _collector_paused():
         return _run_planned(planned, physics)
 
 
-def _run_planned(planned: Sequence[tuple[SimSource, PlannedPress]], physics) -> list[PressRecording]:
+def _run_planned(planned: Sequence[tuple[object, PlannedPress]], physics) -> list[PressRecording]:
     traces: list = [None] * len(planned)
     batched = [i for i, (_, plan) in enumerate(planned) if plan.choice.fidelity in BATCHED_FIDELITIES]
     if batched:
