@@ -1,12 +1,13 @@
-"""Plugin registries: exploration policies, classifiers and per-press feature extractors found by name.
+"""Plugin registries: exploration policies, classifiers, per-press feature extractors and the backends of batched
+simulated presses, found by name.
 
 A name resolves, in this order, to palpate's own (built in), to one registered in this process
 (:func:`register`, e.g. ``palpate.register_policy``), or to an entry point of another installed distribution
-(groups ``palpate.policies``, ``palpate.classifiers``, ``palpate.features``). A built-in name cannot be taken; an
-in-process registration shadows an entry point of the same name. What each group's objects must be is the protocol
-of its module: :mod:`palpate.core.planning.registry` (policy factories),
+(groups ``palpate.policies``, ``palpate.classifiers``, ``palpate.features``, ``palpate.sim_backends``). A built-in
+name cannot be taken; an in-process registration shadows an entry point of the same name. What each group's objects
+must be is the protocol of its module: :mod:`palpate.core.planning.registry` (policy factories),
 :mod:`palpate.core.perception.classifier_memory` (classifier factories),
-:mod:`palpate.core.perception.feature_extractors` (extractors).
+:mod:`palpate.core.perception.feature_extractors` (extractors), ``palpate.sim.batch.backends`` (batch physics).
 
 The in-process registrations are the one piece of module state palpate keeps: a registry a user fills on purpose,
 read wherever a name is resolved (scenario loading, a run). :func:`unregister` removes one again.
@@ -51,8 +52,11 @@ POLICIES = Registry("palpate.policies", "exploration policy",
                     ("predefined", "raster", "random", "max_entropy", "info_gain"))
 CLASSIFIERS = Registry("palpate.classifiers", "classifier", ("haptic_memory",))
 FEATURES = Registry("palpate.features", "feature extractor", ("power_law",))
+#: physics of a batch of simulated presses (:mod:`palpate.sim.batch`); "cpu" is palpate's numpy backend
+SIM_BACKENDS = Registry("palpate.sim_backends", "batch simulation backend", ("cpu",))
 
-_REGISTERED: dict[str, dict[str, object]] = {POLICIES.group: {}, CLASSIFIERS.group: {}, FEATURES.group: {}}
+_REGISTERED: dict[str, dict[str, object]] = {POLICIES.group: {}, CLASSIFIERS.group: {}, FEATURES.group: {},
+                                              SIM_BACKENDS.group: {}}
 BUILTIN = "palpate"
 IN_PROCESS = "registered in process"
 

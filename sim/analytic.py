@@ -203,6 +203,26 @@ def local_material(obj: ObjectSpec, x: float, y: float, surface_z: float) -> Mat
     return mat
 
 
+@dataclass(frozen=True)
+class AnalyticSamples:
+    """One analytic press up to its sensel pressures: sample times ``t`` (n,) s, indentations ``depth`` (n,) m, tip
+    positions ``pos`` (n, 3) m, its contact ``law``, the material at the surface, the contact centre in the pad plane
+    (2,) m, the pad's sensel footprints ``bounds`` (rows, cols, 4) m and their :class:`PadSets`, the integration
+    order, the sampling rate (Hz) and the surface height (m)."""
+
+    t: np.ndarray
+    depth: np.ndarray
+    pos: np.ndarray
+    law: ContactLaw
+    material: Material
+    centre: np.ndarray
+    bounds: np.ndarray
+    pad: PadSets
+    order: int
+    rate: float
+    surface_z: float
+
+
 def run_analytic_press(
     scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None, order: int = 6,
     law: ContactLaw | None = None, pads: dict | None = None,
@@ -224,6 +244,17 @@ def run_analytic_press(
     Raises:
         ValidationError: a press deeper than 0.75 tip radii, or too short for the sampling rate.
     """
+    s = analytic_samples(scene, obj, profile, rate=rate, order=order, law=law, pads=pads)
+    pressure = law_sensel_pressure(s.law, s.depth, s.bounds, s.centre, order=s.order, pad=s.pad)
+    return analytic_trace(s, pressure)
+
+
+def analytic_samples(
+    scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None, order: int = 6,
+    law: ContactLaw | None = None, pads: dict | None = None,
+) -> AnalyticSamples:
+    """:func:`run_analytic_press` up to the sensel pressures (same arguments and refusals): a batch of presses
+    integrates the pressures of many at once (:mod:`palpate.sim.batch`)."""
     rate = scene.taxels.rate if rate is None else rate
     if not (np.isfinite(rate) and rate > 0):
         raise ValidationError(f"run_analytic_press: rate must be > 0 Hz, got {rate!r}")
@@ -243,7 +274,6 @@ def run_analytic_press(
     grid = profile.t[0] + np.arange(max(int(np.floor(profile.duration * rate)) + 1, 2)) / rate
     # the deepest point too, so the trace's peak is the press's (a taxel frame between samples interpolates)
     t = np.union1d(grid, [float(profile.t[int(np.argmin(profile.z))])])
-    n_samples = len(t)
     z = profile.at(t)
     depth = np.maximum(profile.surface_z + radius - z, 0.0)
     if law is None:
@@ -261,14 +291,19 @@ def run_analytic_press(
         found = (bounds, pad_sets(bounds, centre))
         if pads is not None:
             pads[key] = found
-    pressure = law_sensel_pressure(law, depth, found[0], centre, order=order, pad=found[1])
-    quat = np.tile([1.0, 0.0, 0.0, 0.0], (n_samples, 1))
+    return AnalyticSamples(t, depth, pos, law, mat, centre, found[0], found[1], int(order), float(rate),
+                           profile.surface_z)
+
+
+def analytic_trace(s: AnalyticSamples, pressure: np.ndarray) -> PhysicsTrace:
+    """The trace of an analytic press from its samples and its sensel pressures (n, rows, cols), Pa."""
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (len(s.t), 1))
     trace = PhysicsTrace(
-        t=t, tip_position=pos, tip_quaternion=quat, sensel_pressure=pressure,
-        force=law.force_at(depth), indentation=depth, surface_z=profile.surface_z,
-        material=mat.name,
-        meta={"fidelity": "analytic", "rate": float(rate), "young_eff_surface": float(mat.effective_modulus),
-              "order": int(order), "contact_law_max_depth": law.max_depth},
+        t=s.t, tip_position=s.pos, tip_quaternion=quat, sensel_pressure=pressure,
+        force=s.law.force_at(s.depth), indentation=s.depth, surface_z=s.surface_z,
+        material=s.material.name,
+        meta={"fidelity": "analytic", "rate": s.rate, "young_eff_surface": float(s.material.effective_modulus),
+              "order": s.order, "contact_law_max_depth": s.law.max_depth},
     )
     trace.check_finite()
     return trace

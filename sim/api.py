@@ -42,7 +42,15 @@ def simulate_press(
         ValidationError: bad options, or a press the fidelity does not hold (:mod:`palpate.sim.limits`: deeper than
             half the thickness, a Poisson ratio over 0.49 for flex or 0.4999 for the others), naming the limit.
     """
+    source, target = press_setup(young, poisson, fidelity, depth, speed, seed, **scene_options)
+    return source.press(target)
 
+
+def press_setup(young: float, poisson: float = 0.3, fidelity: str = "rigid", depth: float | None = 0.004,
+                speed: float = 0.01, seed: int = 0, *, laws: dict | None = None,
+                **scene_options) -> tuple[SimSource, PressTarget]:
+    """The fresh source and the target :func:`simulate_press` presses (same arguments; ``laws``: a contact-law
+    cache to give the source, see :class:`SimSource`)."""
     unknown = sorted(set(scene_options) - set(_OPTIONS))
     if unknown:
         raise ValidationError(f"simulate_press: unknown scene option(s) {unknown}; known: {list(_OPTIONS)}")
@@ -62,5 +70,5 @@ def simulate_press(
                          hold=float(scene_options.get("hold", 0.0)))
     extra = {k: scene_options[k] for k in ("max_steps", "tolerance", "flex_iterations") if k in scene_options}
     source = SimSource(scene, fidelity=fidelity, seed=seed, variability=scene_options.get("variability", "robot"),
-                       timestep=scene_options.get("timestep"), **extra)
-    return source.press(target)
+                       timestep=scene_options.get("timestep"), laws=laws, **extra)
+    return source, target

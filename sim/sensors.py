@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from palpate.core.errors import SimulationDiverged
-from palpate.core.perception.streams import GroundTruth, PoseSample, TaxelFrame
+from palpate.core.perception.streams import GroundTruth, PoseSample, TaxelFrame, pose_samples, taxel_frames
 from palpate.core.world.scene import FingertipSpec, PoseSensorSpec, TaxelSensorSpec
 from palpate.sim.trace import PhysicsTrace
 
@@ -60,12 +60,7 @@ def sample_taxels(
     pressure = _interp_rows(t_sim, trace.t, trace.sensel_pressure)
     if response is not None:
         pressure = response(t_sim, pressure)
-    counts = taxel_counts(pressure, spec, rng)
-    area = tip.sensel_area
-    return [
-        TaxelFrame(t=float(ts + spec.clock_offset), counts=c, sensel_area=area, sensor_id=sensor_id)
-        for ts, c in zip(t_sim, counts, strict=True)
-    ]
+    return taxel_frames(t_sim + spec.clock_offset, taxel_counts(pressure, spec, rng), tip.sensel_area, sensor_id)
 
 
 def _small_rotation(rng: np.random.Generator, n: int, std: float) -> np.ndarray:
@@ -112,10 +107,7 @@ def sample_poses(
         pos = pos + spec.noise_std * rng.standard_normal(pos.shape)
     quat = _interp_rows(t_seen, trace.t, trace.tip_quaternion)
     quat = _quat_mul(quat, _small_rotation(rng, len(t_true), ORIENTATION_NOISE))
-    return [
-        PoseSample(t=float(ts + spec.clock_offset), position=p, quaternion=q, sensor_id=sensor_id)
-        for ts, p, q in zip(t_true, pos, quat, strict=True)
-    ]
+    return pose_samples(t_true + spec.clock_offset, pos, quat, sensor_id)
 
 
 def ground_truth(trace: PhysicsTrace) -> GroundTruth:

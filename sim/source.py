@@ -30,6 +30,7 @@ from palpate.sim.flex.model import SOLVER_ITERATIONS
 from palpate.sim.flex.press import run_flex_press
 from palpate.sim.flex.tables import FlexTables, load_flex_tables
 from palpate.sim.limits import MAX_DEPTH_OVER_THICKNESS, depth_refusal, layer_refusal, poisson_refusal
+from palpate.sim.planned import PlannedPress
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import resolve_profile
 from palpate.sim.realism.stage import RealismSession
@@ -37,6 +38,7 @@ from palpate.sim.rigid import rigid_depth_for_force, run_rigid_press
 from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, check_iterations, law_depth
+from palpate.sim.trace import PhysicsTrace
 from palpate.sim.validity.choice import Choice, choose, situation
 from palpate.sim.validity.image_table import ImageTable, load_image_table
 from palpate.sim.validity.table import ValidityTable, load_table
@@ -134,6 +136,7 @@ class SimSource:
         self._meshes: dict = {}
         # contact laws by stack or press point (palpate.sim.contact.stack.point_law); given, shared with other sources
         self._laws: dict = {} if laws is None else laws
+        self._law_memo: dict = {}  # the last law of each press point's arguments, while the law cache is unchanged
         self._pads: dict = {}  # the pad's sensel footprints by fingertip and contact centre (analytic)
         self._rigid_models: dict = {}  # compiled rigid press models (palpate.sim.rigid.press_model)
         self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.press.run_flex_press)
@@ -157,8 +160,25 @@ class SimSource:
     def _law(self, obj: ObjectSpec, x: float, y: float, surface_z: float, max_depth: float):
         """The contact law at (x, y) (m), cached per press point; its FE solves (an inclusion, an edge within
         reach) run with BLAS on one thread."""
+        # the law a point gets is a function of its arguments and of what the cache holds: while the cache holds
+        # the same laws (no solve since, here or in a source sharing it), the last answer for these arguments stands
+        # (saves the lookup's material probe of every repeated press point)
+        key = (obj, x, y, surface_z, max_depth)
+        try:
+            hash(key)
+        except TypeError:  # an object that cannot be hashed (e.g. its material map): by identity, kept alive below
+            key = (id(obj), x, y, surface_z, max_depth)
+        held = tuple(map(id, self._laws.values()))
+        hit = self._law_memo.get(key)
+        if hit is not None and hit[1] == held:
+            return hit[0]
         with one_blas_thread(self._blas_controller()):
-            return object_law(obj, x, y, surface_z, self.scene.fingertip.radius, max_depth, cache=self._laws)
+            law = object_law(obj, x, y, surface_z, self.scene.fingertip.radius, max_depth, cache=self._laws)
+        if len(self._law_memo) > 512:
+            self._law_memo.clear()
+        kept = tuple(self._laws.values())  # held, so that no id in the snapshot is reused while it is kept
+        self._law_memo[key] = (law, tuple(map(id, kept)), kept, obj)
+        return law
 
     def explain(self, target: PressTarget) -> Choice:
         """The fidelity a press at ``target`` would use, and why (for ``auto``: the rule that chose it)."""
@@ -189,6 +209,19 @@ class SimSource:
 
     def press(self, target: PressTarget) -> PressRecording:
         """One press-and-release at ``target``: taxel frames, pose samples and ground truth."""
+        plan = self._plan(target)
+        return self._record(plan, *self._sense(plan, self._physics(plan)))
+
+    def press_many(self, targets, backend: str = "cpu") -> list[PressRecording]:
+        """``[self.press(t) for t in targets]``, the analytic presses' physics batched on ``backend``
+        (:func:`palpate.sim.batch.press_batch`)."""
+        from palpate.sim.batch.press import press_batch  # the batch module builds on this one
+
+        return press_batch(self, targets, backend)
+
+    def _plan(self, target: PressTarget) -> PlannedPress:
+        """Everything of a press before its physics, in press order (it draws the press's seeds and advances the
+        source's press count): :func:`palpate.sim.batch.simulate_presses` plans a batch with it."""
         obj = self.scene.object_under(target.x, target.y)
         if obj is None:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
@@ -281,6 +314,14 @@ class SimSource:
             # pulp and the softened material, applied after the physics: the physics is held to the depth alone
             physics_profile = real.object_profile(profile)
             physics_profile = replace(physics_profile, meta=dict(physics_profile.meta, force_target=None))
+        return PlannedPress(target, obj, choice, mesh, profile, physics_profile, law, real, timestep, seed, s_taxel,
+                            s_pose, self._presses - 1)
+
+    def _physics(self, plan: PlannedPress) -> PhysicsTrace:
+        """The press's physics at its fidelity (the one step a batch backend may take over for analytic presses)."""
+        obj, physics_profile, law, timestep, mesh = (plan.obj, plan.physics_profile, plan.law, plan.timestep,
+                                                      plan.mesh)
+        fidelity, target, seed = plan.choice.fidelity, plan.target, plan.seed
         if fidelity == "analytic":
             trace = run_analytic_press(self.scene, obj, physics_profile, law=law, pads=self._pads)
         elif fidelity == "bem":
@@ -301,16 +342,33 @@ class SimSource:
             trace = run_flex_press(self.scene, obj, target, physics_profile, timestep=self.timestep, seed=seed,
                                    models=self._flex_models, max_steps=self.max_steps,
                                    iterations=self.flex_iterations, tables=self._flex_tables)
+        return trace
+
+    def _sense(self, plan: PlannedPress, trace: PhysicsTrace):
+        """The trace as the sensors see it: (trace, pose spec, tracker latency s, taxel response or None) after the
+        press's realism, when it has one."""
+        real, profile = plan.real, plan.profile
         pose_spec, latency, response = self.scene.pose, 0.0, None
         if real is not None:
             trace = real.finish(trace, profile)
             pose_spec, latency, response = real.pose_spec(pose_spec), real.latency, real.taxel_response
-        frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(s_taxel), response=response)
-        poses = sample_poses(trace, pose_spec, np.random.default_rng(s_pose), latency=latency)
+        return trace, pose_spec, latency, response
+
+    def _record(self, plan: PlannedPress, trace: PhysicsTrace, pose_spec, latency: float, response,
+                frames=None, poses=None) -> PressRecording:
+        """The press's recording: its sensors sampled from ``trace`` (or the ``frames`` and ``poses`` a batch
+        sampled alike), ground truth and provenance."""
+        real, profile, target, obj = plan.real, plan.profile, plan.target, plan.obj
+        fidelity, choice, tip = plan.choice.fidelity, plan.choice, self.scene.fingertip
+        if frames is None:
+            frames = sample_taxels(trace, self.scene.taxels, tip, np.random.default_rng(plan.s_taxel),
+                                   response=response)
+        if poses is None:
+            poses = sample_poses(trace, pose_spec, np.random.default_rng(plan.s_pose), latency=latency)
         meta = {
             "source": "sim", "fidelity": fidelity, "fidelity_reason": choice.reason, "object": obj.name,
             "material": trace.material,
-            "seed": self.seed, "press_index": self._presses - 1,
+            "seed": self.seed, "press_index": plan.index,
             "target": {"x": target.x, "y": target.y, "depth": target.depth, "force": target.force,
                        "speed": target.speed, "hold": target.hold, "label": target.label},
             "profile": {k: v for k, v in profile.meta.items() if k != "phases"}, "phases": profile.meta["phases"],

@@ -223,8 +223,8 @@ class ExploreEnv(gym.Env):
 
 
 def make_vector_env(num_envs: int, scenario: str | Path | Scenario = DEFAULT_SCENARIO, **kwargs):
-    """``num_envs`` environments stepped together (gymnasium's SyncVectorEnv: palpate has no batched press, so
-    the presses of one vector step run one after another), sharing one memory trained once."""
+    """``num_envs`` environments stepped together (gymnasium's SyncVectorEnv: the presses of one vector step run
+    one after another), sharing one memory trained once."""
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise ValidationError(f"num_envs must be an integer >= 1, got {num_envs!r}")
     sc = _scenario(scenario)

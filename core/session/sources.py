@@ -64,6 +64,15 @@ class PressSource(Protocol):
         ...
 
 
+def press_all(source: PressSource, targets: list[PressTarget]) -> list[PressRecording]:
+    """``[source.press(t) for t in targets]``: in one call when the source batches (a ``press_many(targets)``
+    method, e.g. the simulated source's, whose results equal its loop's), press by press otherwise."""
+    many = getattr(source, "press_many", None)
+    if callable(many):
+        return list(many(targets))
+    return [source.press(t) for t in targets]
+
+
 def available_sources() -> dict[str, str]:
     """Names of registered sources mapped to their import paths."""
     return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}

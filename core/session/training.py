@@ -17,7 +17,7 @@ from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.press import PressResult, perceive_press
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
-from palpate.core.session.sources import PressTarget
+from palpate.core.session.sources import PressTarget, press_all
 from palpate.core.world.scenario import Scenario
 from palpate.core.world.scene import ObjectSpec
 
@@ -77,9 +77,10 @@ def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,
         source = make_source((block,), int(seeds[m]), tr.variability)
         results = []
         progress.start(f"training {name}", tr.presses_per_material)
-        for k in range(tr.presses_per_material):
-            rec = source.press(PressTarget(0.0, 0.0, depth=tr.depth, force=tr.max_force, speed=tr.speed,
-                                           label=f"{name}#{k + 1}"))
+        # a material's presses are known before any is perceived: a source that batches makes them in one call
+        recordings = press_all(source, [PressTarget(0.0, 0.0, depth=tr.depth, force=tr.max_force, speed=tr.speed,
+                                                    label=f"{name}#{k + 1}") for k in range(tr.presses_per_material)])
+        for k, rec in enumerate(recordings):
             if force:  # the explorer measures a force, not taxels: train on the force it would have measured
                 rec = with_force_channel(rec)
             if log is not None:
