@@ -19,7 +19,7 @@ DOCS = Path(__file__).resolve().parents[1] / "docs"
 EXTRA_MODULES = {"palpate.gym": "gymnasium", "palpate.core.session.explore_env": "gymnasium"}
 #: entry-point groups docs/api.md names: not importable names
 ENTRY_POINT_GROUPS = {"palpate.policies", "palpate.classifiers", "palpate.features", "palpate.commands",
-                      "palpate.sources", "palpate.actuators"}
+                      "palpate.sources", "palpate.actuators", "palpate.sim_backends"}
 
 
 def _build_api():
