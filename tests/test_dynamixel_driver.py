@@ -238,3 +238,13 @@ def test_corrupt_answers_at_open_are_named_as_such_not_as_a_wrong_baud_rate(plan
         with pytest.raises(DeviceError, match=r"servo id\(s\) \[1, 2\] .* only with corrupt packets") as info:
             DynamixelFinger(emu.port, BAUD, planar2).open()
     assert "baud" not in str(info.value) and "cable" in str(info.value)
+
+
+def test_a_longer_answer_timeout_still_names_a_missing_servo_and_bad_values_are_refused(planar2):
+    with ServoBusEmulator([1], baud=BAUD) as emu:
+        finger = DynamixelFinger(emu.port, BAUD, planar2, retries=1, answer_timeout=0.2)
+        with pytest.raises(LostServo, match=r"servo id\(s\) \[2\] did not answer"):
+            finger.open()
+    for bad in (0.0, -1.0, float("nan"), 11.0):
+        with pytest.raises(ValidationError, match="answer timeout"):
+            DynamixelFinger("/dev/null", BAUD, planar2, answer_timeout=bad)

@@ -30,7 +30,7 @@ import sys, time
 from palpate.hardware.dynamixel.driver import DynamixelFinger
 from palpate.hardware.dynamixel.finger import load_finger
 # no 'with', no close(); retries: the bus is another process on a machine the test may load heavily
-finger = DynamixelFinger(sys.argv[1], 1_000_000, load_finger(sys.argv[2]), retries=10).open()
+finger = DynamixelFinger(sys.argv[1], 1_000_000, load_finger(sys.argv[2]), retries=10, answer_timeout=1.0).open()
 finger.enable_torque()
 print("holding", flush=True)
 while True:
@@ -128,7 +128,9 @@ def test_the_record_command_killed_mid_press_leaves_torque_off_and_a_finished_re
     client = subprocess.Popen(
         [sys.executable, "-c", PALPATE, "record", "dynamixel", "--port", bus.port, "--finger",
          str(repo_dir / "models" / "fingers" / "planar2.toml"), "--seconds", "120", "--out", str(out),
-         "--press", "0.07", "--speed", "0.002", "--retries", "10"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+         "--press", "0.07", "--speed", "0.002", "--retries", "10",
+         # the bus is another process on a machine the test may load heavily: wait for its answers
+         "--answer-timeout-ms", "1000"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         text=True, preexec_fn=interruptible)
     log = _kill_when_holding(bus, client, sig)
     assert client.returncode == (130 if sig == signal.SIGINT else 128 + sig), client.stderr.read()

@@ -57,6 +57,9 @@ def register_cli(groups: dict) -> None:
                    help="start a servo emulator for the finger's ids, with an elastic surface at --surface-z")
     r.add_argument("--retries", type=int, default=3,
                    help="times a missing or corrupt answer is asked again before a servo counts as lost (default 3)")
+    r.add_argument("--answer-timeout-ms", type=float, metavar="MS",
+                   help="how long to wait for a servo's answer (default: dynamixel-sdk's, ~34 ms at 1 Mbaud); longer "
+                        "for a slow USB adapter")
     r.set_defaults(func=_cmd_record)
 
 
@@ -138,7 +141,9 @@ def _cmd_record(args) -> int:
                     "sources": {"dynamixel": {"port": port, "baud": args.baud, "finger": finger.name,
                                               "finger_file": args.finger, "emulated": bool(args.emulate)}}}
         writer = stack.enter_context(RecordingWriter(args.out, metadata))
-        driver = stack.enter_context(DynamixelFinger(port, args.baud, finger, clock=clock, retries=args.retries))
+        driver = stack.enter_context(DynamixelFinger(
+            port, args.baud, finger, clock=clock, retries=args.retries,
+            answer_timeout=None if args.answer_timeout_ms is None else args.answer_timeout_ms / 1000.0))
         t_start = clock()
         count = 0
         stop_reason = "duration"

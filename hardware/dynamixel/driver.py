@@ -63,14 +63,21 @@ class DynamixelFinger:
             ``cycle`` per state read, however loaded the machine is.
         cycle: shortest control cycle, s: :meth:`read_state` sleeps out the rest of the cycle on ``clock`` (a real
             bus usually takes about this long anyway; on a stepped clock this is what moves time on).
+        answer_timeout: how long to wait for a servo's answer, s (None: dynamixel-sdk's, ~34 ms at 1 Mbaud with a
+            16 ms USB latency timer). Longer for a slow adapter, or a bus served by another process on a loaded
+            machine; a silent servo then takes (retries + 1) x this to be declared lost.
 
     Use as a context manager: ``with DynamixelFinger(port, 1_000_000, finger) as f: f.press(...)``.
     """
 
     def __init__(self, port: str, baud: int, finger: FingerDescription, *, retries: int = 3,
-                 clock: Clock | Callable[[], float] | None = None, cycle: float = DEFAULT_CYCLE):
+                 clock: Clock | Callable[[], float] | None = None, cycle: float = DEFAULT_CYCLE,
+                 answer_timeout: float | None = None):
         if not (math.isfinite(cycle) and 0 < cycle <= 0.1):
             raise ValidationError(f"control cycle must be in (0, 0.1] s, got {cycle!r}")
+        if answer_timeout is not None and not (math.isfinite(answer_timeout) and 0 < answer_timeout <= 10):
+            raise ValidationError(f"answer timeout must be in (0, 10] s, got {answer_timeout!r}")
+        self.answer_timeout = answer_timeout
         self.port_name = str(port)
         self.baud = int(baud)
         self.finger = finger
@@ -118,8 +125,9 @@ class DynamixelFinger:
         # emulator thread in this process then waits for a turn (seen: a second on a loaded machine), and a real bus
         # burns a core. Reads that wait up to 1 ms for the bytes asked for release it meanwhile.
         port.ser.timeout = SERIAL_POLL
-        if self.clock.virtual:
-            port.setPacketTimeout = lambda _length: port.setPacketTimeoutMillis(VIRTUAL_ANSWER_TIMEOUT_MS)
+        if self.clock.virtual or self.answer_timeout is not None:
+            wait_ms = VIRTUAL_ANSWER_TIMEOUT_MS if self.answer_timeout is None else 1000.0 * self.answer_timeout
+            port.setPacketTimeout = lambda _length: port.setPacketTimeoutMillis(wait_ms)
         try:
             self._find_servos()
             self._configure()
