@@ -39,7 +39,7 @@ from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, check_iterations, law_depth
 from palpate.sim.trace import PhysicsTrace
-from palpate.sim.validity.choice import Choice, choose, situation
+from palpate.sim.validity.choice import UNCHECKED_IMAGE, Choice, choose, situation
 from palpate.sim.validity.image_table import ImageTable, load_image_table
 from palpate.sim.validity.table import ValidityTable, load_table
 
@@ -186,7 +186,9 @@ class SimSource:
         if obj is None:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
         if self.fidelity != "auto":
-            return Choice(self.fidelity, f"{obj.name}: fidelity {self.fidelity!r} set by the scenario")
+            note = UNCHECKED_IMAGE.get(self.fidelity)
+            return Choice(self.fidelity, f"{obj.name}: fidelity {self.fidelity!r} set by the scenario"
+                          + (f"; note: {note}" if note else ""))
         return self._auto(obj, target)
 
     def _auto(self, obj: ObjectSpec, target: PressTarget) -> Choice:

@@ -243,3 +243,15 @@ def test_a_wall_reaching_the_surface_is_a_wall_whatever_the_objects_height(heigh
     buried = ObjectSpec("l", "box", (0.2, 0.2, height), (0.0, 0.0), soft,
                         inclusions=(Inclusion(hard, "sphere", (0.004, 0.0, height - 0.006), (0.004,)),))
     assert situation(buried, 0.0, 0.0, height, 0.004, R).image == "lump"
+
+
+def test_a_reason_that_names_flex_says_its_image_is_not_checked():
+    block = ObjectSpec("b", "box", (0.1, 0.1, 0.03), (0.0, 0.0), Material("m", 1e5, 0.45))
+    scene = Scene(objects=(block,))
+    flex = SimSource(scene, fidelity="flex").explain(PressTarget(0.0, 0.0, depth=0.002))
+    assert "image is not checked" in flex.reason
+    assert "image is not checked" not in SimSource(scene, fidelity="analytic").explain(
+        PressTarget(0.0, 0.0, depth=0.002)).reason
+    table = _table(_row("thickness", 7.5, 0.2, 0.2, 0.01))
+    chosen = choose(table, Situation(thickness=7.5, poisson=0.3), 0.05, "Block")
+    assert chosen.fidelity == "flex" and "image is not checked" in chosen.reason

@@ -254,11 +254,26 @@ def _other_families(table: ValidityTable, sit: Situation, rung: str, skip: tuple
     return worst
 
 
+#: What a reason says when it names a rung whose taxel image the image table does not hold.
+UNCHECKED_IMAGE = {"rigid": None,
+                   "flex": "flex's taxel image is not checked against the FE (on a plain block its centre sensels read "
+                           "about half the FE's and its corners several times them): use its force, not its image"}
+
+
 def choose(table: ValidityTable, sit: Situation, tolerance: float, name: str,
            images: ImageTable | None = None) -> Choice:
     """The cheapest fidelity for a situation under ``tolerance`` (fraction), the reason and the predicted errors;
     ``name`` (the object's) starts the reason; ``images`` the image table (needed where the material changes off the
-    press axis)."""
+    press axis). A reason that names flex says its image is not checked."""
+    choice = _choose(table, sit, tolerance, name, images)
+    note = UNCHECKED_IMAGE.get(choice.fidelity)
+    if note is None:
+        return choice
+    return Choice(choice.fidelity, f"{choice.reason}; note: {note}", choice.predicted)
+
+
+def _choose(table: ValidityTable, sit: Situation, tolerance: float, name: str,
+            images: ImageTable | None = None) -> Choice:
     errs = predicted_errors(table, sit, images)
     where = ", ".join(f"{k} {sit.value(k):.2g}" for k in sit.families())
     if sit.image is not None and images is not None and images.measures(sit.image):
