@@ -1,0 +1,40 @@
+"""A run's predictive realism check: more simulated training sessions on fresh seeds, and whether the real table
+looks like one more of them (:mod:`palpate.core.perception.predictive_check`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from palpate.core.perception.param_stats import PressTable, table_from_fits
+from palpate.core.perception.predictive_check import predictive_check
+from palpate.core.session.progress import Progress
+from palpate.core.session.training import train_memory
+from palpate.core.world.scenario import Scenario
+
+#: Mixed into the seeds of the check's sessions, so they share no seed with the run's own presses.
+PREDICTIVE_STREAM = 0x5EED_C4EC
+
+
+def session_seeds(scenario: Scenario, sessions: int) -> np.ndarray:
+    """(sessions, M) the training seeds of each of the check's sessions (one per reference material)."""
+    ss = np.random.SeedSequence([PREDICTIVE_STREAM, int(scenario.seed)])
+    return np.array([c.generate_state(len(scenario.references)) for c in ss.spawn(sessions)])
+
+
+def predictive_report(scenario: Scenario, make_source, real: PressTable, progress: Progress) -> dict:
+    """Simulate ``scenario.realism.predictive_sessions`` training sessions as the run trains (the haptic memory's
+    leave-one-out on each) and judge ``real`` against them; the check's ``to_dict()`` with the sessions' dropped
+    presses (fit failed) per material."""
+    refs = list(scenario.references)
+    seeds = session_seeds(scenario, scenario.realism.predictive_sessions)
+    tables, loo, dropped = [], [], dict.fromkeys(refs, 0)
+    progress.start("predictive check sessions", len(seeds))
+    for k, s in enumerate(seeds):
+        result = train_memory(scenario, make_source, s, Progress(enabled=False))
+        tables.append(table_from_fits({name: [r.fit for r in rs] for name, rs in result.presses.items()}))
+        loo.append(np.diag(result.crossval.mean_posterior))
+        for name, n in result.dropped.items():
+            dropped[name] += n
+        progress.update(k + 1)
+    check = predictive_check(real, tables, refs, session_loo=np.array(loo))
+    return check.to_dict() | {"dropped_presses": dropped}
