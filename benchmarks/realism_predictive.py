@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core.errors import PalpateError
 from palpate.core.perception.param_stats import PARAM_INDEX, STAT_COLUMNS, PressTable, table_from_csv
 from palpate.core.perception.predictive_check import PredictiveCheck, predictive_check
 from palpate.core.perception.realism_targets import loo_self
@@ -180,16 +181,22 @@ def shipped(sessions: int, fidelity: str | None, cache: Path | None) -> None:
         print(f"read {len(tables)} sessions from {cache}")
     else:
         profile = resolve_profile(scenario.realism.profile)
-        tables, rows, dropped = [], [], 0
+        tables, rows, dropped, failed = [], [], 0, []
         for seed in range(1001, 1001 + sessions):
-            run = simulate_seed(scenario, profile, seed, fid)
+            try:
+                run = simulate_seed(scenario, profile, seed, fid)
+            except PalpateError as err:  # a session the simulation cannot finish is said, not judged
+                failed.append(seed)
+                print(f"  seed {seed}: {err}", flush=True)
+                continue
             tables.append(run.table)
             dropped += sum(run.dropped.values())
             rows += [[seed, m, k + 1, *r] for m in refs for k, r in enumerate(run.table.of(m))]
             if len(tables) % 10 == 0:
                 print(f"  {len(tables)} sessions, {time.perf_counter() - t0:.0f} s", flush=True)
         print(f"simulated {len(tables)} sessions of profile {profile.name} ({fid}) in "
-              f"{time.perf_counter() - t0:.0f} s; {dropped} presses dropped (fit failed)")
+              f"{time.perf_counter() - t0:.0f} s; {dropped} presses dropped (fit failed); {len(failed)} sessions "
+              f"failed {failed}")
         if cache is not None:
             write_presses(cache, rows)
     tables = tables[:sessions]

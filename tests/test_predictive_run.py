@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from palpate.core.errors import PalpateError, ValidationError
+from palpate.core.errors import PalpateError, PressShortfall, ValidationError
 from palpate.core.perception.param_stats import STAT_COLUMNS, table_from_csv, table_from_fits
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.progress import Progress
@@ -116,7 +116,20 @@ def test_run_reports_the_predictive_check_and_dropped_presses(tmp_path):
     doc = predictive_report(sc, make, table_from_csv(real_path), Progress(enabled=False))
     json.dumps(doc, allow_nan=False)
     assert doc["sessions"] == 20 and set(doc["materials"]) == {"soft", "hard"}
-    assert doc["dropped_presses"] == {"soft": 0, "hard": 0}
+    assert doc["dropped_presses"] == {"soft": 0, "hard": 0} and doc["failed_sessions"] == []
+    # a session the simulation cannot finish is left out and said; too few left is an error naming the option
+    broken = {int(session_seeds(sc, 20)[3][1])}
+
+    def failing(objects, s, v):
+        if s in broken:
+            raise PressShortfall("the drive cannot follow this press")
+        return make(objects, s, v)
+
+    sc21 = _scenario({"real_params": str(real_path), "predictive_sessions": 21}, presses=6)
+    assert predictive_report(sc21, failing, table_from_csv(real_path), Progress(enabled=False))["failed_sessions"] \
+        == ["the drive cannot follow this press"]
+    with pytest.raises(ValidationError, match="19 simulated sessions; at least 20"):
+        predictive_report(sc, failing, table_from_csv(real_path), Progress(enabled=False))
     tripled = real_path.with_name("tripled.csv")
     _write_table(tripled, type(real)(real.materials, tuple(r * np.array([3, 1, 1, 1, 1, 1]) for r in real.rows)))
     bad = predictive_report(sc, make, table_from_csv(tripled), Progress(enabled=False))

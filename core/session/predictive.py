@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from palpate.core.errors import PalpateError
 from palpate.core.perception.param_stats import PressTable, table_from_fits
 from palpate.core.perception.predictive_check import predictive_check
 from palpate.core.session.progress import Progress
@@ -24,17 +25,26 @@ def session_seeds(scenario: Scenario, sessions: int) -> np.ndarray:
 def predictive_report(scenario: Scenario, make_source, real: PressTable, progress: Progress) -> dict:
     """Simulate ``scenario.realism.predictive_sessions`` training sessions as the run trains (the haptic memory's
     leave-one-out on each) and judge ``real`` against them; the check's ``to_dict()`` with the sessions' dropped
-    presses (fit failed) per material."""
+    presses (fit failed) per material and the sessions the simulation could not finish (their error, left out of
+    the check)."""
     refs = list(scenario.references)
     seeds = session_seeds(scenario, scenario.realism.predictive_sessions)
-    tables, loo, dropped = [], [], dict.fromkeys(refs, 0)
+    tables, loo, dropped, failed = [], [], dict.fromkeys(refs, 0), []
     progress.start("predictive check sessions", len(seeds))
     for k, s in enumerate(seeds):
-        result = train_memory(scenario, make_source, s, Progress(enabled=False))
+        try:
+            result = train_memory(scenario, make_source, s, Progress(enabled=False))
+        except PalpateError as err:  # e.g. a press the drive cannot follow: said, and the session left out
+            failed.append(str(err))
+            progress.update(k + 1)
+            continue
         tables.append(table_from_fits({name: [r.fit for r in rs] for name, rs in result.presses.items()}))
         loo.append(np.diag(result.crossval.mean_posterior))
         for name, n in result.dropped.items():
             dropped[name] += n
         progress.update(k + 1)
+    if failed:
+        progress.message(f"predictive check: {len(failed)} of {len(seeds)} sessions failed and are left out "
+                         f"(first: {failed[0]})")
     check = predictive_check(real, tables, refs, session_loo=np.array(loo))
-    return check.to_dict() | {"dropped_presses": dropped}
+    return check.to_dict() | {"dropped_presses": dropped, "failed_sessions": failed}
