@@ -14,6 +14,7 @@ profile (seeds 1001..1000+S: neither tuning, report nor main-job seeds) and judg
 printing per material the classifier accuracy, the energy distance and its rank, and the bands.
 
     .venv/bin/python benchmarks/realism_predictive.py [--trials 100] [--sessions 100] [--rng 0]
+        [--truths "simulator,0.6x spread"]
     .venv/bin/python benchmarks/realism_predictive.py --shipped [--sessions 100] [--fidelity analytic]
         [--presses-csv CACHE.csv]
 
@@ -114,14 +115,14 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return centre - half, centre + half
 
 
-def size_and_power(trials: int, sessions: int, seed: int) -> None:
+def size_and_power(trials: int, sessions: int, seed: int, truths: Sequence[str] = tuple(TRUTHS)) -> None:
     """Print, per truth, the share of trials judged right (pass for the simulator, fail otherwise)."""
     g = fitted_gaussians(table_from_csv(REAL))
     print(f"size and power: {trials} trials per truth, S = {sessions} fresh sessions each, rng {seed}")
     print(f"{'truth':<16}{'judged right':>14}{'95% interval':>18}{'c2st fail':>11}{'energy fail':>13}"
           f"{'bands fail':>12}{'s':>7}")
-    for k, truth in enumerate(TRUTHS):
-        rng = np.random.default_rng([seed, k])
+    for truth in truths:
+        rng = np.random.default_rng([seed, list(TRUTHS).index(truth)])
         t0 = time.perf_counter()
         checks = [trial(g, truth, sessions, rng) for _ in range(trials)]
         right = sum(c.passed == (truth == "simulator") for c in checks)
@@ -209,6 +210,7 @@ def main() -> int:
     ap.add_argument("--trials", type=int, default=100)
     ap.add_argument("--sessions", type=int, default=100)
     ap.add_argument("--rng", type=int, default=0)
+    ap.add_argument("--truths", default=",".join(TRUTHS), help=f"comma-separated, of: {', '.join(TRUTHS)}")
     ap.add_argument("--shipped", action="store_true", help="judge the shipped profile instead")
     ap.add_argument("--fidelity", help="fidelity of the shipped profile's sessions (default: the scenario's)")
     ap.add_argument("--presses-csv", type=Path, help="read the sessions from (or write them to) this CSV")
@@ -216,7 +218,10 @@ def main() -> int:
     if args.shipped:
         shipped(args.sessions, args.fidelity, args.presses_csv)
     else:
-        size_and_power(args.trials, args.sessions, args.rng)
+        truths = [t.strip() for t in args.truths.split(",")]
+        if any(t not in TRUTHS for t in truths):
+            ap.error(f"--truths: one of {', '.join(TRUTHS)}")
+        size_and_power(args.trials, args.sessions, args.rng, truths)
     return 0
 
 

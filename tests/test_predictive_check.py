@@ -81,7 +81,7 @@ def test_errors_name_the_limit():
     with pytest.raises(ValidationError, match=f"at least {MIN_SESSIONS} are needed"):
         predictive_check(real, [_gauss_table(rng) for _ in range(MIN_SESSIONS - 1)], ("A", "B"))
     short = PressTable(("A", "B"), (real.rows[0][:2], real.rows[1]))
-    with pytest.raises(ValidationError, match="2 presses of 'A'; at least 3"):
+    with pytest.raises(ValidationError, match="2 presses of 'A'; at least 4"):
         predictive_check(short, [_gauss_table(rng) for _ in range(MIN_SESSIONS)], ("A", "B"))
     with pytest.raises(ValidationError, match="leave-one-out posteriors of shape"):
         predictive_check(real, [_gauss_table(rng) for _ in range(MIN_SESSIONS)], ("A", "B"),

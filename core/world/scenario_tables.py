@@ -12,7 +12,6 @@ from palpate.core import files, limits
 from palpate.core.errors import ValidationError
 from palpate.core.files import brief
 from palpate.core.names import check_name
-from palpate.core.perception.predictive_check import MIN_SESSIONS
 from palpate.core.world.haptic_material import HapticMaterialMap
 from palpate.core.world.scenario import MaterialEntry, ObjectEntry, RealismSpec
 from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec
@@ -56,9 +55,13 @@ def realism_spec(r: TableReader, base: Path) -> RealismSpec:
     sessions = r.get("predictive_sessions", int, 0)
     if sessions and real_path is None:
         raise r.err("predictive_sessions", "judges the simulation against a real table: give real_params too")
-    if sessions and not MIN_SESSIONS <= sessions <= MAX_PREDICTIVE_SESSIONS:
-        raise r.err("predictive_sessions", f"must be 0 (off) or {MIN_SESSIONS}-{MAX_PREDICTIVE_SESSIONS}, "
-                    f"got {sessions}")
+    if sessions:
+        # lazily: loading a scenario that asks for no check leaves the statistics modules unloaded
+        from palpate.core.perception.predictive_check import MIN_SESSIONS
+
+        if not MIN_SESSIONS <= sessions <= MAX_PREDICTIVE_SESSIONS:
+            raise r.err("predictive_sessions", f"must be 0 (off) or {MIN_SESSIONS}-{MAX_PREDICTIVE_SESSIONS}, "
+                        f"got {sessions}")
     r.finish()
     return RealismSpec(profile, real_path, sessions)
 
