@@ -141,7 +141,7 @@ def test_moving_a_table_of_the_simulator_in_n1_fails_both_tests_of_every_materia
     # the same real presses, moved 3 of the simulator's standard deviations in n1
     g = fitted_gaussians(table_from_csv(REAL))
     rng = np.random.default_rng(21)
-    tables, loo = draw_sessions(g, 40, rng)
+    tables, loo = draw_sessions(g, MIN_SESSIONS, rng)
     real = draw_table(g, rng)
     check = predictive_check(real, tables, g.materials, session_loo=loo)
     moved = PressTable(real.materials, tuple(r + np.array([3 * np.sqrt(c[0, 0]), 0, 0, 0, 0, 0])

@@ -46,8 +46,8 @@ def _write_table(path, table):
 
 
 @pytest.mark.parametrize("realism, match", [
-    ({"predictive_sessions": 30}, "predictive_sessions: judges the simulation against a real table"),
-    ({"predictive_sessions": 5, "real_params": "REAL"}, "predictive_sessions: must be 0 \\(off\\) or 20-"),
+    ({"predictive_sessions": 100}, "predictive_sessions: judges the simulation against a real table"),
+    ({"predictive_sessions": 5, "real_params": "REAL"}, "predictive_sessions: must be 0 \\(off\\) or 100-"),
     ({"predictive_sessions": 2.5, "real_params": "REAL"}, "predictive_sessions: expected"),
 ])
 def test_scenario_refuses_a_check_it_cannot_run(tmp_path, realism, match):
@@ -100,40 +100,48 @@ def test_training_counts_the_presses_whose_fit_failed():
 
 
 @pytest.mark.physics
-def test_run_reports_the_predictive_check_and_dropped_presses(tmp_path):
-    from palpate.core.session.predictive import predictive_report, session_seeds
+def test_run_simulates_the_sessions_and_judges_a_table_against_them(tmp_path):
+    from palpate.core.perception.predictive_check import MIN_SESSIONS, predictive_check
+    from palpate.core.session.predictive import predictive_report, session_seeds, simulate_sessions
     from palpate.core.session.sources import scenario_source_maker
 
-    # "real" presses: one more session of the same simulator (another seed), and the same presses with n1 tripled
+    # "real" presses: one more session of the same simulator (its own seeds), and the same presses with n1 tripled
     sc = _scenario(presses=6)
     make = scenario_source_maker(sc)
     session = train_memory(sc, make, [901, 902], Progress(enabled=False))
     real = table_from_fits({n: [r.fit for r in rs] for n, rs in session.presses.items()})
     real_path = tmp_path / "real.csv"
     _write_table(real_path, real)
-    sc = _scenario({"real_params": str(real_path), "predictive_sessions": 20}, presses=6)
-    assert session_seeds(sc, 20).shape == (20, 2) and len({tuple(s) for s in session_seeds(sc, 20)}) == 20
-    doc = predictive_report(sc, make, table_from_csv(real_path), Progress(enabled=False))
-    json.dumps(doc, allow_nan=False)
-    assert doc["sessions"] == 20 and set(doc["materials"]) == {"soft", "hard"}
-    assert doc["dropped_presses"] == {"soft": 0, "hard": 0} and doc["failed_sessions"] == []
-    # a session the simulation cannot finish is left out and said; too few left is an error naming the option
-    broken = {int(session_seeds(sc, 20)[3][1])}
+    tripled = type(real)(real.materials, tuple(r * np.array([3, 1, 1, 1, 1, 1]) for r in real.rows))
+
+    seeds = session_seeds(sc, MIN_SESSIONS + 1)
+    assert seeds.shape == (MIN_SESSIONS + 1, 2) and len({tuple(s) for s in seeds}) == MIN_SESSIONS + 1
+    assert np.array_equal(session_seeds(sc, 5), seeds[:5])
+    # a session the simulation cannot finish is left out and said
+    broken = {int(seeds[3][1])}
 
     def failing(objects, s, v):
         if s in broken:
             raise PressShortfall("the drive cannot follow this press")
         return make(objects, s, v)
 
-    sc21 = _scenario({"real_params": str(real_path), "predictive_sessions": 21}, presses=6)
-    assert predictive_report(sc21, failing, table_from_csv(real_path), Progress(enabled=False))["failed_sessions"] \
-        == ["the drive cannot follow this press"]
-    with pytest.raises(ValidationError, match="19 simulated sessions; at least 20"):
+    sim = simulate_sessions(sc, failing, MIN_SESSIONS + 1, Progress(enabled=False))
+    assert len(sim.tables) == MIN_SESSIONS and sim.failed == ("the drive cannot follow this press",)
+    assert sim.loo.shape == (MIN_SESSIONS, 2) and sim.dropped == {"soft": 0, "hard": 0}
+    own = predictive_check(table_from_csv(real_path), sim.tables, sc.references, session_loo=sim.loo)
+    assert all(m.energy < float(np.max(m.energy_sessions)) for m in own.materials)
+    worse = predictive_check(tripled, sim.tables, sc.references, session_loo=sim.loo)
+    assert not worse.passed and not any(worse.material_passed(m) for m in sc.references)
+    assert all(not m.energy_passed for m in worse.materials)
+
+    # the run's entry: the check's dict with the sessions' dropped presses and failures; too few left is an error
+    sc = _scenario({"real_params": str(real_path), "predictive_sessions": MIN_SESSIONS + 1}, presses=6)
+    doc = predictive_report(sc, failing, table_from_csv(real_path), Progress(enabled=False))
+    json.dumps(doc, allow_nan=False)
+    assert doc["sessions"] == MIN_SESSIONS and doc["failed_sessions"] == ["the drive cannot follow this press"]
+    assert doc["passed"] == own.passed and set(doc["materials"]) == {"soft", "hard"}
+    summary = sim_to_real_summary(real, table_from_csv(real_path), real_path) | {"predictive_check": doc}
+    assert ("PASS" if own.passed else "FAIL") in format_predictive(summary["predictive_check"])
+    sc = _scenario({"real_params": str(real_path), "predictive_sessions": MIN_SESSIONS}, presses=6)
+    with pytest.raises(ValidationError, match=f"{MIN_SESSIONS - 1} simulated sessions; at least {MIN_SESSIONS}"):
         predictive_report(sc, failing, table_from_csv(real_path), Progress(enabled=False))
-    tripled = real_path.with_name("tripled.csv")
-    _write_table(tripled, type(real)(real.materials, tuple(r * np.array([3, 1, 1, 1, 1, 1]) for r in real.rows)))
-    bad = predictive_report(sc, make, table_from_csv(tripled), Progress(enabled=False))
-    assert not bad["passed"] and not any(m["passed"] for m in bad["materials"].values())
-    assert all(not m["energy"]["passed"] for m in bad["materials"].values())
-    summary = sim_to_real_summary(real, table_from_csv(real_path), real_path) | {"predictive_check": bad}
-    assert "FAIL" in format_predictive(summary["predictive_check"])

@@ -3,6 +3,8 @@ looks like one more of them (:mod:`palpate.core.perception.predictive_check`).""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from palpate.core.errors import PalpateError
@@ -22,13 +24,22 @@ def session_seeds(scenario: Scenario, sessions: int) -> np.ndarray:
     return np.array([c.generate_state(len(scenario.references)) for c in ss.spawn(sessions)])
 
 
-def predictive_report(scenario: Scenario, make_source, real: PressTable, progress: Progress) -> dict:
-    """Simulate ``scenario.realism.predictive_sessions`` training sessions as the run trains (the haptic memory's
-    leave-one-out on each) and judge ``real`` against them; the check's ``to_dict()`` with the sessions' dropped
-    presses (fit failed) per material and the sessions the simulation could not finish (their error, left out of
-    the check)."""
+@dataclass(frozen=True)
+class Sessions:
+    """The check's simulated sessions: their tables, (S, M) leave-one-out self posteriors, presses dropped per
+    material (fit failed) and the errors of the sessions the simulation could not finish (left out)."""
+
+    tables: tuple[PressTable, ...]
+    loo: np.ndarray
+    dropped: dict[str, int]
+    failed: tuple[str, ...]
+
+
+def simulate_sessions(scenario: Scenario, make_source, sessions: int, progress: Progress) -> Sessions:
+    """``sessions`` training sessions as the run trains (the haptic memory's leave-one-out on each), on
+    :func:`session_seeds`."""
     refs = list(scenario.references)
-    seeds = session_seeds(scenario, scenario.realism.predictive_sessions)
+    seeds = session_seeds(scenario, sessions)
     tables, loo, dropped, failed = [], [], dict.fromkeys(refs, 0), []
     progress.start("predictive check sessions", len(seeds))
     for k, s in enumerate(seeds):
@@ -46,5 +57,12 @@ def predictive_report(scenario: Scenario, make_source, real: PressTable, progres
     if failed:
         progress.message(f"predictive check: {len(failed)} of {len(seeds)} sessions failed and are left out "
                          f"(first: {failed[0]})")
-    check = predictive_check(real, tables, refs, session_loo=np.array(loo))
-    return check.to_dict() | {"dropped_presses": dropped, "failed_sessions": failed}
+    return Sessions(tuple(tables), np.array(loo).reshape(len(tables), len(refs)), dropped, tuple(failed))
+
+
+def predictive_report(scenario: Scenario, make_source, real: PressTable, progress: Progress) -> dict:
+    """Simulate ``scenario.realism.predictive_sessions`` sessions (:func:`simulate_sessions`) and judge ``real``
+    against them: the check's ``to_dict()`` with the sessions' ``dropped_presses`` and ``failed_sessions``."""
+    sim = simulate_sessions(scenario, make_source, scenario.realism.predictive_sessions, progress)
+    check = predictive_check(real, sim.tables, list(scenario.references), session_loo=sim.loo)
+    return check.to_dict() | {"dropped_presses": sim.dropped, "failed_sessions": list(sim.failed)}

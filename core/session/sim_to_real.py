@@ -72,7 +72,7 @@ def format_sim_to_real(doc: dict) -> str:
 def format_predictive(check: dict | None) -> str:
     """The predictive check's verdict per material, as printed (one line when it was not run)."""
     if check is None:
-        return "Predictive check: not run ([realism] predictive_sessions = S >= 20 runs it on S fresh sessions)"
+        return "Predictive check: not run ([realism] predictive_sessions = S >= 100 runs it on S fresh sessions)"
     lines = [f"Predictive check (real table vs {check['sessions']} fresh simulated sessions): "
              f"{'PASS' if check['passed'] else 'FAIL'}, {check['band_misses']} decisive band(s) missed (1 allowed)"]
     for name, m in check["materials"].items():
