@@ -115,7 +115,7 @@ def main() -> int:
     passed = np.zeros((len(refs), len(TARGETS)), dtype=int)
     # per material, per seed: mean a1, mean a2, share of a2 < 0, leave-one-out self posterior
     cutaneous: dict[str, list[list[float]]] = {name: [] for name in refs}
-    rows = []
+    rows, dropped = [], 0
     for seed in seeds:
         t0 = time.perf_counter()
         run = simulate_seed(scenario, profile, seed, scenario.fidelity)
@@ -133,12 +133,17 @@ def main() -> int:
                          f"{check.negative_n2[i]:+.0f}{miss[2]} loo {run.loo_self[i]:.2f}{miss[3]} | "
                          f"a1 {np.mean(sim[:, 3]):.2f} a2 {np.mean(sim[:, 4]):+.0f} a2<0 {np.mean(sim[:, 4] < 0):.1f}")
         mark = " (tuning seed)" if seed in tuned else ""
+        lost = ", ".join(f"{n} {k}" for n, k in run.dropped.items() if k)
+        mark += f" (presses dropped, fit failed: {lost})" if lost else ""
+        dropped += sum(run.dropped.values())
         print(f"seed {seed}{mark} [{time.perf_counter() - t0:.1f} s]\n  " + "\n  ".join(flags))
     print(f"targets held on {len(seeds)} seeds ('!' marks a miss):")
     for i, name in enumerate(refs):
         for j, target in enumerate(TARGETS):
             print(f"  {name + ' ' + target:<24} {passed[i, j]}/{len(seeds)}")
     print(f"  {'all':<24} {passed.sum()}/{len(seeds) * passed.size}")
+    total = len(seeds) * len(refs) * scenario.training.presses_per_material
+    print(f"presses dropped (fit failed): {dropped} of {total}")
     if args.write_presses:
         write_presses(args.write_presses, rows)
         print(f"wrote the {len(rows)} simulated presses to {args.write_presses}")

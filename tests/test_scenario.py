@@ -66,7 +66,7 @@ def test_minimal_scenario_converts_units():
         (lambda d: d["objects"][0].update(size_mm=[50, 50]), "objects[0].size_mm", "expected 3 numbers"),
         (lambda d: d["objects"][0].update(material="steel"), "objects[0].material", "unknown material"),
         (lambda d: d["objects"][0].update(regions=[[0, 1]]), "objects[0].regions[0]", "1-based"),
-        (lambda d: d.update(training={"presses_per_material": 1}), "training.presses_per_material", ">= 3"),
+        (lambda d: d.update(training={"presses_per_material": 3}), "training.presses_per_material", ">= 4"),
         (lambda d: d.update(exploration={"map": "octree"}), "exploration.map", "must be one of"),
         (lambda d: d["materials"][0].update(reference=False), "materials[0].like", "missing"),
         (lambda d: d.pop("scenario"), "scenario", "missing"),

@@ -57,6 +57,7 @@ from palpate.core.session.figure_jobs import (
 )
 from palpate.core.session.output_guard import check_output_file, prepare_output_folder
 from palpate.core.session.outputs import write_maps
+from palpate.core.session.predictive import predictive_report
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import (
@@ -74,7 +75,7 @@ from palpate.core.session.report import (
 from palpate.core.session.report import versions as _versions
 from palpate.core.session.sim_to_real import sim_to_real_summary
 from palpate.core.session.sources import PressTarget, scenario_source_maker
-from palpate.core.session.training import TrainingResult, run_seeds, train_memory
+from palpate.core.session.training import TrainingResult, dropped_message, run_seeds, train_memory
 from palpate.core.world.scenario import ObjectEntry, Scenario
 from palpate.core.world.workspace import map_geometries
 
@@ -208,11 +209,14 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         real = table_from_csv(scenario.realism.real_params)
         sim = table_from_fits({name: [r.fit for r in rs] for name, rs in presses.items()})
         sim_to_real = sim_to_real_summary(sim, real, scenario.realism.real_params)
+        if scenario.realism.predictive_sessions:
+            sim_to_real["predictive_check"] = predictive_report(scenario, make_source, real, progress)
         if draw and compared_materials(sim, real):
             drawer.submit([FigureJob("sim_vs_real.png", plot_sim_vs_real, (sim, real, memory.ddof))])
     timing["training_s"] = time.perf_counter() - t0
     cpu["training_s"] = time.process_time() - c0
     if training is not None:
+        _warn(progress, dropped_message(training.dropped, scenario.training.presses_per_material))
         for name, rs in training.presses.items():
             _warn(progress, saturation_warning(f"training {name}", saturation(rs)))
             _warn(progress, solver_warning(f"training {name}", solver_warnings(rs)))
@@ -293,6 +297,8 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
             "accuracy": {m: float(np.asarray(crossval.confusion)[i, i]) for i, m in enumerate(scenario.references)},
         },
         "training": {name: [fit_summary(r.fit) for r in rs] for name, rs in presses.items()},
+        # presses without a fit are left out of the memory and the tables: how many, per material
+        "training_dropped": None if training is None else training.dropped,
         "training_saturation": {name: saturation(rs).to_dict() for name, rs in presses.items()},
         "training_solver_warnings": {name: solver_warnings(rs).to_dict() for name, rs in presses.items()},
         "realism": scenario.realism.profile,

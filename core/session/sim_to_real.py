@@ -6,6 +6,10 @@ distance between the two distributions: the energy distance of the standardised 
 (:func:`~palpate.core.perception.param_stats.material_distance`; 0 = the same distribution; two samples of 10 from
 one distribution typically give ~0.1-0.3). It also says, per material, how far the simulated CVs of n1 and a1 are
 from the real ones (ratio) and how many more presses of 10 have n2 < 0 (the realism targets).
+
+One session of 10 presses per material says little about the simulator; with ``[realism] predictive_sessions`` the
+run adds the predictive check (:mod:`palpate.core.session.predictive`): per material a verdict on whether the real
+table looks like one more of that many fresh simulated sessions (``predictive_check``; null when off).
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ def _stats(s: ColumnStats) -> dict:
 
 def sim_to_real_summary(sim: PressTable, real: PressTable, real_file: str | Path) -> dict:
     """The report as summary.json holds it (``materials``: one entry per material found in both tables)."""
-    out: dict = {"real_table": str(real_file), "distance": DISTANCE, "materials": {}}
+    out: dict = {"real_table": str(real_file), "distance": DISTANCE, "materials": {}, "predictive_check": None}
     for name in sim.materials:
         if name not in real.materials:
             continue
@@ -61,4 +65,23 @@ def format_sim_to_real(doc: dict) -> str:
         lines.append(f"{'':14}energy distance {m['energy_distance']:.2f}; CV ratio sim/real n1 "
                      f"{_num(m['cv_ratio_n1'], '.2f')}, a1 {_num(m['cv_ratio_a1'], '.2f')}; "
                      f"n2 < 0: {m['negative_n2_per_10_difference']:+.1f} per 10 presses")
+    lines.append(format_predictive(doc.get("predictive_check")))
+    return "\n".join(lines)
+
+
+def format_predictive(check: dict | None) -> str:
+    """The predictive check's verdict per material, as printed (one line when it was not run)."""
+    if check is None:
+        return "Predictive check: not run ([realism] predictive_sessions = S >= 100 runs it on S fresh sessions)"
+    lines = [f"Predictive check (real table vs {check['sessions']} fresh simulated sessions): "
+             f"{'PASS' if check['passed'] else 'FAIL'}, {check['band_misses']} decisive band(s) missed (1 allowed)"]
+    for name, m in check["materials"].items():
+        c, e = m["c2st"], m["energy"]
+        out = [k for k, b in m["bands"].items() if b["decisive"] and not b["inside"]]
+        lines.append(f"  {name:<12} {'pass' if m['passed'] else 'FAIL'}: classifier accuracy {c['accuracy']:.2f} "
+                     f"(max {c['max']:.2f}), energy distance {e['real']:.2f} (sessions' max {e['sessions_max']:.2f}, "
+                     f"p {e['p']:.3f}), bands missed: {', '.join(out) or 'none'}")
+    dropped = sum(check.get("dropped_presses", {}).values())
+    if dropped:
+        lines.append(f"  {dropped} simulated press(es) dropped (fit failed)")
     return "\n".join(lines)

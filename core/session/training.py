@@ -13,7 +13,7 @@ from palpate.core.perception.classifier_memory import ClassifierMemory
 from palpate.core.perception.crossval import CrossValidation, leave_one_out
 from palpate.core.perception.feature_extractors import extractor_name
 from palpate.core.perception.force_channel import with_force_channel
-from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.memory import MIN_SAMPLES, HapticMemory
 from palpate.core.perception.press import PressResult, perceive_press
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
@@ -22,8 +22,9 @@ from palpate.core.world.scenario import Scenario
 from palpate.core.world.scene import ObjectSpec
 
 TRAINING_BLOCK = (0.08, 0.08, 0.04)  # m: a thick sample of each reference material, as in seed 000 Fig. 6.7
-#: Fewest fitted presses of a material that training accepts (a 2-D Gaussian needs 3).
-MIN_FITTED = 3
+#: Fewest fitted presses of a material that training accepts: a 2-D Gaussian needs MIN_SAMPLES, and leave-one-out
+#: holds one more out.
+MIN_FITTED = MIN_SAMPLES + 1
 
 
 def run_seeds(scenario: Scenario) -> np.ndarray:
@@ -46,6 +47,24 @@ class TrainingResult:
     crossval: CrossValidation
     presses: dict[str, tuple[PressResult, ...]]
     readings: dict[str, tuple] = field(default_factory=dict)
+
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Per material, the presses left out of the memory because no 3/2-power fit was found (their reasons are
+        in each press's ``rejected``)."""
+        return dropped_presses(self.presses)
+
+
+def dropped_presses(presses: dict[str, tuple[PressResult, ...]]) -> dict[str, int]:
+    """Per material, how many of ``presses`` have no fit (the memory and its tables leave them out)."""
+    return {name: sum(r.fit is None for r in rs) for name, rs in presses.items()}
+
+
+def dropped_message(dropped: dict[str, int], presses_per_material: int) -> str | None:
+    """A one-line warning naming the materials that lost presses, or None when none did."""
+    lost = [f"{name} {n} of {presses_per_material}" for name, n in dropped.items() if n]
+    return None if not lost else ("training: presses dropped because their fit failed: " + ", ".join(lost)
+                                  + " (summary.json training_dropped)")
 
 
 def train_memory(scenario: Scenario, make_source, seeds, progress: Progress,

@@ -112,10 +112,15 @@ class RealismSpec:
             simulation validates it when it opens the source.
         real_params: a per-press parameter table of real presses of the reference materials (the CSV of
             ``palpate memory``); when given, the run reports the simulated training presses against it.
+        predictive_sessions: with ``real_params``, simulate this many more training sessions (fresh seeds) and
+            judge whether the real table looks like one more of them
+            (:func:`~palpate.core.perception.predictive_check.predictive_check`); 0: off (each session costs a
+            training's presses).
     """
 
     profile: str = "ideal"
     real_params: Path | None = None
+    predictive_sessions: int = 0
 
 
 @dataclass(frozen=True)

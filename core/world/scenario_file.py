@@ -19,6 +19,7 @@ from palpate.core.files import read_toml
 from palpate.core.mapping.calibration import DEFAULT_CALIBRATION, MapCalibration
 from palpate.core.mapping.geometry import MAP_KINDS
 from palpate.core.names import check_name, unique_stems
+from palpate.core.perception.memory import MIN_SAMPLES
 from palpate.core.planning.info_gain import OBJECTIVES
 from palpate.core.planning.registry import policy_names
 from palpate.core.world.actuator_kinds import SIM, actuator_names, load_actuator_kind, owner_of
@@ -147,8 +148,9 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
 
     tr = top.sub("training")
     memory = tr.get("memory", str, "")
+    # a material's Gaussian needs MIN_SAMPLES presses and leave-one-out holds one more out
     training = TrainingSpec(
-        presses_per_material=tr.integer("presses_per_material", 10, lo=3, hi=MAX_PRESSES),
+        presses_per_material=tr.integer("presses_per_material", 10, lo=MIN_SAMPLES + 1, hi=MAX_PRESSES),
         depth=tr.number("depth_mm", 4.0, lo=0.0, lo_open=True, hi=MAX_TOOL_MM) * 1e-3,
         max_force=optional_force(tr),
         speed=tr.number("speed_mm_s", 10.0, lo=0.0, lo_open=True, hi=MAX_SPEED_MM_S) * 1e-3,

@@ -23,6 +23,8 @@ MAX_FORCE_N = 1e4
 MAX_SIZE_MM, MAX_POSITION_MM = 1e4, 1e5
 #: Cells along one side of a map (the product is bounded by the limit ``map_cells``).
 MAX_CELLS_SIDE = 1_000_000
+#: Most simulated sessions a run's predictive realism check may ask for (each is a training's presses).
+MAX_PREDICTIVE_SESSIONS = 10_000
 
 
 def training_source(r: TableReader) -> str:
@@ -50,8 +52,18 @@ def realism_spec(r: TableReader, base: Path) -> RealismSpec:
     real_path = resolve_path(base, real) if real else None
     if real_path is not None and not real_path.is_file():
         raise r.err("real_params", f"per-press parameter table {real_path} not found")
+    sessions = r.get("predictive_sessions", int, 0)
+    if sessions and real_path is None:
+        raise r.err("predictive_sessions", "judges the simulation against a real table: give real_params too")
+    if sessions:
+        # lazily: loading a scenario that asks for no check leaves the statistics modules unloaded
+        from palpate.core.perception.predictive_check import MIN_SESSIONS
+
+        if not MIN_SESSIONS <= sessions <= MAX_PREDICTIVE_SESSIONS:
+            raise r.err("predictive_sessions", f"must be 0 (off) or {MIN_SESSIONS}-{MAX_PREDICTIVE_SESSIONS}, "
+                        f"got {sessions}")
     r.finish()
-    return RealismSpec(profile, real_path)
+    return RealismSpec(profile, real_path, sessions)
 
 
 def optional_force(r: TableReader) -> float | None:

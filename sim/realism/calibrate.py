@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -214,11 +214,13 @@ def real_moments(table: PressTable, materials: Sequence[str]) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SeedRun:
-    """One simulated training session of every reference material: its table and its leave-one-out diagonal."""
+    """One simulated training session of every reference material: its table, its leave-one-out diagonal and, per
+    material, the presses left out of the table because their fit failed."""
 
     seed: int
     table: PressTable
     loo_self: np.ndarray
+    dropped: dict[str, int] = field(default_factory=dict)
 
 
 def realism_source_maker(scenario: Scenario, profile: RealismProfile, fidelity: str):
@@ -239,7 +241,7 @@ def simulate_seed(scenario: Scenario, profile: RealismProfile, seed: int, fideli
     result = train_memory(sc, realism_source_maker(scenario, profile, fidelity), training_seeds(sc),
                           Progress(enabled=False))
     table = table_from_fits({name: [r.fit for r in rs] for name, rs in result.presses.items()})
-    return SeedRun(int(seed), table, np.diag(result.crossval.mean_posterior).copy())
+    return SeedRun(int(seed), table, np.diag(result.crossval.mean_posterior).copy(), result.dropped)
 
 
 def sim_moments(runs: Sequence[SeedRun], materials: Sequence[str], references: Sequence[str],
