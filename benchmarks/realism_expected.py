@@ -9,7 +9,7 @@ press groups) with replacement, pools them and recomputes the expectation. Sever
 resampled on the same seed indices and drawn with the same uniforms (common random numbers), so their differences
 are paired. The Monte Carlo variance of each resample's finite draws is subtracted from the resamples' spread.
 
-Validation printed alongside (docs/results.md, "Deciding by the expected score"): each population's mean per-seed
+Validation printed alongside (docs/results.md, "Realism"): each population's mean per-seed
 count with its seed-bootstrap s.e. and the difference per-seed - pooled with its own; ``--perfect N`` adds N
 synthetic seeds drawn from the real table (a perfect simulator, whose expectation realism_ceiling.py gives) as a
 population.

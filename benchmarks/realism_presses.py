@@ -7,7 +7,7 @@ of the peak frame, the fit's n1, n2 (counts: its sign is the realism targets' n2
 ``a1 / (n1 (c_D / c_A)^1.5)``. When the patch covers the pad before the press ends, both fits end at the same c_P,
 so a1 / n1 is (c_D / c_A)^1.5 at the deepest point whatever the pad's gain, non-linearity or saturation and the
 material's modulus: the last column stays near 1 and a1 follows n1 and where the press stops (docs/results.md,
-"The shipped profile"). The last lines give per material the means over the seeds.
+"Realism"). The last lines give per material the means over the seeds.
 
     .venv/bin/python benchmarks/realism_presses.py [--seeds 101,102,103,104] [--scenario S.toml]
         [--profile NAME_OR_PATH] [--set KEY=VALUE ...] [--scenario-set training.depth_mm=1.8 ...] [--quiet]

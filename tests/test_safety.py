@@ -131,7 +131,8 @@ def test_replay_writes_names_from_a_recording_inside_the_output(tiny_run, tmp_pa
     assert new and all(out in p.parents or p == out or p in out.parents for p in new)
     assert not Path("/tmp/palpate_evil_abs").exists()
     stems = sorted(p.name for p in (out / "maps").iterdir())
-    assert stems == [f"{file_stem(name)}{s}" for s in (".json", ".npz", "_postprocessed.json", "_postprocessed.npz")]
+    assert stems == [f"{file_stem(name)}{s}" for s in (".json", ".npz", "_fine.npz", "_postprocessed.json",
+                                                       "_postprocessed.npz")]
     assert json.loads((out / "summary.json").read_text())["objects"][0]["name"] == name
 
 

@@ -58,7 +58,7 @@ def boundary_reader(scenario: Scenario):
     if not pad_matches(templates, scenario.fingertip):
         return None, ("the shipped boundary templates are for another pad (make templates for this one with "
                       "benchmarks/boundary_templates.py)")
-    return functools.partial(read_press, templates=templates, noise=noise_of(scenario.taxels)), None
+    return functools.partial(_read_or_none, templates=templates, noise=noise_of(scenario.taxels)), None
 
 
 #: Points within this distance of a true boundary are "near" it in the calibration summary, m.
@@ -89,7 +89,16 @@ def replay_reader(metadata: dict, where: str):
         templates = shipped_templates()
     except ValidationError:
         return None
-    return functools.partial(read_press, templates=templates, noise=noise)
+    return functools.partial(_read_or_none, templates=templates, noise=noise)
+
+
+def _read_or_none(recording, result, *, templates: BoundaryTemplates, noise: NoiseModel):
+    """:func:`read_press`, or None for a press whose streams the templates cannot read (another pad's sensels: a
+    finger without a pad reports its force on a stand-in one)."""
+    try:
+        return read_press(recording, result, templates, noise)
+    except ValidationError:
+        return None
 
 
 def training_moduli(readings: dict[str, tuple]) -> MaterialModuli | None:
