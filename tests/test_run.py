@@ -241,3 +241,26 @@ def test_run_writes_a_fine_map_and_replay_rebuilds_it_bit_for_bit(small_run, tmp
                      "--quiet"]) == 0
         with np.load(tmp_path / "maps" / "slab_fine.npz", allow_pickle=False) as replayed:
             np.testing.assert_array_equal(replayed["probabilities"], p)
+
+
+def test_the_recorded_pad_hangs_in_the_transform_tree_under_the_fingertip(small_run):
+    from mcap.reader import make_reader
+
+    _, _, out = small_run
+    tf, parents = [], {}
+    with open(out / "run.mcap", "rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages():
+            msg = json.loads(message.data)
+            if channel.topic.startswith("/tf/"):
+                assert schema.name == "foxglove.FrameTransform"
+                tf.append(msg)
+            elif channel.topic.startswith("/pose/"):
+                parents[msg["child_frame_id"]] = msg["parent_frame_id"]
+            elif channel.topic.startswith("/taxels/"):
+                pad = msg["frame_id"]
+    (pad_tf,) = tf  # once per pad
+    # exactly Foxglove's FrameTransform fields
+    assert set(pad_tf) == {"timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"}
+    assert pad_tf["child_frame_id"] == pad and parents[pad_tf["parent_frame_id"]] == "world"
+    assert pad_tf["translation"] == {"x": 0.0, "y": 0.0, "z": -0.008}  # the sphere's bottom: the default 8 mm tip
+    assert pad_tf["rotation"] == {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}

@@ -53,6 +53,14 @@ def pose_message(sample: PoseSample, ns: int, sensor_id: str) -> dict:
             "t": float(sample.t)}
 
 
+def pad_message(ns: int, pose_id: str, taxel_id: str, offset: tuple[float, float, float]) -> dict:
+    """``foxglove.FrameTransform`` placing the pad's frame ``taxel_id`` in the pose sensor's frame ``pose_id``
+    (``offset``: the pad's centre in that frame, m; its axes the sensor's), exactly Foxglove's fields."""
+    x, y, z = (float(v) for v in offset)
+    return {"timestamp": stamp(ns), "parent_frame_id": pose_id, "child_frame_id": taxel_id,
+            "translation": {"x": x, "y": y, "z": z}, "rotation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
+
+
 def _describe(kind: str, data: dict) -> str:
     """A one-line, readable form of an event for Foxglove's Log panel."""
     parts = []

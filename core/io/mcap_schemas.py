@@ -26,6 +26,8 @@ topic                        schema                        fields (SI units) bes
                                                            ``P_<material>`` field each, ``entropy`` (float32),
                                                            ``explored`` (uint8)
 ``/scene``                   ``foxglove.SceneUpdate``      each object as an entity (its box or cylinder)
+``/tf/<pad sensor_id>``      ``foxglove.FrameTransform``   once: the pad's frame in the first pose sensor's
+                                                           (Foxglove's fields only; written by runs)
 ===========================  ============================  ==================================================
 
 Times: each message's ``log_time`` and Foxglove ``timestamp`` are ``round(t * 1e9)`` ns, so ``t`` must be >= 0;

@@ -4,6 +4,7 @@ the same messages to a live view (see :mod:`~palpate.core.io.mcap_schemas` for t
 from __future__ import annotations
 
 import json
+import math
 import platform
 import sys
 import time
@@ -92,10 +93,14 @@ class RecordingWriter:
             last one, so a slow stream (annotations, 1 Hz poses) is not held in memory for long.
         fsync: also fsync after each chunk (survives power loss, not just a process crash; slower).
         live: also send every message to this live view.
+        pad_offset: where each tactile pad's centre sits in the first pose sensor's frame, m (a run tracks the
+            fingertip sphere's centre: (0, 0, -radius)); written once per pad as ``/tf/<pad>`` so that the pad's
+            images hang in the transform tree. None (a rig whose marker-to-pad offset is not known): no transform.
     """
 
     def __init__(self, path, metadata: dict, *, chunk_size: int = 8192, flush_interval: float = 1.0,
-                 fsync: bool = False, live: LiveSink | None = None):
+                 fsync: bool = False, live: LiveSink | None = None,
+                 pad_offset: tuple[float, float, float] | None = None):
         if not isinstance(metadata, dict):
             raise ValidationError(f"recording metadata must be a dict, got {type(metadata).__name__}")
         entries = {}
@@ -135,6 +140,12 @@ class RecordingWriter:
         self._last_flush = time.monotonic()
         self._closed = False
         self.message_count = 0
+        if pad_offset is not None and (len(pad_offset) != 3 or not all(
+                math.isfinite(float(v)) and abs(float(v)) < 1.0 for v in pad_offset)):
+            raise ValidationError(f"pad_offset must be three finite lengths under 1 m, got {pad_offset!r}")
+        self.pad_offset = None if pad_offset is None else tuple(float(v) for v in pad_offset)
+        self._pose_ids: list[str] = []
+        self._taxel_ids: list[str] = []
 
     def __enter__(self) -> RecordingWriter:
         return self
@@ -188,6 +199,10 @@ class RecordingWriter:
         topic = f"/taxels/{sid}"
         ns = fm.time_ns(frame.t, topic)
         self._write(topic, "foxglove.RawImage", ns, fm.taxel_message(frame, ns, sid))
+        if sid not in self._taxel_ids:
+            self._taxel_ids.append(sid)
+            if self._pose_ids:
+                self._place_pads(ns, self._pose_ids[0], [sid])
 
     def write_pose(self, sample: PoseSample) -> None:
         """Append one pose sample on ``/pose/<sample.sensor_id>`` (the sensor's frame in ``world``)."""
@@ -197,6 +212,18 @@ class RecordingWriter:
         topic = f"/pose/{sid}"
         ns = fm.time_ns(sample.t, topic)
         self._write(topic, "foxglove.FrameTransform", ns, fm.pose_message(sample, ns, sid))
+        if sid not in self._pose_ids:
+            self._pose_ids.append(sid)
+            if len(self._pose_ids) == 1:
+                self._place_pads(ns, sid, self._taxel_ids)
+
+    def _place_pads(self, ns: int, pose_id: str, taxel_ids: list[str]) -> None:
+        # each pad's frame joins the transform tree once, under the first pose sensor seen: world -> pose -> taxels
+        if self.pad_offset is None:
+            return
+        for taxel_id in taxel_ids:
+            self._write(f"/tf/{taxel_id}", "foxglove.FrameTransform", ns,
+                        fm.pad_message(ns, pose_id, taxel_id, self.pad_offset))
 
     def write_joint_state(self, t, names, position, velocity, current) -> None:
         """Append joint readings on ``/joints``: positions rad, velocities rad/s, currents A (one per name)."""

@@ -29,11 +29,12 @@ class PressLog:
 
     GAP = 1.0  # s of silence between presses
 
-    def __init__(self, path: Path | None = None, metadata: dict | None = None, live=None):
+    def __init__(self, path: Path | None = None, metadata: dict | None = None, live=None,
+                 pad_offset: tuple[float, float, float] | None = None):
         self.clock = 0.0
         self.writer = None
         if path is not None or live is not None:
-            self.writer = RecordingWriter(path, metadata or {}, live=live)
+            self.writer = RecordingWriter(path, metadata or {}, live=live, pad_offset=pad_offset)
 
     def add(self, rec, info: dict):
         """Shift ``rec`` to start at the current clock, record it with a ``press`` annotation, return it."""

@@ -127,7 +127,9 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                         "maps": {name: g.to_dict() for name, g in geometries.items()},
                         "map_calibration": scenario.exploration.calibration.to_dict(),
                         "map_postprocessing": MapPostprocessing.of(scenario.exploration).to_dict(),
-                        NOISE_KEY: noise_metadata(scenario)}, live=live)
+                        NOISE_KEY: noise_metadata(scenario)}, live=live,
+                       # the tracked point is the fingertip sphere's centre; the pad lies at its bottom
+                       pad_offset=(0.0, 0.0, -scenario.fingertip.radius))
         try:
             return _run(scenario, out, progress, *makers, seeds, log, classifier, origins)
         finally:
