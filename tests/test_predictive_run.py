@@ -61,6 +61,8 @@ def test_scenario_refuses_a_check_it_cannot_run(tmp_path, realism, match):
 class _Failing:
     """A source whose pad reads nothing (no press to fit) on its presses numbered in ``fail``."""
 
+    press_many = None  # press by press, so that each press passes through press() (training batches otherwise)
+
     def __init__(self, inner, fail):
         self.inner, self.fail, self.k = inner, fail, 0
 
