@@ -8,6 +8,7 @@ import pytest
 
 from palpate.core.cli import main
 from palpate.core.mapping.grids import Grid2D
+from palpate.core.world.haptic_material import HapticMaterialMap
 from palpate.core.world.scenario_file import parse_scenario
 
 SMALL = """
@@ -241,6 +242,10 @@ def test_run_writes_a_fine_map_and_replay_rebuilds_it_bit_for_bit(small_run, tmp
                      "--quiet"]) == 0
         with np.load(tmp_path / "maps" / "slab_fine.npz", allow_pickle=False) as replayed:
             np.testing.assert_array_equal(replayed["probabilities"], p)
+        # and in seed 002's format at its own resolution, read back by palpate's own reader
+        hm = HapticMaterialMap.read(out / "haptic_materials" / "slab_fine")
+        assert hm.cell_size == pytest.approx(0.001) and hm.probabilities.shape == p.shape
+        np.testing.assert_allclose(hm.probabilities, p, atol=1 / 255 + 1e-9)
 
 
 def test_the_recorded_pad_hangs_in_the_transform_tree_under_the_fingertip(small_run):

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
+from palpate.core import __version__
 from palpate.core.boundary.moduli import MaterialModuli, material_moduli
 from palpate.core.boundary.press import read_press
 from palpate.core.boundary.reading import NoiseModel
@@ -25,6 +26,7 @@ from palpate.core.files import writing
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
 from palpate.core.mapping.fine import FineMap, boundary_error, edges, fine_map
 from palpate.core.perception.streams import SATURATED
+from palpate.core.world.haptic_material import HapticMaterialMap
 from palpate.core.world.resources import models_dir
 from palpate.core.world.scenario import ObjectEntry, Scenario
 from palpate.core.world.scene import FingertipSpec, TaxelSensorSpec
@@ -156,6 +158,15 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
 
 def _finite(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
+
+
+def export_fine_map(folder: Path, fine: FineMap, name: str, scenario: Scenario) -> Path:
+    """The fine map in seed 002's haptic-material format at its own resolution (probabilities only; the palpation
+    features stay with the cell map's export)."""
+    hm = HapticMaterialMap(tuple(fine.origin), float(fine.resolution), list(fine.materials), fine.probabilities,
+                           meta={"object": name, "scenario": scenario.name, "palpate": __version__,
+                                 "layer": "fine map from the presses' boundary readings"})
+    return hm.write(folder)
 
 
 def save_fine_map(path: Path, fine: FineMap) -> None:

@@ -39,6 +39,7 @@ from palpate.core.session.actuators import open_actuators
 from palpate.core.session.boundaries import (
     NOISE_KEY,
     boundary_reader,
+    export_fine_map,
     fine_truth,
     noise_metadata,
     object_fine_map,
@@ -261,6 +262,9 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
     for obj, entry, fine in zip(objects, scenario.objects, fines, strict=True):
         if fine is not None:
             save_fine_map(inside(out, out / "maps" / f"{file_stem(obj.name)}_fine.npz"), fine.fine)
+            if scenario.outputs.haptic_material:
+                export_fine_map(inside(out, out / "haptic_materials" / f"{file_stem(obj.name)}_fine"), fine.fine,
+                                obj.name, scenario)
             if draw:
                 drawer.submit([fine_map_job(obj, fine.fine, fine_truth(entry, scenario, fine.fine))])
     timing["maps_s"] = time.perf_counter() - t0
