@@ -269,3 +269,13 @@ def test_the_recorded_pad_hangs_in_the_transform_tree_under_the_fingertip(small_
     assert pad_tf["child_frame_id"] == pad and parents[pad_tf["parent_frame_id"]] == "world"
     assert pad_tf["translation"] == {"x": 0.0, "y": 0.0, "z": -0.008}  # the sphere's bottom: the default 8 mm tip
     assert pad_tf["rotation"] == {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+
+
+def test_the_recording_shows_the_fine_map_at_its_own_resolution(small_run):
+    from mcap.reader import make_reader
+
+    _, _, out = small_run
+    with open(out / "run.mcap", "rb") as f:
+        grids = [json.loads(m.data) for _, c, m in make_reader(f).iter_messages(topics=["/map/slab_fine"])]
+    (grid,) = grids  # once, when the object's exploration ends
+    assert grid["cell_size"] == {"x": 0.001, "y": 0.001} and grid["column_count"] == 60

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.io.mcap_writer import RecordingWriter
+from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.perception.streams import (
     GroundTruth,
     PressRecording,
@@ -67,6 +68,16 @@ class PressLog:
         if scene:
             self.writer.write_scene(t, scene)
         self.writer.write_map(t, name, grid.probabilities, grid.explored, geometry, surface_z)
+
+    def show_fine_map(self, name: str, fine, surface_z: float) -> None:
+        """Record (and send live) an object's fine map (:class:`~palpate.core.mapping.fine.FineMap`) as a grid of
+        its own resolution on ``/map/<name>_fine``."""
+        if self.writer is None:
+            return
+        ny, nx = fine.probabilities.shape[:2]
+        geometry = MapGeometry("grid2d", fine.materials, fine.origin, fine.resolution, (nx, ny))
+        self.writer.write_map(max(self.clock - self.GAP, 0.0), f"{name}_fine", fine.probabilities,
+                              np.ones((ny, nx), dtype=bool), geometry, surface_z)
 
     def close(self) -> None:
         """Finish the recording (idempotent): called when exploration ends, so the file is complete on disk

@@ -229,10 +229,15 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         for entry in scenario.objects:
             _say_fidelity(entry, scenario, make_source, progress)
     objects: list[ObjectResult] = []
+    moduli = None if training is None else training_moduli(training.readings)
+    fines = []
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
         objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers,
                                       reader))
+        fines.append(None if reader is None else object_fine_map(objects[-1], entry, scenario, moduli))
+        if fines[-1] is not None:
+            log.show_fine_map(objects[-1].name, fines[-1].fine, entry.spec.height)
         _warn(progress, saturation_warning(entry.spec.name, saturation([s.result for s in objects[-1].steps])))
         _warn(progress, solver_warning(entry.spec.name, solver_warnings([s.result for s in objects[-1].steps])))
         if draw:
@@ -256,9 +261,6 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
 
     t0, c0 = time.perf_counter(), time.process_time()
     write_maps(out, objects, scenario)
-    moduli = None if training is None else training_moduli(training.readings)
-    fines = [None if reader is None else object_fine_map(o, e, scenario, moduli)
-             for o, e in zip(objects, scenario.objects, strict=True)]
     for obj, entry, fine in zip(objects, scenario.objects, fines, strict=True):
         if fine is not None:
             save_fine_map(inside(out, out / "maps" / f"{file_stem(obj.name)}_fine.npz"), fine.fine)
