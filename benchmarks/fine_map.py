@@ -16,7 +16,7 @@ import numpy as np
 
 from palpate.api import load_scenario
 from palpate.core.mapping.fine import boundary_error
-from palpate.core.session.boundaries import boundary_reader, fine_truth, object_fine_map, training_moduli
+from palpate.core.session.boundaries import boundary_reader, object_fine_map, training_moduli
 from palpate.core.session.explore import explore_object
 from palpate.core.session.progress import Progress
 from palpate.core.session.sources import scenario_source_maker
@@ -43,9 +43,8 @@ def main() -> None:
     res = explore_object(sc, entry, training.memory, make, args.seed, Progress(enabled=False), boundary_reader=reader)
     result = object_fine_map(res, entry, sc, training_moduli(training.readings))
     fine, summary = result.fine, result.summary
-    truth = fine_truth(entry, sc, fine)
-    n = fine.probabilities.shape[0] // res.post.probabilities.shape[0]
-    cells = np.kron(np.argmax(res.post.probabilities, axis=-1), np.ones((n, n), dtype=int))
+    truth = result.truth
+    cells = fine.cells_on_raster(np.argmax(res.post.probabilities, axis=-1))
     pts = fine.centres()
     buried = [inc for inc in entry.spec.inclusions if inc.shape == "box"
               and inc.center[2] + inc.size[-1] / 2 < entry.spec.height]

@@ -63,6 +63,11 @@ class FineMap:
         """(ny, nx) index of each point's most probable material."""
         return np.argmax(self.probabilities, axis=-1)
 
+    def cells_on_raster(self, cell_values: np.ndarray) -> np.ndarray:
+        """A cell map's per-cell values, (ny_cells, nx_cells, ...), repeated onto this raster's points."""
+        n = self.probabilities.shape[0] // cell_values.shape[0]
+        return np.repeat(np.repeat(cell_values, n, axis=0), n, axis=1)
+
 
 def _cell_of(geometry: MapGeometry, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     nx, ny = geometry.plane_shape
@@ -133,7 +138,8 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     ix, iy = _cell_of(geometry, pts)
     acc = cell_weight * probs[iy, ix]
     weight = np.full(pts.shape[:2], cell_weight)
-    astride = _astride(geometry, readings, clear)
+    # which cells' presses straddle a wall: only needed when neighbour cells name the sides
+    astride = _astride(geometry, readings, clear) if moduli is None else None
     for (x0, y0), r in readings:
         rel = pts - np.array([x0, y0])
         w = np.exp(-np.sum(rel**2, axis=-1) / reach**2)
@@ -141,8 +147,8 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         n_vec = r.normal
         foot = np.array([x0, y0]) + r.foot
         if moduli is not None:
-            own = own * moduli.probabilities(r.log_plain, geometry.materials)
-            own = own / own.sum() if own.sum() > 0 else probs[_cell_of(geometry, np.array([x0, y0]))[::-1]]
+            matched = own * moduli.probabilities(r.log_plain, geometry.materials)
+            own = matched / matched.sum() if matched.sum() > 0 else own
             hard = moduli.probabilities(r.log_hard, geometry.materials)
             soft = moduli.probabilities(r.log_soft, geometry.materials)
         else:

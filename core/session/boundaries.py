@@ -113,10 +113,11 @@ def training_moduli(readings: dict[str, tuple]) -> MaterialModuli | None:
 
 @dataclass(frozen=True)
 class FineResult:
-    """An object's fine map and what summary.json says of it."""
+    """An object's fine map, what summary.json says of it, and the truth on its raster (None where unknown)."""
 
     fine: FineMap
     summary: dict
+    truth: np.ndarray | None = None
 
 
 def fine_truth(entry: ObjectEntry, scenario: Scenario, fine: FineMap) -> np.ndarray:
@@ -139,21 +140,22 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
                "sides_named_by": "modulus" if moduli is not None else "neighbour cells"}
     truth = fine_truth(entry, scenario, fine)
     known = truth >= 0
-    if known.any():
-        n = fine.probabilities.shape[0] // obj.post.probabilities.shape[0]
-        cells = np.kron(np.argmax(obj.post.probabilities, axis=-1), np.ones((n, n), dtype=int))
-        cell_err, fine_err = (boundary_error(lab, truth, known, fine.resolution) for lab in (cells, fine.labels()))
-        summary["area_accuracy"] = {"cell_map": float(np.mean(cells[known] == truth[known])),
-                                    "fine_map": float(np.mean(fine.labels()[known] == truth[known]))}
-        summary["boundary_error_m"] = {name: {"median": _finite(e[0]), "p90": _finite(e[1])}
-                                       for name, e in (("cell_map", cell_err), ("fine_map", fine_err))}
-        # calibration of the fine map's most probable material, over all points and over those within 5 mm of a
-        # true boundary (where the cell map cannot be sure)
-        near = distance_transform_edt(~edges(truth)) * fine.resolution <= NEAR_BOUNDARY
-        summary["calibration_ece"] = {
-            where: reliability_table(*calibration_sample(fine.probabilities[mask], truth[mask])[:2]).ece
-            for where, mask in (("all", known), ("near_boundary", known & near)) if mask.any()}
-    return FineResult(fine, summary)
+    if not known.any():
+        return FineResult(fine, summary)
+    cells = fine.cells_on_raster(np.argmax(obj.post.probabilities, axis=-1))
+    labels = fine.labels()
+    cell_err, fine_err = (boundary_error(lab, truth, known, fine.resolution) for lab in (cells, labels))
+    summary["area_accuracy"] = {"cell_map": float(np.mean(cells[known] == truth[known])),
+                                "fine_map": float(np.mean(labels[known] == truth[known]))}
+    summary["boundary_error_m"] = {name: {"median": _finite(e[0]), "p90": _finite(e[1])}
+                                   for name, e in (("cell_map", cell_err), ("fine_map", fine_err))}
+    # calibration of the fine map's most probable material, over all points and over those within 5 mm of a
+    # true boundary (where the cell map cannot be sure)
+    near = distance_transform_edt(~edges(truth)) * fine.resolution <= NEAR_BOUNDARY
+    summary["calibration_ece"] = {
+        where: reliability_table(*calibration_sample(fine.probabilities[mask], truth[mask])[:2]).ece
+        for where, mask in (("all", known), ("near_boundary", known & near)) if mask.any()}
+    return FineResult(fine, summary, truth)
 
 
 def _finite(v: float) -> float | None:

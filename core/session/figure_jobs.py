@@ -150,8 +150,7 @@ class FigureDrawer:
 
 def fine_map_job(obj: ObjectResult, fine, truth: np.ndarray | None) -> FigureJob:
     """An object's fine map beside its cell map and the truth (:mod:`palpate.core.io.fine_figures`)."""
-    n = fine.probabilities.shape[0] // obj.post.probabilities.shape[0]
-    cells = np.kron(obj.post.probabilities, np.ones((n, n, 1)))
+    cells = fine.cells_on_raster(obj.post.probabilities)
     walls = [(tuple(np.asarray(s.result.location) + s.boundary.foot), tuple(s.boundary.normal)) for s in obj.steps
              if s.boundary is not None and s.boundary.p_boundary > 0.5]
     return FigureJob(f"{file_stem(obj.name)}_fine_map.png", fine_figures.plot_fine_map,

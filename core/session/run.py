@@ -40,7 +40,6 @@ from palpate.core.session.boundaries import (
     NOISE_KEY,
     boundary_reader,
     export_fine_map,
-    fine_truth,
     noise_metadata,
     object_fine_map,
     save_fine_map,
@@ -261,14 +260,14 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
 
     t0, c0 = time.perf_counter(), time.process_time()
     write_maps(out, objects, scenario)
-    for obj, entry, fine in zip(objects, scenario.objects, fines, strict=True):
+    for obj, fine in zip(objects, fines, strict=True):
         if fine is not None:
             save_fine_map(inside(out, out / "maps" / f"{file_stem(obj.name)}_fine.npz"), fine.fine)
             if scenario.outputs.haptic_material:
                 export_fine_map(inside(out, out / "haptic_materials" / f"{file_stem(obj.name)}_fine"), fine.fine,
                                 obj.name, scenario)
             if draw:
-                drawer.submit([fine_map_job(obj, fine.fine, fine_truth(entry, scenario, fine.fine))])
+                drawer.submit([fine_map_job(obj, fine.fine, fine.truth)])
     timing["maps_s"] = time.perf_counter() - t0
     cpu["maps_s"] = time.process_time() - c0
 
