@@ -139,7 +139,7 @@ class GapSplit(InfoGain):
 
     def next_target(self, grid, post=None, last=None) -> Target | None:
         got = super().next_target(grid, post, last)
-        if got is None or self._spread_cell(grid, last) is not None:
+        if got is None or self.lattice_cell(grid, last) is not None:
             return got
         turn = self._after_lattice % int(self.gap_every)
         self._after_lattice += 1

@@ -81,8 +81,8 @@ class OracleRisk(InfoGain):
         free = ~np.asarray(grid.explored, dtype=bool)
         return np.where(wrong > 0, self.draws < self.hit, free & (self.draws < self.false_alarm)).astype(float)
 
-    def _value(self, grid, post):
-        value, cells, allowed = super()._value(grid, post)
+    def value_terms(self, grid, post):
+        value, cells, allowed = super().value_terms(grid, post)
         # a new array: info_gain keeps ``value`` between choices and refreshes it only where the map changed
         return value + self.oracle_weight * self.marked(grid, post), cells, allowed
 

@@ -73,7 +73,7 @@ class _Logging(InfoGain):
 
     def next_target(self, grid, post=None, last=None):
         target = super().next_target(grid, post, last)
-        if self._spread_cell(grid, last) is None:
+        if self.lattice_cell(grid, last) is None:
             if self._after_lattice % self.every == 0 and len(self.log) < self.snapshots:
                 self.log.append(MapState(np.asarray(grid.probabilities).copy(),
                                          np.asarray(grid.explored, dtype=bool).copy(),

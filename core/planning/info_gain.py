@@ -173,7 +173,7 @@ class InfoGain:
                                     temperature=self.belief_temperature, surprise=self.belief_surprise)
         return self._cache
 
-    def _spread_cell(self, grid, last) -> tuple[int, int] | None:
+    def lattice_cell(self, grid, last) -> tuple[int, int] | None:
         """First an even lattice (every ``spread_stride``-th cell, centred) until each of its cells is explored:
         the gain of a blank map is flat, so greedy choices cluster, while a lattice finds every feature at least
         2 strides wide before the boundaries are refined. The nearest unexplored lattice cell to the last press,
@@ -194,7 +194,7 @@ class InfoGain:
         j, i = np.unravel_index(int(np.argmin(d)), d.shape)
         return int(lx[i]), int(ly[j])
 
-    def _value(self, grid, post) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def value_terms(self, grid, post) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(value: gain plus the terms of what a press can reveal (module docstring); the part of it in cells, the
         gain and hole bonus, which the stop rule compares; the columns a press may go to), each (ny, nx)."""
         allowed = None
@@ -240,9 +240,9 @@ class InfoGain:
         expected gain in cells (hole bonus included, travel and the entropy term aside): what the
         ``stop_min_gain`` rule compares. None when every column is explored and certain."""
         post = postprocess(grid, self.passes, self.certainty, self.lateral) if post is None else post
-        value, cells, allowed = self._value(grid, post)
+        value, cells, allowed = self.value_terms(grid, post)
         best = float(np.max(np.where(allowed, cells, -np.inf))) if allowed.any() else None
-        seed_cell = self._spread_cell(grid, last)
+        seed_cell = self.lattice_cell(grid, last)
         if seed_cell is not None:
             return Target(seed_cell[0], seed_cell[1], target_depth(grid, post, *seed_cell, self.max_depth), best)
         score = value

@@ -34,12 +34,14 @@ from palpate.core.planning.map_views import (
 @dataclass(frozen=True)
 class Target:
     """The next press: the map column (ix, iy), 0-based, the depth to reach (m; None = the run's planned depth,
-    always None on 2-D maps) and the policy's score for it (entropy units; None for list-driven policies)."""
+    always None on 2-D maps), the policy's score for it (entropy units; None for list-driven policies) and,
+    optionally, the point to press inside the column's cell ((x, y), m; None = the cell's centre)."""
 
     ix: int
     iy: int
     depth: float | None = None
     score: float | None = None
+    xy: tuple[float, float] | None = None
 
 
 @dataclass

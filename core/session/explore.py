@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from palpate.core.alignment.merge import perception_of, pipeline_for
+from palpate.core.boundary.moduli import MaterialModuli
 from palpate.core.boundary.reading import BoundaryReading
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.accuracy import map_accuracy
@@ -22,6 +23,7 @@ from palpate.core.mapping.snapshot import MapSnapshot
 from palpate.core.perception.layered_memory import LayeredMemory
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.press import PressResult, perceive_press
+from palpate.core.planning.policies import Target
 from palpate.core.planning.registry import PolicyContext, build_policy, stop_reason
 from palpate.core.session.press_log import PressLog
 from palpate.core.session.progress import Progress
@@ -211,9 +213,26 @@ def _region_row(grid, cell: tuple[int, int]) -> tuple[float, ...]:
     return tuple(round(float(v), 4) for v in p)
 
 
+def _press_point(target: Target, cells_xy: np.ndarray, geometry: MapGeometry, policy: str,
+                 name: str) -> tuple[float, float]:
+    """Where a target is pressed, m: its own (x, y) when it names one (it must lie in its cell), else the cell's
+    centre."""
+    ix, iy = int(target.ix), int(target.iy)
+    if target.xy is None:
+        return float(cells_xy[iy, ix, 0]), float(cells_xy[iy, ix, 1])
+    x, y = (float(v) for v in target.xy)
+    half = geometry.cell_size / 2 * (1 + 1e-9)
+    if not (np.isfinite(x) and np.isfinite(y) and abs(x - cells_xy[iy, ix, 0]) <= half
+            and abs(y - cells_xy[iy, ix, 1]) <= half):
+        raise ValidationError(f"exploration policy {policy!r} chose the point ({x * 1e3:.2f}, {y * 1e3:.2f}) mm, "
+                              f"outside its cell {ix + 1},{iy + 1} (1-based) of {name!r}")
+    return x, y
+
+
 def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory, make_source, seed: int,
                    progress: Progress, log: PressLog | None = None,
-                   layers: LayeredMemory | None = None, boundary_reader=None) -> ObjectResult:
+                   layers: LayeredMemory | None = None, boundary_reader=None,
+                   moduli: MaterialModuli | None = None) -> ObjectResult:
     """Explore one object with the scenario's policy.
 
     Per press: policy (next target from the map) -> actuator -> perception -> map update -> post-processing ->
@@ -232,7 +251,10 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
         layers: voxel maps: the per-layer judges (default: every layer judged by ``memory``).
         boundary_reader: ``read(recording, result)`` returning the press's boundary reading or None (e.g.
             :func:`palpate.core.boundary.press.read_press` with templates and a noise model bound); each step holds
-            it. The map itself does not use it.
+            it. The cell map itself does not use it; a policy with an ``observe(location, reading)`` method is
+            told each press's measured (x, y), m, and reading (None when there is none).
+        moduli: the reference materials' moduli as the readings read them (from the training presses), for a
+            policy that plans on the fine map (:class:`~palpate.core.planning.registry.PolicyContext`).
     """
     ex = scenario.exploration
     geometry = object_geometry(scenario, entry)
@@ -245,11 +267,13 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
 
     regions0 = tuple((c - 1, r - 1) for c, r in entry.regions)
     budget = len(regions0) * ex.presses_per_region if ex.policy == "predefined" else ex.budget
-    context = PolicyContext(ex.policy, geometry, seed, memory, regions0, budget, ex.depth)
+    context = PolicyContext(ex.policy, geometry, seed, memory, regions0, budget, ex.depth, moduli)
     policy, _ = build_policy(context, cells=list(regions0), repeats=ex.presses_per_region, seed=seed, memory=memory,
                              travel_cost_per_mm=ex.travel_cost_per_mm, max_depth=ex.depth if voxel else None,
                              passes=ex.extrapolation_passes, objective=ex.objective, feature_size=ex.feature_size,
-                             certainty=ex.calibration.extrapolation_certainty, lateral=ex.voxel_lateral)
+                             certainty=ex.calibration.extrapolation_certainty, lateral=ex.voxel_lateral,
+                             geometry=geometry, moduli=moduli)
+    observe = getattr(policy, "observe", None)
     # The one post-processing the policies plan on, the run reports and the map files hold.
     post_settings = MapPostprocessing.of(ex)
 
@@ -284,7 +308,7 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
             raise ValidationError(f"exploration policy {ex.policy!r} chose cell {cell} (0-based ix, iy) outside the "
                                   f"{cells_xy.shape[1]} x {cells_xy.shape[0]} map of {entry.spec.name!r}")
         depth = ex.depth if target.depth is None else target.depth
-        x, y = (float(v) for v in cells_xy[cell[1], cell[0]])
+        x, y = _press_point(target, cells_xy, geometry, ex.policy, entry.spec.name)
         if callable(show_map):
             show_map(grid, post)
         try:
@@ -304,6 +328,8 @@ def explore_object(scenario: Scenario, entry: ObjectEntry, memory: HapticMemory,
         res = perceive_press(rec, pipeline_for(perception) if perception else None).at_target((x, y))
         boundary = boundary_reader(rec, res) if boundary_reader is not None else None
         posterior = apply_press(grid, res, memory, layers, fallback_xy=(x, y), calibration=ex.calibration)
+        if callable(observe):
+            observe(res.location, boundary)
         post = postprocess()
         plan = planned_on(post)
         if log is not None:

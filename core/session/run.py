@@ -233,7 +233,7 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
         objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers,
-                                      reader))
+                                      reader, moduli))
         fines.append(None if reader is None else object_fine_map(objects[-1], entry, scenario, moduli))
         if fines[-1] is not None:
             log.show_fine_map(objects[-1].name, fines[-1].fine, entry.spec.height)
