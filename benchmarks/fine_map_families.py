@@ -22,7 +22,9 @@ from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory
 
 
-def scene_row(seed: int) -> dict:
+def trained_scene(seed: int):
+    """A family scene with physics presses (``auto``) as a raster scenario, its boundary reader, source maker and
+    memory trained on its references (readings kept): (scene, scenario, reader, make, training)."""
     fs = make_scene(seed)
     sc = fs.scenario("raster", fidelity="auto")
     reader, why = boundary_reader(sc)
@@ -31,6 +33,11 @@ def scene_row(seed: int) -> dict:
     make = make_source_for(sc)
     training = train_memory(sc, make, np.arange(len(sc.references)) + 1000 + seed, Progress(enabled=False),
                             boundary_reader=reader)
+    return fs, sc, reader, make, training
+
+
+def scene_row(seed: int) -> dict:
+    fs, sc, reader, make, training = trained_scene(seed)
     res = explore_object(sc, sc.objects[0], training.memory, make, 7000 + seed, Progress(enabled=False),
                          boundary_reader=reader)
     fine = object_fine_map(res, sc.objects[0], sc, training_moduli(training.readings))

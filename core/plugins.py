@@ -49,7 +49,7 @@ class Plugin:
 
 
 POLICIES = Registry("palpate.policies", "exploration policy",
-                    ("predefined", "raster", "random", "max_entropy", "info_gain"))
+                    ("predefined", "raster", "random", "max_entropy", "info_gain", "boundary"))
 CLASSIFIERS = Registry("palpate.classifiers", "classifier", ("haptic_memory",))
 FEATURES = Registry("palpate.features", "feature extractor", ("power_law",))
 #: physics of a batch of simulated presses (:mod:`palpate.sim.batch`); "cpu" is palpate's numpy backend

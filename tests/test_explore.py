@@ -247,7 +247,8 @@ def _scenario(**exploration):
 
 @pytest.mark.parametrize("key, value, policy, match", [
     ("stop_min_gain", 0.1, "raster", "stop_min_gain: only the info_gain policy"),
-    ("travel_cost_per_mm", 0.01, "random", "travel_cost_per_mm: only max_entropy and info_gain"),
+    ("travel_cost_per_mm", 0.01, "random", "travel_cost_per_mm: only max_entropy, info_gain and boundary"),
+    ("map", "voxel", "boundary", "exploration.policy: the boundary policy plans on a fine 2-D map"),
     ("stop_max_entropy", -0.1, "raster", "stop_max_entropy: must be >= 0.0"),
     ("policy", "spiral", "raster", "exploration.policy: must be one of .*max_entropy, info_gain"),
     ("extrapolation_passes", 0, "raster", 'exploration.extrapolation_passes: must be >= 1 \\(or "all"\\)'),
@@ -508,3 +509,22 @@ def test_policies_plan_on_the_map_without_wall_tempering():
     assert np.array_equal(plan.probabilities, unwalled.probabilities)
     seed_post = settings.apply(g, SEED_CALIBRATION)
     assert settings.planned_on(g, SEED_CALIBRATION, seed_post) is seed_post
+
+
+def test_the_boundary_policy_presses_points_inside_the_inner_half_of_their_cells(trained):
+    from palpate.core.session.boundaries import boundary_reader
+    from palpate.core.session.explore import explore_object
+    from palpate.core.session.progress import Progress
+    from palpate.core.session.sources import scenario_source_maker
+
+    sc = _scenario(policy="boundary", budget=8)
+    reader, why = boundary_reader(sc)
+    assert reader is not None, why
+    res = explore_object(sc, sc.objects[0], trained, scenario_source_maker(sc), 21, Progress(enabled=False),
+                         boundary_reader=reader)
+    centres = res.geometry.cell_centres()
+    off = [np.subtract(s.target, centres[s.cell[1], s.cell[0]]) for s in res.steps]
+    assert len(res.steps) == 8 and all(s.boundary is not None for s in res.steps)
+    assert all(np.all(np.abs(d) <= res.geometry.cell_size / 4 + 1e-12) for d in off)
+    assert sum(np.any(np.abs(d) > 1e-4) for d in off) >= 3  # after the lattice, off the centres
+    assert all(np.hypot(*(np.subtract(s.result.location, s.target))) < 2e-3 for s in res.steps)

@@ -16,6 +16,7 @@ from palpate.core import plugins
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.probability import entropy_unchecked
+from palpate.core.planning.boundary_seeking import BoundarySeeking
 from palpate.core.planning.info_gain import InfoGain
 from palpate.core.planning.policies import MaxEntropy, Predefined, RandomCells, Raster, Target
 
@@ -45,6 +46,8 @@ class PolicyContext:
         regions: the scenario's predefined cells of the object, 0-based (ix, iy).
         budget: the press budget (``exploration.budget``).
         depth: the planned press depth, m.
+        moduli: the reference materials' moduli as boundary readings read them (from the training presses), or
+            None (:mod:`palpate.core.boundary.moduli`).
     """
 
     name: str
@@ -54,6 +57,7 @@ class PolicyContext:
     regions: tuple[tuple[int, int], ...]
     budget: int
     depth: float
+    moduli: object | None = None
 
 
 class PolicyFactory(Protocol):
@@ -84,9 +88,11 @@ def build_policy(context: PolicyContext, **builtin_settings) -> tuple[Policy, pl
 def make_policy(name: str, *, cells: list[tuple[int, int]] | None = None, repeats: int = 1, seed: int = 0,
                 stride: int = 1, memory=None, travel_cost_per_mm: float = 0.0, max_depth: float | None = None,
                 samples_per_material: int = 6, passes: int | None = 1, objective: str = "accuracy",
-                feature_size: float | None = None, certainty: float = 1.0, lateral: bool = False):
+                feature_size: float | None = None, certainty: float = 1.0, lateral: bool = False,
+                geometry: MapGeometry | None = None, moduli=None):
     """Build a policy by name (one of :data:`POLICY_NAMES`); ``predefined`` needs ``cells``, ``info_gain`` a
-    trained ``memory``; ``passes``, ``certainty`` and ``lateral`` are the post-processing's (see
+    trained ``memory``, ``boundary`` a trained ``memory`` and the 2-D map's ``geometry`` (``moduli``: see
+    :class:`PolicyContext`); ``passes``, ``certainty`` and ``lateral`` are the post-processing's (see
     ``Grid2D.postprocessed`` and ``VoxelGrid.postprocessed``);
     ``objective`` and ``feature_size`` (m, the belief's correlation length; None = one cell) are info_gain's (see
     :class:`InfoGain`)."""
@@ -106,6 +112,11 @@ def make_policy(name: str, *, cells: list[tuple[int, int]] | None = None, repeat
         return InfoGain(memory, travel_cost_per_mm, max_depth, samples_per_material, seed, passes,
                         objective=objective, correlation_mm=None if feature_size is None else feature_size * 1e3,
                         certainty=certainty, lateral=lateral)
+    if name == "boundary":
+        if memory is None or geometry is None:
+            raise ValidationError("the boundary policy needs a trained haptic memory and the map's geometry")
+        return BoundarySeeking(memory, geometry, moduli, travel_cost_per_mm, passes=passes, certainty=certainty,
+                               seed=seed)
     raise ValidationError(f"unknown exploration policy {name!r}; known: {', '.join(POLICY_NAMES)}")
 
 

@@ -194,6 +194,8 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     if exploration.voxel_lateral and exploration.map != "voxel":
         raise ex.err("lateral_extrapolation", "fills voxels from their neighbours in a layer; map is "
                      f"{exploration.map!r} (grid2d maps always extrapolate laterally: extrapolation_passes)")
+    if exploration.policy == "boundary" and exploration.map != "grid2d":
+        raise ex.err("policy", f"the boundary policy plans on a fine 2-D map; map is {exploration.map!r}")
     if exploration.stop_min_gain is not None and exploration.policy != "info_gain":
         raise ex.err("stop_min_gain", f"only the info_gain policy predicts a gain; policy is {exploration.policy!r}")
     for key in ("objective", "feature_size_mm"):
@@ -202,8 +204,8 @@ def parse_scenario(raw: dict, file: str = "<scenario>", base_dir: Path | None = 
     if exploration.extrapolation_passes != 1 and exploration.map != "grid2d":
         raise ex.err("extrapolation_passes", "iterated eq. 6.15 extrapolation is a grid2d post-processing; map is "
                      f"{exploration.map!r} (leave the key out)")
-    if exploration.travel_cost_per_mm > 0 and exploration.policy not in ("max_entropy", "info_gain"):
-        raise ex.err("travel_cost_per_mm", "only max_entropy and info_gain weigh travel; policy is "
+    if exploration.travel_cost_per_mm > 0 and exploration.policy not in ("max_entropy", "info_gain", "boundary"):
+        raise ex.err("travel_cost_per_mm", "only max_entropy, info_gain and boundary weigh travel; policy is "
                      f"{exploration.policy!r}")
     ex.finish()
 

@@ -1,0 +1,188 @@
+"""Exploration scored on the fine (1 mm) material map: raster, max_entropy, info_gain and boundary side by side on
+the shape-family scenes (benchmarks/scene_families.py) with physics presses (``auto``: the image rung beside walls).
+
+Per policy and scene: the presses until the fine map labels 95% of the area right (as a share of the raster's
+presses, i.e. of the cells; a run that never gets there counts as cells + 1), the area right after every cell's
+worth of presses, and the area the fine map gets wrong after a tenth of the raster's presses against the area the
+cell map gets wrong after the full raster (the symmetric difference of the labelled and the true regions). Every
+policy explores the same scene with the same trained memory; a policy's run is as long as the raster's.
+
+Seeds below 100000 are tuning seeds, from 100000 on report seeds (never tuned on); the tables print them apart,
+per family. --clairvoyant adds the boundary policy told where its fine map is wrong (its expected errors are the
+true ones): what a planner that knew where the map is wrong would score with the same presses and readings.
+--share S ends every run after S of the raster's presses (quicker tuning runs; a run that has not reached the
+target by then counts as cells + 1).
+
+Run: .venv/bin/python benchmarks/exploration_fine.py [--first 0] [--scenes 9] [--policies raster,boundary]
+     [--clairvoyant] [--share S] [--boundary FIELD=VALUE ...] [--json PATH] [--from-json PATH ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+from fine_map_families import trained_scene
+from scene_families import is_report_seed
+
+from palpate.api import register_policy
+from palpate.core.mapping.fine import fine_map
+from palpate.core.mapping.grids import new_map
+from palpate.core.planning.boundary_seeking import BoundarySeeking
+from palpate.core.session.boundaries import fine_truth, training_moduli
+from palpate.core.session.explore import MapPostprocessing, apply_press, explore_object
+from palpate.core.session.progress import Progress
+from palpate.core.world.workspace import object_geometry
+
+POLICIES = ("raster", "max_entropy", "info_gain", "boundary")
+CLAIRVOYANT = "clairvoyant_boundary"
+
+
+class ClairvoyantBoundary(BoundarySeeking):
+    """The boundary policy told the truth on the fine raster: its expected errors are the true errors."""
+
+    truth: np.ndarray | None = None
+
+    def expected_errors(self, fine) -> np.ndarray:
+        known = self.truth >= 0
+        return ((fine.labels() != self.truth) & known).astype(float)
+
+
+TUNED = "boundary_set"
+
+
+def register_tuned(settings: dict) -> None:
+    """The boundary policy with some settings replaced, as the row TUNED."""
+    register_policy(TUNED, lambda ctx: BoundarySeeking(ctx.memory, ctx.geometry, ctx.moduli, seed=ctx.seed,
+                                                       **settings), replace=True)
+
+
+def register_clairvoyant(truth: np.ndarray) -> None:
+    def factory(ctx):
+        p = ClairvoyantBoundary(ctx.memory, ctx.geometry, ctx.moduli, seed=ctx.seed)
+        p.truth = truth
+        return p
+
+    register_policy(CLAIRVOYANT, factory, replace=True)
+TARGET = 0.95
+TENTH = 0.1
+
+
+def fine_curve(sc, res, memory, moduli, truth) -> tuple[np.ndarray, np.ndarray]:
+    """Per press k = 1..N of an exploration, the share of the known area the fine map and the cell map label
+    right, rebuilt press by press as the run's maps are."""
+    ex = sc.exploration
+    grid = new_map(res.geometry)
+    settings = MapPostprocessing.of(ex)
+    known = truth >= 0
+    fine_acc, cell_acc, readings = [], [], []
+    for s in res.steps:
+        apply_press(grid, s.result, memory, None, fallback_xy=s.target, calibration=ex.calibration)
+        if s.boundary is not None:
+            readings.append((s.result.location, s.boundary))
+        post = settings.apply(grid, ex.calibration)
+        fine = fine_map(res.geometry, post.probabilities, readings, moduli=moduli)
+        cells = fine.cells_on_raster(np.argmax(post.probabilities, axis=-1))
+        fine_acc.append(float(np.mean(fine.labels()[known] == truth[known])))
+        cell_acc.append(float(np.mean(cells[known] == truth[known])))
+    return np.array(fine_acc), np.array(cell_acc)
+
+
+def first_at(curve: np.ndarray, level: float) -> int | None:
+    hit = np.flatnonzero(curve >= level)
+    return int(hit[0]) + 1 if len(hit) else None
+
+
+def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0) -> list[dict]:
+    fs, base, reader, make, training = trained_scene(seed)
+    moduli = training_moduli(training.readings)
+    rows = []
+    cells = int(np.prod(fs.grid_cells))
+    geometry = object_geometry(base, base.objects[0])
+    truth = fine_truth(base.objects[0], base, fine_map(geometry, new_map(geometry).probabilities, []))
+    register_clairvoyant(truth)
+    for policy in policies:
+        sc = fs.scenario(policy, budget=max(1, int(np.ceil(share * cells))), fidelity="auto")
+        t0 = time.process_time()
+        res = explore_object(sc, sc.objects[0], training.memory, make, 7000 + seed, Progress(enabled=False),
+                             boundary_reader=reader, moduli=moduli)
+        fine, cell = fine_curve(sc, res, training.memory, moduli, truth)
+        n = cells
+        tenth = max(1, int(round(TENTH * n)))
+        rows.append({"seed": seed, "family": fs.family, "split": "report" if is_report_seed(seed) else "tuning",
+                     "policy": policy, "cells": n, "presses": len(res.steps), "to_target": first_at(fine, TARGET),
+                     "fine_final": float(fine[-1]), "cell_final": float(cell[-1]),
+                     "fine_tenth": float(fine[min(tenth, len(fine)) - 1]),
+                     "off_centre": sum(1 for s in res.steps if s.target != tuple(
+                         res.geometry.cell_centres()[s.cell[1], s.cell[0]])),
+                     "cpu_s": time.process_time() - t0})
+    return rows
+
+
+def ratio(r: dict) -> float:
+    return (r["to_target"] if r["to_target"] is not None else r["cells"] + 1) / r["cells"]
+
+
+def report(rows: list[dict], policies: tuple[str, ...]) -> None:
+    for split in ("tuning", "report"):
+        part = [r for r in rows if r["split"] == split]
+        if not part:
+            continue
+        raster_err = {r["seed"]: 1 - r["cell_final"] for r in part if r["policy"] == "raster"
+                      and r["presses"] == r["cells"]}
+        print(f"\n{split} seeds ({len({r['seed'] for r in part})} scenes): presses to {TARGET:.0%} of the area right "
+              "on the fine map / raster's presses")
+        print(f"{'policy':12} {'median':>7} {'p95':>6} {'worst':>6} {'reached':>8} {'fine@all':>9} "
+              f"{'err@1/10 <= raster cell err':>28}")
+        for p in policies:
+            mine = [r for r in part if r["policy"] == p]
+            rs = np.array([ratio(r) for r in mine])
+            ok = (f"{sum(1 - r['fine_tenth'] <= raster_err[r['seed']] for r in mine):14d}/{len(mine)}"
+                  if all(r["seed"] in raster_err for r in mine) else f"{'- (needs a full raster)':>20}")
+            print(f"{p:12} {np.median(rs):7.2f} {np.percentile(rs, 95):6.2f} {rs.max():6.2f} "
+                  f"{sum(r['to_target'] is not None for r in mine):4d}/{len(mine):<3d} "
+                  f"{np.median([r['fine_final'] for r in mine]):9.1%} {ok}")
+        fams = sorted({r["family"] for r in part})
+        print(f"per family, median ratio: {'family':10} " + " ".join(f"{p:>11}" for p in policies))
+        for f in fams:
+            cells = [np.median([ratio(r) for r in part if r["family"] == f and r["policy"] == p]) for p in policies]
+            print(f"{'':26}{f:10} " + " ".join(f"{c:11.2f}" for c in cells))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--first", type=int, default=0)
+    parser.add_argument("--scenes", type=int, default=9)
+    parser.add_argument("--policies", default=",".join(POLICIES))
+    parser.add_argument("--clairvoyant", action="store_true", help=f"add {CLAIRVOYANT}")
+    parser.add_argument("--boundary", action="append", default=[], metavar="FIELD=VALUE",
+                        help=f"add the row {TUNED}: the boundary policy with FIELD set (repeatable)")
+    parser.add_argument("--share", type=float, default=1.0, help="end runs after this share of raster's presses")
+    parser.add_argument("--json", default=None, help="write every row to this JSON file")
+    parser.add_argument("--from-json", nargs="+", default=None, metavar="PATH",
+                        help="print the tables of rows written by earlier runs (--json) instead of running")
+    args = parser.parse_args()
+    if args.from_json:
+        rows = [r for path in args.from_json for r in json.load(open(path))]
+        report(rows, tuple(dict.fromkeys(r["policy"] for r in rows)))
+        return
+    policies = tuple(p.strip() for p in args.policies.split(",") if p.strip()) + (
+        (CLAIRVOYANT,) if args.clairvoyant else ()) + ((TUNED,) if args.boundary else ())
+    register_tuned({k: float(v) for k, v in (kv.split("=", 1) for kv in args.boundary)})
+    rows = []
+    for seed in range(args.first, args.first + args.scenes):
+        got = scene_rows(seed, policies, args.share)
+        rows.extend(got)
+        print(f"scene {seed} ({got[0]['family']}, {got[0]['cells']} cells): " + ", ".join(
+            f"{r['policy']} {ratio(r):.2f} (fine {r['fine_final']:.1%}, {r['off_centre']} off-centre, "
+            f"{r['cpu_s']:.0f} s)" for r in got), flush=True)
+        if args.json:
+            with open(args.json, "w") as fh:
+                json.dump(rows, fh, indent=1)
+    report(rows, policies)
+
+
+if __name__ == "__main__":
+    main()
