@@ -68,6 +68,8 @@ def register_clairvoyant(truth: np.ndarray) -> None:
     register_policy(CLAIRVOYANT, factory, replace=True)
 TARGET = 0.95
 TENTH = 0.1
+#: Shares of raster's presses at which each row keeps the fine map's area right.
+SHARES = (0.1, 0.2, 0.25, 0.3, 0.4, 0.5, 1.0)
 
 
 def fine_curve(sc, res, memory, moduli, truth) -> tuple[np.ndarray, np.ndarray]:
@@ -115,6 +117,8 @@ def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0) -> list
                      "policy": policy, "cells": n, "presses": len(res.steps), "to_target": first_at(fine, TARGET),
                      "fine_final": float(fine[-1]), "cell_final": float(cell[-1]),
                      "fine_tenth": float(fine[min(tenth, len(fine)) - 1]),
+                     "fine_at": {f"{q:g}": float(fine[k - 1]) for q in SHARES
+                                 if (k := max(1, int(round(q * n)))) <= len(fine)},
                      "off_centre": sum(1 for s in res.steps if s.target != tuple(
                          res.geometry.cell_centres()[s.cell[1], s.cell[0]])),
                      "cpu_s": time.process_time() - t0})

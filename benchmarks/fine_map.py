@@ -1,9 +1,10 @@
 """The fine (1 mm) material map against the cell map on a scenario with walls (default: heterogeneous.toml), a
-raster of every cell with physics presses: the share of the area each labels right on a 1 mm raster (all of it,
-outside the first buried inclusion's footprint, outside every buried one's) and how far their boundaries lie from
-the true ones.
+raster of every cell (or --policy with --budget presses) with physics presses: the share of the area each labels
+right on a 1 mm raster (all of it, outside the first buried inclusion's footprint, outside every buried one's) and
+how far their boundaries lie from the true ones.
 
 Run: .venv/bin/python benchmarks/fine_map.py [--scenario heterogeneous] [--seed 11] [--readings]
+     [--policy boundary --budget 24]
 """
 
 from __future__ import annotations
@@ -28,11 +29,13 @@ def main() -> None:
     parser.add_argument("--scenario", default="heterogeneous")
     parser.add_argument("--seed", type=int, default=11)
     parser.add_argument("--readings", action="store_true", help="print every press's reading")
+    parser.add_argument("--policy", default="raster", help="exploration policy (default raster: every cell)")
+    parser.add_argument("--budget", type=int, default=10**6, help="press budget (default: no limit)")
     args = parser.parse_args()
     t0 = time.process_time()
     sc = load_scenario(args.scenario)
     sc = dataclasses.replace(sc, exploration=dataclasses.replace(
-        sc.exploration, policy="raster", budget=10**6, stop_mean_entropy=None, stop_max_entropy=None,
+        sc.exploration, policy=args.policy, budget=args.budget, stop_mean_entropy=None, stop_max_entropy=None,
         stop_min_gain=None))
     entry = sc.objects[0]
     reader, why = boundary_reader(sc)
@@ -40,8 +43,10 @@ def main() -> None:
         raise SystemExit(why)
     make = scenario_source_maker(sc, sc.training.source)
     training = train_memory(sc, make, training_seeds(sc), Progress(enabled=False), boundary_reader=reader)
-    res = explore_object(sc, entry, training.memory, make, args.seed, Progress(enabled=False), boundary_reader=reader)
-    result = object_fine_map(res, entry, sc, training_moduli(training.readings))
+    moduli = training_moduli(training.readings)
+    res = explore_object(sc, entry, training.memory, make, args.seed, Progress(enabled=False), boundary_reader=reader,
+                         moduli=moduli)
+    result = object_fine_map(res, entry, sc, moduli)
     fine, summary = result.fine, result.summary
     truth = result.truth
     cells = fine.cells_on_raster(np.argmax(res.post.probabilities, axis=-1))
