@@ -19,3 +19,16 @@ def test_heterogeneous_scene_fine_map_beats_the_cell_map(tmp_path):
     assert area["fine_map"] >= 0.88 and area["fine_map"] >= area["cell_map"] + 0.05
     err = fine["boundary_error_m"]
     assert err["fine_map"]["median"] <= 1e-3 < err["cell_map"]["median"]
+
+
+def test_the_boundary_policy_maps_the_heterogeneous_scene_with_a_quarter_of_the_presses(tmp_path):
+    from palpate.api import with_settings
+
+    sc = with_settings(load_scenario("heterogeneous"), exploration={"policy": "boundary", "budget": 24})
+    (obj,) = run_scenario(sc, tmp_path / "run")["objects"]
+    assert obj["presses"] == 24 and obj["policy"] == "boundary"
+    fine = obj["fine_map"]
+    area = fine["area_accuracy"]
+    # a full raster (96 presses) gets 0.91 of the area; the cell map of these 24 presses about 0.66
+    assert area["fine_map"] >= 0.75 and area["fine_map"] >= area["cell_map"] + 0.08
+    assert fine["boundary_error_m"]["fine_map"]["median"] <= 4e-3

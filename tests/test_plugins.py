@@ -136,8 +136,8 @@ def test_a_plugin_registered_in_process(tmp_path):
         assert obj["stop_reason"] == "policy_exhausted"
     finally:
         palpate.unregister("diagonal")
-    with pytest.raises(ValidationError, match="exploration.policy: must be one of predefined, .*info_gain, boundary; got "
-                                              "'diagonal'"):
+    with pytest.raises(ValidationError, match="exploration.policy: must be one of predefined, .*info_gain, boundary; "
+                                              "got 'diagonal'"):
         palpate.with_settings(palpate.load_scenario(TINY), exploration={"policy": "diagonal"})
 
 

@@ -279,3 +279,23 @@ def test_the_recording_shows_the_fine_map_at_its_own_resolution(small_run):
         grids = [json.loads(m.data) for _, c, m in make_reader(f).iter_messages(topics=["/map/slab_fine"])]
     (grid,) = grids  # once, when the object's exploration ends
     assert grid["cell_size"] == {"x": 0.001, "y": 0.001} and grid["column_count"] == 60
+
+
+def test_a_boundary_policy_run_replays_its_off_centre_presses_bit_for_bit(tmp_path):
+    from palpate.core.session.run import run_scenario
+
+    text = SMALL.replace('policy = "predefined"\npresses_per_region = 2', 'policy = "boundary"\nbudget = 8')
+    text = text.replace("attainable_accuracy = true", "attainable_accuracy = false\nfigures = false")
+    out = tmp_path / "run"
+    summary = run_scenario(parse_scenario(tomllib.loads(text), "small.toml"), out, record=out / "run.mcap")
+    (obj,) = summary["objects"]
+    assert obj["policy"] == "boundary" and obj["presses"] == 8 and obj["fine_map"]["presses_read"] == 8
+    # the cell size is 10 mm and the grid starts at the block's corner: a centre lies at 5 mm + 10 mm k
+    assert any(abs((v * 1e3 - 5) / 10 - round((v * 1e3 - 5) / 10)) > 0.05 for r in obj["per_press"]
+               for v in r["target_m"])
+    assert main(["replay", str(out / "run.mcap"), "--memory", str(out / "memory.json"), "--out",
+                 str(tmp_path / "replay"), "--quiet"]) == 0
+    for name in ("slab.npz", "slab_fine.npz"):
+        with np.load(out / "maps" / name, allow_pickle=False) as ran, \
+                np.load(tmp_path / "replay" / "maps" / name, allow_pickle=False) as replayed:
+            np.testing.assert_array_equal(replayed["probabilities"], ran["probabilities"])
