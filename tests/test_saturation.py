@@ -25,6 +25,9 @@ def _frames(peaks):
 def test_a_frame_counts_as_saturated_when_any_sensel_reaches_255():
     assert saturated_frames(_frames([0, 10, 254, 255, 255, 3])) == 2
     assert saturated_frames([]) == 0
+    # frames of another shape (a malformed import) are counted one at a time, not refused here
+    odd = TaxelFrame(t=1.0, counts=np.full((2, 2), 255, dtype=np.uint8), sensel_area=4.84e-6)
+    assert saturated_frames([*_frames([255, 3]), odd]) == 2
 
 
 def test_a_hard_deep_press_is_counted_in_its_result_the_recording_and_the_summary(tmp_path):

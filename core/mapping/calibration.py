@@ -27,6 +27,7 @@ count-weighted mean gap. Cells whose top two materials tie claim nothing and are
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,8 +73,8 @@ class MapCalibration:
             check_unit_interval(getattr(self, key), key)
 
     def evidence(self, posterior) -> np.ndarray:
-        """:func:`press_evidence` with these settings."""
-        return press_evidence(posterior, temperature=self.press_temperature, reliability=self.press_reliability)
+        """:func:`press_evidence` with these settings (checked once, when they were made)."""
+        return _evidence(posterior, self.press_temperature, self.press_reliability)
 
     def to_dict(self) -> dict:
         return {key: getattr(self, key) for key in CALIBRATION_KEYS}
@@ -113,8 +114,14 @@ def press_evidence(posterior, *, temperature: float = 1.0, reliability: float = 
     """
     temperature = check_unit_interval(temperature, "press temperature")
     reliability = check_unit_interval(reliability, "press reliability")
+    return _evidence(posterior, temperature, reliability)
+
+
+def _evidence(posterior, temperature: float, reliability: float) -> np.ndarray:
+    """:func:`press_evidence` with checked settings; the posterior is still checked (no NaN reaches a map)."""
     p = np.asarray(posterior, dtype=float)
-    if p.ndim < 1 or p.shape[-1] < 2 or not np.all(np.isfinite(p)) or (p < 0).any():
+    # non-negative (NaN fails the comparison) and finite (an inf shows in the sum)
+    if p.ndim < 1 or p.shape[-1] < 2 or not (p.min() >= 0 and math.isfinite(float(p.sum()))):
         raise ValidationError(f"press posterior must be finite probabilities over >= 2 materials, got {p!r}")
     if temperature != 1.0:
         with np.errstate(divide="ignore"):

@@ -18,7 +18,7 @@ from palpate.core.perception.fit import FitFailure, PressFit, fit_presses_report
 from palpate.core.perception.press_axis import heights_along_motion
 from palpate.core.perception.segment import Press, Segmentation, estimate_thresholds, segment_presses
 from palpate.core.perception.streams import PressRecording
-from palpate.core.perception.sync import synchronise
+from palpate.core.perception.sync import SyncedStream, synchronise
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +76,10 @@ DEFAULT_CONFIG = PipelineConfig()
 
 def contact_series_from_recording(rec: PressRecording, config: PipelineConfig = DEFAULT_CONFIG) -> ContactSeries:
     """Synchronise a recording's streams and compute its contact features."""
+    return _synced_series(rec, config)[1]
+
+
+def _synced_series(rec: PressRecording, config: PipelineConfig) -> tuple[SyncedStream, ContactSeries]:
     stream = synchronise(rec.frames, rec.poses, clock_offset=config.clock_offset, max_gap=config.max_gap)
     if stream.gaps:
         log.info("pose stream has %d gap(s) longer than %g s; %d taxel frames marked invalid",
@@ -85,7 +89,7 @@ def contact_series_from_recording(rec: PressRecording, config: PipelineConfig = 
     if config.press_axis_from_motion:
         th = estimate_thresholds(series.c_P, config.on_threshold, config.off_threshold)
         series = heights_along_motion(series, stream.position, th)
-    return series
+    return stream, series
 
 
 def presses_from_recording(rec: PressRecording, config: PipelineConfig = DEFAULT_CONFIG) -> Segmentation:
@@ -97,8 +101,13 @@ def presses_from_recording(rec: PressRecording, config: PipelineConfig = DEFAULT
     Raises:
         ValidationError: malformed streams or configuration (the message names what is wrong).
     """
-    series = contact_series_from_recording(rec, config)
-    return segment_presses(
+    return synced_presses(rec, config)[1]
+
+
+def synced_presses(rec: PressRecording, config: PipelineConfig = DEFAULT_CONFIG) -> tuple[SyncedStream, Segmentation]:
+    """:func:`presses_from_recording` and the synchronised stream it was found in (its stacked taxel counts)."""
+    stream, series = _synced_series(rec, config)
+    return stream, segment_presses(
         series,
         on_threshold=config.on_threshold,
         off_threshold=config.off_threshold,

@@ -12,9 +12,9 @@ import numpy as np
 
 from palpate.core.errors import FitError
 from palpate.core.perception.fit import PressFit, fit_press
-from palpate.core.perception.pipeline import DEFAULT_CONFIG, PipelineConfig, presses_from_recording
+from palpate.core.perception.pipeline import DEFAULT_CONFIG, PipelineConfig, synced_presses
 from palpate.core.perception.segment import Press
-from palpate.core.perception.streams import PressRecording, saturated_frames, solver_warning_steps
+from palpate.core.perception.streams import PressRecording, saturated_in, solver_warning_steps
 
 
 @dataclass(frozen=True)
@@ -64,16 +64,17 @@ class PressResult:
 
 def press_result(press: Press, *, target: tuple[float, float] | None = None, rejected: tuple[str, ...] = (),
                  truth_force: np.ndarray | None = None, truth_indentation: np.ndarray | None = None,
-                 features: str = "both") -> PressResult:
+                 features: str = "both", **counted: int) -> PressResult:
     """Fit one segmented press (``features``: see :class:`PipelineConfig`); a fit that fails gives ``fit=None`` with
-    the reason appended to ``rejected``."""
+    the reason appended to ``rejected``. ``counted``: the recording's ``frames``, ``saturated_frames`` and
+    ``solver_warning_steps``."""
     try:
         fit = fit_press(press, features)
     except FitError as exc:
         fit, rejected = None, (*rejected, f"fit failed: {exc}")
     location = (float(press.location[0]), float(press.location[1]))
     return PressResult(location if target is None else target, press, fit, tuple(rejected), truth_force,
-                       truth_indentation)
+                       truth_indentation, **counted)
 
 
 def perceive_press(recording: PressRecording, pipeline_config: PipelineConfig | None = None) -> PressResult:
@@ -83,7 +84,7 @@ def perceive_press(recording: PressRecording, pipeline_config: PipelineConfig | 
     When noise splits the one press that was made, the deepest part is kept and that is said in ``rejected``.
     """
     config = pipeline_config or DEFAULT_CONFIG
-    seg = presses_from_recording(recording, config)
+    stream, seg = synced_presses(recording, config)
     planned = (recording.meta or {}).get("target")
     planned = planned if isinstance(planned, dict) else {}
     # The planned target, when the source says it (SimSource does); callers that know it replace it anyway.
@@ -92,13 +93,12 @@ def perceive_press(recording: PressRecording, pipeline_config: PipelineConfig | 
     truth = recording.truth
     tf = None if truth is None else np.asarray(truth.force)
     ti = None if truth is None else np.asarray(truth.indentation)
-    counted = {"frames": len(recording.frames), "saturated_frames": saturated_frames(recording.frames),
+    counted = {"frames": len(recording.frames), "saturated_frames": saturated_in(stream.counts),
                "solver_warning_steps": solver_warning_steps(recording.meta)}
     if not seg.presses:
         return PressResult(target, None, None, reasons or ("no press found in the streams",), tf, ti, **counted)
     press = max(seg.presses, key=lambda p: p.depth)
     if len(seg.presses) > 1:
         reasons = (*reasons, f"{len(seg.presses)} presses found where one was made; kept the deepest")
-    res = press_result(press, target=target, rejected=reasons, truth_force=tf, truth_indentation=ti,
-                       features=config.features)
-    return replace(res, **counted)
+    return press_result(press, target=target, rejected=reasons, truth_force=tf, truth_indentation=ti,
+                        features=config.features, **counted)

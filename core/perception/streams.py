@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from operator import attrgetter
 
 import numpy as np
 
@@ -198,7 +199,18 @@ SATURATED = 255
 def saturated_frames(frames: list[TaxelFrame]) -> int:
     """Number of taxel frames with at least one sensel at the 8-bit ceiling (SATURATED): counted from the frames
     themselves, so real recordings are counted the same way as simulated ones."""
-    return sum(1 for f in frames if int(np.max(f.counts)) >= SATURATED) if frames else 0
+    if not frames:
+        return 0
+    try:
+        counts = np.array([f.counts for f in frames])
+    except ValueError:  # frames of different shapes: one at a time
+        return sum(1 for f in frames if int(f.counts.max()) >= SATURATED)
+    return saturated_in(counts)
+
+
+def saturated_in(counts: np.ndarray) -> int:
+    """:func:`saturated_frames` of frames stacked as (n, rows, cols) raw counts."""
+    return int(np.count_nonzero(counts.reshape(len(counts), -1).max(axis=1) >= SATURATED)) if len(counts) else 0
 
 
 def solver_warning_steps(meta: dict | None) -> int:
@@ -209,6 +221,9 @@ def solver_warning_steps(meta: dict | None) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
         raise ValidationError(f"recording metadata solver_warning_steps must be a count >= 0, got {value!r}")
     return int(value)
+
+
+_AREA, _COUNTS, _T = attrgetter("sensel_area"), attrgetter("counts"), attrgetter("t")
 
 
 def frames_to_arrays(frames: list[TaxelFrame]) -> tuple[np.ndarray, np.ndarray, float]:
@@ -225,7 +240,8 @@ def frames_to_arrays(frames: list[TaxelFrame]) -> tuple[np.ndarray, np.ndarray, 
     area = first.sensel_area
     # Every frame was validated when it was made; what is left to check is that they agree with each other. The
     # usual case (one sensel area, one shape) costs a set and one array; a disagreement is then located.
-    if len({f.sensel_area for f in frames}) > 1:
+    # attrgetter through map: the per-frame Python work of a comprehension, without its frame (about half the cost)
+    if len(set(map(_AREA, frames))) > 1:
         areas = np.fromiter((f.sensel_area for f in frames), dtype=float, count=n)
         bad_area = np.abs(areas - area) > 1e-9 * abs(area)
         if bad_area.any():
@@ -233,14 +249,14 @@ def frames_to_arrays(frames: list[TaxelFrame]) -> tuple[np.ndarray, np.ndarray, 
             raise ValidationError(f"taxel frame {i} has sensel area {areas[i]}, expected {area}")
     shape = first.counts.shape
     try:
-        counts = np.array([f.counts for f in frames])
+        counts = np.array(list(map(_COUNTS, frames)))
     except ValueError:  # frames of different shapes
         counts = None
     if counts is None or counts.shape[1:] != shape:
         for i, f in enumerate(frames):
             if f.counts.shape != shape:
                 raise ValidationError(f"taxel frame {i} has shape {f.counts.shape}, expected {shape}")
-    t = np.fromiter([f.t for f in frames], dtype=float, count=n)
+    t = np.fromiter(map(_T, frames), dtype=float, count=n)
     _check_increasing(t, "taxel frame times must increase strictly; frame")
     return t, counts, area
 
