@@ -146,8 +146,9 @@ def test_a_scikit_learn_classifier_judges_a_run(tmp_path):
     assert result.summary["crossval"]["accuracy"] == {"soft": 1.0, "hard": 1.0}
 
 
-def test_a_classifier_cannot_run_where_the_haptic_memory_is_needed(tmp_path):
-    scenario = palpate.with_settings(palpate.load_scenario(TINY), exploration={"policy": "info_gain"})
-    with pytest.raises(ValidationError, match="info_gain predicts presses from the haptic memory"):
+@pytest.mark.parametrize("policy", ["info_gain", "boundary"])
+def test_a_classifier_cannot_run_where_the_haptic_memory_is_needed(policy, tmp_path):
+    scenario = palpate.with_settings(palpate.load_scenario(TINY), exploration={"policy": policy})
+    with pytest.raises(ValidationError, match=f"{policy} predicts presses from the haptic memory"):
         palpate.run(scenario, tmp_path / "out", classifier=LogisticRegression())
     assert not (tmp_path / "out").exists()

@@ -151,15 +151,15 @@ def scenario_inputs(scenario: Scenario) -> list[Path]:
 
 def check_classifier_fits(scenario: Scenario, classifier: ClassifierMemory) -> None:
     """ValidationError, before any work, where a scenario cannot be judged by a classifier other than the haptic
-    memory: a voxel map (its layers are judged by per-layer haptic memories), the info_gain policy (it predicts
-    presses from the memory's Gaussians), a trained memory file (it is a haptic memory)."""
+    memory: a voxel map (its layers are judged by per-layer haptic memories), the info_gain and boundary policies
+    (they predict presses from the memory's Gaussians), a trained memory file (it is a haptic memory)."""
     where = f"{scenario.path or 'scenario'}: classifier {classifier.label!r}"
     if scenario.exploration.map == "voxel":
         raise ValidationError(f"{where}: voxel maps judge each layer with haptic memories; use map = \"grid2d\" "
                               "or the haptic memory")
-    if scenario.exploration.policy == "info_gain":
-        raise ValidationError(f"{where}: exploration.policy info_gain predicts presses from the haptic memory's "
-                              "Gaussians; choose another policy or the haptic memory")
+    if scenario.exploration.policy in ("info_gain", "boundary"):
+        raise ValidationError(f"{where}: exploration.policy {scenario.exploration.policy} predicts presses from the "
+                              "haptic memory's Gaussians; choose another policy or the haptic memory")
     if scenario.training.memory is not None:
         raise ValidationError(f"{where}: training.memory names a trained haptic memory; leave it out to train the "
                               "classifier")
