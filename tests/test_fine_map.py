@@ -87,3 +87,25 @@ def test_bad_maps_are_refused():
     voxel = MapGeometry("voxel", ("a", "b"), (0.0, 0.0), 0.01, (3, 2, 2), z_top=0.03)
     with pytest.raises(ValidationError, match="2-D"):
         fine_map(voxel, np.full((2, 3, 2), 0.5), [])
+
+
+def test_a_reading_reaches_only_points_near_its_press_and_that_changes_nothing_visible(templates):
+    soft, hard = 20e3, 120e3
+    geometry = MapGeometry("grid2d", ("soft", "hard"), (0.0, 0.0), 0.01, (10, 6))
+    probs = np.full((6, 10, 2), 0.5)
+    probs[:, :3] = [0.9, 0.1]
+    probs[:, 3:] = [0.2, 0.8]
+    wall_at = 0.027
+    readings = []
+    for x0 in (0.015, 0.025, 0.035, 0.085):  # the last one far from the wall, beyond the cut-off of the others
+        near = abs(wall_at - x0) < 0.007
+        img = _image(templates, soft if near or x0 < wall_at else hard, wall_at if near else None, x0, hard / soft)
+        readings.append(((x0, 0.031), read_boundary(img, DEPTH, templates, NOISE)))
+    moduli = material_moduli({name: [read_boundary(_image(templates, e, None, 0, 1), DEPTH, templates, NOISE)]
+                              for name, e in (("soft", soft), ("hard", hard))})
+    cut, everywhere = (fine_map(geometry, probs, readings, moduli=moduli, cutoff=c) for c in (5.0, None))
+    np.testing.assert_allclose(cut.probabilities, everywhere.probabilities, rtol=0, atol=1e-9)
+    assert np.array_equal(cut.labels(), everywhere.labels())
+    # a press off the map entirely changes nothing
+    off = fine_map(geometry, probs, [*readings, ((0.5, 0.5), readings[0][1])], moduli=moduli)
+    np.testing.assert_array_equal(off.probabilities, cut.probabilities)

@@ -33,6 +33,9 @@ RESOLUTION = 1e-3
 CELL_WEIGHT = 0.05
 #: Distance from a press over which its reading's weight falls by e, m (about the contact radius at depth).
 REACH = 6e-3
+#: Points farther than this many reaches from a press take nothing from its reading (weight below 1.4e-11): a
+#: reading costs the same on any size of map.
+CUTOFF = 5.0
 
 
 @dataclass(frozen=True)
@@ -105,9 +108,25 @@ def _astride(geometry: MapGeometry, readings, clear: float) -> np.ndarray:
     return out
 
 
+def window_around(shape: tuple[int, int], origin: tuple[float, float], res: float, xy: tuple[float, float],
+                  radius: float | None) -> tuple[slice, slice] | None:
+    """The (rows, columns) of a raster of ``shape`` whose points lie within ``radius`` (m) of ``xy`` along both
+    axes (all of them when None); None when none do."""
+    if radius is None:
+        return slice(None), slice(None)
+    ny, nx = shape
+    x0, x1 = (int(np.floor((xy[0] - radius - origin[0]) / res)), int(np.ceil((xy[0] + radius - origin[0]) / res)) + 1)
+    y0, y1 = (int(np.floor((xy[1] - radius - origin[1]) / res)), int(np.ceil((xy[1] + radius - origin[1]) / res)) + 1)
+    x0, x1, y0, y1 = max(x0, 0), min(x1, nx), max(y0, 0), min(y1, ny)
+    if x0 >= x1 or y0 >= y1:
+        return None
+    return slice(y0, y1), slice(x0, x1)
+
+
 def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tuple[tuple[float, float],
              BoundaryReading]], *, resolution: float = RESOLUTION, reach: float = REACH,
-             cell_weight: float = CELL_WEIGHT, clear: float = REACH, moduli: MaterialModuli | None = None) -> FineMap:
+             cell_weight: float = CELL_WEIGHT, clear: float = REACH, moduli: MaterialModuli | None = None,
+             cutoff: float | None = CUTOFF) -> FineMap:
     """The fine map of a 2-D cell map (see the module docstring).
 
     Args:
@@ -118,6 +137,7 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
             clear: distance from a wall at which a cell's centre counts as clear of it, m (about the contact radius).
         moduli: the reference materials' moduli as the reading reads them (:mod:`palpate.core.boundary.moduli`):
             when given, each side of a read wall is the material its read modulus matches, not a neighbour cell's.
+        cutoff: a reading reaches points within this many ``reach`` of its press (None: every point).
 
     Raises:
         ValidationError: a voxel geometry, probabilities of another shape, or a resolution that is not a positive
@@ -140,8 +160,13 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     weight = np.full(pts.shape[:2], cell_weight)
     # which cells' presses straddle a wall: only needed when neighbour cells name the sides
     astride = _astride(geometry, readings, clear) if moduli is None else None
+    res = out.resolution
+    radius = None if cutoff is None else cutoff * reach
     for (x0, y0), r in readings:
-        rel = pts - np.array([x0, y0])
+        window = window_around(pts.shape[:2], geometry.origin, res, (x0, y0), radius)
+        if window is None:
+            continue
+        rel = pts[window] - np.array([x0, y0])
         w = np.exp(-np.sum(rel**2, axis=-1) / reach**2)
         own = probs[_cell_of(geometry, np.array([x0, y0]))[::-1]]
         n_vec = r.normal
@@ -156,13 +181,13 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
             soft = _clear_cell(geometry, probs, astride, foot, -n_vec, clear)
         s = rel @ n_vec - r.offset
         along = np.abs(rel @ np.array([-n_vec[1], n_vec[0]]))
-        spread = np.sqrt(r.offset_sd**2 + (r.angle_sd * along) ** 2 + (0.25 * out.resolution) ** 2)
+        spread = np.sqrt(r.offset_sd**2 + (r.angle_sd * along) ** 2 + (0.25 * res) ** 2)
         q = ndtr(s / spread)[..., None]
         wall = q * hard + (1 - q) * soft
         p_wall = 1.0 - r.p_plain
         dist = p_wall * wall + (1 - p_wall) * own
-        acc += w[..., None] * dist
-        weight += w
+        acc[window] += w[..., None] * dist
+        weight[window] += w
     return FineMap(out.origin, out.resolution, acc / weight[..., None], out.materials)
 
 

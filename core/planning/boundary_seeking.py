@@ -24,7 +24,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 from palpate.core.errors import ValidationError
-from palpate.core.mapping.fine import REACH, RESOLUTION, fine_map
+from palpate.core.mapping.fine import CUTOFF, REACH, RESOLUTION, fine_map, window_around
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.planning.info_gain import InfoGain
 from palpate.core.planning.map_views import plane_shape, postprocess
@@ -109,7 +109,9 @@ class BoundarySeeking:
         if self._pressed and self.crowding > 0:
             crowd = np.zeros(wrong.shape)
             for xy in self._pressed:
-                crowd += np.exp(-np.sum((pts - np.array(xy)) ** 2, axis=-1) / self.crowding**2)
+                window = window_around(wrong.shape, self.geometry.origin, res, xy, CUTOFF * self.crowding)
+                if window is not None:
+                    crowd[window] += np.exp(-np.sum((pts[window] - np.array(xy)) ** 2, axis=-1) / self.crowding**2)
             errors = errors / (1.0 + crowd)
         return self.fine_weight * errors, pts
 
