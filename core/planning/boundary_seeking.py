@@ -24,7 +24,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 from palpate.core.errors import ValidationError
-from palpate.core.mapping.fine import CUTOFF, REACH, RESOLUTION, fine_map, window_around
+from palpate.core.mapping.fine import CUTOFF, REACH, RESOLUTION, FineMap, fine_map, window_around
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.planning.info_gain import InfoGain
 from palpate.core.planning.map_views import plane_shape, postprocess
@@ -92,10 +92,10 @@ class BoundarySeeking:
         """Per fine point, the chance its most probable material is wrong, (NY, NX)."""
         return 1.0 - fine.probabilities.max(axis=-1)
 
-    def point_scores(self, grid, post) -> tuple[np.ndarray, np.ndarray]:
-        """(errors, centres): the fine map's expected errors a press at each point of the fine raster would settle
-        (cells of area, weighted by ``fine_weight``, discounted by crowding) and the points' (x, y), m, shapes
-        (NY, NX) and (NY, NX, 2)."""
+    def point_scores(self, grid, post) -> tuple[np.ndarray, FineMap, np.ndarray]:
+        """(errors, fine, centres): the fine map's expected errors a press at each point of the fine raster would
+        settle (cells of area, weighted by ``fine_weight``, discounted by crowding), shape (NY, NX); the fine map;
+        its points' (x, y), m, (NY, NX, 2)."""
         fine = fine_map(self.geometry, post.probabilities, self._readings, resolution=self.resolution,
                         reach=self.reach, moduli=self.moduli)
         wrong = self.expected_errors(fine)
@@ -113,7 +113,7 @@ class BoundarySeeking:
                 if window is not None:
                     crowd[window] += np.exp(-np.sum((pts[window] - np.array(xy)) ** 2, axis=-1) / self.crowding**2)
             errors = errors / (1.0 + crowd)
-        return self.fine_weight * errors, pts
+        return self.fine_weight * errors, fine, pts
 
     def next_target(self, grid, post=None, last=None) -> Target | None:
         """The next lattice cell's centre, then the best point by info_gain's value of its cell plus the fine errors
@@ -123,10 +123,10 @@ class BoundarySeeking:
         seed_cell = self._info.lattice_cell(grid, last)
         if seed_cell is not None:
             return Target(seed_cell[0], seed_cell[1])
-        errors, pts = self.point_scores(grid, post)
+        errors, fine, pts = self.point_scores(grid, post)
         value, _, allowed = self._info.value_terms(grid, post)
         n = errors.shape[0] // plane_shape(grid)[1]
-        score = errors + np.repeat(np.repeat(np.where(allowed, value, 0.0), n, axis=0), n, axis=1)
+        score = errors + fine.cells_on_raster(np.where(allowed, value, 0.0))
         if self.travel_cost_per_mm > 0 and self._pressed:
             score = score - self.travel_cost_per_mm * 1e3 * np.linalg.norm(pts - np.array(self._pressed[-1]), axis=-1)
         # a press stays within ``shift`` of its cell's half-width from the centre: the cell map judges the cell by
