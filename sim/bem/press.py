@@ -140,7 +140,7 @@ def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate:
         nodes = d_max * (np.arange(1, ladder + 1) / ladder) ** 2
         # cells beyond the contact carry nothing; the pad's corners past it need no cells. A stiff top spreads
         # the contact wider than Hertz's radius: the surface grows until the contact fits inside it
-        reach = min(1.2 * math.sqrt(radius * d_max) + 2 * cell, 0.995 * radius)
+        reach = min(1.05 * math.sqrt(radius * d_max) + 2 * cell, 0.995 * radius)
         while True:
             surface = build_surface(obj, profile.x, profile.y, profile.surface_z, tip, reach, cell,
                                     math.sqrt(radius * d_max), walls)

@@ -79,17 +79,45 @@ def column_stacks(obj: ObjectSpec, x: float, y: float, surface_z: float,
     return _sampled_stacks(obj, x, y, surface_z, centres)
 
 
+def column_kinds(obj: ObjectSpec, xy: np.ndarray) -> np.ndarray:
+    """A label per world point (n, 2) m such that two points with one label have the same column of materials:
+    the same footprint membership of every inclusion and the object, and the same map category. A point over a
+    sphere gets a label of its own (the sphere's chord under it depends on where it lies)."""
+    covers = [obj.contains_xy(xy)]
+    unique = np.zeros(len(xy), dtype=bool)
+    for inc in obj.inclusions:
+        d = xy - np.asarray(inc.center[:2], dtype=float)
+        if inc.shape == "sphere":
+            inside = np.einsum("ij,ij->i", d, d) <= inc.size[0] ** 2
+            unique |= inside
+        else:
+            inside = np.all(np.abs(d) <= np.asarray(inc.size[:2], dtype=float) / 2.0, axis=1)
+        covers.append(inside)
+    codes = np.where(unique, np.arange(len(xy)), -1)[:, None]
+    if obj.material_map is not None:
+        names = obj.material_map.material_names_at(xy)  # type: ignore[attr-defined]
+        _, category = np.unique(np.array(["" if n is None else n for n in names]), return_inverse=True)
+        codes = np.column_stack([codes, category.reshape(-1)])
+    # one byte string per point: sorting those is far cheaper than a row-wise unique over many inclusions
+    rows = np.ascontiguousarray(np.concatenate(
+        [np.packbits(np.column_stack(covers), axis=1), codes.astype(np.int64).view(np.uint8)], axis=1))
+    return np.unique(rows.view(np.dtype((np.void, rows.shape[1]))).ravel(), return_inverse=True)[1].reshape(-1)
+
+
 def _sampled_stacks(obj: ObjectSpec, x: float, y: float, surface_z: float,
                     centres: np.ndarray) -> tuple[np.ndarray, tuple[Stack, ...], np.ndarray]:
     lookup = object_lookup(obj, x, y, surface_z)
     edges = _depth_edges(surface_z, object_breaks(obj, surface_z))
     mid = 0.5 * (edges[1:] + edges[:-1])
-    n, m = len(centres), len(mid)
-    young, poisson, inside = lookup(np.repeat(centres, m, axis=0), np.tile(mid, n))
+    # each distinct kind of column is sampled once: a staircase of many inclusions costs its kinds, not its cells
+    _, rep, kind = np.unique(column_kinds(obj, centres + np.array([x, y])), return_index=True, return_inverse=True)
+    n, m = len(rep), len(mid)
+    young, poisson, inside = lookup(np.repeat(centres[rep], m, axis=0), np.tile(mid, n))
     young, poisson, inside = young.reshape(n, m), poisson.reshape(n, m), inside.reshape(n, m)
-    on_object = inside.all(axis=1)
+    on_object = inside.all(axis=1)[kind]
     key = np.concatenate([young, poisson], axis=1)
     _, first, stack_of = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    stack_of = stack_of.reshape(-1)[kind]
     stacks = []
     for row in first:
         e, nu = young[row], poisson[row]
@@ -135,9 +163,10 @@ def power_mean(a: np.ndarray, b: np.ndarray, power: float) -> np.ndarray:
     return (0.5 * (a**power + b**power)) ** (1.0 / power)
 
 
-def _stack_matrix(stack: Stack, cell: float, span: int, di: np.ndarray, dj: np.ndarray) -> np.ndarray:
-    """The stack's own compliance (m/Pa) between the cells at lattice offsets (di, dj) (shifted by 2 span)."""
-    return _lattice(stack.scaled(), float(cell), 2 * span)[di, dj] / stack.top_modulus
+def _stack_matrix(stack: Stack, cell: float, span: int, pair: np.ndarray) -> np.ndarray:
+    """The stack's own compliance (m/Pa) between cells ``pair`` apart (flat index into the lattice of offsets
+    -2 span..2 span cells squared)."""
+    return _lattice(stack.scaled(), float(cell), 2 * span).ravel().take(pair) / stack.top_modulus
 
 
 def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: FingertipSpec, reach: float,
@@ -170,11 +199,13 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
     centres, own = lattice[keep], stack_of[keep]
     used, own = np.unique(own, return_inverse=True)
     ij = np.rint(centres / cell - 0.5).astype(int)
-    di = ij[:, None, 0] - ij[None, :, 0] + 2 * span
-    dj = ij[:, None, 1] - ij[None, :, 1] + 2 * span
+    # each pair of cells as one flat index into the lattice of offsets (-2 span..2 span)^2
+    width = 4 * span + 1
+    flat_ij = ij[:, 0] * width + ij[:, 1]
+    pair = flat_ij[:, None] - flat_ij[None, :] + 2 * span * (width + 1)
     mixing = "uniform"
     if len(used) == 1:
-        compliance = _stack_matrix(stacks[used[0]], cell, span, di, dj)
+        compliance = _stack_matrix(stacks[used[0]], cell, span, pair)
     else:
         wall = None
         if len(used) == 2:
@@ -182,7 +213,7 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
 
             def is_stiff(points: np.ndarray) -> np.ndarray:
                 idx, found, inside = column_stacks(obj, x, y, surface_z, points)
-                return np.array([inside[n] and found[i] == stacks[stiff] for n, i in enumerate(idx)])
+                return inside & np.array([f == stacks[stiff] for f in found])[idx]
 
             wall = find_wall(is_stiff, centres, used[own] == stiff, reach, cell)
         if wall is not None:
@@ -190,11 +221,14 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
             walls = load_wall_table() if walls is None else walls
             u = wall.distance(centres)
             tangent = np.array([-wall.normal[1], wall.normal[0]])
-            along = np.abs((centres @ tangent)[:, None] - (centres @ tangent)[None, :])
+            steps = np.arange(-2 * span, 2 * span + 1) * cell
+            along = np.abs(steps[:, None] * tangent[0] + steps[None, :] * tangent[1]).ravel()
             nu = 0.5 * (stacks[soft].poisson[0] + stacks[stiff].poisson[0])
             contrast = compliance_at[soft] / compliance_at[stiff]
-            share = wall_share(walls, nu, contrast, u, along)
-            compliance = _stack_matrix(stacks[soft], cell, span, di, dj) * contrast ** (share - 1.0)
+            share = wall_share(walls, nu, contrast, u, along, pair)
+            share -= 1.0
+            share *= math.log(contrast)
+            compliance = _stack_matrix(stacks[soft], cell, span, pair) * np.exp(share)
         else:
             mixing = "local"
             ref = stack_of[centre]
@@ -205,7 +239,7 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
                                      mode="constant")
             field = (gaussian_filter(field, MIX_SMOOTHING / cell, mode="constant") / np.maximum(weight, 1e-12))
             field = field.ravel()[keep]
-            compliance = (_stack_matrix(stacks[ref], cell, span, di, dj)
+            compliance = (_stack_matrix(stacks[ref], cell, span, pair)
                           * power_mean(field[:, None], field[None, :], MIX_POWER))
     return Surface(cell=float(cell), centres=centres, stack_of=own, stacks=tuple(stacks[i] for i in used),
                    compliance=compliance, overlap=sensel_overlap(tip, centres, cell), mixing=mixing)

@@ -103,14 +103,21 @@ def _bracket(grid: np.ndarray, value: float) -> tuple[int, int, float]:
 def _locate(grid: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Lower node index and weight of each x on ``grid`` (clamped to its ends)."""
     x = np.clip(x, grid[0], grid[-1])
-    k = np.clip(np.searchsorted(grid, x) - 1, 0, len(grid) - 2)
+    step = (grid[-1] - grid[0]) / (len(grid) - 1)
+    if np.allclose(np.diff(grid), step, rtol=1e-9, atol=0.0):
+        # evenly spaced (as the shipped table is): arithmetic, not a search, over the (n, n) pairs
+        k = np.minimum(((x - grid[0]) / step).astype(np.intp), len(grid) - 2)
+    else:
+        k = np.clip(np.searchsorted(grid, x) - 1, 0, len(grid) - 2)
     return k, (x - grid[k]) / (grid[k + 1] - grid[k])
 
 
-def wall_share(table: WallTable, poisson: float, contrast: float, u: np.ndarray, along: np.ndarray) -> np.ndarray:
+def wall_share(table: WallTable, poisson: float, contrast: float, u: np.ndarray, along: np.ndarray,
+               pair: np.ndarray | None = None) -> np.ndarray:
     """lambda (n, n) between points at signed distances ``u`` (n,) from the wall (m, + stiff side), ``along``
     (n, n) apart along it (m): the table interpolated linearly in Poisson ratio, log contrast and the three
-    distances (clamped to the table).
+    distances (clamped to the table). Points on a lattice repeat few distances along the wall: give each distinct
+    one once in ``along`` (m,) and ``pair`` (n, n), the index into it of each pair's.
 
     Raises:
         ValidationError: a contrast below 1 or a Poisson ratio outside the table.
@@ -127,16 +134,26 @@ def wall_share(table: WallTable, poisson: float, contrast: float, u: np.ndarray,
     # a point nearer the wall than a node takes its own side's nearest node (the wall's node is half of each)
     near = NEAR_WALL * table.spacing
     u = np.where(u > 0, np.maximum(u, near), np.minimum(u, -near))
-    # along the first offset per point (n, U, V), then bilinear in (second offset, along) per pair
+    # along the first offset per point (n, U, V), then bilinear in (second offset, along) per pair; single
+    # precision over the pairs (the table holds 4 digits) halves what the (n, n) passes move
     i0, a = _locate(table.offsets, u)
-    first = (1 - a)[:, None, None] * cube[i0] + a[:, None, None] * cube[i0 + 1]
+    first = ((1 - a)[:, None, None] * cube[i0] + a[:, None, None] * cube[i0 + 1]).astype(np.float32)
     k0, c = _locate(table.along, along)
+    if pair is not None:
+        k0, c = k0[pair], c[pair]
+    c = c.astype(np.float32)
     n_u, n_v = cube.shape[1], cube.shape[2]
     flat = first.reshape(-1)
     base = (np.arange(len(u))[:, None] * n_u + i0[None, :]) * n_v + k0
-    b = a[None, :]
-    return ((1 - b) * ((1 - c) * flat[base] + c * flat[base + 1])
-            + b * ((1 - c) * flat[base + n_v] + c * flat[base + n_v + 1]))
+    b = a.astype(np.float32)[None, :]
+    low = flat[base]
+    low += c * (flat[base + 1] - low)
+    high = flat[base + n_v]
+    high += c * (flat[base + n_v + 1] - high)
+    high -= low
+    high *= b
+    low += high
+    return low
 
 
 @dataclass(frozen=True)
@@ -156,29 +173,36 @@ class Wall:
         return points @ self.normal - self.offset
 
 
-def _crossing(is_stiff, start: np.ndarray, direction: np.ndarray, length: float, tol: float) -> float | None:
-    """Where along start + t direction, t in [-length, length], ``is_stiff`` turns true (bisection); None if it does
-    not change once."""
-    t = np.linspace(-length, length, 65)
-    side = is_stiff(start[None, :] + t[:, None] * direction[None, :])
-    change = np.flatnonzero(side[1:] != side[:-1])
-    if len(change) != 1 or side[0] or not side[-1]:
-        return None
-    lo, hi = float(t[change[0]]), float(t[change[0] + 1])
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if is_stiff(start[None, :] + mid * direction[None, :])[0]:
-            hi = mid
-        else:
-            lo = mid
-    return 0.5 * (lo + hi)
+def _crossings(is_stiff, starts: np.ndarray, direction: np.ndarray, length: float, tol: float,
+               samples: int = 65) -> np.ndarray | None:
+    """Where along each line starts[k] + t direction, t in [-length, length], ``is_stiff`` turns true, to ``tol``
+    m; None if on any line it does not change exactly once. Every line is sampled in one call per level, each level
+    ``samples - 1`` times finer than the last (two levels for a few-millimetre reach), so the material lookup runs
+    a handful of times rather than once per bisection step."""
+    n_lines = len(starts)
+    lo = np.full(n_lines, -length)
+    hi = np.full(n_lines, length)
+    first = True
+    while True:
+        t = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, samples)[None, :]
+        points = starts[:, None, :] + t[:, :, None] * direction[None, None, :]
+        side = np.asarray(is_stiff(points.reshape(-1, 2)), dtype=bool).reshape(n_lines, samples)
+        change = side[:, 1:] != side[:, :-1]
+        if first and (np.any(change.sum(axis=1) != 1) or side[:, 0].any() or not side[:, -1].all()):
+            return None
+        first = False
+        k = np.argmax(change, axis=1)
+        rows = np.arange(n_lines)
+        lo, hi = t[rows, k], t[rows, k + 1]
+        if np.all(hi - lo <= tol):
+            return 0.5 * (lo + hi)
 
 
 def find_wall(is_stiff, centres: np.ndarray, stiff: np.ndarray, reach: float, cell: float,
               tol: float = 1e-5) -> Wall | None:
     """The straight wall that splits the square cells (centres (n, 2) m, side ``cell`` m) into their ``stiff``
-    (bool) and other ones, located to ``tol`` m by bisection on ``is_stiff(points (k, 2)) -> bool (k,)``; None where
-    no straight line does (a curved or broken boundary, or more than one)."""
+    (bool) and other ones, located to ``tol`` m by ever finer sampling of ``is_stiff(points (k, 2)) -> bool (k,)``;
+    None where no straight line does (a curved or broken boundary, or more than one)."""
     if stiff.all() or not stiff.any():
         return None
     design = np.column_stack([np.ones(len(centres)), centres])
@@ -188,12 +212,11 @@ def find_wall(is_stiff, centres: np.ndarray, stiff: np.ndarray, reach: float, ce
     normal = coef[1:] / np.hypot(*coef[1:])
     tangent = np.array([-normal[1], normal[0]])
     # two crossings half a reach either side of the press point give the wall's direction
-    points = []
-    for s in (-0.5 * reach, 0.5 * reach):
-        t = _crossing(is_stiff, s * tangent, normal, reach, tol)
-        if t is None:
-            return None
-        points.append(s * tangent + t * normal)
+    starts = np.array([-0.5 * reach, 0.5 * reach])[:, None] * tangent[None, :]
+    t = _crossings(is_stiff, starts, normal, reach, tol)
+    if t is None:
+        return None
+    points = starts + t[:, None] * normal[None, :]
     along = points[1] - points[0]
     tangent = along / np.hypot(*along)
     normal = np.array([tangent[1], -tangent[0]])
