@@ -8,14 +8,15 @@ import json
 import numpy as np
 import pytest
 from scipy.integrate import dblquad
+from scipy.interpolate import RegularGridInterpolator
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec
 from palpate.sim import simulate_press
 from palpate.sim.analytic import law_sensel_pressure
-from palpate.sim.bem.kernel import love_rectangle
+from palpate.sim.bem.kernel import influence, love_rectangle
 from palpate.sim.bem.press import solve_ladder
-from palpate.sim.bem.surface import build_surface
+from palpate.sim.bem.surface import ROWS, build_surface, column_kinds, column_stacks, stack_compliance
 from palpate.sim.bem.wall import Wall, WallTable, find_wall, load_wall_table
 from palpate.sim.contact.lcp import solve_contact
 from palpate.sim.contact.stack import object_law
@@ -171,3 +172,60 @@ def test_simulate_press_with_bem_runs_and_names_its_model():
     assert rec.meta["fidelity"] == "bem" and rec.meta["physics"]["mixing"] == "uniform"
     law = simulate_press(115e3, 0.45, fidelity="analytic", depth=0.003, seed=2)
     assert max(rec.truth.force) == pytest.approx(max(law.truth.force), rel=0.01)
+
+
+def test_a_staircase_of_columns_is_sampled_once_per_kind_of_column_and_gives_every_cell_its_own_stack():
+    """Cells are grouped by which inclusions' footprints cover them; each group's stack must be what sampling
+    that very cell's column gives (a sphere's cells are sampled one by one: its chord depends on the cell)."""
+    strips = tuple(Inclusion(Material("hard", 115e3, 0.45), "column", ((i + 0.5) * 1e-3, i * 0.5e-3, 0.0),
+                             (1e-3, 40e-3)) for i in range(-6, 6))
+    ball = Inclusion(Material("ball", 1e6, 0.45), "sphere", (-2e-3, -2e-3, 0.03 - 2.5e-3), (2e-3,))
+    obj = ObjectSpec("stairs", "box", (0.08, 0.08, 0.03), (0.0, 0.0), Material("soft", 20e3, 0.45),
+                     inclusions=strips + (ball,))
+    k = (np.arange(-12, 12) + 0.5) * CELL
+    centres = np.stack(np.meshgrid(k, k, indexing="ij"), -1).reshape(-1, 2)
+    kinds = column_kinds(obj, centres + np.array([1e-3, 0.0]))
+    assert len(np.unique(kinds)) < len(centres) / 4
+    stack_of, stacks, on_object = column_stacks(obj, 1e-3, 0.0, 0.03, centres)
+    assert on_object.all()
+    for n in np.random.default_rng(0).choice(len(centres), 40, replace=False):
+        _, own, _ = column_stacks(obj, 1e-3, 0.0, 0.03, centres[n:n + 1] + np.array([[1e-9, 0.0]]))
+        assert stacks[stack_of[n]] == own[0]
+
+
+def test_the_wall_table_is_read_once_per_file_version(tmp_path):
+    path = tmp_path / "walls.json"
+    table = load_wall_table()
+    path.write_text(json.dumps(table.to_dict({"how": "test"})))
+    first = load_wall_table(path)
+    assert load_wall_table(path) is first
+    assert not first.share.flags.writeable
+    doc = table.to_dict({"how": "test"})
+    doc["thickness"] = 0.02
+    path.write_text(json.dumps(doc) + " ")  # a new version: another size and time
+    assert load_wall_table(path).thickness == pytest.approx(0.02)
+
+
+def test_the_wall_compliance_built_by_blocks_is_the_soft_stack_scaled_by_the_table_share():
+    """The blocked, single-precision construction against the formula written out per pair in double precision."""
+    obj = _wall_object(1.3e-3)
+    a = np.sqrt(R * 3e-3)
+    surface = build_surface(obj, 0.0, 0.0, 0.03, TIP, a + 2 * CELL, CELL, a)
+    assert surface.mixing == "wall" and len(surface.centres) > 2 * ROWS
+    table = load_wall_table()
+    soft, hard = sorted(surface.stacks, key=lambda s: s.top_modulus)
+    q = 1.0 / a
+    contrast = stack_compliance(soft, q) / stack_compliance(hard, q)
+    u = surface.centres[:, 0] - 1.3e-3
+    near = table.spacing
+    u = np.where(u > 0, np.maximum(u, near), np.minimum(u, -near))
+    along = np.abs(surface.centres[:, None, 1] - surface.centres[None, :, 1])
+    cube = RegularGridInterpolator((np.log(table.contrast), table.offsets, table.offsets, table.along),
+                                   table.share[1])  # nu 0.45 is a node of the table
+    pts = np.stack(np.broadcast_arrays(np.log(contrast), u[:, None], u[None, :], np.minimum(along, table.along[-1])),
+                   axis=-1)
+    share = cube(pts.reshape(-1, 4)).reshape(along.shape)
+    d = surface.centres[:, None, :] - surface.centres[None, :, :]
+    own = influence(soft.scaled(), CELL, d[..., 0], d[..., 1]) / soft.top_modulus
+    # the wall is located to a few micrometres (find_wall's tolerance), which moves the share by ~1e-4
+    np.testing.assert_allclose(surface.compliance, own * contrast ** (share - 1.0), rtol=2e-3)

@@ -39,19 +39,30 @@ class ContactOutgrown(ValidationError):
 
 
 def solve_fields(surface: Surface, tip_radius: float, depths: np.ndarray) -> np.ndarray:
-    """Cell pressures (Pa, (n, cells)) at increasing indentations ``depths`` (m), each solve started from the
-    contact set Hertz would give (the cells whose gap exceeds half the depth) and the last one's."""
+    """Cell pressures (Pa, (n, cells)) at increasing indentations ``depths`` (m). The first solve starts from the
+    contact set Hertz would give (the cells whose gap exceeds half the depth); each next one from that set joined
+    with the last one's stretched as a growing contact is (by sqrt of the depth ratio), which follows a contact
+    that is not round."""
     r2 = np.sum(surface.centres**2, axis=1)
     if np.any(r2 >= tip_radius**2):
         raise ValidationError("bem: the surface reaches beyond the tip's radius; press shallower")
     profile = tip_radius - np.sqrt(tip_radius**2 - r2)
     fields = np.zeros((len(depths), len(r2)))
     edge = (np.sqrt(r2.max()) - surface.cell) ** 2
+    ij = np.rint(surface.centres / surface.cell - 0.5).astype(int)
+    lo = ij.min(axis=0)
+    shape = ij.max(axis=0) - lo + 1
+    last = np.zeros(tuple(shape), dtype=bool)
     for k, d in enumerate(depths):
         gap = d - profile
-        fields[k], active = solve_contact(surface.compliance, gap, gap > 0.5 * d)
+        guess = gap > 0.5 * d
+        if k > 0:
+            back = np.rint(surface.centres * math.sqrt(depths[k - 1] / d) / surface.cell - 0.5).astype(int) - lo
+            guess |= last[np.clip(back[:, 0], 0, shape[0] - 1), np.clip(back[:, 1], 0, shape[1] - 1)]
+        fields[k], active = solve_contact(surface.compliance, gap, guess)
         if active.any() and np.max(r2[active]) > edge:
             raise ContactOutgrown(f"bem: the contact reached the edge of the solved surface at {d * 1e3:.2f} mm deep")
+        last[ij[:, 0] - lo[0], ij[:, 1] - lo[1]] = active
     return fields
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import FingertipSpec, ObjectSpec
 from palpate.sim.bem.kernel import Stack, influence
-from palpate.sim.bem.wall import WallTable, find_wall, load_wall_table, wall_share
+from palpate.sim.bem.wall import WallTable, find_wall, load_wall_table, wall_coupling
 from palpate.sim.contact.layered import surface_kernel
 from palpate.sim.contact.stack import object_breaks, object_lookup
 from palpate.sim.fingertip import sensel_bounds
@@ -32,6 +32,8 @@ from palpate.sim.fingertip import sensel_bounds
 FINE_STEP, FINE_DEPTH, COARSE_STEP = 0.25e-3, 10e-3, 1e-3
 #: How two cells' compliances mix (power mean) and over what length (m) each column's is averaged.
 MIX_POWER, MIX_SMOOTHING = -1.0, 1.0e-3
+#: Rows of the compliance matrix built at a time.
+ROWS = 32
 
 
 @dataclass(frozen=True)
@@ -163,10 +165,24 @@ def power_mean(a: np.ndarray, b: np.ndarray, power: float) -> np.ndarray:
     return (0.5 * (a**power + b**power)) ** (1.0 / power)
 
 
-def _stack_matrix(stack: Stack, cell: float, span: int, pair: np.ndarray) -> np.ndarray:
-    """The stack's own compliance (m/Pa) between cells ``pair`` apart (flat index into the lattice of offsets
-    -2 span..2 span cells squared)."""
-    return _lattice(stack.scaled(), float(cell), 2 * span).ravel().take(pair) / stack.top_modulus
+def _compliance(stack: Stack, cell: float, span: int, flat_ij: np.ndarray, factor=None) -> np.ndarray:
+    """(n, n) m/Pa: the stack's own compliance between the cells at flat lattice indices ``flat_ij`` (n,) (row
+    times (4 span + 1) plus column), each row block times ``factor(rows, pair)`` when given (pair: each pair's
+    flat index into the lattice of offsets -2 span..2 span squared). A block of rows at a time, so that no
+    temporary is (n, n): those would cost fresh pages and cache misses on every press."""
+    width = 4 * span + 1
+    table = _lattice(stack.scaled(), float(cell), 2 * span).ravel() / stack.top_modulus
+    n = len(flat_ij)
+    out = np.empty((n, n))
+    for start in range(0, n, ROWS):
+        rows = slice(start, min(start + ROWS, n))
+        pair = flat_ij[rows, None] - flat_ij[None, :]
+        pair += 2 * span * (width + 1)
+        block = table.take(pair)
+        if factor is not None:
+            block *= factor(rows, pair)
+        out[rows] = block
+    return out
 
 
 def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: FingertipSpec, reach: float,
@@ -199,14 +215,10 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
     centres, own = lattice[keep], stack_of[keep]
     used, own = np.unique(own, return_inverse=True)
     ij = np.rint(centres / cell - 0.5).astype(int)
-    # each pair of cells as one flat index into the lattice of offsets (-2 span..2 span)^2
-    width = 4 * span + 1
-    flat_ij = ij[:, 0] * width + ij[:, 1]
-    pair = flat_ij[:, None] - flat_ij[None, :] + 2 * span * (width + 1)
+    flat_ij = ij[:, 0] * (4 * span + 1) + ij[:, 1]
     mixing = "uniform"
-    if len(used) == 1:
-        compliance = _stack_matrix(stacks[used[0]], cell, span, pair)
-    else:
+    base, factor = stacks[used[0]], None
+    if len(used) > 1:
         wall = None
         if len(used) == 2:
             soft, stiff = sorted(used, key=lambda s: -compliance_at[s])
@@ -225,10 +237,14 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
             along = np.abs(steps[:, None] * tangent[0] + steps[None, :] * tangent[1]).ravel()
             nu = 0.5 * (stacks[soft].poisson[0] + stacks[stiff].poisson[0])
             contrast = compliance_at[soft] / compliance_at[stiff]
-            share = wall_share(walls, nu, contrast, u, along, pair)
-            share -= 1.0
-            share *= math.log(contrast)
-            compliance = _stack_matrix(stacks[soft], cell, span, pair) * np.exp(share)
+            base = stacks[soft]
+            coupling = wall_coupling(walls, nu, contrast, u, along)
+
+            def factor(rows: slice, pair: np.ndarray) -> np.ndarray:
+                share = coupling.share(pair, rows)
+                share -= 1.0
+                share *= math.log(contrast)
+                return np.exp(share, out=share)
         else:
             mixing = "local"
             ref = stack_of[centre]
@@ -239,7 +255,10 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
                                      mode="constant")
             field = (gaussian_filter(field, MIX_SMOOTHING / cell, mode="constant") / np.maximum(weight, 1e-12))
             field = field.ravel()[keep]
-            compliance = (_stack_matrix(stacks[ref], cell, span, pair)
-                          * power_mean(field[:, None], field[None, :], MIX_POWER))
+            base = stacks[ref]
+
+            def factor(rows: slice, pair: np.ndarray) -> np.ndarray:
+                return power_mean(field[rows, None], field[None, :], MIX_POWER)
+    compliance = _compliance(base, cell, span, flat_ij, factor)
     return Surface(cell=float(cell), centres=centres, stack_of=own, stacks=tuple(stacks[i] for i in used),
                    compliance=compliance, overlap=sensel_overlap(tip, centres, cell), mixing=mixing)

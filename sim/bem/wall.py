@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -78,7 +79,24 @@ class WallTable:
 
 
 def load_wall_table(path: Path = TABLE_PATH) -> WallTable:
-    """Read and check the wall table (models/bem_wall_table.json by default)."""
+    """Read and check the wall table (models/bem_wall_table.json by default). Read once per file version: the
+    table is cached on the file's path, size and modification time, and its arrays are read-only."""
+    try:
+        stat = Path(path).stat()
+    except OSError:
+        return _read_wall_table(Path(path))  # the reader names what is wrong with the path
+    return _cached_wall_table(str(path), stat.st_size, stat.st_mtime_ns)
+
+
+@lru_cache(maxsize=4)
+def _cached_wall_table(path: str, size: int, mtime_ns: int) -> WallTable:
+    table = _read_wall_table(Path(path))
+    for name in ("offsets", "along", "poisson", "contrast", "share"):
+        getattr(table, name).setflags(write=False)
+    return table
+
+
+def _read_wall_table(path: Path) -> WallTable:
     doc = read_document(path, "the bem wall table", FORMAT, VERSION, "run benchmarks/bem_wall_table.py --write")
     try:
         table = WallTable(offsets=np.asarray(doc["offsets"], dtype=float), along=np.asarray(doc["along"], dtype=float),
@@ -112,18 +130,63 @@ def _locate(grid: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return k, (x - grid[k]) / (grid[k + 1] - grid[k])
 
 
-def wall_share(table: WallTable, poisson: float, contrast: float, u: np.ndarray, along: np.ndarray,
-               pair: np.ndarray | None = None) -> np.ndarray:
-    """lambda (n, n) between points at signed distances ``u`` (n,) from the wall (m, + stiff side), ``along``
-    (n, n) apart along it (m): the table interpolated linearly in Poisson ratio, log contrast and the three
-    distances (clamped to the table). Points on a lattice repeat few distances along the wall: give each distinct
-    one once in ``along`` (m,) and ``pair`` (n, n), the index into it of each pair's.
+@dataclass(frozen=True)
+class WallCoupling:
+    """lambda between the points of one surface beside one wall, ready to be read a block of pairs at a time
+    (made by :func:`wall_coupling`; single precision, as the table holds 4 digits).
+
+    Attributes:
+        first: (n * U * V,) the table interpolated at each point's own offset, per point.
+        column: (n,) each point's offset node times V (the second offset's lower node, flattened).
+        weight: (n,) each point's weight towards its next offset node.
+        along_node: (m,) lower along-node of each distinct distance along the wall.
+        along_weight: (m,) its weight towards the next node.
+        nodes: (U, V), the table's offset and along node counts.
+    """
+
+    first: np.ndarray
+    column: np.ndarray
+    weight: np.ndarray
+    along_node: np.ndarray
+    along_weight: np.ndarray
+    nodes: tuple[int, int]
+
+    def share(self, pair: np.ndarray, rows: slice = slice(None)) -> np.ndarray:
+        """lambda (k, n) for the points ``rows`` (k of them) against every point, ``pair`` (k, n) indexing each
+        pair's distance along the wall."""
+        n_u, n_v = self.nodes
+        base = self.along_node.take(pair)
+        base += self.column[None, :]
+        base += (np.arange(rows.start or 0, (rows.start or 0) + len(pair), dtype=np.int32) * (n_u * n_v))[:, None]
+        weight = self.along_weight.take(pair)
+        low = self.first.take(base)
+        step = self.first.take(base + 1)
+        step -= low
+        step *= weight
+        low += step
+        base += n_v
+        high = self.first.take(base)
+        step = self.first.take(base + 1)
+        step -= high
+        step *= weight
+        high += step
+        high -= low
+        high *= self.weight[None, :]
+        low += high
+        return low
+
+
+def wall_coupling(table: WallTable, poisson: float, contrast: float, u: np.ndarray,
+                  along: np.ndarray) -> WallCoupling:
+    """lambda between points at signed distances ``u`` (n,) from the wall (m, + stiff side) and the distinct
+    distances ``along`` (m,) between them along it (m): the table interpolated linearly in Poisson ratio, log
+    contrast and the three distances (clamped to the table).
 
     Raises:
         ValidationError: a contrast below 1 or a Poisson ratio outside the table.
     """
     if not contrast >= 1.0:
-        raise ValidationError(f"wall_share: the contrast is stiff over soft, >= 1; got {contrast!r}")
+        raise ValidationError(f"wall_coupling: the contrast is stiff over soft, >= 1; got {contrast!r}")
     if not table.poisson[0] - 1e-9 <= poisson <= table.poisson[-1] + 1e-9:
         raise ValidationError(f"bem: a wall at Poisson ratio {poisson:g} is outside the wall table's "
                               f"{table.poisson[0]:g}-{table.poisson[-1]:g}")
@@ -134,26 +197,13 @@ def wall_share(table: WallTable, poisson: float, contrast: float, u: np.ndarray,
     # a point nearer the wall than a node takes its own side's nearest node (the wall's node is half of each)
     near = NEAR_WALL * table.spacing
     u = np.where(u > 0, np.maximum(u, near), np.minimum(u, -near))
-    # along the first offset per point (n, U, V), then bilinear in (second offset, along) per pair; single
-    # precision over the pairs (the table holds 4 digits) halves what the (n, n) passes move
     i0, a = _locate(table.offsets, u)
-    first = ((1 - a)[:, None, None] * cube[i0] + a[:, None, None] * cube[i0 + 1]).astype(np.float32)
-    k0, c = _locate(table.along, along)
-    if pair is not None:
-        k0, c = k0[pair], c[pair]
-    c = c.astype(np.float32)
+    first = (1 - a)[:, None, None] * cube[i0] + a[:, None, None] * cube[i0 + 1]
     n_u, n_v = cube.shape[1], cube.shape[2]
-    flat = first.reshape(-1)
-    base = (np.arange(len(u))[:, None] * n_u + i0[None, :]) * n_v + k0
-    b = a.astype(np.float32)[None, :]
-    low = flat[base]
-    low += c * (flat[base + 1] - low)
-    high = flat[base + n_v]
-    high += c * (flat[base + n_v + 1] - high)
-    high -= low
-    high *= b
-    low += high
-    return low
+    k0, c = _locate(table.along, np.asarray(along, dtype=float).ravel())
+    return WallCoupling(first=first.astype(np.float32).reshape(-1), column=(i0 * n_v).astype(np.int32),
+                        weight=a.astype(np.float32), along_node=np.minimum(k0, n_v - 2).astype(np.int32),
+                        along_weight=c.astype(np.float32), nodes=(n_u, n_v))
 
 
 @dataclass(frozen=True)
