@@ -4,7 +4,8 @@ material's share in the coupling of two surface points beside a wall, depends on
 Each (Poisson ratio, contrast) is one full 3-D FE of a 30 mm block split by a wall (plus one of the soft block per
 Poisson ratio), a few minutes each on one core; results are kept in --cache so an interrupted run resumes.
 
-Run: .venv/bin/python benchmarks/bem_wall_table.py [--write] [--poisson 0.3,0.45,0.49] [--contrast 2,6,20]
+Run: .venv/bin/python benchmarks/bem_wall_table.py [--write] [--poisson 0.3,0.45,0.49] [--contrast 2,5.75,20]
+[--h 0.0005]
 (--write: replace models/bem_wall_table.json)
 """
 
@@ -23,8 +24,8 @@ from palpate.sim.bem.wall_measure import measure_share, surface_response, wall_b
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--poisson", default="0.3,0.45,0.49")
-    parser.add_argument("--contrast", default="2,6,20")
-    parser.add_argument("--h", type=float, default=1e-3, help="FE node spacing over the window, m")
+    parser.add_argument("--contrast", default="2,5.75,20")
+    parser.add_argument("--h", type=float, default=0.5e-3, help="FE node spacing over the window, m")
     parser.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "palpate" / "bem_wall")
     parser.add_argument("--write", action="store_true", help="replace models/bem_wall_table.json")
     args = parser.parse_args()
@@ -58,8 +59,9 @@ def main() -> None:
     for p, nu in enumerate(poissons):
         for c, contrast in enumerate(contrasts):
             s = cube[p, c, :, :, 0]
-            print(f"{nu:5.2f} {contrast:8g} {s[n - 1, n - 3]:12.3f} {s[n + 1, n + 3]:12.3f} {s[n - 1, 0]:9.3f} "
-                  f"{s[n + 1, -1]:9.3f} {s[n - 3, n + 3]:8.3f} {s[0, -1]:8.3f}")
+            at = {mm: n + int(round(mm * 1e-3 / args.h)) for mm in (-3, -1, 1, 3)}
+            print(f"{nu:5.2f} {contrast:8g} {s[at[-1], at[-3]]:12.3f} {s[at[1], at[3]]:12.3f} {s[at[-1], 0]:9.3f} "
+                  f"{s[at[1], -1]:9.3f} {s[at[-3], at[3]]:8.3f} {s[0, -1]:8.3f}")
     if args.write:
         table = WallTable(offsets=offsets, along=along, poisson=np.array(poissons), contrast=np.array(contrasts),
                           share=cube, thickness=0.03)
