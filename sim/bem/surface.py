@@ -45,7 +45,8 @@ class Surface:
         centres: (n, 2) cell centres relative to the press point, m.
         stack_of: (n,) index into ``stacks`` of each cell's column.
         stacks: the distinct column stacks (top first, on the rigid table).
-        compliance: (n, n) settlement per unit pressure, m/Pa.
+        compliance: (n, n) settlement per unit pressure, m/Pa, single precision (the contact solve's gathers and
+            factorisations cost half as much; the wall table and kernels hold fewer digits anyway).
         overlap: (rows * cols, n) share of each sensel's footprint covered by each cell (rows sum to 1 where the
             cells cover the sensel).
         mixing: how the stacks' compliances were combined: "uniform", "wall" or "local" (module docstring).
@@ -173,7 +174,7 @@ def _compliance(stack: Stack, cell: float, span: int, flat_ij: np.ndarray, facto
     width = 4 * span + 1
     table = _lattice(stack.scaled(), float(cell), 2 * span).ravel() / stack.top_modulus
     n = len(flat_ij)
-    out = np.empty((n, n))
+    out = np.empty((n, n), dtype=np.float32)
     for start in range(0, n, ROWS):
         rows = slice(start, min(start + ROWS, n))
         pair = flat_ij[rows, None] - flat_ij[None, :]
