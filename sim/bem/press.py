@@ -97,16 +97,20 @@ def between(surface: Surface, nodes: np.ndarray, fields: np.ndarray, depth: np.n
     node_force = fields.sum(axis=1) * cell * cell
     force = np.zeros(len(d))
     sensels = np.zeros((len(d), surface.overlap.shape[0]))
-    for m in np.flatnonzero(d > 0):
-        blend = np.zeros(len(ij))
-        for k, w in ((below[m], 1.0 - weight[m]), (hi[m], weight[m])):
-            if w <= 0:
-                continue
-            s = math.sqrt(d[m] / nodes[k])
-            coords = (surface.centres / s / cell - 0.5 - lo).T
-            blend += w * s * map_coordinates(grids[k], coords, order=1, mode="constant", cval=0.0)
-            force[m] += w * s**3 * node_force[k]
-        sensels[m] = surface.overlap @ blend
+    pressed = np.flatnonzero(d > 0)
+    if not len(pressed):
+        return force, sensels
+    # every (depth, neighbouring node) stretch in one call: the node is an exact integer coordinate of the stacked
+    # grids, so the interpolation along it only picks that node's plane
+    k = np.stack([below[pressed], hi[pressed]], axis=1)  # (p, 2)
+    w = np.stack([1.0 - weight[pressed], weight[pressed]], axis=1)
+    s = np.sqrt(d[pressed, None] / nodes[k])
+    planar = surface.centres[None, None, :, :] / (s[..., None, None] * cell) - 0.5 - lo  # (p, 2, n, 2)
+    coords = np.stack([np.broadcast_to(k[..., None], planar.shape[:3]), planar[..., 0], planar[..., 1]])
+    values = map_coordinates(grids, coords.reshape(3, -1), order=1, mode="constant", cval=0.0)
+    blend = np.einsum("pj,pjn->pn", w * s, values.reshape(planar.shape[:3]))
+    force[pressed] = np.sum(w * s**3 * node_force[k], axis=1)
+    sensels[pressed] = blend @ surface.overlap.T
     return force, sensels
 
 

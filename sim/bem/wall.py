@@ -136,7 +136,8 @@ class WallCoupling:
     (made by :func:`wall_coupling`; single precision, as the table holds 4 digits).
 
     Attributes:
-        first: (n * U * V,) the table interpolated at each point's own offset, per point.
+        first: (k * U * V,) the table interpolated at each of the k distinct offsets of the points.
+        row: (n,) each point's distinct offset times U * V (where its slab of ``first`` starts).
         column: (n,) each point's offset node times V (the second offset's lower node, flattened).
         weight: (n,) each point's weight towards its next offset node.
         along_node: (m,) lower along-node of each distinct distance along the wall.
@@ -145,6 +146,7 @@ class WallCoupling:
     """
 
     first: np.ndarray
+    row: np.ndarray
     column: np.ndarray
     weight: np.ndarray
     along_node: np.ndarray
@@ -157,7 +159,7 @@ class WallCoupling:
         n_u, n_v = self.nodes
         base = self.along_node.take(pair)
         base += self.column[None, :]
-        base += (np.arange(rows.start or 0, (rows.start or 0) + len(pair), dtype=np.int32) * (n_u * n_v))[:, None]
+        base += self.row[rows, None]
         weight = self.along_weight.take(pair)
         low = self.first.take(base)
         step = self.first.take(base + 1)
@@ -198,12 +200,17 @@ def wall_coupling(table: WallTable, poisson: float, contrast: float, u: np.ndarr
     near = NEAR_WALL * table.spacing
     u = np.where(u > 0, np.maximum(u, near), np.minimum(u, -near))
     i0, a = _locate(table.offsets, u)
-    first = (1 - a)[:, None, None] * cube[i0] + a[:, None, None] * cube[i0 + 1]
+    # points on a lattice beside a straight wall share few offsets: interpolate the table once per offset
+    distinct, slab = np.unique(u, return_inverse=True)
+    j0, b = _locate(table.offsets, distinct)
+    cube = cube.astype(np.float32)
+    first = (1 - b)[:, None, None].astype(np.float32) * cube[j0] + b[:, None, None].astype(np.float32) * cube[j0 + 1]
     n_u, n_v = cube.shape[1], cube.shape[2]
     k0, c = _locate(table.along, np.asarray(along, dtype=float).ravel())
-    return WallCoupling(first=first.astype(np.float32).reshape(-1), column=(i0 * n_v).astype(np.int32),
-                        weight=a.astype(np.float32), along_node=np.minimum(k0, n_v - 2).astype(np.int32),
-                        along_weight=c.astype(np.float32), nodes=(n_u, n_v))
+    return WallCoupling(first=first.reshape(-1), row=(slab.reshape(-1) * (n_u * n_v)).astype(np.int32),
+                        column=(i0 * n_v).astype(np.int32), weight=a.astype(np.float32),
+                        along_node=np.minimum(k0, n_v - 2).astype(np.int32), along_weight=c.astype(np.float32),
+                        nodes=(n_u, n_v))
 
 
 @dataclass(frozen=True)
