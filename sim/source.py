@@ -39,7 +39,7 @@ from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, check_iterations, law_depth
 from palpate.sim.trace import PhysicsTrace
-from palpate.sim.validity.choice import UNCHECKED_IMAGE, Choice, choose, situation
+from palpate.sim.validity.choice import Choice, choose, image_note, situation
 from palpate.sim.validity.image_table import ImageTable, load_image_table
 from palpate.sim.validity.table import ValidityTable, load_table
 
@@ -57,14 +57,14 @@ def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, *, tol
     Args:
         depth: the press's depth, m (default the target's, or 0.25 tip radii for a force-only target).
         table: a loaded validity table (default the shipped one).
-        images: a loaded image table (default the shipped one, read where material changes off the press axis).
+        images: a loaded image table (default the shipped one).
         surface_z: the top's height at the target, m (default the object's height).
     """
     table = load_table() if table is None else table
     d = depth if depth is not None else (target.depth if target.depth is not None else 0.25 * radius)
     top = obj.height if surface_z is None else surface_z
     sit = situation(obj, target.x, target.y, top, d, radius)
-    if sit.image is not None and images is None:
+    if images is None:
         images = load_image_table()
     return choose(table, sit, tolerance, obj.name, images)
 
@@ -186,7 +186,9 @@ class SimSource:
         if obj is None:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
         if self.fidelity != "auto":
-            note = UNCHECKED_IMAGE.get(self.fidelity)
+            if self._images is None:
+                self._images = load_image_table()
+            note = image_note(self.fidelity, self._images)
             return Choice(self.fidelity, f"{obj.name}: fidelity {self.fidelity!r} set by the scenario"
                           + (f"; note: {note}" if note else ""))
         return self._auto(obj, target)

@@ -38,6 +38,11 @@ def test_bem_image_on_held_out_walls_leans_the_right_way_and_beats_analytic(case
         assert np.all(np.sign(got[big]) == np.sign(ref[big]))
     deep = bem.depth >= 1e-3
     assert np.all(bem.rms_share[deep] < analytic.rms_share[deep])
+    # the image targets: rms within 10% of the peak; the force within 5% where the FE itself is (below nu 0.49 its
+    # plain block is within 0.7% of the exact law, at 0.49 it is 6.9% stiff)
+    assert np.all(bem.rms_share[deep] <= 0.10)
+    if case.block.material.poisson < 0.49:
+        assert np.all(np.abs(bem.force_error[deep]) <= 0.05)
 
 
 @pytest.mark.parametrize("case", _cases("tuning", "wall")[:3], ids=lambda c: c.name)
@@ -47,6 +52,16 @@ def test_analytic_image_is_blind_to_a_wall_that_bem_sees(case):
     bem = score(case, entry.image, "bem", entry.split, REFERENCE.tip).errors
     assert np.all(np.abs(analytic.asymmetry) < 1e-9)
     assert bem.rms_share.max() < analytic.rms_share.max()
+
+
+def test_flex_force_holds_on_a_plain_block_but_its_image_does_not_and_the_table_says_so():
+    case = next(c for c in _cases("tuning", "block") if "nu0.45" in c.name)
+    entry = REFERENCE.cases[case.name]
+    flex = score(case, entry.image, "flex", entry.split, REFERENCE.tip).errors
+    deep = flex.depth >= 1e-3
+    assert np.all(np.abs(flex.force_error[deep]) <= 0.05)
+    assert flex.rms_share[deep].max() > 0.10
+    assert load_image_table().verdict("flex", "block")[1] is not None
 
 
 def test_the_shipped_table_rules_analytic_out_over_walls():

@@ -33,7 +33,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, material_index_at
 from palpate.sim.analytic import material_under
 from palpate.sim.limits import refusal
-from palpate.sim.validity.image_table import ImageTable
+from palpate.sim.validity.image_table import MIN_DEPTH, RMS_LIMIT, ImageTable
 from palpate.sim.validity.table import ValidityRow, ValidityTable
 
 ORDER = ("analytic", "bem", "rigid", "flex")
@@ -254,19 +254,29 @@ def _other_families(table: ValidityTable, sit: Situation, rung: str, skip: tuple
     return worst
 
 
-#: What a reason says when it names a rung whose taxel image the image table does not hold.
-UNCHECKED_IMAGE = {"rigid": None,
-                   "flex": "flex's taxel image is not checked against the FE (on a plain block its centre sensels read "
-                           "about half the FE's and its corners several times them): use its force, not its image"}
+def image_note(rung: str, images: ImageTable | None) -> str | None:
+    """What a reason adds when it names ``rung``: how far the image table finds its image off on plain blocks (flex
+    is chosen where no cheaper rung holds the geometry, so its image is never judged against a feature there)."""
+    if rung != "flex":
+        return None
+    rows = [r for r in (images.rows if images is not None else ()) if r.rung == rung and r.family == "block"
+            and r.depth >= MIN_DEPTH - 1e-12]
+    if not rows:
+        return "flex's taxel image is not checked against the FE (the image table holds no flex rows): use its force"
+    worst = max(r.rms_share for r in rows)
+    if worst <= RMS_LIMIT:
+        return None
+    return (f"flex's taxel image is up to {worst:.0%} of the peak off per sensel on plain blocks (the image table): "
+            "use its force, not its image")
 
 
 def choose(table: ValidityTable, sit: Situation, tolerance: float, name: str,
            images: ImageTable | None = None) -> Choice:
     """The cheapest fidelity for a situation under ``tolerance`` (fraction), the reason and the predicted errors;
     ``name`` (the object's) starts the reason; ``images`` the image table (needed where the material changes off the
-    press axis). A reason that names flex says its image is not checked."""
+    press axis, and to say how far flex's image is off when flex is chosen)."""
     choice = _choose(table, sit, tolerance, name, images)
-    note = UNCHECKED_IMAGE.get(choice.fidelity)
+    note = image_note(choice.fidelity, images)
     if note is None:
         return choice
     return Choice(choice.fidelity, f"{choice.reason}; note: {note}", choice.predicted)

@@ -3,6 +3,8 @@
 
 ``analytic`` and ``bem`` are evaluated at the depths directly (both are quasi-static: the image at a depth does not
 depend on how the press got there); ``rigid`` shares analytic's contact law and image, so it is scored as analytic.
+``flex`` presses once to just past the deepest depth and is read on the loading branch; it is scored on the plain
+objects it serves (blocks, skins) only: unmeasured over walls and lumps, ``auto`` never picks it there.
 """
 
 from __future__ import annotations
@@ -13,19 +15,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from palpate.core.world.scene import FingertipSpec
+from palpate.core.errors import ValidationError
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import FingertipSpec, ObjectSpec, Scene
 from palpate.sim.analytic import law_sensel_pressure
 from palpate.sim.bem.press import CELL, solve_ladder
 from palpate.sim.bem.surface import build_surface
 from palpate.sim.bem.wall import WallTable
 from palpate.sim.blas import one_blas_thread
 from palpate.sim.contact.stack import object_law
+from palpate.sim.controller import press_profile
 from palpate.sim.fingertip import sensel_bounds
+from palpate.sim.flex.press import run_flex_press
 from palpate.sim.validity.image import ImageErrors, PressImage, image_errors
-from palpate.sim.validity.image_cases import ImageCase
+from palpate.sim.validity.image_cases import FAMILIES, ImageCase
+from palpate.sim.validity.measure import loading_force
 
-#: The rungs scored here.
-IMAGE_RUNGS = ("analytic", "bem")
+#: The rungs scored here, and the families each is scored on.
+IMAGE_RUNGS = ("analytic", "bem", "flex")
+SCORED_FAMILIES = {"analytic": FAMILIES, "bem": FAMILIES, "flex": ("block", "skin")}
+
+
+def scored(rung: str, family: str) -> bool:
+    """Whether the image table holds ``rung`` on ``family`` (see SCORED_FAMILIES)."""
+    return family in SCORED_FAMILIES.get(rung, ())
 
 
 @dataclass(frozen=True)
@@ -57,7 +70,24 @@ def rung_image(case: ImageCase, rung: str, tip: FingertipSpec, walls: WallTable 
                                     a, walls)
             force, pressure = solve_ladder(surface, tip.radius, depths)
             return PressImage(depths, force, pressure.reshape(len(depths), tip.rows, tip.cols)), surface.mixing
+        if rung == "flex":
+            return _flex_image(obj, x, y, depths, tip), ""
     raise ValueError(f"rung_image: no image rung {rung!r}; one of {IMAGE_RUNGS}")
+
+
+def _flex_image(obj: ObjectSpec, x: float, y: float, depths: np.ndarray, tip: FingertipSpec) -> PressImage:
+    """One flex press to 3% past the deepest of ``depths`` (m), its force and sensel pressures read at each depth on
+    the loading branch (interpolated between frames)."""
+    target = PressTarget(x, y, depth=1.03 * float(depths[-1]), speed=0.01)
+    profile = press_profile(target, obj.height, radius=tip.radius, timestep=0.002)
+    trace = run_flex_press(Scene((obj,), fingertip=tip), obj, target, profile)
+    force = loading_force(trace.indentation, trace.force, depths)
+    frames = trace.sensel_pressure.reshape(len(trace.t), -1)
+    pressure = np.stack([loading_force(trace.indentation, frames[:, j], depths) for j in range(frames.shape[1])],
+                        axis=1)
+    if not (np.all(np.isfinite(force)) and np.all(np.isfinite(pressure))):
+        raise ValidationError(f"flex: the press stopped short of {depths[-1] * 1e3:.2f} mm; no image there")
+    return PressImage(depths, force, pressure.reshape(len(depths), tip.rows, tip.cols))
 
 
 def score(case: ImageCase, reference: PressImage, rung: str, split: str, tip: FingertipSpec,
