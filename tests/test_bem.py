@@ -17,7 +17,7 @@ from palpate.sim.analytic import law_sensel_pressure
 from palpate.sim.bem.kernel import influence, love_rectangle
 from palpate.sim.bem.press import solve_ladder
 from palpate.sim.bem.surface import ROWS, build_surface, column_kinds, column_stacks, stack_compliance
-from palpate.sim.bem.wall import Wall, WallTable, find_wall, load_wall_table
+from palpate.sim.bem.wall import NEAR_WALL, Wall, WallTable, find_wall, load_wall_table
 from palpate.sim.contact.lcp import solve_contact
 from palpate.sim.contact.stack import object_law
 from palpate.sim.fingertip import sensel_bounds
@@ -217,7 +217,7 @@ def test_the_wall_compliance_built_by_blocks_is_the_soft_stack_scaled_by_the_tab
     q = 1.0 / a
     contrast = stack_compliance(soft, q) / stack_compliance(hard, q)
     u = surface.centres[:, 0] - 1.3e-3
-    near = table.spacing
+    near = NEAR_WALL * table.spacing
     u = np.where(u > 0, np.maximum(u, near), np.minimum(u, -near))
     along = np.abs(surface.centres[:, None, 1] - surface.centres[None, :, 1])
     cube = RegularGridInterpolator((np.log(table.contrast), table.offsets, table.offsets, table.along),
@@ -229,3 +229,25 @@ def test_the_wall_compliance_built_by_blocks_is_the_soft_stack_scaled_by_the_tab
     own = influence(soft.scaled(), CELL, d[..., 0], d[..., 1]) / soft.top_modulus
     # the wall is located to a few micrometres (find_wall's tolerance), which moves the share by ~1e-4
     np.testing.assert_allclose(surface.compliance, own * contrast ** (share - 1.0), rtol=2e-3)
+
+
+@pytest.mark.parametrize("poisson", [0.3, 0.45, 0.49])
+def test_the_wall_compliance_is_positive_definite_for_walls_near_the_axis(poisson):
+    """The wall model scales the soft stack's compliance pair by pair, which need not stay positive definite; the
+    contact solve needs it to. A sweep of contrasts 2-22.5x, walls 0-2 mm either side of the axis, 2 and 4 mm deep."""
+    worst = np.inf
+    for soft, hard in ((20e3, 40e3), (50e3, 450e3), (10e3, 225e3)):
+        for offset in (-2e-3, -0.75e-3, -0.25e-3, 0.0, 0.5e-3, 1.25e-3):
+            obj = _wall_object(offset, soft, hard, poisson)
+            for depth in (2e-3, 4e-3):
+                a = np.sqrt(R * depth)
+                c = build_surface(obj, 0.0, 0.0, 0.03, TIP, 1.05 * a + 2 * CELL, CELL, a).compliance.astype(float)
+                eig = np.linalg.eigvalsh(0.5 * (c + c.T))
+                worst = min(worst, eig[0] / eig[-1])
+    assert worst > 0
+
+
+def test_an_indefinite_compliance_is_refused_by_name():
+    compliance = np.array([[1.0, 2.0], [2.0, 1.0]])
+    with pytest.raises(ValidationError, match="not positive definite"):
+        solve_contact(compliance, np.array([1.0, 1.0]))

@@ -11,7 +11,7 @@ factorisations per indentation.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from palpate.core.errors import ValidationError
 
@@ -28,7 +28,8 @@ def solve_contact(compliance: np.ndarray, gap: np.ndarray, active: np.ndarray | 
         max_iter: factorisations allowed before giving up.
 
     Raises:
-        ValidationError: the active set does not settle within ``max_iter`` iterations.
+        ValidationError: the active set does not settle within ``max_iter`` iterations, or the compliance of the
+            cells in contact is not positive definite.
     """
     gap = np.asarray(gap, dtype=float)
     n = len(gap)
@@ -44,8 +45,12 @@ def solve_contact(compliance: np.ndarray, gap: np.ndarray, active: np.ndarray | 
         p = np.zeros(n, dtype=compliance.dtype)
         # row-then-column takes and a full product (p is zero off the set) copy far less than np.ix_ and a
         # column slice would
-        p[idx] = cho_solve(cho_factor(compliance[idx][:, idx], overwrite_a=True, check_finite=False),
-                           gap[idx].astype(compliance.dtype), check_finite=False)
+        try:
+            factor = cho_factor(compliance[idx][:, idx], overwrite_a=True, check_finite=False)
+        except LinAlgError:
+            raise ValidationError(f"contact: the compliance of the {len(idx)} cells in contact is not positive "
+                                  "definite (a surface model outside what it holds); use another fidelity") from None
+        p[idx] = cho_solve(factor, gap[idx].astype(compliance.dtype), check_finite=False)
         negative = p < 0
         penetrating = (~active) & (compliance @ p < gap - slack)
         if not negative.any() and not penetrating.any():
