@@ -38,6 +38,14 @@ class ContactOutgrown(ValidationError):
     """The contact reached the edge of the cells solved (a wider surface is needed)."""
 
 
+def _on_grid(surface: Surface) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    """Each cell's (row, column) on the smallest grid that holds the surface, the grid's lower corner in cells
+    from the press point, and its shape."""
+    ij = np.rint(surface.centres / surface.cell - 0.5).astype(int)
+    lo = ij.min(axis=0)
+    return ij - lo, lo, tuple(int(v) for v in ij.max(axis=0) - lo + 1)
+
+
 def solve_fields(surface: Surface, tip_radius: float, depths: np.ndarray) -> np.ndarray:
     """Cell pressures (Pa, (n, cells)) at increasing indentations ``depths`` (m). The first solve starts from the
     contact set Hertz would give (the cells whose gap exceeds half the depth); each next one from that set joined
@@ -49,10 +57,8 @@ def solve_fields(surface: Surface, tip_radius: float, depths: np.ndarray) -> np.
     profile = tip_radius - np.sqrt(tip_radius**2 - r2)
     fields = np.zeros((len(depths), len(r2)))
     edge = (np.sqrt(r2.max()) - surface.cell) ** 2
-    ij = np.rint(surface.centres / surface.cell - 0.5).astype(int)
-    lo = ij.min(axis=0)
-    shape = ij.max(axis=0) - lo + 1
-    last = np.zeros(tuple(shape), dtype=bool)
+    at, lo, shape = _on_grid(surface)
+    last = np.zeros(shape, dtype=bool)
     for k, d in enumerate(depths):
         gap = d - profile
         guess = gap > 0.5 * d
@@ -62,7 +68,7 @@ def solve_fields(surface: Surface, tip_radius: float, depths: np.ndarray) -> np.
         fields[k], active = solve_contact(surface.compliance, gap, guess)
         if active.any() and np.max(r2[active]) > edge:
             raise ContactOutgrown(f"bem: the contact reached the edge of the solved surface at {d * 1e3:.2f} mm deep")
-        last[ij[:, 0] - lo[0], ij[:, 1] - lo[1]] = active
+        last[at[:, 0], at[:, 1]] = active
     return fields
 
 
@@ -84,11 +90,9 @@ def between(surface: Surface, nodes: np.ndarray, fields: np.ndarray, depth: np.n
     from scipy.ndimage import map_coordinates
 
     cell = surface.cell
-    ij = np.rint(surface.centres / cell - 0.5).astype(int)
-    lo = ij.min(axis=0)
-    shape = tuple(ij.max(axis=0) - lo + 1)
+    at, lo, shape = _on_grid(surface)
     grids = np.zeros((len(nodes),) + shape)
-    grids[:, ij[:, 0] - lo[0], ij[:, 1] - lo[1]] = fields
+    grids[:, at[:, 0], at[:, 1]] = fields
     d = np.clip(np.asarray(depth, dtype=float), 0.0, nodes[-1])
     root = np.sqrt(nodes)
     hi = np.clip(np.searchsorted(nodes, d), 0, len(nodes) - 1)

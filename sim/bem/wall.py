@@ -123,12 +123,7 @@ def _bracket(grid: np.ndarray, value: float) -> tuple[int, int, float]:
 def _locate(grid: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Lower node index and weight of each x on ``grid`` (clamped to its ends)."""
     x = np.clip(x, grid[0], grid[-1])
-    step = (grid[-1] - grid[0]) / (len(grid) - 1)
-    if np.allclose(np.diff(grid), step, rtol=1e-9, atol=0.0):
-        # evenly spaced (as the shipped table is): arithmetic, not a search, over the (n, n) pairs
-        k = np.minimum(((x - grid[0]) / step).astype(np.intp), len(grid) - 2)
-    else:
-        k = np.clip(np.searchsorted(grid, x) - 1, 0, len(grid) - 2)
+    k = np.clip(np.searchsorted(grid, x) - 1, 0, len(grid) - 2)
     return k, (x - grid[k]) / (grid[k + 1] - grid[k])
 
 
@@ -198,19 +193,19 @@ def wall_coupling(table: WallTable, poisson: float, contrast: float, u: np.ndarr
     c0, c1, wc = _bracket(np.log(table.contrast), math.log(max(contrast, 1.0)))
     cube = sum(w1 * w2 * table.share[p, c] for p, w1 in ((p0, 1 - wp), (p1, wp))
                for c, w2 in ((c0, 1 - wc), (c1, wc)) if w1 * w2 > 0)
-    # a point nearer the wall than a node takes its own side's nearest node (the wall's node is half of each)
+    # a point nearer the wall than NEAR_WALL node spacings takes the value there, on its own side
     near = NEAR_WALL * table.spacing
     u = np.where(u > 0, np.maximum(u, near), np.minimum(u, -near))
-    i0, a = _locate(table.offsets, u)
     # points on a lattice beside a straight wall share few offsets: interpolate the table once per offset
     distinct, slab = np.unique(u, return_inverse=True)
+    slab = slab.reshape(-1)
     j0, b = _locate(table.offsets, distinct)
     cube = cube.astype(np.float32)
     first = (1 - b)[:, None, None].astype(np.float32) * cube[j0] + b[:, None, None].astype(np.float32) * cube[j0 + 1]
     n_u, n_v = cube.shape[1], cube.shape[2]
     k0, c = _locate(table.along, np.asarray(along, dtype=float).ravel())
-    return WallCoupling(first=first.reshape(-1), row=(slab.reshape(-1) * (n_u * n_v)).astype(np.int32),
-                        column=(i0 * n_v).astype(np.int32), weight=a.astype(np.float32),
+    return WallCoupling(first=first.reshape(-1), row=(slab * (n_u * n_v)).astype(np.int32),
+                        column=(j0 * n_v).astype(np.int32)[slab], weight=b.astype(np.float32)[slab],
                         along_node=np.minimum(k0, n_v - 2).astype(np.int32), along_weight=c.astype(np.float32),
                         nodes=(n_u, n_v))
 
