@@ -33,7 +33,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, material_index_at
 from palpate.sim.analytic import material_under
 from palpate.sim.limits import refusal
-from palpate.sim.validity.image_table import MIN_DEPTH, RMS_LIMIT, ImageTable
+from palpate.sim.validity.image_table import RMS_LIMIT, ImageTable
 from palpate.sim.validity.table import ValidityRow, ValidityTable
 
 ORDER = ("analytic", "bem", "rigid", "flex")
@@ -259,8 +259,7 @@ def image_note(rung: str, images: ImageTable | None) -> str | None:
     is chosen where no cheaper rung holds the geometry, so its image is never judged against a feature there)."""
     if rung != "flex":
         return None
-    rows = [r for r in (images.rows if images is not None else ()) if r.rung == rung and r.family == "block"
-            and r.depth >= MIN_DEPTH - 1e-12]
+    rows = images.measured(rung, "block") if images is not None else []
     if not rows:
         return "flex's taxel image is not checked against the FE (the image table holds no flex rows): use its force"
     worst = max(r.rms_share for r in rows)

@@ -58,10 +58,14 @@ class ImageTable:
         """Whether any rung was measured on ``family`` (an unmeasured family leaves ``auto`` to the force rule)."""
         return any(r.family == family for r in self.rows)
 
+    def measured(self, rung: str, family: str) -> list[ImageRow]:
+        """``rung``'s rows on ``family`` at depths from MIN_DEPTH (empty where it was not measured there)."""
+        return [r for r in self.rows if r.rung == rung and r.family == family and r.depth >= MIN_DEPTH - 1e-12]
+
     def verdict(self, rung: str, family: str) -> tuple[float, str | None]:
         """(worst |force error| over the family's rows, why the image fails or None) for ``rung``; (inf, why) where
         the family was not measured for the rung."""
-        rows = [r for r in self.rows if r.rung == rung and r.family == family and r.depth >= MIN_DEPTH - 1e-12]
+        rows = self.measured(rung, family)
         if not rows:
             return math.inf, f"its image is not measured on {family}s (the image table)"
         worst = max(abs(r.force_error) for r in rows)
@@ -83,7 +87,7 @@ class ImageTable:
         none was measured."""
         scored = {}
         for rung in rungs:
-            rows = [r for r in self.rows if r.rung == rung and r.family == family and r.depth >= MIN_DEPTH - 1e-12]
+            rows = self.measured(rung, family)
             if rows:
                 scored[rung] = (max(abs(r.force_error) for r in rows),
                                 sum(not r.asymmetry_ok for r in rows) / len(rows), max(r.rms_share for r in rows))
