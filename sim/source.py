@@ -223,6 +223,14 @@ class SimSource:
 
         return press_batch(self, targets, backend)
 
+    @staticmethod
+    def press_across(pairs, backend: str = "cpu") -> list[PressRecording]:
+        """``[source.press(target) for source, target in pairs]`` for several simulated sources (the environments of
+        a vector) in one batch (:func:`palpate.sim.batch.press_across`)."""
+        from palpate.sim.batch.press import press_across
+
+        return press_across(pairs, backend)
+
     def _plan(self, target: PressTarget) -> PlannedPress:
         """Everything of a press before its physics, in press order (it draws the press's seeds and advances the
         source's press count): :func:`palpate.sim.batch.simulate_presses` plans a batch with it."""

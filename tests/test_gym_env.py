@@ -17,6 +17,7 @@ pytest.importorskip("mujoco")
 
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
+import palpate  # noqa: E402
 import palpate.gym  # noqa: E402, F401
 from palpate.core.errors import ValidationError  # noqa: E402
 from palpate.core.session.explore_env import ENV_ID, ExploreEnv, train_env_memory  # noqa: E402
@@ -143,6 +144,40 @@ def test_the_vector_form_steps_its_environments_together(memory):
     obs, reward, term, trunc, info = envs.step(np.array([0, 1, 2]))
     assert reward.shape == (3,) and obs["explored"].reshape(3, -1)[np.arange(3), [0, 1, 2]].all()
     envs.close()
+
+
+def test_the_vector_form_presses_in_one_batch_and_steps_as_a_loop_would(memory, monkeypatch):
+    from palpate.core.session.explore_env import ExploreVectorEnv
+    from palpate.core.session.sources import scenario_source_maker
+    from palpate.sim.source import SimSource
+
+    sc = palpate.load_scenario("explore_info_gain")
+    maker = scenario_source_maker(sc, sc.training.source)  # one law cache: each law is solved once for both
+    actions = [np.array([0, 7, 7]), np.array([13, 2, 40]), np.array([5, 5, 1])]  # budget 2: the third step resets
+
+    def episode(vector):
+        envs = vector([lambda: ExploreEnv(sc, memory=memory, press_model="sim", budget=2, source_maker=maker)
+                       for _ in range(3)])
+        out = [envs.reset(seed=4)[0]]
+        out += [envs.step(a)[:4] for a in actions]
+        envs.close()
+        return out
+
+    loop = episode(gym.vector.SyncVectorEnv)
+    batches = []
+    press_across = SimSource.press_across
+    monkeypatch.setattr(SimSource, "press_across", staticmethod(lambda pairs: batches.append(len(pairs))
+                                                                 or press_across(pairs)))
+    batched = episode(ExploreVectorEnv)
+    assert batches == [3, 3]  # every environment's press of a step in one batch; none while they reset
+    for a, b in zip(loop, batched, strict=True):
+        a, b = (a, b) if isinstance(a, tuple) else ((a,), (b,))
+        for x, y in zip(a, b, strict=True):
+            if isinstance(x, dict):
+                assert all(np.array_equal(x[k], y[k]) for k in x)
+            else:
+                np.testing.assert_array_equal(x, y)
+    assert np.any(loop[1][0]["features"] != 0)  # the presses were perceived and fitted
 
 
 def test_the_example_script_evaluates_heuristic_policies():

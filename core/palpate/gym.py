@@ -19,6 +19,7 @@ require_extra("the Gymnasium environment", "gymnasium")
 from palpate.core.session.explore_env import (  # noqa: E402
     ENV_ID,
     ExploreEnv,
+    ExploreVectorEnv,
     make_vector_env,
     register,
     train_env_memory,
@@ -26,4 +27,4 @@ from palpate.core.session.explore_env import (  # noqa: E402
 
 register()
 
-__all__ = ["ENV_ID", "ExploreEnv", "make_vector_env", "register", "train_env_memory"]
+__all__ = ["ENV_ID", "ExploreEnv", "ExploreVectorEnv", "make_vector_env", "register", "train_env_memory"]

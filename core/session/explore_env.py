@@ -32,6 +32,7 @@ from palpate.core.extras import require_extra
 try:
     import gymnasium as gym
     from gymnasium import spaces
+    from gymnasium.vector.utils import iterate
 except ModuleNotFoundError:  # said as the extra to install, by name
     require_extra("the Gymnasium environment", "gymnasium")
     raise
@@ -92,13 +93,17 @@ class ExploreEnv(gym.Env):
         budget: presses per episode (default: the scenario's exploration budget).
         stop_mean_entropy: the stop rule when the scenario has none (map's base units).
         memory: a trained HapticMemory (default: trained on the scenario's source at construction).
+        source_maker: ``make(objects, seed, variability)`` of the simulated press model's sources (default:
+            :func:`~palpate.core.session.sources.scenario_source_maker` of the scenario, made once, so that what its
+            sources solve, such as contact laws, serves every later episode); a vector shares one among its
+            environments.
     """
 
     metadata = {"render_modes": []}
 
     def __init__(self, scenario: str | Path | Scenario = DEFAULT_SCENARIO, object: str | None = None,
                  press_model: str = "offline", reward: str = "accuracy", budget: int | None = None,
-                 stop_mean_entropy: float = 0.05, memory=None, render_mode: str | None = None):
+                 stop_mean_entropy: float = 0.05, memory=None, render_mode: str | None = None, source_maker=None):
         if press_model not in PRESS_MODELS:
             raise ValidationError(f"press_model must be one of {', '.join(PRESS_MODELS)}, got {press_model!r}")
         if reward not in REWARDS:
@@ -138,8 +143,13 @@ class ExploreEnv(gym.Env):
         })
         self.action_space = spaces.Discrete(nx * ny)
         self._grid = self._post = self._plan = self._source = None
+        if source_maker is not None and not callable(source_maker):
+            raise ValidationError(f"source_maker must be callable as make(objects, seed, variability), got "
+                                  f"{type(source_maker).__name__}")
+        self._make_source = source_maker
         self._features = np.zeros(N_FEATURES, np.float32)
         self._k = 0
+        self._given = None  # a press made for this environment by its vector (give_press)
 
     # -- what the agent sees -------------------------------------------------------------------------------------
     def _obs(self) -> dict:
@@ -170,10 +180,12 @@ class ExploreEnv(gym.Env):
         self._grid = new_map(self.geometry)
         self._features = np.zeros(N_FEATURES, np.float32)
         self._k = 0
+        self._given = None
         if self.press_model == "sim":
-            make = scenario_source_maker(self.scenario, self.scenario.training.source)
-            self._source = make((self.entry.spec,), int(self.np_random.integers(2**31)),
-                                self.scenario.exploration.variability)
+            if self._make_source is None:
+                self._make_source = scenario_source_maker(self.scenario, self.scenario.training.source)
+            self._source = self._make_source((self.entry.spec,), int(self.np_random.integers(2**31)),
+                                             self.scenario.exploration.variability)
         self._postprocess()
         return self._obs(), self._info()
 
@@ -185,11 +197,10 @@ class ExploreEnv(gym.Env):
             raise ValidationError("step before reset: call env.reset(seed=...) first")
         if not self.action_space.contains(action):
             raise ValidationError(f"action must be a cell index in [0, {self.action_space.n}), got {action!r}")
-        nx = self.geometry.plane_shape[0]
-        ix, iy = int(action) % nx, int(action) // nx
+        ix, iy, x, y = self._cell(action)
         before = self._score()
-        x, y = (float(v) for v in self._centres[iy, ix])
-        params = self._press_offline(ix, iy, x, y) if self.press_model == "offline" else self._press_sim(x, y)
+        params = (self._press_offline(ix, iy, x, y) if self.press_model == "offline"
+                  else self._press_sim(int(action), x, y))
         self._features = (np.zeros(N_FEATURES, np.float32) if params is None
                           else np.asarray(params[:N_FEATURES], dtype=np.float32))
         self._k += 1
@@ -213,25 +224,78 @@ class ExploreEnv(gym.Env):
         self._grid.update(x, y, self.scenario.exploration.calibration.evidence(p))
         return params
 
-    def _press_sim(self, x: float, y: float) -> np.ndarray | None:
+    def _cell(self, action) -> tuple[int, int, float, float]:
+        """(ix, iy, x m, y m) of the cell an action names."""
+        nx = self.geometry.plane_shape[0]
+        ix, iy = int(action) % nx, int(action) // nx
+        x, y = (float(v) for v in self._centres[iy, ix])
+        return ix, iy, x, y
+
+    def _target(self, x: float, y: float) -> PressTarget:
         ex = self.scenario.exploration
-        rec = self._source.press(PressTarget(x, y, depth=ex.depth, force=ex.max_force, speed=ex.speed,
-                                             label=f"{self.entry.spec.name} gym"))
+        return PressTarget(x, y, depth=ex.depth, force=ex.max_force, speed=ex.speed,
+                           label=f"{self.entry.spec.name} gym")
+
+    def planned_press(self, action) -> tuple[object, PressTarget] | None:
+        """(source, target) of the simulated press ``step(action)`` would make, for a vector that presses its
+        environments' sources in one batch and hands each its recording (:meth:`give_press`); None with the offline
+        press model, before :meth:`reset`, or for an action off the map (``step`` then says why)."""
+        if self.press_model != "sim" or self._source is None or not self.action_space.contains(action):
+            return None
+        _, _, x, y = self._cell(action)
+        return self._source, self._target(x, y)
+
+    def give_press(self, action, recording) -> None:
+        """The recording of the press :meth:`planned_press` planned for ``action``, made by its source outside the
+        environment; the next ``step(action)`` perceives it instead of pressing again."""
+        self._given = (int(action), recording)
+
+    def _press_sim(self, action: int, x: float, y: float) -> np.ndarray | None:
+        given, self._given = self._given, None
+        rec = given[1] if given is not None and given[0] == action else self._source.press(self._target(x, y))
         res = perceive_press(rec).at_target((x, y))
-        apply_press(self._grid, res, self.memory, None, fallback_xy=(x, y), calibration=ex.calibration)
+        apply_press(self._grid, res, self.memory, None, fallback_xy=(x, y),
+                    calibration=self.scenario.exploration.calibration)
         return None if res.fit is None else np.asarray(res.fit.params, dtype=float)
 
 
+class ExploreVectorEnv(gym.vector.SyncVectorEnv):
+    """Environments stepped together, as gymnasium's SyncVectorEnv steps them, except that with the simulated press
+    model the presses of one vector step are made in one batch (the source's ``press_across``, e.g. palpate's
+    simulated source: every analytic press's physics in one vectorised call). Each environment's source presses in
+    the order a loop would, so every observation, reward and info equals SyncVectorEnv's."""
+
+    def step(self, actions):
+        """Press every stepping environment's cell (one batch), then step each as SyncVectorEnv does."""
+        acts = list(iterate(self.action_space, actions))
+        resetting = getattr(self, "_autoreset_envs", np.zeros(self.num_envs, bool))
+        next_step = getattr(getattr(self, "autoreset_mode", None), "name", "NEXT_STEP") == "NEXT_STEP"
+        planned = []
+        for i, (env, action) in enumerate(zip(self.envs, acts, strict=True)):
+            if next_step and resetting[i]:
+                continue  # this step resets the environment instead of pressing
+            plan = env.unwrapped.planned_press(action) if hasattr(env.unwrapped, "planned_press") else None
+            if plan is not None:
+                planned.append((env.unwrapped, action, plan))
+        batch = getattr(planned[0][2][0], "press_across", None) if planned else None
+        if batch is not None and all(getattr(p[0], "press_across", None) == batch for _, _, p in planned):
+            for (env, action, _), rec in zip(planned, batch([p for _, _, p in planned]), strict=True):
+                env.give_press(action, rec)
+        return super().step(actions)
+
+
 def make_vector_env(num_envs: int, scenario: str | Path | Scenario = DEFAULT_SCENARIO, **kwargs):
-    """``num_envs`` environments stepped together (gymnasium's SyncVectorEnv: the presses of one vector step run
-    one after another), sharing one memory trained once."""
+    """``num_envs`` environments stepped together (:class:`ExploreVectorEnv`: with the simulated press model, one
+    batch of presses a step), sharing one memory trained once."""
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise ValidationError(f"num_envs must be an integer >= 1, got {num_envs!r}")
     sc = _scenario(scenario)
     memory = kwargs.pop("memory", None)
     if memory is None:
         memory = train_env_memory(sc)
-    return gym.vector.SyncVectorEnv([lambda: ExploreEnv(sc, memory=memory, **kwargs) for _ in range(num_envs)])
+    if kwargs.get("press_model") == "sim" and kwargs.get("source_maker") is None:
+        kwargs["source_maker"] = scenario_source_maker(sc, sc.training.source)  # one law cache for the vector
+    return ExploreVectorEnv([lambda: ExploreEnv(sc, memory=memory, **kwargs) for _ in range(num_envs)])
 
 
 def register() -> None:
