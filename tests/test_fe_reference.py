@@ -194,3 +194,27 @@ def test_the_closed_form_rungs_law_is_within_ten_percent_on_lumps_and_edges():
             law = sample_law(case.sample, R, 1.05 * max(case.depths))
             np.testing.assert_allclose(law.force_at(np.array(case.depths)), reference_force(ref, case), rtol=0.10,
                                        err_msg=case.name)
+
+
+def test_the_stiffness_matrix_is_the_axisymmetric_bilinear_form_as_skfem_assembles_it():
+    from skfem import Basis, BilinearForm, ElementQuad2, ElementVector, MeshQuad1, asm
+
+    from palpate.sim.reference.fe import _stiffness
+
+    mesh = MeshQuad1.init_tensor(np.concatenate([[0.0], np.geomspace(1e-4, 0.02, 12)]), np.linspace(0, 0.01, 9))
+    basis = Basis(mesh, ElementVector(ElementQuad2()), intorder=4)
+    rng = np.random.default_rng(3)
+    lam, mu = rng.uniform(1e4, 2e6, mesh.nelements), rng.uniform(1e4, 2e5, mesh.nelements)
+
+    @BilinearForm
+    def form(u, v, w):
+        r = w.x[0]
+        eu, ev = (u.grad[0][0], u.grad[1][1], u[0] / r), (v.grad[0][0], v.grad[1][1], v[0] / r)
+        gu, gv = u.grad[0][1] + u.grad[1][0], v.grad[0][1] + v.grad[1][0]
+        return (w.lam * sum(eu) * sum(ev) + 2 * w.mu * sum(a * b for a, b in zip(eu, ev, strict=True))
+                + w.mu * gu * gv) * r
+
+    nqp = basis.X.shape[1]
+    want = asm(form, basis, lam=np.repeat(lam[:, None], nqp, 1), mu=np.repeat(mu[:, None], nqp, 1))
+    got = _stiffness(basis, lam, mu)
+    assert abs(got - want).max() <= 1e-13 * abs(want).max()
