@@ -1,4 +1,4 @@
-"""The analytic and rigid rungs against plain references of the same physics, measured in one run.
+"""The analytic, rigid and flex rungs against plain references of the same physics, measured in one run.
 
 One 4 mm press at 10 mm/s (about 1.4 s of press) on a 200 kPa block 30 mm thick, its contact law solved once (a
 SimSource keeps it, with the analytic rung's pad footprints and the rigid rung's compiled model: what every press
@@ -10,6 +10,9 @@ after a point's first one pays):
 - rigid: :func:`palpate.sim.rigid.run_rigid_press` (MuJoCo finger under the law, force table, sensel image)
   against bare MuJoCo stepping of the same compiled model, the servo driven along the same setpoints with a
   constant applied force (the plain reference: the stepping alone);
+- flex: :func:`palpate.sim.flex.press.run_flex_press` (the deformable block's window, built once and kept as a
+  SimSource keeps it; contact forces, mesh correction and sensel image every step) against bare MuJoCo stepping of
+  the same compiled window along the very controls the rung gave its drive;
 - and each rung's whole press through ``SimSource.press`` (profile, rung, taxel and pose sampling) beside them.
 
 Rounds interleave rung and reference, so the machine's load hits both alike; each prints its median CPU time
@@ -30,6 +33,8 @@ from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, Scene
 from palpate.sim.analytic import run_analytic_press
 from palpate.sim.controller import press_profile
 from palpate.sim.fingertip import sensel_quadrature
+from palpate.sim.flex.press import run_flex_press
+from palpate.sim.flex.tables import load_flex_tables
 from palpate.sim.rigid import run_rigid_press
 from palpate.sim.scene import build_press_model
 from palpate.sim.source import SimSource
@@ -55,7 +60,8 @@ def numpy_press(depth: np.ndarray, young_eff: float, radius: float, points: np.n
 
 
 def bare_stepping(model, data, ctrl: list[float], force: float) -> None:
-    """The plain reference of rigid: MuJoCo steps of the press model along ``ctrl``, a constant applied force."""
+    """The plain reference of rigid and flex: MuJoCo steps of the press model along ``ctrl``, a constant force
+    applied to the first degree of freedom."""
     import mujoco
 
     step = mujoco.mj_step
@@ -64,6 +70,25 @@ def bare_stepping(model, data, ctrl: list[float], force: float) -> None:
         qfrc[0] = force
         dctrl[0] = c
         step(model, data)
+
+
+def recorded_controls(run) -> list[float]:
+    """The control of every MuJoCo step ``run()`` takes, in order (what a rung told its drive)."""
+    import mujoco
+
+    ctrl: list[float] = []
+    step = mujoco.mj_step
+
+    def recording(model, data) -> None:
+        ctrl.append(float(data.ctrl[0]))
+        step(model, data)
+
+    mujoco.mj_step = recording
+    try:
+        run()
+    finally:
+        mujoco.mj_step = step
+    return ctrl
 
 
 def _cpu(fn) -> float:
@@ -85,7 +110,7 @@ def main() -> None:
     obj, tip = scene.objects[0], scene.fingertip
     target = PressTarget(0.0, 0.0, depth=0.004, speed=0.01)
     profile = press_profile(target, obj.height, radius=tip.radius, timestep=TIMESTEP)
-    source = {f: SimSource(scene, fidelity=f, seed=0) for f in ("analytic", "rigid")}
+    source = {f: SimSource(scene, fidelity=f, seed=0) for f in ("analytic", "rigid", "flex")}
     law = source["rigid"]._law(obj, profile.x, profile.y, profile.surface_z, law_depth(profile))
     for s in source.values():
         s.press(target)  # each source solves its law once
@@ -110,10 +135,26 @@ def main() -> None:
         mujoco.mj_resetData(model, data)
         bare_stepping(model, data, ctrl, 1.0)
 
+    # the flex rung's window and controls, for the reference
+    flex_models: dict = {}
+    tables = load_flex_tables()
+
+    def flex() -> None:
+        run_flex_press(scene, obj, target, profile, models=flex_models, tables=tables)
+
+    flex_ctrl = recorded_controls(flex)
+    ((flex_model, flex_data),) = flex_models.values()
+
+    def flex_bare() -> None:
+        mujoco.mj_resetData(flex_model.model, flex_data)
+        mujoco.mj_forward(flex_model.model, flex_data)
+        bare_stepping(flex_model.model, flex_data, flex_ctrl, 0.0)
+
     cases = {
         "analytic": (lambda: run_analytic_press(scene, obj, profile, law=law, pads=pads),
                      lambda: numpy_press(depth, young_eff, tip.radius, points, weights)),
         "rigid": (lambda: run_rigid_press(scene, obj, profile, timestep=TIMESTEP, law=law, models=models), bare),
+        "flex": (flex, flex_bare),
     }
     times: dict[str, list[tuple[float, float, float]]] = {k: [] for k in cases}
     for _ in range(args.rounds):
@@ -124,10 +165,11 @@ def main() -> None:
           f"{len(depth)} taxel samples, {n} MuJoCo steps; median CPU over {args.rounds} rounds")
     print(f"{'rung':10s} {'rung ms':>9s} {'reference ms':>13s} {'ratio':>7s} {'SimSource.press ms':>19s} "
           f"{'ratio':>7s}  reference")
-    refs = {"analytic": "numpy Hertz force + sensel image", "rigid": "bare MuJoCo stepping, same model"}
+    refs = {"analytic": "numpy Hertz force + sensel image", "rigid": "bare MuJoCo stepping, same model",
+            "flex": f"bare MuJoCo stepping, same window, same {len(flex_ctrl)} controls"}
     for name, rows in times.items():
         rung, ref, whole = np.median(np.array(rows), axis=0) * 1e3
-        print(f"{name:10s} {rung:9.3f} {ref:13.3f} {rung / ref:7.1f} {whole:19.3f} {whole / ref:7.1f}  {refs[name]}")
+        print(f"{name:10s} {rung:9.3f} {ref:13.3f} {rung / ref:7.2f} {whole:19.3f} {whole / ref:7.2f}  {refs[name]}")
 
 
 if __name__ == "__main__":
