@@ -16,6 +16,7 @@ import math
 import os
 import stat
 import tomllib
+from functools import lru_cache, wraps
 from pathlib import Path
 
 import numpy as np
@@ -221,3 +222,24 @@ def number_array(value, where: str, ndim: int, max_size: int | None = None) -> n
             or not np.all(np.isfinite(arr))):
         raise ValidationError(f"{where} must be a {ndim}-D array of {size} finite numbers")
     return arr
+
+
+def per_file_version(read, maxsize: int = 4):
+    """``read(path)`` made to read each version of a file once: its answers are kept by the file's path, size and
+    modification time (ns), so a file written again is read again. Only for readers whose answers cannot be changed
+    (frozen dataclasses of tuples, read-only arrays): every caller gets the same object. A path that cannot be
+    examined goes to ``read`` itself, which says what is wrong with it."""
+
+    @lru_cache(maxsize=maxsize)
+    def cached(path: str, size: int, mtime_ns: int):
+        return read(Path(path))
+
+    @wraps(read)
+    def load(path):
+        try:
+            st = Path(path).stat()
+        except OSError:
+            return read(Path(path))
+        return cached(str(path), st.st_size, st.st_mtime_ns)
+
+    return load

@@ -258,3 +258,19 @@ def test_a_reason_that_names_flex_says_how_far_its_image_is_off():
     table = _table(_row("thickness", 7.5, 0.2, 0.2, 0.01))
     chosen = choose(table, Situation(thickness=7.5, poisson=0.3), 0.05, "Block")
     assert chosen.fidelity == "flex" and "image is not checked" in chosen.reason
+
+
+def test_the_validity_and_image_tables_are_read_once_per_file_version(tmp_path):
+    from palpate.sim.validity.image_table import IMAGE_TABLE_PATH, load_image_table
+    from palpate.sim.validity.table import TABLE_PATH, load_table
+
+    for load, shipped in ((load_table, TABLE_PATH), (load_image_table, IMAGE_TABLE_PATH)):
+        path = tmp_path / shipped.name
+        text = shipped.read_text()
+        path.write_text(text)
+        first = load(path)
+        assert load(path) is first and load(shipped) is load(shipped)
+        path.write_text(text.replace('"rows"', '"rows" ', 1))  # the same table written again: read again
+        assert load(path) is not first and load(path) == first
+    with pytest.raises(TypeError):
+        load_table().cost["analytic"] = None  # shared by every caller, so nobody may change it

@@ -21,12 +21,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.files import per_file_version
 from palpate.core.world.resources import models_dir
 from palpate.sim.validity.reference import read_document
 
@@ -81,21 +81,9 @@ class WallTable:
 
 
 def load_wall_table(path: Path = TABLE_PATH) -> WallTable:
-    """Read and check the wall table (models/bem_wall_table.json by default). Read once per file version: the
-    table is cached on the file's path, size and modification time, and its arrays are read-only."""
-    try:
-        stat = Path(path).stat()
-    except OSError:
-        return _read_wall_table(Path(path))  # the reader names what is wrong with the path
-    return _cached_wall_table(str(path), stat.st_size, stat.st_mtime_ns)
-
-
-@lru_cache(maxsize=4)
-def _cached_wall_table(path: str, size: int, mtime_ns: int) -> WallTable:
-    table = _read_wall_table(Path(path))
-    for name in ("offsets", "along", "poisson", "contrast", "share"):
-        getattr(table, name).setflags(write=False)
-    return table
+    """Read and check the wall table (models/bem_wall_table.json by default). Read once per file version
+    (:func:`palpate.core.files.per_file_version`); its arrays are read-only."""
+    return _wall_tables(path)
 
 
 def _read_wall_table(path: Path) -> WallTable:
@@ -107,7 +95,12 @@ def _read_wall_table(path: Path) -> WallTable:
                           share=np.asarray(doc["share"], dtype=float), thickness=float(doc["thickness"]))
     except (KeyError, TypeError, ValueError) as exc:
         raise ValidationError(f"{path}: not a wall table ({exc})") from None
+    for name in ("offsets", "along", "poisson", "contrast", "share"):
+        getattr(table, name).setflags(write=False)  # one table serves every caller
     return table
+
+
+_wall_tables = per_file_version(_read_wall_table)
 
 
 def _bracket(grid: np.ndarray, value: float) -> tuple[int, int, float]:

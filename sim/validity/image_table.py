@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.files import per_file_version
 from palpate.core.world.resources import models_dir
 from palpate.sim.validity.image_measure import ImageScore
 from palpate.sim.validity.reference import read_document
@@ -135,7 +136,12 @@ def table_document(rows: list[ImageRow], measured_with: dict) -> dict:
 
 
 def load_image_table(path: Path | str = IMAGE_TABLE_PATH) -> ImageTable:
-    """Read and check models/image_validity.json (or ``path``)."""
+    """Read and check models/image_validity.json (or ``path``), once per file version
+    (:func:`palpate.core.files.per_file_version`: every source and every choice shares it)."""
+    return _image_tables(path)
+
+
+def _read_image_table(path: Path) -> ImageTable:
     doc = read_document(path, "the image validity table", FORMAT, VERSION,
                         "run benchmarks/image_validity.py --write")
     raw = doc.get("rows")
@@ -155,3 +161,6 @@ def load_image_table(path: Path | str = IMAGE_TABLE_PATH) -> ImageTable:
             raise ValidationError(f"{path}: row {i}: depth, force_error and rms_share must be finite, depth > 0")
         rows.append(row)
     return ImageTable(tuple(rows))
+
+
+_image_tables = per_file_version(_read_image_table)

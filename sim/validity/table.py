@@ -8,10 +8,13 @@ limits) into frozen dataclasses; :meth:`ValidityTable.to_dict` writes the same J
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
 from pathlib import Path
+from types import MappingProxyType
 
 from palpate.core.errors import ValidationError
+from palpate.core.files import per_file_version
 from palpate.core.world.resources import models_dir
 from palpate.sim.validity.cases import FAMILIES
 from palpate.sim.validity.reference import read_document
@@ -93,7 +96,7 @@ class ValidityTable:
     tip_radius: float
     rungs: tuple[str, ...]
     rows: tuple[ValidityRow, ...]
-    cost: dict[str, RungCost]
+    cost: Mapping[str, RungCost]
     failures: tuple[RungFailure, ...] = ()
 
     def to_dict(self) -> dict:
@@ -175,11 +178,20 @@ def table_from_document(raw: dict, path: Path | str = "validity table") -> Valid
 
 
 def load_table(path: Path | str = TABLE_PATH) -> ValidityTable:
-    """Read and validate a validity table file.
+    """Read and validate a validity table file, once per file version (:func:`palpate.core.files.per_file_version`:
+    every source and every choice shares it).
 
     Raises:
         ValidationError: missing, too large, not JSON, wrong format or a bad row, naming the file and the key.
     """
+    return _tables(path)
+
+
+def _read_table(path: Path) -> ValidityTable:
     raw = read_document(path, "validity table", FORMAT, VERSION,
                         "measure it with `palpate bench` or `.venv/bin/python benchmarks/validity.py`")
-    return table_from_document(raw, path)
+    table = table_from_document(raw, path)
+    return replace(table, cost=MappingProxyType(dict(table.cost)))  # one table serves every caller: read-only
+
+
+_tables = per_file_version(_read_table)
