@@ -31,6 +31,7 @@ MODULES = (
     "palpate.core.perception.press",
     "palpate.core.perception.memory",
     "palpate.core.perception.classifier_memory",
+    "palpate.core.perception.memory_loading",
     "palpate.core.perception.layered_estimator",
     "palpate.core.perception.crossval",
     "palpate.core.perception.feature_extractors",

@@ -17,16 +17,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         "replay",
         help="run the perception stack on a recording and write the same maps, figures and summary as a run",
         description="Replay an MCAP recording (from palpate run --record, palpate import, palpate record) through "
-        "sync, features, segmentation, fits, the haptic memory and the map. A recording made by palpate run is "
+        "sync, features, segmentation, fits, the run's memory (the haptic memory, or the classifier plugin that "
+        "judged the run, fitted again to its training rows) and the map. A recording made by palpate run is "
         "cut into the same presses and rebuilds the run's maps exactly.",
     )
     p.add_argument("recording", type=Path, help="MCAP recording")
-    p.add_argument("--memory", type=Path, required=True, help="trained haptic memory (JSON)")
+    p.add_argument("--memory", type=Path, required=True,
+                   help="the run's memory.json: a haptic memory, or a classifier plugin's (the plugin must be "
+                   "installed or registered)")
     p.add_argument("--out", type=Path, required=True,
                    help="output folder: new or empty, or an earlier replay's with --force")
     p.add_argument("--force", action="store_true", help="replace an earlier replay in --out")
     p.add_argument("--no-audit", action="store_true",
-                   help="accept a memory whose stored parameters do not match a re-fit of its training data")
+                   help="accept a haptic memory whose stored parameters do not match a re-fit of its training "
+                   "data (or a classifier plugin that describes itself differently from the run's)")
     p.add_argument("--memory-layers", type=Path, default=None,
                    help="per-voxel-layer memories (default: memory_layers.json beside --memory, if present)")
     p.add_argument("--cell-mm", type=float, default=10.0,
@@ -46,15 +50,20 @@ def _replay(args: argparse.Namespace) -> int:
     from palpate.core.errors import ValidationError
     from palpate.core.perception.layered_memory import LayeredMemory
     from palpate.core.perception.memory import HapticMemory
+    from palpate.core.perception.memory_loading import load_memory
     from palpate.core.session.progress import Progress
     from palpate.core.session.replay import replay_recording
 
     if not (math.isfinite(args.cell_mm) and args.cell_mm > 0):
         raise ValidationError(f"--cell-mm must be a finite number > 0, got {args.cell_mm}")
-    memory = HapticMemory.load(args.memory, audit=not args.no_audit)
+    memory = load_memory(args.memory, audit=not args.no_audit)
     layers_file = args.memory_layers or args.memory.with_name("memory_layers.json")
     layers = None
-    if args.memory_layers is not None or layers_file.is_file():
+    if args.memory_layers is not None and not isinstance(memory, HapticMemory):
+        raise ValidationError(f"--memory-layers: {args.memory} is classifier {memory.label!r}, not a haptic memory; "
+                              "per-layer memories judge voxel maps with palpate's haptic memory only")
+    # a classifier run maps in 2-D and writes no layers: a layers file lying beside its memory is not its own
+    if isinstance(memory, HapticMemory) and (args.memory_layers is not None or layers_file.is_file()):
         layers = LayeredMemory.load(memory, layers_file)
     if not args.live_speed >= 0:
         raise ValidationError(f"--live-speed must be >= 0, got {args.live_speed}")

@@ -42,6 +42,7 @@ _EXPORTS = {
     "TrainingResult": "palpate.core.session.training",
     "HapticMemory": "palpate.core.perception.memory",
     "ClassifierMemory": "palpate.core.perception.classifier_memory",
+    "load_memory": "palpate.core.perception.memory_loading",
     "LayeredMemoryClassifier": "palpate.core.perception.layered_estimator",
     "CrossValidation": "palpate.core.perception.crossval",
     "PressRecording": "palpate.core.perception.streams",

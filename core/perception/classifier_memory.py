@@ -51,15 +51,24 @@ def classifier_for(classifier: str, features: str, materials: Sequence[str]) -> 
     origins = {"classifier": found_c.origin, "features": found_f.origin}
     if found_c.obj is None and found_f.obj is None:
         return None, origins
-    estimator = HapticMemory(list(materials)) if found_c.obj is None else found_c.obj()
-    extractor = found_f.obj
-    if extractor is not None and not getattr(extractor, "name", None):
-        extractor = _Named(features, extractor)
-    return ClassifierMemory(estimator, list(materials), classifier, extractor), origins
+    return build_classifier_memory(found_c, found_f, materials), origins
+
+
+def build_classifier_memory(classifier: plugins.Plugin, features: plugins.Plugin,
+                            materials: Sequence[str]) -> ClassifierMemory:
+    """A new unfitted classifier memory from resolved plugins (a built-in's ``obj`` is None: the haptic memory, the
+    power-law features), as a run builds it and a replay builds it again from the run's ``memory.json``."""
+    estimator = HapticMemory(list(materials)) if classifier.obj is None else classifier.obj()
+    extractor = features.obj
+    # the file records the extractor's name, and a replay resolves that name: it must be the registered one
+    if extractor is not None and getattr(extractor, "name", None) != features.name:
+        extractor = _Named(features.name, extractor)
+    return ClassifierMemory(estimator, list(materials), classifier.name, extractor)
 
 
 class _Named:
-    """An extractor under the name it was registered by (a plain function's ``__name__`` may differ)."""
+    """An extractor under the name it was registered by (a plain function's ``__name__``, or its own ``name``, may
+    differ)."""
 
     def __init__(self, name: str, extract):
         self.name, self.extract = name, extract

@@ -33,8 +33,10 @@ from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
 from palpate.core.mapping.snapshot import MapSnapshot
 from palpate.core.names import inside, unique_stems
+from palpate.core.perception.classifier_memory import ClassifierMemory
 from palpate.core.perception.layered_memory import LayeredMemory
 from palpate.core.perception.memory import HapticMemory
+from palpate.core.perception.memory_loading import check_replayable, memory_algorithms
 from palpate.core.perception.pipeline import presses_from_recording
 from palpate.core.perception.press import PressResult, perceive_press, press_result
 from palpate.core.perception.streams import GroundTruth, PressRecording
@@ -181,7 +183,7 @@ def _training_readings(presses, annotations, timeline, reader) -> dict[str, list
     return out
 
 
-def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path, *,
+def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, out_dir: str | Path, *,
                      layers: LayeredMemory | None = None, cell_size: float = 0.01, progress: Progress | None = None,
                      figures: bool = True, force: bool = False, inputs=(), salvage: bool = False, live=None,
                      live_speed: float = 1.0) -> dict:
@@ -189,7 +191,9 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
 
     Args:
         path: MCAP recording (palpate format).
-        memory: a fitted HapticMemory.
+        memory: the run's memory, fitted: a HapticMemory, or the ClassifierMemory of a run whose presses a
+            classifier plugin judged (2-D maps only), e.g. from
+            :func:`~palpate.core.perception.memory_loading.load_memory`.
         out_dir: output folder (created).
         layers: voxel maps: the per-layer judges the run used (default: every layer judged by ``memory``).
         cell_size: grid cell, m, for recordings without map geometry.
@@ -213,6 +217,11 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
     if not isinstance(maps, dict):
         raise ValidationError(f"{path}: metadata 'maps' must be an object of map geometries, got {brief(maps)}")
     geoms = {name: MapGeometry.from_dict(g, f"{path}: metadata maps.{name}") for name, g in maps.items()}
+    check_replayable(memory, [name for name, g in geoms.items() if g.voxel], layers is not None, str(path))
+    for name, g in geoms.items():  # a map's columns are its materials: another memory's order would relabel them
+        if tuple(g.materials) != tuple(memory.materials):
+            raise ValidationError(f"{path}: map {brief(name)} was made with materials {list(g.materials)}, the memory "
+                                  f"judges {list(memory.materials)}; replay with the run's own memory.json")
     # The run's map calibration (a recording made before it was recorded used the seeds' maps).
     calibration = MapCalibration.from_dict(rec.metadata.get("map_calibration") or {},
                                            f"{path}: metadata map_calibration")
@@ -317,7 +326,7 @@ def replay_recording(path: str | Path, memory: HapticMemory, out_dir: str | Path
             fig.plot_map_snapshots(inside(out, out / "figures" / f"{stems[name]}_map.png"), name,
                                    [MapSnapshot.of(grid, "replayed"), MapSnapshot.of(post, "post-processed")], g)
     summary = {"format": REPLAY_FORMAT, "version": 1, "recording": str(path), "salvaged": rec.salvaged,
-               "materials": list(memory.materials),
+               "materials": list(memory.materials), "algorithms": memory_algorithms(memory),
                "source_metadata": rec.metadata, "objects": summary_objects, "versions": versions(),
                "palpate": __version__}
     assert_finite(summary)
