@@ -16,6 +16,7 @@ OUT = Path(__file__).resolve().parent.parent / "models" / "foxglove_layout.json"
 # The map topics of the shipped scenarios' objects (a recording has one /map/<object> per explored object).
 MAP_OBJECTS = ("Object_1", "Object_2", "Object_3", "Block", "Strip", "recording")
 TAXELS, POSE = "/taxels/taxels", "/pose/pose"
+TAXEL_DATA = "/palpate/taxels/taxels"  # the frames' counts as numbers (the image view holds them as bytes)
 
 
 def layout() -> fl.Layout:
@@ -32,8 +33,8 @@ def layout() -> fl.Layout:
                                                                               color_mode="colormap",
                                                                               color_map="turbo")))
     plot = fl.PlotPanel(title="contact: two taxels (counts) and the fingertip height (m)",
-                        config=fl.PlotConfig(paths=[fl.PlotSeries(value=f"{TAXELS}.counts[5]"),
-                                                    fl.PlotSeries(value=f"{TAXELS}.counts[6]"),
+                        config=fl.PlotConfig(paths=[fl.PlotSeries(value=f"{TAXEL_DATA}.counts[5]"),
+                                                    fl.PlotSeries(value=f"{TAXEL_DATA}.counts[6]"),
                                                     fl.PlotSeries(value=f"{POSE}.translation.z")]))
     log = fl.LogPanel(title="presses", config=fl.LogConfig(topic_to_render="/annotations", min_log_level=1))
     return fl.Layout(content=fl.SplitContainer(direction="row", items=[

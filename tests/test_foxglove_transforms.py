@@ -1,4 +1,5 @@
-"""The pad's ``pose -> taxels`` transform is exactly Foxglove's FrameTransform and joins the frame tree."""
+"""The pose and the pad's ``pose -> taxels`` transforms are exactly Foxglove's FrameTransform and join the frame
+tree."""
 
 import json
 from pathlib import Path
@@ -23,6 +24,12 @@ def _shape(message) -> dict | str:
 def test_pad_transform_has_exactly_foxglove_fields():
     msg = pad_message(1_500_000_000, "tip", "pad", (0.0, 0.0, -0.009))
     assert _shape(msg) == REFERENCE["foxglove.FrameTransform"]
+
+
+def test_pose_transform_has_exactly_foxglove_fields():
+    # the pose sample's exact time goes on palpate's own channel, not into Foxglove's message
+    sample = PoseSample(t=0.1 + 0.2, position=np.array([0.1, -0.2, 0.3]), quaternion=np.array([1.0, 0.0, 0.0, 0.0]))
+    assert _shape(pose_message(sample, 300_000_000, "tip")) == REFERENCE["foxglove.FrameTransform"]
 
 
 def test_pose_then_pad_places_a_taxel_point_in_world():

@@ -1,6 +1,7 @@
-"""Recording formats: a format-1 recording (palpate.* schemas) still replays; format 2's Foxglove messages hold
-what they claim (the map after every press, the objects, log lines); a run's recording is complete before its
-figures are drawn; a truncated recording replays with --salvage to the run's own presses."""
+"""Recording formats: format-1 (palpate.* schemas) and format-2 (Foxglove schemas with palpate's extra fields)
+recordings still replay to their run's maps; the Foxglove views hold what they claim (the map after every press,
+the objects, log lines); a run's recording is complete before its figures are drawn; a truncated recording
+replays with --salvage to the run's own presses."""
 
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from palpate.core.session.replay import replay_recording
 from palpate.core.world.scenario_file import parse_scenario
 
 V1 = Path(__file__).parent / "data" / "recording_v1"
+V2 = Path(__file__).parent / "data" / "recording_v2"
 SMALL = (Path(__file__).parent / "test_run.py").read_text().split('SMALL = """', 1)[1].split('"""', 1)[0]
 
 
@@ -37,20 +39,43 @@ def small_run(tmp_path_factory):
     return summary, out
 
 
-def test_format_1_recording_still_replays_to_the_maps_its_run_built(tmp_path):
-    rec = read_recording(V1 / "run.mcap")
-    assert len(rec.frames) > 50 and len(rec.poses) > 20 and rec.truth is not None
-    assert [a.data["phase"] for a in rec.annotations] == ["exploration"] * 4
-    replay_recording(V1 / "run.mcap", HapticMemory.load(V1 / "memory.json"), tmp_path, figures=False)
+def _replays_to_the_v1_maps(recording: Path, out: Path) -> None:
+    replay_recording(recording, HapticMemory.load(V1 / "memory.json"), out, figures=False)
     for name in ("slab", "slab_postprocessed"):
-        ran, replayed = Grid2D.load(V1 / f"{name}.npz"), Grid2D.load(tmp_path / "maps" / f"{name}.npz")
+        ran, replayed = Grid2D.load(V1 / f"{name}.npz"), Grid2D.load(out / "maps" / f"{name}.npz")
         np.testing.assert_array_equal(replayed.explored, ran.explored)
         np.testing.assert_allclose(replayed.probabilities, ran.probabilities, rtol=0, atol=1e-12)
 
 
-def test_format_1_and_format_2_of_the_same_streams_replay_identically(tmp_path):
+def test_format_1_recording_still_replays_to_the_maps_its_run_built(tmp_path):
+    rec = read_recording(V1 / "run.mcap")
+    assert len(rec.frames) > 50 and len(rec.poses) > 20 and rec.truth is not None
+    assert [a.data["phase"] for a in rec.annotations] == ["exploration"] * 4
+    _replays_to_the_v1_maps(V1 / "run.mcap", tmp_path)
+
+
+def test_format_2_recording_still_reads_and_replays_to_the_maps_of_the_same_run(tmp_path):
+    with open(V2 / "run.mcap", "rb") as f:
+        reader = make_reader(f)
+        assert reader.get_summary() is not None
+        (meta,) = [m for m in reader.iter_metadata() if m.name == "palpate"]
+        schemas = {s.name for s in reader.get_summary().schemas.values()}
+    assert meta.metadata["format_version"] == "2"
+    assert {"foxglove.RawImage", "foxglove.FrameTransform", "foxglove.Log"} <= schemas
+    assert not any(name in schemas for name in ("palpate.TaxelFrame", "palpate.PoseSample", "palpate.Annotation"))
+    v1, v2 = read_recording(V1 / "run.mcap"), read_recording(V2 / "run.mcap")
+    assert v2.metadata == v1.metadata and v2.annotations == v1.annotations
+    assert all(a.t == b.t and a.sensor_id == b.sensor_id and np.array_equal(a.counts, b.counts)
+               and a.sensel_area == b.sensel_area for a, b in zip(v2.frames, v1.frames, strict=True))
+    assert all(a.t == b.t and np.array_equal(a.position, b.position) and np.array_equal(a.quaternion, b.quaternion)
+               for a, b in zip(v2.poses, v1.poses, strict=True))
+    assert np.array_equal(v2.truth.t, v1.truth.t) and np.array_equal(v2.truth.force, v1.truth.force)
+    _replays_to_the_v1_maps(V2 / "run.mcap", tmp_path)
+
+
+def test_format_1_and_format_3_of_the_same_streams_replay_identically(tmp_path):
     old = read_recording(V1 / "run.mcap")
-    new = tmp_path / "v2.mcap"
+    new = tmp_path / "v3.mcap"
     with RecordingWriter(new, old.metadata) as w:
         for a in old.annotations:
             w.write_annotation(a.t, a.kind, a.data)
@@ -60,6 +85,7 @@ def test_format_1_and_format_2_of_the_same_streams_replay_identically(tmp_path):
             w.write_pose(p)
         w.write_truth(old.truth.t, old.truth.force, old.truth.indentation, old.truth.material)
     again = read_recording(new)
+    assert again.metadata == old.metadata and again.annotations == old.annotations
     assert all(a.t == b.t and np.array_equal(a.counts, b.counts) and a.sensel_area == b.sensel_area
                for a, b in zip(again.frames, old.frames, strict=True))
     assert all(a.t == b.t and np.array_equal(a.position, b.position) and np.array_equal(a.quaternion, b.quaternion)
@@ -113,10 +139,12 @@ def test_scene_and_log_lines(small_run):
     cube = entity["cubes"][0]
     assert entity["id"] == "object/slab" and entity["texts"][0]["text"] == "slab"
     assert (cube["size"]["x"], cube["size"]["y"], cube["size"]["z"]) == pytest.approx((0.06, 0.04, 0.04))
-    logs = [m for topic, schema, m in msgs if schema == "foxglove.Log"]
-    explore = [m for m in logs if m["kind"] == "press" and m["data"]["phase"] == "exploration"]
-    assert len(explore) == 4 and all(m["message"].startswith("press: phase=exploration object=slab")
-                                     for m in explore)
+    events = [m for topic, _, m in msgs if topic == "/palpate/annotations"]
+    logs = [m for topic, schema, m in msgs if topic == "/annotations" and schema == "foxglove.Log"]
+    assert len(logs) == len(events) == 19  # one Log line per annotation
+    explore = [i for i, m in enumerate(events) if m["kind"] == "press" and m["data"]["phase"] == "exploration"]
+    assert len(explore) == 4 and all(logs[i]["message"].startswith("press: phase=exploration object=slab")
+                                     and logs[i]["level"] == 2 for i in explore)
 
 
 def test_the_recording_is_complete_when_exploration_ends(tmp_path, monkeypatch):

@@ -1,6 +1,6 @@
 """Messages of the recording format (:mod:`~palpate.core.io.mcap_schemas`) built from palpate's types: JSON-ready
-dicts in Foxglove's well-known schemas, plus palpate's own fields. The MCAP writer and the live view send the same
-dicts."""
+dicts, palpate's data in its own schemas and the views in Foxglove's well-known schemas with exactly Foxglove's
+fields. The MCAP writer and the live view send the same dicts."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.io.figures import rgb_image
-from palpate.core.io.mcap_schemas import FLOAT32, LOG_INFO, UINT8, WORLD_FRAME
+from palpate.core.io.mcap_schemas import FLOAT32, LOG_INFO, UINT8, UNUSED_PRIMITIVES, WORLD_FRAME
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.probability import entropy
 from palpate.core.perception.streams import PoseSample, TaxelFrame
@@ -36,21 +36,35 @@ def _b64(data: bytes) -> str:
 
 
 def taxel_message(frame: TaxelFrame, ns: int, sensor_id: str) -> dict:
-    """``foxglove.RawImage`` of a taxel frame (mono8, one byte per sensel) with ``t``, ``sensel_area``, ``counts``."""
+    """``foxglove.RawImage`` of a taxel frame: a mono8 image, one byte per sensel (``ns``: its time, ns)."""
     rows, cols = frame.counts.shape
     raw = np.ascontiguousarray(frame.counts, dtype=np.uint8)
     return {"timestamp": stamp(ns), "frame_id": sensor_id, "width": cols, "height": rows, "encoding": "mono8",
-            "step": cols, "data": _b64(raw.tobytes()), "t": float(frame.t), "sensel_area": float(frame.sensel_area),
-            "counts": raw.reshape(-1).tolist()}
+            "step": cols, "data": _b64(raw.tobytes())}
+
+
+def taxel_frame_message(frame: TaxelFrame, sensor_id: str) -> dict:
+    """``palpate.TaxelFrame``: the frame's time (s, exact), shape, sensel area (m^2) and counts, row-major."""
+    rows, cols = frame.counts.shape
+    return {"t": float(frame.t), "sensor_id": sensor_id, "rows": rows, "cols": cols,
+            "sensel_area": float(frame.sensel_area),
+            "counts": np.asarray(frame.counts, dtype=np.uint8).reshape(-1).tolist()}
 
 
 def pose_message(sample: PoseSample, ns: int, sensor_id: str) -> dict:
-    """``foxglove.FrameTransform``: the sensor's frame ``sensor_id`` in ``world``, with ``t``."""
+    """``foxglove.FrameTransform``: the sensor's frame ``sensor_id`` in ``world`` (m, unit quaternion)."""
     x, y, z = (float(v) for v in sample.position)
     qw, qx, qy, qz = (float(v) for v in sample.quaternion)
     return {"timestamp": stamp(ns), "parent_frame_id": WORLD_FRAME, "child_frame_id": sensor_id,
-            "translation": {"x": x, "y": y, "z": z}, "rotation": {"x": qx, "y": qy, "z": qz, "w": qw},
-            "t": float(sample.t)}
+            "translation": {"x": x, "y": y, "z": z}, "rotation": {"x": qx, "y": qy, "z": qz, "w": qw}}
+
+
+def pose_sample_message(sample: PoseSample, sensor_id: str) -> dict:
+    """``palpate.PoseSample``: the sample's time (s, exact), position (m) and unit quaternion, bit for bit."""
+    x, y, z = (float(v) for v in sample.position)
+    qw, qx, qy, qz = (float(v) for v in sample.quaternion)
+    return {"t": float(sample.t), "sensor_id": sensor_id, "position": {"x": x, "y": y, "z": z},
+            "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}
 
 
 def pad_message(ns: int, pose_id: str, taxel_id: str, offset: tuple[float, float, float]) -> dict:
@@ -74,10 +88,15 @@ def _describe(kind: str, data: dict) -> str:
     return line if len(line) <= 240 else line[:237] + "..."
 
 
-def log_message(t: float, ns: int, kind: str, data: dict) -> dict:
-    """``foxglove.Log`` line of an annotation, with ``t``, ``kind`` and ``data``."""
+def log_message(ns: int, kind: str, data: dict) -> dict:
+    """``foxglove.Log`` INFO line of an annotation (``ns``: its time, ns)."""
     return {"timestamp": stamp(ns), "level": LOG_INFO, "message": _describe(kind, data), "name": "palpate",
-            "file": "", "line": 0, "t": float(t), "kind": kind, "data": data}
+            "file": "", "line": 0}
+
+
+def annotation_message(t: float, kind: str, data: dict) -> dict:
+    """``palpate.Annotation``: the event's time (s, exact), kind and details."""
+    return {"t": float(t), "kind": kind, "data": data}
 
 
 def truth_message(t: np.ndarray, force: np.ndarray, indentation: np.ndarray, material: str | None) -> dict:
@@ -162,5 +181,6 @@ def scene_message(ns: int, objects: Sequence[ObjectSpec]) -> dict:
                          "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
                          "metadata": [{"key": "material", "value": spec.material.name}, {"key": "shape",
                                                                                        "value": spec.shape}],
-                         "cubes": cubes, "cylinders": cylinders, "texts": [text]})
+                         "cubes": cubes, "cylinders": cylinders, "texts": [text],
+                         **{k: [] for k in UNUSED_PRIMITIVES}})
     return {"deletions": [], "entities": entities}

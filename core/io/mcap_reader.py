@@ -1,7 +1,9 @@
 """Reading recordings back: :func:`read_recording` validates every message and never trusts a size the file
-declares (see :mod:`~palpate.core.io.mcap_records`). Both recording layouts are read: format 2 (Foxglove's
-well-known schemas) and format 1 (``palpate.*`` schemas); each channel's decoder is picked by its topic and schema
-name, and channels of other tools are skipped."""
+declares (see :mod:`~palpate.core.io.mcap_records`). Every recording layout is read: format 3 (palpate's data on
+``/palpate/...`` channels beside Foxglove views, which are skipped), format 2 (the data as extra fields of Foxglove's
+well-known schemas) and format 1 (``palpate.*`` schemas). Each channel's decoder is picked by the file's format
+version (its metadata record comes before any channel) and the channel's topic and schema name; channels of other
+tools are skipped."""
 
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ import numpy as np
 from palpate.core import limits
 from palpate.core.errors import PalpateError, RecordingError
 from palpate.core.io.mcap_records import Channel, Damaged, Message, Metadata, ReadLimits, Schema, read_records
-from palpate.core.io.mcap_schemas import METADATA_NAME, READABLE_VERSIONS, VERSIONS_NAME
+from palpate.core.io.mcap_schemas import DATA_PREFIX, METADATA_NAME, READABLE_VERSIONS, VERSIONS_NAME
 from palpate.core.io.recording import Annotation, JointState, Recording
 from palpate.core.perception.streams import GroundTruth, PoseSample, TaxelFrame
 
@@ -104,7 +106,7 @@ def _exact_quaternion(sample: PoseSample, quat: np.ndarray) -> PoseSample:
     return sample
 
 
-# ---- format 2: Foxglove's well-known schemas plus palpate's fields ----
+# ---- format 2: Foxglove's well-known schemas carrying palpate's fields ----
 
 def _taxel_image(msg: dict, b: _Bounds) -> TaxelFrame:
     rows, cols = _field(msg, "height", "int"), _field(msg, "width", "int")
@@ -143,7 +145,7 @@ def _truth_series(msg: dict, b: _Bounds) -> tuple:
     return t, force, ind, material
 
 
-# ---- format 1: palpate.* schemas, one message per sample ----
+# ---- palpate.* schemas: format 1's channels, and format 3's data channels (the same messages) ----
 
 def _taxel_v1(msg: dict, b: _Bounds) -> TaxelFrame:
     rows, cols = _field(msg, "rows", "int"), _field(msg, "cols", "int")
@@ -184,7 +186,8 @@ def _joints(msg: dict, b: _Bounds) -> JointState:
                       _numbers(msg, "velocity"), _numbers(msg, "current"))
 
 
-# (topic prefix or exact topic, schema name) -> (Recording list, decoder)
+# (topic prefix or exact topic, schema name) -> (Recording list, decoder), for formats 1 and 2; a channel that
+# comes before the metadata record (no palpate writer puts one there) is read as these formats are.
 _DECODERS = {
     ("/taxels/", "foxglove.RawImage"): ("frames", _taxel_image),
     ("/pose/", "foxglove.FrameTransform"): ("poses", _frame_transform),
@@ -196,15 +199,26 @@ _DECODERS = {
     ("/annotations", "palpate.Annotation"): ("annotations", _annotation_v1),
     ("/truth", "palpate.GroundTruth"): ("truth", _truth_v1),
 }
+# Format 3: only palpate's channels are data; the foxglove.* views on /taxels/, /pose/ and /annotations hold
+# Foxglove's fields alone (no exact time) and are skipped like the maps.
+_DECODERS_V3 = {
+    (f"{DATA_PREFIX}/taxels/", "palpate.TaxelFrame"): ("frames", _taxel_v1),
+    (f"{DATA_PREFIX}/pose/", "palpate.PoseSample"): ("poses", _pose_v1),
+    (f"{DATA_PREFIX}/annotations", "palpate.Annotation"): ("annotations", _annotation_v1),
+    ("/truth", "palpate.GroundTruthSeries"): ("truth", _truth_series),
+    ("/joints", "palpate.JointState"): ("joints", _joints),
+}
+_PREFIXES = (f"{DATA_PREFIX}/taxels/", f"{DATA_PREFIX}/pose/", "/taxels/", "/pose/")
 
 
-def _decoder_for(topic: str, schema_name: str | None):
-    prefix = next((p for p in ("/taxels/", "/pose/") if topic.startswith(p)), topic)
-    return _DECODERS.get((prefix, schema_name), (None, None))
+def _decoder_for(topic: str, schema_name: str | None, version: str | None):
+    table = _DECODERS_V3 if version == "3" else _DECODERS
+    prefix = next((p for p in _PREFIXES if topic.startswith(p)), topic)
+    return table.get((prefix, schema_name), (None, None))
 
 
 def read_recording(path, *, salvage: bool = False, limits: ReadLimits | None = None, progress=None) -> Recording:
-    """Read a palpate MCAP recording (format 1 or 2) and validate every message.
+    """Read a palpate MCAP recording (format 1, 2 or 3) and validate every message.
 
     Args:
         path: the .mcap file.
@@ -247,6 +261,7 @@ def _open_regular(path: Path):
 def _read(f, path: Path, size: int, salvage: bool, limits: ReadLimits, progress) -> Recording:
     out = {"frames": [], "poses": [], "joints": [], "annotations": [], "truth": []}
     metadata: dict | None = None
+    version: str | None = None  # the file's format version, once its metadata record has been read
     versions: dict = {}
     schemas: dict[int, str] = {}
     channels: dict[int, tuple] = {}
@@ -269,7 +284,7 @@ def _read(f, path: Path, size: int, salvage: bool, limits: ReadLimits, progress)
                 per_topic[record.channel_id] = index + 1
                 key, decode, topic = entry
                 if key is None:
-                    continue  # a topic another tool added, or a view palpate recomputes: not ours to interpret
+                    continue  # a topic another tool added, or a view (image, frame, log line, map): not ours to read
                 try:
                     msg = loads(record.data)
                     if type(msg) is not dict:
@@ -281,7 +296,7 @@ def _read(f, path: Path, size: int, salvage: bool, limits: ReadLimits, progress)
                 if progress is not None and not n_messages % 4096:
                     progress.update(f.tell())
             elif type(record) is Channel:
-                key, decode = _decoder_for(record.topic, schemas.get(record.schema_id))
+                key, decode = _decoder_for(record.topic, schemas.get(record.schema_id), version)
                 if key is not None and record.message_encoding != "json":
                     raise RecordingError(f"{path}: channel {record.topic!r} has message encoding "
                                          f"{record.message_encoding!r}, expected 'json'")
@@ -292,6 +307,7 @@ def _read(f, path: Path, size: int, salvage: bool, limits: ReadLimits, progress)
             elif type(record) is Metadata:
                 if record.name == METADATA_NAME:
                     metadata = _decode_metadata(path, record.entries)
+                    version = record.entries["format_version"]
                 elif record.name == VERSIONS_NAME:
                     versions = dict(record.entries)
     except Damaged as exc:

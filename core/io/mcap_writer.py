@@ -1,5 +1,6 @@
 """Writing recordings: :class:`RecordingWriter` appends palpation streams to an MCAP file, crash-safe, and can send
-the same messages to a live view (see :mod:`~palpate.core.io.mcap_schemas` for topics and schemas)."""
+the same messages to a live view (see :mod:`~palpate.core.io.mcap_schemas` for topics and schemas). Each taxel
+frame, pose sample and annotation goes twice: as palpate's data (what replay reads) and as a Foxglove view."""
 
 from __future__ import annotations
 
@@ -18,7 +19,15 @@ from palpate.core import __version__
 from palpate.core.errors import RecordingError, ValidationError
 from palpate.core.files import writing
 from palpate.core.io import foxglove_messages as fm
-from palpate.core.io.mcap_schemas import FORMAT_VERSION, METADATA_NAME, PROFILE, SCHEMAS, SENSOR_ID, VERSIONS_NAME
+from palpate.core.io.mcap_schemas import (
+    DATA_PREFIX,
+    FORMAT_VERSION,
+    METADATA_NAME,
+    PROFILE,
+    SCHEMAS,
+    SENSOR_ID,
+    VERSIONS_NAME,
+)
 from palpate.core.io.recording import JointState
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.names import file_stem
@@ -192,12 +201,14 @@ class RecordingWriter:
             self._last_flush = now
 
     def write_taxel(self, frame: TaxelFrame) -> None:
-        """Append one taxel frame on ``/taxels/<frame.sensor_id>`` (an image, with its counts and sensel area)."""
+        """Append one taxel frame: its data on ``/palpate/taxels/<frame.sensor_id>`` (time s, counts, sensel area
+        m^2) and its image on ``/taxels/<frame.sensor_id>``."""
         if not isinstance(frame, TaxelFrame):
             raise ValidationError(f"write_taxel expects a TaxelFrame, got {type(frame).__name__}")
         sid = _check_sensor_id(frame.sensor_id)
         topic = f"/taxels/{sid}"
         ns = fm.time_ns(frame.t, topic)
+        self._write(f"{DATA_PREFIX}{topic}", "palpate.TaxelFrame", ns, fm.taxel_frame_message(frame, sid))
         self._write(topic, "foxglove.RawImage", ns, fm.taxel_message(frame, ns, sid))
         if sid not in self._taxel_ids:
             self._taxel_ids.append(sid)
@@ -205,12 +216,14 @@ class RecordingWriter:
                 self._place_pads(ns, self._pose_ids[0], [sid])
 
     def write_pose(self, sample: PoseSample) -> None:
-        """Append one pose sample on ``/pose/<sample.sensor_id>`` (the sensor's frame in ``world``)."""
+        """Append one pose sample: its data on ``/palpate/pose/<sample.sensor_id>`` (time s, position m, unit
+        quaternion) and the sensor's frame in ``world`` on ``/pose/<sample.sensor_id>``."""
         if not isinstance(sample, PoseSample):
             raise ValidationError(f"write_pose expects a PoseSample, got {type(sample).__name__}")
         sid = _check_sensor_id(sample.sensor_id)
         topic = f"/pose/{sid}"
         ns = fm.time_ns(sample.t, topic)
+        self._write(f"{DATA_PREFIX}{topic}", "palpate.PoseSample", ns, fm.pose_sample_message(sample, sid))
         self._write(topic, "foxglove.FrameTransform", ns, fm.pose_message(sample, ns, sid))
         if sid not in self._pose_ids:
             self._pose_ids.append(sid)
@@ -234,14 +247,15 @@ class RecordingWriter:
         })
 
     def write_annotation(self, t, kind: str, data: dict) -> None:
-        """Append an event on ``/annotations`` (e.g. kind ``press_start`` with ``{"label": ...}``), shown in
-        Foxglove's Log panel."""
+        """Append an event at ``t`` s (e.g. kind ``press_start`` with ``{"label": ...}``) on
+        ``/palpate/annotations``, and as a line of Foxglove's Log panel on ``/annotations``."""
         if not isinstance(kind, str) or not kind:
             raise ValidationError(f"annotation kind must be a non-empty string, got {kind!r}")
         if not isinstance(data, dict):
             raise ValidationError(f"annotation {kind!r}: data must be a dict, got {type(data).__name__}")
         ns = fm.time_ns(t, "/annotations")
-        self._write("/annotations", "foxglove.Log", ns, fm.log_message(float(t), ns, kind, data))
+        self._write(f"{DATA_PREFIX}/annotations", "palpate.Annotation", ns, fm.annotation_message(float(t), kind, data))
+        self._write("/annotations", "foxglove.Log", ns, fm.log_message(ns, kind, data))
 
     def write_truth(self, t, force, indentation, material: str | None = None) -> None:
         """Append ground truth on ``/truth``: times s, forces N, indentations m (scalars or equal-length arrays,

@@ -19,7 +19,8 @@ def add_record_command(record: argparse._SubParsersAction) -> None:
         help="record poses from a Polhemus Liberty (one MCAP topic per station)",
         description="Configure a Polhemus Liberty (binary or ASCII, cm, output list position, quaternion, "
         "timestamp, frame count), stream its stations for S seconds and write them to an MCAP recording on "
-        "/pose/liberty_station<N>. Ctrl-C, SIGTERM or SIGHUP stop early and keep what was recorded. Pose times are "
+        "/palpate/pose/liberty_station<N> (the frame for Foxglove on /pose/liberty_station<N>). Ctrl-C, SIGTERM or "
+        "SIGHUP stop early and keep what was recorded. Pose times are "
         "the device clock (1 ms resolution). Records that cannot be true (broken frame or clock sequence, a jump no "
         "hand makes) are dropped and counted. A device that goes silent ends the command with exit code 1 and a "
         "finished file.",

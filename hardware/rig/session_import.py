@@ -104,7 +104,8 @@ def read_taxels(path, *, region: str | None = None, start_time: float = 0.0, sen
         wanted = sensor_id or (ids[0] if ids else None)
         frames = [f for f in rec.frames if f.sensor_id == wanted]
         if not frames:
-            raise ValidationError(f"{path}: no taxel frames{f' of {wanted!r}' if wanted else ''} (topics /taxels/...)")
+            raise ValidationError(f"{path}: no taxel frames{f' of {wanted!r}' if wanted else ''} "
+                                  "(topics /palpate/taxels/... or /taxels/...)")
         t, counts, _ = frames_to_arrays(frames)
         return TaxelStream(t, counts.reshape(len(t), -1).sum(axis=1, dtype=np.int64).astype(float),
                            {"kind": "mcap", "file": path.name, "sensor_id": wanted,

@@ -15,7 +15,8 @@ frame from the vendor API as soon as it is acquired and feeds it to palpate in o
    ``palpate.core.io.mcap_writer.RecordingWriter(path, {"sources": [...]})`` then ``write_taxel(TaxelFrame(t, counts,
    sensel_area, sensor_id))`` per frame. ``t`` in s from the bridge's clock; ``counts`` the raw 8-bit frame (RAW
    units, never calibrated pressure); ``sensel_area`` in m^2. The file is the same MCAP an import produces
-   (topic ``/taxels/<sensor_id>``), crash-safe up to its last chunk, and replays with ``palpate replay``.
+   (data on ``/palpate/taxels/<sensor_id>``, the image on ``/taxels/<sensor_id>``), crash-safe up to its last
+   chunk, and replays with ``palpate replay``.
 2. **Stream JSON lines over TCP** to the machine running palpate: UTF-8, one JSON object per ``\\n``-terminated
    line. The first line is ``{"type": "hello", "format": "palpate-taxels-jsonl", "version": 1, "sensor_id": ...,
    "rows": R, "cols": C, "sensel_area": m^2, "clock": "unix" | "monotonic"}``; each following line is one frame with
