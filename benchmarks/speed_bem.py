@@ -22,6 +22,7 @@ from palpate.sim.bem.wall import load_wall_table
 from palpate.sim.blas import one_blas_thread
 from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import ROBOT, press_profile
+from palpate.sim.stability import law_depth
 
 
 def objects() -> dict[str, tuple[ObjectSpec, tuple[float, float]]]:
@@ -63,9 +64,14 @@ def main() -> None:
         profile = press_profile(PressTarget(x, y, depth=0.004, speed=0.01), obj.height, radius=0.008,
                                 timestep=0.002, variability=ROBOT, seed=0)
         with one_blas_thread():
-            trace = run_bem_press(scene, obj, profile, walls=walls)  # kernel tables built once per stack, as in a run
-            bem = cpu(run_bem_press, args.repeat, scene, obj, profile, walls=walls)
-            law = object_law(obj, x, y, obj.height, 0.008, 0.0042)
+            law = object_law(obj, x, y, obj.height, 0.008, law_depth(profile))
+
+            def law_for(max_depth: float, law=law):  # the point's law, solved once, as a SimSource keeps it
+                return law
+
+            # kernel tables built once per stack, as in a run
+            trace = run_bem_press(scene, obj, profile, walls=walls, law_for=law_for)
+            bem = cpu(run_bem_press, args.repeat, scene, obj, profile, walls=walls, law_for=law_for)
             analytic = cpu(run_analytic_press, args.repeat, scene, obj, profile, law=law)
         print(f"{name:<16} {trace.meta['mixing']:<8} {profile.duration:8.2f} {1e3 * bem:8.1f} "
               f"{profile.duration / bem:12.1f} {1e3 * analytic:12.1f} {bem / analytic:15.1f}")

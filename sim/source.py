@@ -339,8 +339,11 @@ class SimSource:
         elif fidelity == "bem":
             if self._walls is None:
                 self._walls = load_wall_table()
+            def law_for(max_depth: float):  # a buried change's force comes from the point's law, cached here
+                return self._law(obj, physics_profile.x, physics_profile.y, physics_profile.surface_z, max_depth)
+
             with one_blas_thread(self._blas_controller()):
-                trace = run_bem_press(self.scene, obj, physics_profile, walls=self._walls)
+                trace = run_bem_press(self.scene, obj, physics_profile, walls=self._walls, law_for=law_for)
         elif fidelity == "rigid":
             # its tables' BLAS products are small: other threads would only wait for a core and spin
             with one_blas_thread(self._blas_controller()):

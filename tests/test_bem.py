@@ -11,15 +11,17 @@ from scipy.integrate import dblquad
 from scipy.interpolate import RegularGridInterpolator
 
 from palpate.core.errors import ValidationError
-from palpate.core.world.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec
+from palpate.core.session.sources import PressTarget
+from palpate.core.world.scene import FingertipSpec, Inclusion, Layer, Material, ObjectSpec, Scene
 from palpate.sim import simulate_press
 from palpate.sim.analytic import law_sensel_pressure
 from palpate.sim.bem.kernel import influence, love_rectangle
-from palpate.sim.bem.press import solve_ladder
+from palpate.sim.bem.press import run_bem_press, solve_ladder
 from palpate.sim.bem.surface import ROWS, build_surface, column_kinds, column_stacks, stack_compliance
 from palpate.sim.bem.wall import NEAR_WALL, Wall, WallTable, find_wall, load_wall_table
 from palpate.sim.contact.lcp import solve_contact
 from palpate.sim.contact.stack import object_law
+from palpate.sim.controller import press_profile
 from palpate.sim.fingertip import sensel_bounds
 from palpate.sim.validity.image import asymmetry
 
@@ -131,6 +133,23 @@ def test_a_wall_uses_the_wall_table_and_a_lump_the_local_model():
     lump = Inclusion(Material("lump", 1e6, 0.45), "sphere", (3e-3, 0.0, 0.03 - 3e-3), (2e-3,))
     obj = ObjectSpec("b", "box", (0.08, 0.08, 0.03), (0.0, 0.0), Material("m", 100e3, 0.45), inclusions=(lump,))
     assert build_surface(obj, 0.0, 0.0, 0.03, TIP, 7e-3, CELL, 5e-3).mixing == "local"
+
+
+def test_a_buried_lump_takes_its_force_from_the_points_law_and_its_image_leans_towards_the_lump():
+    """Columns that differ only under a shared top (a stiff box 1 mm down, 2 mm beside the axis): the press's force
+    at every sample is the point's contact law's, the pad's pressure is the surface solve's shape rescaled to it,
+    and the stiff side carries more. A wall reaching the surface is not buried and keeps the surface's own force."""
+    box = Inclusion(Material("lump", 2e6, 0.45), "box", (7e-3, 0.0, 0.03 - 1e-3 - 2.5e-3), (0.01, 0.01, 0.005))
+    obj = ObjectSpec("b", "box", (0.08, 0.08, 0.03), (0.0, 0.0), Material("m", 115e3, 0.45), inclusions=(box,))
+    assert build_surface(obj, 0.0, 0.0, 0.03, TIP, 7e-3, CELL, 5e-3).buried
+    assert not build_surface(_wall_object(1e-3), 0.0, 0.0, 0.03, TIP, 7e-3, CELL, 5e-3).buried
+    profile = press_profile(PressTarget(0.0, 0.0, depth=0.003, speed=0.01), 0.03, radius=R, timestep=0.002)
+    trace = run_bem_press(Scene(objects=(obj,)), obj, profile)
+    law = object_law(obj, 0.0, 0.0, 0.03, R, 1.25 * 0.003)
+    assert trace.meta["force_from_law"]
+    np.testing.assert_allclose(trace.force, law.force_at(trace.indentation), rtol=1e-9, atol=1e-12)
+    deep = int(np.argmax(trace.indentation))
+    assert asymmetry(trace.sensel_pressure[deep:deep + 1], "x")[0] > 0.1  # the FE's: +0.32 at 3 mm
 
 
 def test_the_image_over_a_wall_leans_to_the_stiff_side_and_analytic_does_not():

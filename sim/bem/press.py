@@ -24,9 +24,10 @@ from palpate.sim.analytic import local_material
 from palpate.sim.bem.surface import Surface, build_surface
 from palpate.sim.bem.wall import WallTable
 from palpate.sim.contact.lcp import solve_contact
+from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import PressProfile
 from palpate.sim.limits import check_holds
-from palpate.sim.stability import check_depth, check_resolves_press
+from palpate.sim.stability import check_depth, check_resolves_press, law_depth
 from palpate.sim.trace import PhysicsTrace
 
 #: Default cell side, m, and indentations solved per press.
@@ -79,6 +80,15 @@ def solve_ladder(surface: Surface, tip_radius: float, depths: np.ndarray) -> tup
     return fields.sum(axis=1) * surface.cell**2, fields @ surface.overlap.T
 
 
+def law_scaled(force: np.ndarray, pressure: np.ndarray, depth: np.ndarray, law) -> tuple[np.ndarray, np.ndarray]:
+    """The surface solve's force (N, (m,)) and sensel pressures (Pa, (m, ...)) at ``depth`` (m, (m,)) rescaled at
+    each depth to the contact law's force there: the image keeps its shape, the force is the law's (a buried change,
+    :attr:`.surface.Surface.buried`, where the axisymmetric law holds the force and the surface the image)."""
+    target = law.force_at(depth)
+    scale = np.divide(target, force, out=np.zeros_like(target), where=force > 0)
+    return np.where(force > 0, target, 0.0), pressure * scale.reshape((-1,) + (1,) * (pressure.ndim - 1))
+
+
 def between(surface: Surface, nodes: np.ndarray, fields: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray,
                                                                                                  np.ndarray]:
     """Force (N) and sensel pressures (Pa, (m, rows * cols)) at any ``depth`` (m, (m,)) from the fields solved at
@@ -119,7 +129,8 @@ def between(surface: Surface, nodes: np.ndarray, fields: np.ndarray, depth: np.n
 
 
 def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None,
-                  cell: float = CELL, ladder: int = LADDER, walls: WallTable | None = None) -> PhysicsTrace:
+                  cell: float = CELL, ladder: int = LADDER, walls: WallTable | None = None,
+                  law_for=None) -> PhysicsTrace:
     """The press-and-release solved on the surface, sampled at ``rate`` Hz (default the taxel rate).
 
     Args:
@@ -130,6 +141,9 @@ def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate:
         cell: boundary-element side, m.
         ladder: indentations solved between 0 and the deepest; the rest are interpolated.
         walls: the wall table (read from models/ when a wall is met and none is given; a SimSource passes its own).
+        law_for: ``law_for(max_depth m)`` -> the press point's contact law, asked only where the material changes
+            under a shared top layer (:func:`law_scaled`); default :func:`palpate.sim.contact.stack.object_law`
+            solved here (a SimSource passes its cached laws).
 
     Raises:
         ValidationError: a press deeper than 0.75 tip radii or than the rung holds (:mod:`palpate.sim.limits`), too
@@ -175,6 +189,11 @@ def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate:
         # the release retraces the press (quasi-static elasticity): each distinct depth is computed once
         unique, back = np.unique(np.round(depth, 12), return_inverse=True)
         f_u, p_u = between(surface, nodes, fields, unique)
+        if surface.buried:
+            if law_for is None:
+                def law_for(max_depth: float):
+                    return object_law(obj, profile.x, profile.y, profile.surface_z, radius, max_depth)
+            f_u, p_u = law_scaled(f_u, p_u, unique, law_for(max(law_depth(profile), d_max)))
         force = f_u[back]
         pressure = p_u[back].reshape(len(t), tip.rows, tip.cols)
     normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
@@ -184,6 +203,7 @@ def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate:
         t=t, tip_position=pos, tip_quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (len(t), 1)),
         sensel_pressure=pressure, force=force, indentation=depth, surface_z=profile.surface_z, material=mat.name,
         meta={"fidelity": "bem", "rate": float(rate), "cell": float(cell), "ladder": int(ladder), "mixing": mixing,
+              "force_from_law": bool(d_max > 0 and surface.buried),
               "young_eff_surface": float(mat.effective_modulus)},
     )
     trace.check_finite()

@@ -32,6 +32,9 @@ from palpate.sim.fingertip import sensel_bounds
 FINE_STEP, FINE_DEPTH, COARSE_STEP = 0.25e-3, 10e-3, 1e-3
 #: How two cells' compliances mix (power mean) and over what length (m) each column's is averaged.
 MIX_POWER, MIX_SMOOTHING = -1.0, 1.0e-3
+#: Where the columns differ only under a top layer they share (a buried lump), the local field is smoothed wider:
+#: the top layer spreads the load over the buried change. Chosen on the FE reference's tuning lumps (docs/results.md).
+BURIED_SMOOTHING = 2.0e-3
 #: Rows of the compliance matrix built at a time.
 ROWS = 32
 
@@ -50,6 +53,9 @@ class Surface:
         overlap: (rows * cols, n) share of each sensel's footprint covered by each cell (rows sum to 1 where the
             cells cover the sensel).
         mixing: how the stacks' compliances were combined: "uniform", "wall" or "local" (module docstring).
+        buried: the columns differ only under a top layer they all share (a buried lump, not a wall at the surface):
+            the columns' local model is too stiff over a finite buried change, so a press takes its force from the
+            point's contact law and only the image's shape from the surface (:func:`palpate.sim.bem.press.law_scaled`).
     """
 
     cell: float
@@ -59,6 +65,7 @@ class Surface:
     compliance: np.ndarray
     overlap: np.ndarray
     mixing: str
+    buried: bool = False
 
 
 def _depth_edges(thickness: float, breaks: list[float]) -> np.ndarray:
@@ -219,6 +226,8 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
     flat_ij = ij[:, 0] * (4 * span + 1) + ij[:, 1]
     mixing = "uniform"
     base, factor = stacks[used[0]], None
+    top = {(stacks[i].young[0], stacks[i].poisson[0]) for i in used}
+    buried = len(used) > 1 and len(top) == 1
     if len(used) > 1:
         wall = None
         if len(used) == 2:
@@ -252,9 +261,9 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
             field = np.where(on_object, compliance_at[stack_of] / compliance_at[ref], 0.0).reshape(gx.shape)
             from scipy.ndimage import gaussian_filter
 
-            weight = gaussian_filter(on_object.reshape(gx.shape).astype(float), MIX_SMOOTHING / cell,
-                                     mode="constant")
-            field = (gaussian_filter(field, MIX_SMOOTHING / cell, mode="constant") / np.maximum(weight, 1e-12))
+            sigma = (BURIED_SMOOTHING if buried else MIX_SMOOTHING) / cell
+            weight = gaussian_filter(on_object.reshape(gx.shape).astype(float), sigma, mode="constant")
+            field = gaussian_filter(field, sigma, mode="constant") / np.maximum(weight, 1e-12)
             field = field.ravel()[keep]
             base = stacks[ref]
 
@@ -262,4 +271,4 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
                 return power_mean(field[rows, None], field[None, :], MIX_POWER)
     compliance = _compliance(base, cell, span, flat_ij, factor)
     return Surface(cell=float(cell), centres=centres, stack_of=own, stacks=tuple(stacks[i] for i in used),
-                   compliance=compliance, overlap=sensel_overlap(tip, centres, cell), mixing=mixing)
+                   compliance=compliance, overlap=sensel_overlap(tip, centres, cell), mixing=mixing, buried=buried)

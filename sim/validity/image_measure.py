@@ -19,7 +19,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, ObjectSpec, Scene
 from palpate.sim.analytic import law_sensel_pressure
-from palpate.sim.bem.press import CELL, solve_ladder
+from palpate.sim.bem.press import CELL, law_scaled, solve_ladder
 from palpate.sim.bem.surface import build_surface
 from palpate.sim.bem.wall import WallTable
 from palpate.sim.blas import one_blas_thread
@@ -69,6 +69,9 @@ def rung_image(case: ImageCase, rung: str, tip: FingertipSpec, walls: WallTable 
             surface = build_surface(obj, x, y, obj.height, tip, min(1.2 * a + 2 * CELL, 0.97 * tip.radius), CELL,
                                     a, walls)
             force, pressure = solve_ladder(surface, tip.radius, depths)
+            if surface.buried:  # as run_bem_press: the force from the point's law, the image's shape from the surface
+                law = object_law(obj, x, y, obj.height, tip.radius, 1.05 * depths[-1])
+                force, pressure = law_scaled(force, pressure, depths, law)
             return PressImage(depths, force, pressure.reshape(len(depths), tip.rows, tip.cols)), surface.mixing
         if rung == "flex":
             return _flex_image(obj, x, y, depths, tip), ""

@@ -82,8 +82,8 @@ class ImageTable:
 
 
     def closest(self, rungs: tuple[str, ...], family: str, tolerance: float) -> tuple[str, float, float] | None:
-        """Among ``rungs`` measured on ``family``: those whose worst force error is within ``tolerance`` (else the
-        one with the smallest), and of those the one whose image is closest to the reference (the smallest share of
+        """Among ``rungs`` measured on ``family``: those whose worst force error is within ``tolerance`` (else those
+        with the smallest), and of those the one whose image is closest to the reference (the smallest share of
         presses with the asymmetry wrong, then the smallest worst rms share); returned with both shares. None if
         none was measured."""
         scored = {}
@@ -94,7 +94,10 @@ class ImageTable:
                                 sum(not r.asymmetry_ok for r in rows) / len(rows), max(r.rms_share for r in rows))
         if not scored:
             return None
-        within = [r for r, v in scored.items() if v[0] <= tolerance] or [min(scored, key=lambda r: scored[r][0])]
+        nearest = min(v[0] for v in scored.values())
+        # none within: those whose force is nearest (rungs sharing one contact law tie), the image decides
+        within = ([r for r, v in scored.items() if v[0] <= tolerance]
+                  or [r for r, v in scored.items() if v[0] <= nearest * (1 + 1e-9)])
         best = min(within, key=lambda r: scored[r][1:])
         return best, scored[best][1], scored[best][2]
 
