@@ -268,6 +268,7 @@ class ExploreVectorEnv(gym.vector.SyncVectorEnv):
     def step(self, actions):
         """Press every stepping environment's cell (one batch), then step each as SyncVectorEnv does."""
         acts = list(iterate(self.action_space, actions))
+        # which environments this step resets rather than steps: SyncVectorEnv's own record (gymnasium >= 1.0)
         resetting = getattr(self, "_autoreset_envs", np.zeros(self.num_envs, bool))
         next_step = getattr(getattr(self, "autoreset_mode", None), "name", "NEXT_STEP") == "NEXT_STEP"
         planned = []
