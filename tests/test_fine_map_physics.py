@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from palpate.api import load_scenario
@@ -19,6 +20,13 @@ def test_heterogeneous_scene_fine_map_beats_the_cell_map(tmp_path):
     assert area["fine_map"] >= 0.88 and area["fine_map"] >= area["cell_map"] + 0.05
     err = fine["boundary_error_m"]
     assert err["fine_map"]["median"] <= 1e-3 < err["cell_map"]["median"]
+    # the buried lump (20 x 20 mm, its top 1 mm under the foam band) is a region of the fine map of about its
+    # footprint, centred within 5 mm of it (it is felt through the foam, so as whichever material that feels like)
+    lump = load_scenario("heterogeneous").objects[0].spec.inclusions[0]
+    footprint = lump.size[0] * lump.size[1]
+    found = [r for r in fine["material_regions"] if 0.25 * footprint <= r["area_m2"] <= 2 * footprint
+             and np.hypot(*(np.array(r["centroid_m"]) - lump.center[:2])) <= 5e-3]
+    assert len(found) == 1
 
 
 def test_the_boundary_policy_maps_the_heterogeneous_scene_with_a_quarter_of_the_presses(tmp_path):

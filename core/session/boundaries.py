@@ -25,6 +25,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.files import writing
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
 from palpate.core.mapping.fine import FineMap, boundary_error, edges, fine_map
+from palpate.core.mapping.regions import region_report
 from palpate.core.perception.streams import SATURATED
 from palpate.core.world.haptic_material import HapticMaterialMap
 from palpate.core.world.resources import models_dir
@@ -138,6 +139,9 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
     summary = {"resolution_m": fine.resolution, "presses_read": len(readings),
                "walls_read": sum(1 for _, r in readings if r.p_boundary > 0.5),
                "sides_named_by": "modulus" if moduli is not None else "neighbour cells"}
+    # where each material lies at the fine map's resolution (a buried lump is one region)
+    summary["material_regions"] = region_report(fine.probabilities, fine.origin, fine.resolution, fine.materials,
+                                                 cell=obj.geometry.cell_size)
     truth = fine_truth(entry, scenario, fine)
     known = truth >= 0
     if not known.any():

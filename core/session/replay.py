@@ -31,6 +31,7 @@ from palpate.core.mapping.calibration import MapCalibration
 from palpate.core.mapping.fine import fine_map
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
+from palpate.core.mapping.regions import region_report
 from palpate.core.mapping.snapshot import MapSnapshot
 from palpate.core.names import inside, unique_stems
 from palpate.core.perception.classifier_memory import ClassifierMemory
@@ -314,13 +315,18 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
             "presses": len(state.rows), "per_press": state.rows,
             "mean_entropy_after_each_press": [r["mean_entropy"] for r in state.rows],
             "mean_entropy_after_postprocessing": float(post.mean_entropy()),
+            "material_regions": None if g.voxel else region_report(post.probabilities, g.origin, g.cell_size,
+                                                                    g.materials),
         })
         if state.readings:
             fine = fine_map(g, post.probabilities, [(xy, r) for xy, r in state.readings if r is not None],
                             moduli=moduli)
             save_fine_map(inside(out, out / "maps" / f"{stems[name]}_fine.npz"), fine)
-            summary_objects[-1]["fine_map"] = {"resolution_m": fine.resolution, "presses_read": len(state.readings),
-                                               "sides_named_by": "modulus" if moduli else "neighbour cells"}
+            summary_objects[-1]["fine_map"] = {
+                "resolution_m": fine.resolution, "presses_read": len(state.readings),
+                "sides_named_by": "modulus" if moduli else "neighbour cells",
+                "material_regions": region_report(fine.probabilities, fine.origin, fine.resolution, fine.materials,
+                                                  cell=g.cell_size)}
         if figures and not g.voxel:
             (out / "figures").mkdir(exist_ok=True)
             fig.plot_map_snapshots(inside(out, out / "figures" / f"{stems[name]}_map.png"), name,
