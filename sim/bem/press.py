@@ -190,10 +190,10 @@ def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate:
         unique, back = np.unique(np.round(depth, 12), return_inverse=True)
         f_u, p_u = between(surface, nodes, fields, unique)
         if surface.buried:
-            if law_for is None:
-                def law_for(max_depth: float):
-                    return object_law(obj, profile.x, profile.y, profile.surface_z, radius, max_depth)
-            f_u, p_u = law_scaled(f_u, p_u, unique, law_for(max(law_depth(profile), d_max)))
+            deepest = max(law_depth(profile), d_max)
+            law = (law_for(deepest) if law_for is not None
+                   else object_law(obj, profile.x, profile.y, profile.surface_z, radius, deepest))
+            f_u, p_u = law_scaled(f_u, p_u, unique, law)
         force = f_u[back]
         pressure = p_u[back].reshape(len(t), tip.rows, tip.cols)
     normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
