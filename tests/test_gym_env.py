@@ -180,6 +180,25 @@ def test_the_vector_form_presses_in_one_batch_and_steps_as_a_loop_would(memory, 
     assert np.any(loop[1][0]["features"] != 0)  # the presses were perceived and fitted
 
 
+def test_the_vector_form_takes_gymnasiums_autoreset_modes_and_still_steps_as_a_loop_would(memory):
+    same_step = gym.vector.AutoresetMode.SAME_STEP
+    actions = [np.array([0, 7]), np.array([13, 2]), np.array([5, 1])]  # budget 2: each resets within a step
+    loop = gym.vector.SyncVectorEnv([lambda: ExploreEnv(memory=memory, press_model="sim", budget=2)
+                                     for _ in range(2)], autoreset_mode=same_step)
+    batched = gym.make_vec(ENV_ID, num_envs=2, memory=memory, press_model="sim", budget=2, autoreset_mode=same_step)
+    runs = []
+    for envs in (loop, batched):
+        assert envs.autoreset_mode == same_step
+        envs.reset(seed=2)
+        runs.append([envs.step(a)[:4] for a in actions])
+        envs.close()
+    for a, b in zip(*runs, strict=True):
+        assert all(np.array_equal(a[0][k], b[0][k]) for k in a[0])
+        for x, y in zip(a[1:], b[1:], strict=True):
+            np.testing.assert_array_equal(x, y)
+    assert runs[1][1][3].all()  # the budget truncated both environments on the second step
+
+
 def test_the_example_script_evaluates_heuristic_policies():
     results = runpy.run_path(str(ROOT / "docs" / "gym_example.py"))["main"](["--episodes", "1", "--vector", "2"])
     assert set(results) == {"random", "raster", "max_entropy", "vector_max_entropy"}

@@ -287,7 +287,8 @@ class ExploreVectorEnv(gym.vector.SyncVectorEnv):
 
 def make_vector_env(num_envs: int, scenario: str | Path | Scenario = DEFAULT_SCENARIO, **kwargs):
     """``num_envs`` environments stepped together (:class:`ExploreVectorEnv`: with the simulated press model, one
-    batch of presses a step), sharing one memory trained once."""
+    batch of presses a step), sharing one memory trained once; ``autoreset_mode`` (gymnasium's ``AutoresetMode``)
+    goes to the vector, every other keyword to each environment."""
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise ValidationError(f"num_envs must be an integer >= 1, got {num_envs!r}")
     sc = _scenario(scenario)
@@ -296,7 +297,9 @@ def make_vector_env(num_envs: int, scenario: str | Path | Scenario = DEFAULT_SCE
         memory = train_env_memory(sc)
     if kwargs.get("press_model") == "sim" and kwargs.get("source_maker") is None:
         kwargs["source_maker"] = scenario_source_maker(sc, sc.training.source)  # one law cache for the vector
-    return ExploreVectorEnv([lambda: ExploreEnv(sc, memory=memory, **kwargs) for _ in range(num_envs)])
+    # gymnasium hands a custom vector every argument in one set: the vector's own are taken out here
+    vector = {k: kwargs.pop(k) for k in ("autoreset_mode",) if k in kwargs}
+    return ExploreVectorEnv([lambda: ExploreEnv(sc, memory=memory, **kwargs) for _ in range(num_envs)], **vector)
 
 
 def register() -> None:
