@@ -39,41 +39,11 @@ from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, check_iterations, law_depth
 from palpate.sim.trace import PhysicsTrace
-from palpate.sim.validity.choice import Choice, choose, image_note, situation
-from palpate.sim.validity.image_table import ImageTable, load_image_table
-from palpate.sim.validity.table import ValidityTable, load_table
+from palpate.sim.validity.choice import DEFAULT_TOLERANCE, Choice, explain_fidelity, image_note
+from palpate.sim.validity.image_table import load_image_table
+from palpate.sim.validity.table import load_table
 
 FIDELITIES = ("auto", "analytic", "bem", "rigid", "flex")
-#: Default tolerance of ``auto``: the largest predicted force error against the reference, fraction.
-DEFAULT_TOLERANCE = 0.05
-
-
-def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, *, tolerance: float = DEFAULT_TOLERANCE,
-                     table: ValidityTable | None = None, depth: float | None = None, surface_z: float | None = None,
-                     images: ImageTable | None = None) -> Choice:
-    """The cheapest fidelity within ``tolerance`` for pressing ``obj`` at ``target``, a one-line reason and the
-    predicted errors.
-
-    Args:
-        depth: the press's depth, m (default the target's, or 0.25 tip radii for a force-only target).
-        table: a loaded validity table (default the shipped one).
-        images: a loaded image table (default the shipped one).
-        surface_z: the top's height at the target, m (default the object's height).
-    """
-    table = load_table() if table is None else table
-    d = depth if depth is not None else (target.depth if target.depth is not None else 0.25 * radius)
-    top = obj.height if surface_z is None else surface_z
-    sit = situation(obj, target.x, target.y, top, d, radius)
-    if images is None:
-        images = load_image_table()
-    return choose(table, sit, tolerance, obj.name, images)
-
-
-def choose_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, **kwargs) -> str:
-    """The fidelity :func:`explain_fidelity` picks."""
-    return explain_fidelity(obj, target, radius, **kwargs).fidelity
-
-
 class SimSource:
     """A simulated finger pressing objects of a scene.
 

@@ -17,7 +17,8 @@ from palpate.sim.hertz import (
     sneddon_sphere_force_at_depth,
 )
 from palpate.sim.reference.bonded_layer import dimitriadis_factor
-from palpate.sim.source import SimSource, choose_fidelity
+from palpate.sim.source import SimSource
+from palpate.sim.validity.choice import choose_fidelity
 
 R = 0.008
 E_STAR = 2e5 / (1 - 0.3**2)

@@ -14,9 +14,9 @@ from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget, scenario_source_maker
 from palpate.core.world.scenario_file import parse_scenario
 from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec, Scene
-from palpate.sim.source import SimSource, explain_fidelity
+from palpate.sim.source import SimSource
 from palpate.sim.validity.cases import quick_cases, validity_cases
-from palpate.sim.validity.choice import Situation, choose, predicted_errors, situation
+from palpate.sim.validity.choice import Situation, choose, explain_fidelity, predicted_errors, situation
 from palpate.sim.validity.report import claims
 from palpate.sim.validity.table import TABLE_PATH, ValidityRow, ValidityTable, load_table, table_from_document
 

@@ -30,11 +30,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from palpate.core.errors import ValidationError
+from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import ObjectSpec, material_index_at
 from palpate.sim.analytic import material_under
 from palpate.sim.limits import refusal
-from palpate.sim.validity.image_table import RMS_LIMIT, ImageTable
-from palpate.sim.validity.table import ValidityRow, ValidityTable
+from palpate.sim.validity.image_table import RMS_LIMIT, ImageTable, load_image_table
+from palpate.sim.validity.table import ValidityRow, ValidityTable, load_table
 
 ORDER = ("analytic", "bem", "rigid", "flex")
 #: A lateral change shallower than this (m) is a wall: it reaches the surface.
@@ -318,3 +319,33 @@ def _choose(table: ValidityTable, sit: Situation, tolerance: float, name: str,
     best = min(finite, key=finite.get) if finite else next((r for r in allowed if r != "bem"), allowed[0])
     return Choice(best, f"{name}: no fidelity is within the {tolerance:.0%} tolerance; {best} is the most accurate "
                   f"(validity table at {where}, nu {sit.poisson:g}: {said}{extra})", errs)
+
+
+#: Default tolerance of ``auto``: the largest predicted force error against the reference, fraction.
+DEFAULT_TOLERANCE = 0.05
+
+
+def explain_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, *, tolerance: float = DEFAULT_TOLERANCE,
+                     table: ValidityTable | None = None, depth: float | None = None, surface_z: float | None = None,
+                     images: ImageTable | None = None) -> Choice:
+    """The cheapest fidelity within ``tolerance`` for pressing ``obj`` at ``target``, a one-line reason and the
+    predicted errors.
+
+    Args:
+        depth: the press's depth, m (default the target's, or 0.25 tip radii for a force-only target).
+        table: a loaded validity table (default the shipped one).
+        images: a loaded image table (default the shipped one).
+        surface_z: the top's height at the target, m (default the object's height).
+    """
+    table = load_table() if table is None else table
+    d = depth if depth is not None else (target.depth if target.depth is not None else 0.25 * radius)
+    top = obj.height if surface_z is None else surface_z
+    sit = situation(obj, target.x, target.y, top, d, radius)
+    if images is None:
+        images = load_image_table()
+    return choose(table, sit, tolerance, obj.name, images)
+
+
+def choose_fidelity(obj: ObjectSpec, target: PressTarget, radius: float, **kwargs) -> str:
+    """The fidelity :func:`explain_fidelity` picks."""
+    return explain_fidelity(obj, target, radius, **kwargs).fidelity
