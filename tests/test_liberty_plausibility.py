@@ -108,7 +108,9 @@ def test_ascii_records_with_random_bytes_are_checked_the_same_way():
 
 def test_a_clean_stream_of_a_fast_hand_loses_nothing():
     trial = run_trial(Faults(), seconds=0.5, seed=1)
-    assert trial.accepted == trial.sent and trial.wrong == 0 and trial.rejected == {}
+    # every record of the window accepted, none wrong; the driver's rejection counts also cover the tail it read
+    # after the window, which depends on when the host stopped reading (a loaded machine leaves a few held there)
+    assert trial.accepted == trial.sent and trial.wrong == 0 and trial.lost_good == 0
     # a hand swinging 5 cm at 3 Hz (0.9 m/s, 18 m/s^2) with its sensor turning half a turn a second
     gate = RecordGate()
     t = np.arange(0, 2.0, 1 / 240)
