@@ -51,28 +51,35 @@ def taxel_frame_message(frame: TaxelFrame, sensor_id: str) -> dict:
             "counts": np.asarray(frame.counts, dtype=np.uint8).reshape(-1).tolist()}
 
 
+def _xyz(v) -> dict:
+    """A position or offset (m) as Foxglove's and palpate's {x, y, z}."""
+    x, y, z = (float(c) for c in v)
+    return {"x": x, "y": y, "z": z}
+
+
+def _xyzw(q) -> dict:
+    """palpate's (w, x, y, z) quaternion as {x, y, z, w}."""
+    w, x, y, z = (float(c) for c in q)
+    return {"x": x, "y": y, "z": z, "w": w}
+
+
 def pose_message(sample: PoseSample, ns: int, sensor_id: str) -> dict:
     """``foxglove.FrameTransform``: the sensor's frame ``sensor_id`` in ``world`` (m, unit quaternion)."""
-    x, y, z = (float(v) for v in sample.position)
-    qw, qx, qy, qz = (float(v) for v in sample.quaternion)
     return {"timestamp": stamp(ns), "parent_frame_id": WORLD_FRAME, "child_frame_id": sensor_id,
-            "translation": {"x": x, "y": y, "z": z}, "rotation": {"x": qx, "y": qy, "z": qz, "w": qw}}
+            "translation": _xyz(sample.position), "rotation": _xyzw(sample.quaternion)}
 
 
 def pose_sample_message(sample: PoseSample, sensor_id: str) -> dict:
     """``palpate.PoseSample``: the sample's time (s, exact), position (m) and unit quaternion, bit for bit."""
-    x, y, z = (float(v) for v in sample.position)
-    qw, qx, qy, qz = (float(v) for v in sample.quaternion)
-    return {"t": float(sample.t), "sensor_id": sensor_id, "position": {"x": x, "y": y, "z": z},
-            "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}
+    return {"t": float(sample.t), "sensor_id": sensor_id, "position": _xyz(sample.position),
+            "orientation": _xyzw(sample.quaternion)}
 
 
 def pad_message(ns: int, pose_id: str, taxel_id: str, offset: tuple[float, float, float]) -> dict:
     """``foxglove.FrameTransform`` placing the pad's frame ``taxel_id`` in the pose sensor's frame ``pose_id``
     (``offset``: the pad's centre in that frame, m; its axes the sensor's), exactly Foxglove's fields."""
-    x, y, z = (float(v) for v in offset)
     return {"timestamp": stamp(ns), "parent_frame_id": pose_id, "child_frame_id": taxel_id,
-            "translation": {"x": x, "y": y, "z": z}, "rotation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
+            "translation": _xyz(offset), "rotation": _xyzw((1.0, 0.0, 0.0, 0.0))}
 
 
 def _describe(kind: str, data: dict) -> str:
@@ -157,7 +164,7 @@ def map_message(ns: int, name: str, probabilities: np.ndarray, explored: np.ndar
 
 
 def _identity_pose(x: float, y: float, z: float) -> dict:
-    return {"position": {"x": x, "y": y, "z": z}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
+    return {"position": _xyz((x, y, z)), "orientation": _xyzw((1.0, 0.0, 0.0, 0.0))}
 
 
 def scene_message(ns: int, objects: Sequence[ObjectSpec]) -> dict:
