@@ -164,6 +164,30 @@ def test_the_image_over_a_wall_leans_to_the_stiff_side_and_analytic_does_not():
     assert abs(asymmetry(law_sensel_pressure(law, np.array([3e-3]), sensel_bounds(TIP)))[0]) < 1e-9
 
 
+@pytest.mark.parametrize("angle_deg", [45.0, 135.0])
+def test_a_diagonal_wall_through_the_press_point_gives_a_mirror_symmetric_image(angle_deg):
+    """A wall at 45 deg through the press point is its own mirror image across the pad's diagonal, so the image's
+    asymmetries along x and y must agree up to the diagonal's sign (the 3-D FE: 0.35 | 0.35 at 20 | 115 kPa). The
+    scene holds the wall as a staircase of 0.25 mm columns, so the located wall is a hair off 45 deg; cells on the
+    line must keep their own column's side, not the side that hair puts them on (it gave 0.25 | 0.41)."""
+    from palpate.sim.reference.fe3d import Wall as FEWall
+    from palpate.sim.validity.image_cases import wall_columns
+
+    wall = FEWall(Material("hard", 115e3, 0.45), np.radians(angle_deg), 0.0)
+    obj = ObjectSpec("diagonal", "box", (0.08, 0.08, 0.03), (0.0, 0.0), Material("soft", 20e3, 0.45),
+                     inclusions=tuple(wall_columns(wall, 0.04, 0.04, 0.03)))
+    depths = np.array([0.5e-3, 1e-3, 3e-3])
+    a = np.sqrt(R * depths[-1])
+    surface = build_surface(obj, 0.0, 0.0, 0.03, TIP, 1.2 * a + 2 * CELL, CELL, a)
+    assert surface.mixing == "wall"
+    _, pressure = solve_ladder(surface, R, depths)
+    image = pressure.reshape(len(depths), 4, 4)
+    along_x, along_y = asymmetry(image, "x"), asymmetry(image, "y")
+    sign = np.sign(np.cos(np.radians(angle_deg)) * np.sin(np.radians(angle_deg)))
+    assert np.all(np.abs(along_x) > 0.25)
+    np.testing.assert_allclose(along_x, sign * along_y, atol=0.01)
+
+
 def test_wall_table_file_is_checked(tmp_path):
     table = load_wall_table()
     assert table.share.shape[2:] == (len(table.offsets), len(table.offsets), len(table.along))
