@@ -218,3 +218,44 @@ def test_the_stiffness_matrix_is_the_axisymmetric_bilinear_form_as_skfem_assembl
     want = asm(form, basis, lam=np.repeat(lam[:, None], nqp, 1), mu=np.repeat(mu[:, None], nqp, 1))
     got = _stiffness(basis, lam, mu)
     assert abs(got - want).max() <= 1e-13 * abs(want).max()
+
+
+def test_fields_solved_on_one_mesh_are_each_fields_own_solve_and_their_energy_is_the_work_done():
+    """fe_presses solves several material fields on one mesh: each answer is what fe_press gives that field alone
+    (the same mesh: a laterally uniform field and a stiff ring), and the element energies it reports add up to the
+    work the contact pressure does (u^T K u = f^T u, an identity the per-element sums must keep)."""
+    import math
+
+    from palpate.sim.reference.fe import _mesh, _stiffness, fe_presses
+    from palpate.sim.reference.mesh import sample_grids
+
+    sample = AxisymmetricSample(SOFT, 0.02)
+    d = np.array([0.5e-3, 1.5e-3])
+
+    def ring(r, depth):
+        stiff = (r > 2e-3) & (r < 4e-3) & (depth < 3e-3)
+        return np.where(stiff, 10 * SOFT.young, SOFT.young), np.full(len(r), SOFT.poisson)
+
+    both = fe_presses(sample, R, d, [None, ring], refinement=0.5, energy=True)
+    for got, field in zip(both, [None, ring], strict=True):
+        alone = fe_press(sample, R, d, materials=field, refinement=0.5, energy=True)
+        assert got.dofs == alone.dofs
+        np.testing.assert_allclose(got.force, alone.force, rtol=1e-12)
+        np.testing.assert_allclose(got.element_energy, alone.element_energy, rtol=1e-9, atol=1e-15)
+    assert both[1].force[-1] > 1.05 * both[0].force[-1]
+
+    a_max = math.sqrt(R * d[-1]) * 1.15
+    width = 12 * sample.thickness + 60 * a_max
+    grid = sample_grids(sample.thickness, width, a_max, math.sqrt(R * d[0]) / 12 / 0.5)
+    mesh = _mesh(sample, grid.r, grid.depth, width, True, 1.3 * a_max)
+    young, poisson = ring(mesh.centroid_r, mesh.centroid_depth)
+    lam, mu = young * poisson / ((1 + poisson) * (1 - 2 * poisson)), young / (2 * (1 + poisson))
+    from scipy.sparse.linalg import spsolve
+
+    full = _stiffness(mesh.basis, lam, mu)[mesh.free][:, mesh.free]  # the free dofs' block, summed another way
+    assert abs(mesh.stiffness(lam, mu) - full).max() <= 1e-13 * abs(full).max()
+    p = np.linspace(1.0, 0.0, mesh.loads.shape[1])  # any hat pressures
+    f = mesh.loads @ p
+    u = np.zeros(len(mesh.at))
+    u[mesh.free] = spsolve(mesh.stiffness(lam, mu), f)
+    assert mesh.element_energy(lam, mu, u).sum() == pytest.approx(f @ u[mesh.free], rel=1e-9)

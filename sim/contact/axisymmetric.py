@@ -32,7 +32,7 @@ from scipy.optimize import nnls
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Material
 from palpate.sim.contact.law import BASIS, ContactLaw
-from palpate.sim.reference.fe import FEPress, fe_press
+from palpate.sim.reference.fe import FEPress, fe_press, fe_presses
 from palpate.sim.reference.sample import AxisymmetricSample
 
 #: Mesh of the surrogate (see the module docstring).
@@ -194,8 +194,8 @@ def axisymmetric_law(lookup, thickness: float, tip_radius: float, max_depth: flo
     rim = free_side(lookup, 1.3 * 1.15 * math.sqrt(tip_radius * max_depth), breaks_r)
     solve = dict(refinement=REFINEMENT, growth=GROWTH, depth_growth=DEPTH_GROWTH, breaks_z=breaks_z,
                  breaks_r=breaks_r, free_side=rim)
-    fe = fe_press(sample, tip_radius, depths, materials=azimuthal_materials(lookup), **solve)
-    uniform = fe_press(sample, tip_radius, depths, materials=azimuthal_materials(column_lookup), **solve)
+    fe, uniform = fe_presses(sample, tip_radius, depths,
+                             [azimuthal_materials(lookup), azimuthal_materials(column_lookup)], **solve)
     force = column.force_at(depths) * fe.force / uniform.force
     # the coarse contact radii move in steps of the mesh spacing, so their ratio is noisy: keep the column's radius
     # and let the pressure basis (below) carry how the lateral variation reshapes the contact

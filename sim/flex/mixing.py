@@ -29,7 +29,7 @@ from palpate.sim.contact.law import solve_contact_law
 from palpate.sim.contact.stack import object_breaks, object_lookup, object_radial_breaks
 from palpate.sim.flex.element import UNIT_CORNERS
 from palpate.sim.flex.grid import FlexGrid
-from palpate.sim.reference.fe import fe_press
+from palpate.sim.reference.fe import fe_presses
 from palpate.sim.reference.sample import AxisymmetricSample
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS
 
@@ -210,8 +210,8 @@ def lateral_mixing_correction(obj: ObjectSpec, grid: FlexGrid, young: np.ndarray
     solve = dict(refinement=axisymmetric.REFINEMENT, growth=axisymmetric.GROWTH,
                  depth_growth=axisymmetric.DEPTH_GROWTH, breaks_z=breaks_z, breaks_r=breaks_r, free_side=rim)
     with one_blas_thread():
-        mixed = fe_press(sample, tip_radius, depth, materials=axisymmetric.azimuthal_materials(cells), **solve)
-        true = fe_press(sample, tip_radius, depth, materials=axisymmetric.azimuthal_materials(own), **solve)
+        mixed, true = fe_presses(sample, tip_radius, depth, [axisymmetric.azimuthal_materials(cells),
+                                                            axisymmetric.azimuthal_materials(own)], **solve)
     ratio = mixed.force / true.force
     if not np.all(np.isfinite(ratio) & (ratio > 0)):
         raise ValidationError(f"flex: the lateral mixing correction of {obj.name!r} is not a finite positive ratio")

@@ -67,15 +67,53 @@ class FEPress:
 
 
 @dataclass(frozen=True)
-class _System:
-    """The assembled problem: skfem basis, stiffness matrix, the Lame fields at the quadrature points (the keyword
-    arguments the energy forms take) and each element's centroid (radius and depth, m)."""
+class _Mesh:
+    """What a mesh gives every material field solved on it: the skfem basis, the stiffness's two geometric parts
+    (per element, (E, 18, 18): K_e = lam_e A_e + mu_e B_e, lam and mu being constant on an element), where each
+    local entry lands in the free dofs' CSC matrix, the constrained dofs and the surface loads of the hats.
+
+    Attributes:
+        basis: skfem basis (vector Q2). centroid_r, centroid_depth: each element's centroid, m, (E,).
+        lam_part, mu_part: (E, 18, 18), A and B above.
+        element_dofs: (E, 18) global dofs of each element.
+        free: (f,) the free dofs; at: (N,) each dof's index among the free ones (-1: fixed).
+        kept: (k,) flat indices (into E * 18 * 18) of the local entries between two free dofs; slot: (k,) the
+            position of each in the CSC data; indices, indptr: the CSC structure (f x f).
+        r_top: the hats' vertices, m; loads: (f, hats) consistent loads of unit hat pressures on the free dofs;
+        vertex: (hats,) each hat vertex's vertical dof among the free ones.
+    """
 
     basis: object
-    stiffness: object
-    fields: dict
     centroid_r: np.ndarray
     centroid_depth: np.ndarray
+    lam_part: np.ndarray
+    mu_part: np.ndarray
+    element_dofs: np.ndarray
+    free: np.ndarray
+    at: np.ndarray
+    kept: np.ndarray
+    slot: np.ndarray
+    indices: np.ndarray
+    indptr: np.ndarray
+    r_top: np.ndarray
+    loads: np.ndarray
+    vertex: np.ndarray
+
+    def stiffness(self, lam: np.ndarray, mu: np.ndarray):
+        """The free dofs' stiffness (CSC) for per-element Lame constants ``lam``, ``mu`` (Pa, (E,))."""
+        from scipy.sparse import csc_matrix
+
+        local = self.lam_part * lam[:, None, None]
+        local += self.mu_part * mu[:, None, None]
+        data = np.bincount(self.slot, weights=local.ravel()[self.kept], minlength=len(self.indices))
+        n = len(self.free)
+        return csc_matrix((data, self.indices, self.indptr), shape=(n, n))
+
+    def element_energy(self, lam: np.ndarray, mu: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Twice the strain energy of displacement ``u`` (all dofs) in each element (only shares are used)."""
+        ue = u[self.element_dofs]
+        return (lam * np.einsum("ei,eij,ej->e", ue, self.lam_part, ue)
+                + mu * np.einsum("ei,eij,ej->e", ue, self.mu_part, ue))
 
 
 @dataclass(frozen=True)
@@ -86,7 +124,47 @@ class HatDisc:
     loaded: int
 
 
-def _assemble(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray, materials=None) -> _System:
+def _stiffness_parts(basis) -> tuple[np.ndarray, np.ndarray]:
+    """The axisymmetric stiffness's parts A and B, (E, 18, 18), such that lam_e A_e + mu_e B_e is element e's
+    stiffness for Lame constants constant on it: the bilinear form lam tr(e_u) tr(e_v) + 2 mu (e_u : e_v over the
+    normal strains e_rr, e_zz, e_tt = u_r / r) + mu g_u g_v (g the engineering shear), weighted by r, as skfem's
+    BilinearForm would assemble it, but all 18 x 18 local pairs in batched matrix products instead of one Python
+    call per pair (equal to ~1e-16)."""
+    r = basis.global_coordinates()[0]  # (elements, quadrature points), m
+    phi = [b[0] for b in basis.basis]  # each local basis function at every element's quadrature points
+    grad = np.stack([p.grad for p in phi])  # (18, 2, 2, E, Q)
+    normal = np.stack([grad[:, 0, 0], grad[:, 1, 1], np.stack([p[0] for p in phi]) / r], axis=1)
+    trace = normal.sum(axis=1)  # (18, E, Q)
+    shear = grad[:, 0, 1] + grad[:, 1, 0]
+    w = basis.dx * r  # (E, Q)
+    tw = (trace * w[None]).transpose(1, 0, 2)  # (E, 18, Q)
+    lam_part = np.matmul(tw, trace.transpose(1, 2, 0))
+    # the mu part: 2 (normal strains) + 1 (shear), summed over quadrature points and strain components at once
+    right = np.concatenate([normal, shear[:, None]], axis=1)  # (18, 4, E, Q)
+    left = right * (np.array([2.0, 2.0, 2.0, 1.0])[None, :, None, None] * w[None, None])
+    e = len(w)
+    mu_part = np.matmul(left.transpose(2, 0, 1, 3).reshape(e, len(phi), -1),
+                        right.transpose(2, 1, 3, 0).reshape(e, -1, len(phi)))
+    return lam_part, mu_part
+
+
+def _stiffness(basis, lam: np.ndarray, mu: np.ndarray):
+    """The axisymmetric stiffness matrix (CSR, every dof) for per-element Lame constants ``lam``, ``mu`` (Pa)."""
+    from scipy.sparse import coo_matrix
+
+    lam_part, mu_part = _stiffness_parts(basis)
+    local = lam_part * lam[:, None, None] + mu_part * mu[:, None, None]
+    dofs = basis.element_dofs.T  # (E, 18)
+    rows = np.broadcast_to(dofs[:, :, None], local.shape).ravel()
+    cols = np.broadcast_to(dofs[:, None, :], local.shape).ravel()
+    return coo_matrix((local.ravel(), (rows, cols)), shape=(basis.N, basis.N)).tocsr()
+
+
+def _mesh(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray, width: float, wide: bool,
+          reach: float) -> _Mesh:
+    """The mesh of nodes ``r_nodes`` x ``z_nodes`` (m) and what every field solved on it shares (:class:`_Mesh`):
+    the axis, the base (bonded or frictionless) and, for a wide sample, a roller at ``width`` m constrained; hats
+    on the top vertices out to ``reach`` m."""
     from skfem import Basis, ElementQuad2, ElementVector, MeshQuad1
 
     top = float(z_nodes[-1])
@@ -94,56 +172,39 @@ def _assemble(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarr
     mesh = MeshQuad1.init_tensor(r_nodes, np.sort(top - z_nodes))
     basis = Basis(mesh, ElementVector(ElementQuad2()), intorder=4)
     centroid = mesh.p[:, mesh.t].mean(axis=1)
-    young, poisson = (materials or sample.materials_at)(centroid[0], top - centroid[1])
-    lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
-    mu = young / (2 * (1 + poisson))
-    nqp = basis.X.shape[1]
-    fields = dict(lam=np.repeat(lam[:, None], nqp, axis=1), mu=np.repeat(mu[:, None], nqp, axis=1))
-    return _System(basis=basis, stiffness=_stiffness(basis, lam, mu), fields=fields, centroid_r=centroid[0],
-                   centroid_depth=top - centroid[1])
-
-
-def _stiffness(basis, lam: np.ndarray, mu: np.ndarray):
-    """The axisymmetric stiffness matrix (CSR) for per-element Lame constants ``lam``, ``mu`` (Pa).
-
-    The bilinear form lam tr(e_u) tr(e_v) + 2 mu (e_u : e_v over the normal strains e_rr, e_zz, e_tt = u_r / r)
-    + mu g_u g_v (g the engineering shear), weighted by r, as skfem's BilinearForm would assemble it, but all 18 x 18
-    local pairs in one batched matrix product instead of one Python call per pair (equal to ~1e-16)."""
-    from scipy.sparse import coo_matrix
-
-    r = basis.global_coordinates()[0]  # (elements, quadrature points), m
-    phi = [b[0] for b in basis.basis]  # each local basis function at every element's quadrature points
-    grad = np.stack([p.grad for p in phi])  # (18, 2, 2, E, Q)
-    normal = np.stack([grad[:, 0, 0], grad[:, 1, 1], np.stack([p[0] for p in phi]) / r], axis=1)
-    trace = normal.sum(axis=1)
-    shear = grad[:, 0, 1] + grad[:, 1, 0]
-    w = basis.dx * r
-    lw, mw = lam[:, None] * w, mu[:, None] * w
-    # every term is a sum over quadrature points of (strain of i) x weight x (strain of j): one batched product
-    right = np.concatenate([trace[:, None], normal, shear[:, None]], axis=1)  # (18, 5, E, Q)
-    left = right * np.stack([lw, 2.0 * mw, 2.0 * mw, 2.0 * mw, mw])[None]
-    local = np.matmul(left.transpose(2, 0, 1, 3).reshape(len(lam), len(phi), -1),
-                      right.transpose(2, 1, 3, 0).reshape(len(lam), -1, len(phi)))
-    dofs = basis.element_dofs.T  # (E, 18)
-    rows = np.broadcast_to(dofs[:, :, None], local.shape).ravel()
-    cols = np.broadcast_to(dofs[:, None, :], local.shape).ravel()
-    return coo_matrix((local.ravel(), (rows, cols)), shape=(basis.N, basis.N)).tocsr()
-
-
-def _element_energy(basis, fields: dict, u: np.ndarray) -> np.ndarray:
-    """Strain energy of displacement ``u`` in each element (any consistent unit: only shares are used)."""
-    from skfem import Functional
-
-    @Functional
-    def energy(w):
-        g = w.u.grad
-        e = (g[0][0], g[1][1], w.u[0] / w.x[0])
-        tr = e[0] + e[1] + e[2]
-        shear = g[0][1] + g[1][0]
-        normal = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
-        return (w.lam * tr * tr + 2.0 * w.mu * normal + w.mu * shear * shear) * w.x[0]
-
-    return energy.elemental(basis, u=basis.interpolate(u), **fields)
+    locs = basis.doflocs
+    dofs = basis.get_dofs()
+    ur, uz = dofs.all("u^1"), dofs.all("u^2")
+    n = basis.N
+    fixed = [ur[np.isclose(locs[0, ur], 0.0)]]
+    bottom = np.isclose(locs[1], 0.0)
+    fixed.append(uz[bottom[uz]])
+    if sample.base == "bonded":
+        fixed.append(ur[bottom[ur]])
+    if wide:
+        fixed.append(ur[np.isclose(locs[0, ur], width)])
+    fixed = np.unique(np.concatenate(fixed))
+    free = np.setdiff1d(np.arange(n), fixed)
+    at = -np.ones(n, dtype=int)
+    at[free] = np.arange(len(free))
+    element_dofs = np.ascontiguousarray(basis.element_dofs.T)  # (E, 18)
+    # where each local entry between two free dofs lands in the free dofs' CSC matrix (column-major keys)
+    rows = at[np.broadcast_to(element_dofs[:, :, None], (len(element_dofs), 18, 18))].ravel()
+    cols = at[np.broadcast_to(element_dofs[:, None, :], (len(element_dofs), 18, 18))].ravel()
+    kept = np.flatnonzero((rows >= 0) & (cols >= 0))
+    keys, slot = np.unique(cols[kept].astype(np.int64) * len(free) + rows[kept], return_inverse=True)
+    indptr = np.searchsorted(keys // len(free), np.arange(len(free) + 1))
+    on_top = uz[np.isclose(locs[1, uz], top)]
+    r_top = r_nodes[r_nodes <= reach + 1e-12]
+    if len(r_top) < 4:
+        raise ValidationError("fe_press: fewer than 4 surface vertices under the contact; raise the refinement")
+    loads = _hat_loads(r_top, locs[0, on_top], on_top, n)[free]
+    vertex = np.array([at[on_top[np.argmin(np.abs(locs[0, on_top] - rv))]] for rv in r_top])
+    lam_part, mu_part = _stiffness_parts(basis)
+    return _Mesh(basis=basis, centroid_r=centroid[0], centroid_depth=top - centroid[1], lam_part=lam_part,
+                 mu_part=mu_part, element_dofs=element_dofs, free=free, at=at, kept=kept, slot=slot.reshape(-1),
+                 indices=(keys % len(free)).astype(np.int32), indptr=indptr.astype(np.int32), r_top=r_top,
+                 loads=loads, vertex=vertex)
 
 
 def _hat_loads(r_top: np.ndarray, dof_r: np.ndarray, dof_index: np.ndarray, n_dofs: int) -> np.ndarray:
@@ -183,6 +244,18 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
         free_side: radius, m, past which the top surface is absent (a free side that ``materials`` fills with a
             near-void so the mesh can run on): the sphere cannot touch it there. It is also a mesh line.
     """
+    return fe_presses(sample, tip_radius, depths, [materials], refinement=refinement, growth=growth,
+                      depth_growth=depth_growth, breaks_r=breaks_r, breaks_z=breaks_z, energy=energy,
+                      free_side=free_side)[0]
+
+
+def fe_presses(sample: AxisymmetricSample, tip_radius: float, depths, fields, *, refinement: float = 1.0,
+               growth: float = 1.15, depth_growth: float = 1.10, breaks_r=(), breaks_z=(), energy: bool = False,
+               free_side: float = math.inf) -> list[FEPress]:
+    """:func:`fe_press` for each material field of ``fields`` (each as its ``materials``; None: the sample's own),
+    all on one mesh: two fields compared like against like (their discretisation errors cancel in a ratio), and
+    the mesh, its basis and the stiffness's geometric parts built once. Where the contact of any field reaches the
+    refined region's edge, the region is widened for all."""
     d = np.sort(np.atleast_1d(np.asarray(depths, dtype=float)))
     if not (tip_radius > 0 and np.all(np.isfinite(d)) and d.size and d[0] > 0 and d[-1] < 0.9 * tip_radius):
         raise ValidationError(f"fe_press: depths must lie in (0, {0.9 * tip_radius}) m, got {depths!r}")
@@ -194,9 +267,8 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
     reach = a_max
     for _ in range(MAX_WIDENINGS + 1):
         try:
-            return _solve(sample, tip_radius, d, reach, h0, growth=growth, depth_growth=depth_growth,
-                          materials=materials, breaks_r=breaks_r, breaks_z=breaks_z, energy=energy,
-                          free_side=free_side)
+            return _solve(sample, tip_radius, d, reach, h0, list(fields), growth=growth, depth_growth=depth_growth,
+                          breaks_r=breaks_r, breaks_z=breaks_z, energy=energy, free_side=free_side)
         except _EdgeReached as exc:
             if exc.at_rim:
                 break
@@ -216,13 +288,10 @@ class _EdgeReached(ValidationError):
         self.at_rim = at_rim
 
 
-def _solve(sample: AxisymmetricSample, tip_radius: float, d: np.ndarray, a_max: float, h0: float, *,
-           growth: float, depth_growth: float, materials, breaks_r, breaks_z, energy: bool,
-           free_side: float) -> FEPress:
-    """:func:`fe_press` on a mesh refined (spacing ``h0``, m) out to 1.3 ``a_max`` (m); _EdgeReached if the contact
-    reaches the end of that region."""
-    from scipy.sparse.linalg import splu
-
+def _solve(sample: AxisymmetricSample, tip_radius: float, d: np.ndarray, a_max: float, h0: float, fields: list, *,
+           growth: float, depth_growth: float, breaks_r, breaks_z, energy: bool, free_side: float) -> list[FEPress]:
+    """:func:`fe_presses` on a mesh refined (spacing ``h0``, m) out to 1.3 ``a_max`` (m); _EdgeReached if the
+    contact reaches the end of that region."""
     wide = not math.isfinite(sample.radius)
     width = 12.0 * sample.thickness + 60.0 * a_max if wide else sample.radius
     breaks_r, breaks_z = list(breaks_r), list(breaks_z) + list(sample.interfaces())
@@ -234,63 +303,50 @@ def _solve(sample: AxisymmetricSample, tip_radius: float, d: np.ndarray, a_max: 
         breaks_z += [inc.depth, inc.bottom]
     grid = sample_grids(sample.thickness, width, a_max, h0, breaks_r, breaks_z, growth=growth,
                         depth_growth=depth_growth)
-    r_nodes, z_nodes = grid.r, grid.depth
-    system = _assemble(sample, r_nodes, z_nodes, materials)
-    basis, stiffness = system.basis, system.stiffness
-    locs = basis.doflocs
-    dofs = basis.get_dofs()
-    ur, uz = dofs.all("u^1"), dofs.all("u^2")
-    top = float(z_nodes[-1])
-    n = basis.N
-    fixed = [ur[np.isclose(locs[0, ur], 0.0)]]
-    bottom = np.isclose(locs[1], 0.0)
-    fixed.append(uz[bottom[uz]])
-    if sample.base == "bonded":
-        fixed.append(ur[bottom[ur]])
-    if wide:
-        fixed.append(ur[np.isclose(locs[0, ur], width)])
-    fixed = np.unique(np.concatenate(fixed))
-    free = np.setdiff1d(np.arange(n), fixed)
-    at = -np.ones(n, dtype=int)
-    at[free] = np.arange(len(free))
-
-    on_top = uz[np.isclose(locs[1, uz], top)]
-    reach = 1.3 * a_max
-    r_top = r_nodes[r_nodes <= reach + 1e-12]
-    if len(r_top) < 4:
-        raise ValidationError("fe_press: fewer than 4 surface vertices under the contact; raise the refinement")
-    loads = _hat_loads(r_top, locs[0, on_top], on_top, n)
-    # minimum degree on A^T + A: the matrix is symmetric, and this ordering halves the factor's fill (COLAMD's)
-    lu = splu(stiffness[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A")
-    settle = lu.solve(loads[free])  # (free, hats) displacement per unit hat pressure
-    vertex = np.array([at[on_top[np.argmin(np.abs(locs[0, on_top] - rv))]] for rv in r_top])
-    compliance = -settle[vertex]  # downward settlement of each top vertex per unit hat pressure
-    weights = -loads[free].sum(axis=0)  # integral of each hat times r dr
-
+    mesh = _mesh(sample, grid.r, grid.depth, width, wide, 1.3 * a_max)
+    r_top = mesh.r_top
+    weights = -mesh.loads.sum(axis=0)  # integral of each hat times r dr
     # beyond the sphere's equator the surface can never be touched
     gap0 = np.where(r_top < tip_radius, tip_radius - np.sqrt(np.maximum(tip_radius**2 - r_top**2, 0.0)), np.inf)
     # nor past a free side: a void's surface there would hold the contact disc open out to it, with tension in
     # between (found on a cylinder 6 mm wide pressed 3 mm: -13% force)
     gap0[r_top > free_side * (1.0 + 1e-9)] = np.inf
+    at_rim = bool(r_top[-1] >= grid.r[-1] - 1e-12)
+    return [_solve_field(mesh, sample, materials, d, gap0, weights, energy, at_rim, h0) for materials in fields]
+
+
+def _solve_field(mesh: _Mesh, sample: AxisymmetricSample, materials, d: np.ndarray, gap0: np.ndarray,
+                 weights: np.ndarray, energy: bool, at_rim: bool, h0: float) -> FEPress:
+    """One material field (``materials`` as :func:`fe_press`'s) pressed ``d`` (m) on ``mesh``."""
+    from scipy.sparse.linalg import splu
+
+    young, poisson = (materials or sample.materials_at)(mesh.centroid_r, mesh.centroid_depth)
+    lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
+    mu = young / (2 * (1 + poisson))
+    r_top = mesh.r_top
+    # minimum degree on A^T + A: the matrix is symmetric, and this ordering halves the factor's fill (COLAMD's)
+    lu = splu(mesh.stiffness(lam, mu), permc_spec="MMD_AT_PLUS_A")
+    settle = lu.solve(mesh.loads)  # (free, hats) displacement per unit hat pressure
+    compliance = -settle[mesh.vertex]  # downward settlement of each top vertex per unit hat pressure
     forces, radii, pressures = [], [], []
     for depth in d:
         disc = contact_disc(compliance, depth - gap0, depth)
         if disc.loaded >= len(r_top) - 1:
-            raise _EdgeReached("fe_press: the contact reached the edge of the refined region",
-                               at_rim=bool(r_top[-1] >= r_nodes[-1] - 1e-12))
+            raise _EdgeReached("fe_press: the contact reached the edge of the refined region", at_rim=at_rim)
         forces.append(2.0 * math.pi * float(weights @ disc.pressure))
         radii.append(_edge(r_top, disc.pressure, disc.loaded))
         pressures.append(disc.pressure)
     shares = []
+    n = len(mesh.at)
     for p in pressures if energy else ():
         u = np.zeros(n)
-        u[free] = settle @ p
-        share = np.maximum(_element_energy(basis, system.fields, u), 0.0)
+        u[mesh.free] = settle @ p
+        share = np.maximum(mesh.element_energy(lam, mu, u), 0.0)
         shares.append(share / max(float(share.sum()), 1e-300))
     return FEPress(depth=d, force=np.array(forces), contact_radius=np.array(radii), r=r_top,
-                   pressure=np.array(pressures), dofs=int(n), h0=float(h0), element_r=system.centroid_r,
-                   element_depth=system.centroid_depth,
-                   element_energy=np.array(shares) if shares else np.zeros((0, len(system.centroid_r))))
+                   pressure=np.array(pressures), dofs=int(n), h0=float(h0), element_r=mesh.centroid_r,
+                   element_depth=mesh.centroid_depth,
+                   element_energy=np.array(shares) if shares else np.zeros((0, len(mesh.centroid_r))))
 
 
 def contact_disc(compliance: np.ndarray, gap: np.ndarray, depth: float) -> HatDisc:
