@@ -127,12 +127,41 @@ def test_find_wall_refuses_a_curved_boundary():
     assert find_wall(is_stiff, centres, is_stiff(centres), 7e-3, CELL) is None
 
 
-def test_a_wall_uses_the_wall_table_and_a_lump_the_local_model():
+def test_a_wall_uses_the_wall_table_a_buried_lump_the_columns_kernels_and_a_curved_top_the_local_model():
     surface = build_surface(_wall_object(1e-3), 0.0, 0.0, 0.03, TIP, 7e-3, CELL, 5e-3)
     assert surface.mixing == "wall" and len(surface.stacks) == 2
     lump = Inclusion(Material("lump", 1e6, 0.45), "sphere", (3e-3, 0.0, 0.03 - 3e-3), (2e-3,))
     obj = ObjectSpec("b", "box", (0.08, 0.08, 0.03), (0.0, 0.0), Material("m", 100e3, 0.45), inclusions=(lump,))
+    assert build_surface(obj, 0.0, 0.0, 0.03, TIP, 7e-3, CELL, 5e-3).mixing == "buried"
+    # a disc of another material reaching the top: its boundary is curved and the columns' tops differ
+    disc = Inclusion(Material("disc", 1e6, 0.45), "sphere", (3e-3, 0.0, 0.03), (2e-3,))
+    obj = ObjectSpec("b", "box", (0.08, 0.08, 0.03), (0.0, 0.0), Material("m", 100e3, 0.45), inclusions=(disc,))
     assert build_surface(obj, 0.0, 0.0, 0.03, TIP, 7e-3, CELL, 5e-3).mixing == "local"
+
+
+def test_over_a_buried_change_a_cell_settles_through_the_shared_top_and_couples_through_the_depth():
+    """Over a stiff layer 1 mm under the top (a wide buried box) a cell's own settlement is nearly the matrix's (the
+    soft top it shares carries its load), while its coupling to cells 1-2 mm away, which runs deeper, is much
+    smaller; a cell over the matrix far from the box is as over a plain block."""
+    box = Inclusion(Material("lump", 2e6, 0.45), "box", (10e-3, 0.0, 0.03 - 1e-3 - 2.5e-3), (0.016, 0.03, 0.005))
+    obj = ObjectSpec("b", "box", (0.08, 0.08, 0.03), (0.0, 0.0), Material("m", 115e3, 0.45), inclusions=(box,))
+    plain = ObjectSpec("p", "box", (0.08, 0.08, 0.03), (0.0, 0.0), Material("m", 115e3, 0.45))
+    s_lump = build_surface(obj, 0.0, 0.0, 0.03, TIP, 7e-3, CELL, 3e-3)
+    s_plain = build_surface(plain, 0.0, 0.0, 0.03, TIP, 7e-3, CELL, 3e-3)
+    assert s_lump.mixing == "buried"
+    np.testing.assert_array_equal(s_lump.centres, s_plain.centres)
+
+    def at(x, y):
+        return int(np.argmin(np.hypot(s_lump.centres[:, 0] - x, s_lump.centres[:, 1] - y)))
+
+    def ratio(i, j):
+        return s_lump.compliance[i, j] / s_plain.compliance[i, j]
+
+    over = at(5.25e-3, 0.25e-3)
+    assert ratio(over, over) > 0.75
+    assert ratio(over, at(5.25e-3, 1.25e-3)) < 0.4 and ratio(over, at(5.25e-3, 2.25e-3)) < 0.4
+    away = at(-5.25e-3, 0.25e-3)
+    assert ratio(away, away) == pytest.approx(1.0, abs=1e-3)
 
 
 def test_a_buried_lump_takes_its_force_from_the_points_law_and_its_image_leans_towards_the_lump():

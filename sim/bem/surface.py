@@ -7,8 +7,13 @@ what lies around them (``Surface.mixing``):
 - ``uniform``: one stack under every cell: the stack's exact compliance (:mod:`.kernel`);
 - ``wall``: two stacks split by a straight line: the soft stack's compliance times the wall table's factor, measured
   on the 3-D FE (:mod:`.wall`), with the contrast of the two stacks' compliances at the contact's scale;
-- ``local``: anything else (a lump under part of the contact, a curved boundary, three materials): the press point's
-  stack's compliance times a power mean of the two cells' relative compliances, each averaged over a short length
+- ``buried``: columns that differ only under a top layer they share (a lump under the surface): each pair of cells
+  couples through a geometric blend of the columns' own exact kernels at the pair's distance, weighted by how much
+  of each column lies around the two cells (smoothed over BURIED_SMOOTHING) times BURIED_SHARE. The kernels carry
+  what a single ratio cannot: near cells couple through the shared top (alike over lump and matrix), far ones
+  through the depth where the lump is;
+- ``local``: anything else (a curved boundary at the surface, three materials): the press point's stack's
+  compliance times a power mean of the two cells' relative compliances, each averaged over a short length
   (a local-compliance model, as in rough-contact solvers with influence matrices; measured, not exact).
 """
 
@@ -32,9 +37,12 @@ from palpate.sim.fingertip import sensel_bounds
 FINE_STEP, FINE_DEPTH, COARSE_STEP = 0.25e-3, 10e-3, 1e-3
 #: How two cells' compliances mix (power mean) and over what length (m) each column's is averaged.
 MIX_POWER, MIX_SMOOTHING = -1.0, 1.0e-3
-#: Where the columns differ only under a top layer they share (a buried lump), the local field is smoothed wider:
-#: the top layer spreads the load over the buried change. Chosen on the FE reference's tuning lumps (docs/results.md).
+#: Where the columns differ only under a top layer they share (a buried lump): the length (m) over which each
+#: column's share around a cell is smoothed, and the share of the buried column's kernel a pair wholly over it
+#: takes (below 1: a lump of finite width is softer than a layer of its column everywhere). Both chosen on the FE
+#: reference's tuning lumps (docs/results.md).
 BURIED_SMOOTHING = 2.0e-3
+BURIED_SHARE = 0.8
 #: Rows of the compliance matrix built at a time.
 ROWS = 32
 
@@ -52,7 +60,7 @@ class Surface:
             factorisations cost half as much; the wall table and kernels hold fewer digits anyway).
         overlap: (rows * cols, n) share of each sensel's footprint covered by each cell (rows sum to 1 where the
             cells cover the sensel).
-        mixing: how the stacks' compliances were combined: "uniform", "wall" or "local" (module docstring).
+        mixing: how the stacks' compliances were combined: "uniform", "wall", "buried" or "local" (module docstring).
         buried: the columns differ only under a top layer they all share (a buried lump, not a wall at the surface):
             the columns' local model is too stiff over a finite buried change, so a press takes its force from the
             point's contact law and only the image's shape from the surface (:func:`palpate.sim.bem.press.law_scaled`).
@@ -193,6 +201,31 @@ def _compliance(stack: Stack, cell: float, span: int, flat_ij: np.ndarray, facto
     return out
 
 
+def _buried_factor(stacks, used, ref: int, stack_of: np.ndarray, on_object: np.ndarray, keep: np.ndarray,
+                   shape: tuple[int, int], cell: float, span: int):
+    """``factor(rows, pair)`` of a buried change (module docstring): exp of the sum over the other columns s of
+    BURIED_SHARE x the pair's mean smoothed share of s x log(kernel_s / kernel_ref) at the pair's offset."""
+    from scipy.ndimage import gaussian_filter
+
+    ref_table = _lattice(stacks[ref].scaled(), float(cell), 2 * span).ravel() / stacks[ref].top_modulus
+    terms = []
+    for s in used:
+        if s == ref:
+            continue
+        table = _lattice(stacks[s].scaled(), float(cell), 2 * span).ravel() / stacks[s].top_modulus
+        share = gaussian_filter(np.where(on_object & (stack_of == s), 1.0, 0.0).reshape(shape), BURIED_SMOOTHING / cell,
+                                mode="constant").ravel()[keep]
+        terms.append(((0.5 * BURIED_SHARE * share).astype(np.float32), np.log(table / ref_table).astype(np.float32)))
+
+    def factor(rows: slice, pair: np.ndarray) -> np.ndarray:
+        out = np.zeros(pair.shape, dtype=np.float32)
+        for half_share, log_ratio in terms:
+            out += (half_share[rows, None] + half_share[None, :]) * log_ratio.take(pair)
+        return np.exp(out, out=out)
+
+    return factor
+
+
 def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: FingertipSpec, reach: float,
                   cell: float, contact_radius: float, walls: WallTable | None = None) -> Surface:
     """The cells within ``reach`` (m) of the press point (x, y) on the object's top at ``surface_z`` (m), their
@@ -228,7 +261,12 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
     base, factor = stacks[used[0]], None
     top = {(stacks[i].young[0], stacks[i].poisson[0]) for i in used}
     buried = len(used) > 1 and len(top) == 1
-    if len(used) > 1:
+    if buried:
+        mixing = "buried"
+        ref = stack_of[centre]
+        base = stacks[ref]
+        factor = _buried_factor(stacks, used, ref, stack_of, on_object, keep, gx.shape, cell, span)
+    elif len(used) > 1:
         wall = None
         if len(used) == 2:
             soft, stiff = sorted(used, key=lambda s: -compliance_at[s])
@@ -265,7 +303,7 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
             field = np.where(on_object, compliance_at[stack_of] / compliance_at[ref], 0.0).reshape(gx.shape)
             from scipy.ndimage import gaussian_filter
 
-            sigma = (BURIED_SMOOTHING if buried else MIX_SMOOTHING) / cell
+            sigma = MIX_SMOOTHING / cell
             weight = gaussian_filter(on_object.reshape(gx.shape).astype(float), sigma, mode="constant")
             field = gaussian_filter(field, sigma, mode="constant") / np.maximum(weight, 1e-12)
             field = field.ravel()[keep]
