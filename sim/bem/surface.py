@@ -133,8 +133,10 @@ def _sampled_stacks(obj: ObjectSpec, x: float, y: float, surface_z: float,
     young, poisson, inside = lookup(np.repeat(centres[rep], m, axis=0), np.tile(mid, n))
     young, poisson, inside = young.reshape(n, m), poisson.reshape(n, m), inside.reshape(n, m)
     on_object = inside.all(axis=1)[kind]
-    key = np.concatenate([young, poisson], axis=1)
-    _, first, stack_of = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    key = np.ascontiguousarray(np.concatenate([young, poisson], axis=1))
+    # rows as byte strings: sorting those is far cheaper than np.unique(axis=0)'s lexicographic sort of floats
+    _, first, stack_of = np.unique(key.view(np.dtype((np.void, key.shape[1] * key.itemsize))).ravel(),
+                                   return_index=True, return_inverse=True)
     stack_of = stack_of.reshape(-1)[kind]
     stacks = []
     for row in first:
