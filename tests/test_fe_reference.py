@@ -222,8 +222,9 @@ def test_the_stiffness_matrix_is_the_axisymmetric_bilinear_form_as_skfem_assembl
 
 def test_fields_solved_on_one_mesh_are_each_fields_own_solve_and_their_energy_is_the_work_done():
     """fe_presses solves several material fields on one mesh: each answer is what fe_press gives that field alone
-    (the same mesh: a laterally uniform field and a stiff ring), and the element energies it reports add up to the
-    work the contact pressure does (u^T K u = f^T u, an identity the per-element sums must keep)."""
+    (the same mesh: a laterally uniform field and a stiff ring); the condensed system (each element's bubble dofs
+    eliminated) gives the uncondensed system's displacements, and the element energies, bubbles recovered, are the
+    uncondensed solve's and add up to the work the pressure does (u^T K u = f^T u)."""
     import math
 
     from palpate.sim.reference.fe import _mesh, _stiffness, fe_presses
@@ -252,10 +253,24 @@ def test_fields_solved_on_one_mesh_are_each_fields_own_solve_and_their_energy_is
     lam, mu = young * poisson / ((1 + poisson) * (1 - 2 * poisson)), young / (2 * (1 + poisson))
     from scipy.sparse.linalg import spsolve
 
-    full = _stiffness(mesh.basis, lam, mu)[mesh.free][:, mesh.free]  # the free dofs' block, summed another way
-    assert abs(mesh.stiffness(lam, mu) - full).max() <= 1e-13 * abs(full).max()
+    condensed, recovery = mesh.stiffness(lam, mu)
     p = np.linspace(1.0, 0.0, mesh.loads.shape[1])  # any hat pressures
     f = mesh.loads @ p
     u = np.zeros(len(mesh.at))
-    u[mesh.free] = spsolve(mesh.stiffness(lam, mu), f)
-    assert mesh.element_energy(lam, mu, u).sum() == pytest.approx(f @ u[mesh.free], rel=1e-9)
+    u[mesh.free] = spsolve(condensed, f)
+    # the same load on the uncondensed system (the bubbles solved with the rest), assembled another way
+    bubbles = mesh.element_dofs[:, 16:].ravel()
+    unknown = np.union1d(mesh.free, bubbles)
+    full = _stiffness(mesh.basis, lam, mu)[unknown][:, unknown]
+    rhs = np.zeros(len(mesh.at))
+    rhs[mesh.free] = f
+    whole = np.zeros(len(mesh.at))
+    whole[unknown] = spsolve(full.tocsc(), rhs[unknown])
+    np.testing.assert_allclose(u[mesh.free], whole[mesh.free], rtol=1e-9, atol=1e-12 * np.abs(whole).max())
+    # the energies, bubbles recovered element by element, add up to the work done (u^T K u = f^T u)
+    energy = mesh.element_energy(lam, mu, u, recovery)
+    assert energy.sum() == pytest.approx(f @ u[mesh.free], rel=1e-9)
+    ue = whole[mesh.element_dofs]  # the uncondensed solve's own bubbles
+    direct = (lam * np.einsum("ei,eij,ej->e", ue, mesh.lam_part, ue)
+              + mu * np.einsum("ei,eij,ej->e", ue, mesh.mu_part, ue))
+    np.testing.assert_allclose(energy, direct, rtol=1e-7, atol=1e-9 * direct.max())

@@ -70,15 +70,19 @@ class FEPress:
 class _Mesh:
     """What a mesh gives every material field solved on it: the skfem basis, the stiffness's two geometric parts
     (per element, (E, 18, 18): K_e = lam_e A_e + mu_e B_e, lam and mu being constant on an element), where each
-    local entry lands in the free dofs' CSC matrix, the constrained dofs and the surface loads of the hats.
+    condensed local entry lands in the free dofs' CSC matrix, the constrained dofs and the surface loads of the hats.
+
+    Each element's two interior (bubble) dofs couple to nothing outside it and carry no load, so they are condensed
+    out element by element (static condensation) before the global solve: a quarter fewer unknowns to factorise,
+    the same answer to rounding; they are recovered from the element's other dofs where the energy needs them.
 
     Attributes:
         basis: skfem basis (vector Q2). centroid_r, centroid_depth: each element's centroid, m, (E,).
-        lam_part, mu_part: (E, 18, 18), A and B above.
+        lam_part, mu_part: (E, 18, 18), A and B above (local dofs 16 and 17 the bubble's).
         element_dofs: (E, 18) global dofs of each element.
-        free: (f,) the free dofs; at: (N,) each dof's index among the free ones (-1: fixed).
-        kept: (k,) flat indices (into E * 18 * 18) of the local entries between two free dofs; slot: (k,) the
-            position of each in the CSC data; indices, indptr: the CSC structure (f x f).
+        free: (f,) the free dofs but the bubbles'; at: (N,) each dof's index among them (-1: fixed or a bubble).
+        kept: (k,) flat indices (into E * 16 * 16) of the condensed local entries between two free dofs; slot: (k,)
+            the position of each in the CSC data; indices, indptr: the CSC structure (f x f).
         r_top: the hats' vertices, m; loads: (f, hats) consistent loads of unit hat pressures on the free dofs;
         vertex: (hats,) each hat vertex's vertical dof among the free ones.
     """
@@ -100,18 +104,23 @@ class _Mesh:
     vertex: np.ndarray
 
     def stiffness(self, lam: np.ndarray, mu: np.ndarray):
-        """The free dofs' stiffness (CSC) for per-element Lame constants ``lam``, ``mu`` (Pa, (E,))."""
+        """The free dofs' condensed stiffness (CSC) for per-element Lame constants ``lam``, ``mu`` (Pa, (E,)), and
+        the bubbles' recovery (E, 2, 16): bubble dofs = -recovery @ the element's other dofs."""
         from scipy.sparse import csc_matrix
 
         local = self.lam_part * lam[:, None, None]
         local += self.mu_part * mu[:, None, None]
-        data = np.bincount(self.slot, weights=local.ravel()[self.kept], minlength=len(self.indices))
+        recovery = np.linalg.solve(local[:, 16:, 16:], local[:, 16:, :16])
+        condensed = local[:, :16, :16] - np.matmul(local[:, :16, 16:], recovery)
+        data = np.bincount(self.slot, weights=condensed.ravel()[self.kept], minlength=len(self.indices))
         n = len(self.free)
-        return csc_matrix((data, self.indices, self.indptr), shape=(n, n))
+        return csc_matrix((data, self.indices, self.indptr), shape=(n, n)), recovery
 
-    def element_energy(self, lam: np.ndarray, mu: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Twice the strain energy of displacement ``u`` (all dofs) in each element (only shares are used)."""
+    def element_energy(self, lam: np.ndarray, mu: np.ndarray, u: np.ndarray, recovery: np.ndarray) -> np.ndarray:
+        """Twice the strain energy in each element (only shares are used) of displacement ``u`` (all dofs; the
+        bubbles' are recovered with ``recovery`` from :meth:`stiffness`)."""
         ue = u[self.element_dofs]
+        ue[:, 16:] = -np.einsum("ebj,ej->eb", recovery, ue[:, :16])
         return (lam * np.einsum("ei,eij,ej->e", ue, self.lam_part, ue)
                 + mu * np.einsum("ei,eij,ej->e", ue, self.mu_part, ue))
 
@@ -183,14 +192,15 @@ def _mesh(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray, 
         fixed.append(ur[bottom[ur]])
     if wide:
         fixed.append(ur[np.isclose(locs[0, ur], width)])
-    fixed = np.unique(np.concatenate(fixed))
+    element_dofs = np.ascontiguousarray(basis.element_dofs.T)  # (E, 18), the bubble's last
+    fixed = np.unique(np.concatenate(fixed + [element_dofs[:, 16:].ravel()]))  # bubbles: condensed, not solved
     free = np.setdiff1d(np.arange(n), fixed)
     at = -np.ones(n, dtype=int)
     at[free] = np.arange(len(free))
-    element_dofs = np.ascontiguousarray(basis.element_dofs.T)  # (E, 18)
-    # where each local entry between two free dofs lands in the free dofs' CSC matrix (column-major keys)
-    rows = at[np.broadcast_to(element_dofs[:, :, None], (len(element_dofs), 18, 18))].ravel()
-    cols = at[np.broadcast_to(element_dofs[:, None, :], (len(element_dofs), 18, 18))].ravel()
+    # where each condensed local entry between two free dofs lands in their CSC matrix (column-major keys)
+    outer = element_dofs[:, :16]
+    rows = at[np.broadcast_to(outer[:, :, None], (len(outer), 16, 16))].ravel()
+    cols = at[np.broadcast_to(outer[:, None, :], (len(outer), 16, 16))].ravel()
     kept = np.flatnonzero((rows >= 0) & (cols >= 0))
     keys, slot = np.unique(cols[kept].astype(np.int64) * len(free) + rows[kept], return_inverse=True)
     indptr = np.searchsorted(keys // len(free), np.arange(len(free) + 1))
@@ -325,7 +335,8 @@ def _solve_field(mesh: _Mesh, sample: AxisymmetricSample, materials, d: np.ndarr
     mu = young / (2 * (1 + poisson))
     r_top = mesh.r_top
     # minimum degree on A^T + A: the matrix is symmetric, and this ordering halves the factor's fill (COLAMD's)
-    lu = splu(mesh.stiffness(lam, mu), permc_spec="MMD_AT_PLUS_A")
+    stiffness, recovery = mesh.stiffness(lam, mu)
+    lu = splu(stiffness, permc_spec="MMD_AT_PLUS_A")
     settle = lu.solve(mesh.loads)  # (free, hats) displacement per unit hat pressure
     compliance = -settle[mesh.vertex]  # downward settlement of each top vertex per unit hat pressure
     forces, radii, pressures = [], [], []
@@ -341,7 +352,7 @@ def _solve_field(mesh: _Mesh, sample: AxisymmetricSample, materials, d: np.ndarr
     for p in pressures if energy else ():
         u = np.zeros(n)
         u[mesh.free] = settle @ p
-        share = np.maximum(mesh.element_energy(lam, mu, u), 0.0)
+        share = np.maximum(mesh.element_energy(lam, mu, u, recovery), 0.0)
         shares.append(share / max(float(share.sum()), 1e-300))
     return FEPress(depth=d, force=np.array(forces), contact_radius=np.array(radii), r=r_top,
                    pressure=np.array(pressures), dofs=int(n), h0=float(h0), element_r=mesh.centroid_r,
