@@ -222,9 +222,9 @@ def test_the_lateral_mixing_correction_is_one_where_cells_hold_the_lump_and_not_
 
 
 def test_the_lateral_mixing_correction_solves_on_one_blas_thread_and_gives_the_default_threads_answer(monkeypatch):
-    """The correction's FE solves (two fields on one mesh) run with BLAS on one thread (on a busy machine OpenBLAS's threads waited for
-    cores and then spun beside MuJoCo) and BLAS's thread count is back afterwards; the ratio is the one computed at
-    BLAS's own thread count (the previous form) within rounding."""
+    """The correction's FE solves (two fields on one mesh) run with BLAS on one thread (on a busy machine
+    OpenBLAS's threads waited for cores and then spun beside MuJoCo) and BLAS's thread count is back afterwards;
+    the ratio is the one computed at BLAS's own thread count (the previous form) within rounding."""
     import contextlib
 
     from threadpoolctl import threadpool_info
