@@ -14,12 +14,16 @@ import dataclasses
 import time
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
 from palpate.api import load_scenario
-from palpate.core.mapping.calibration import calibration_sample, reliability_table
-from palpate.core.mapping.fine import boundary_error, edges
-from palpate.core.session.boundaries import NEAR_BOUNDARY, boundary_reader, object_fine_map, training_moduli
+from palpate.core.mapping.fine import boundary_error
+from palpate.core.session.boundaries import (
+    NEAR_BOUNDARY,
+    boundary_reader,
+    fine_calibration,
+    object_fine_map,
+    training_moduli,
+)
 from palpate.core.session.explore import explore_object
 from palpate.core.session.progress import Progress
 from palpate.core.session.sources import scenario_source_maker
@@ -64,12 +68,11 @@ def main() -> None:
             (cx, cy, _), size = inc.center, inc.size
             mask &= ~((np.abs(pts[..., 0] - cx) <= size[0] / 2) & (np.abs(pts[..., 1] - cy) <= size[1] / 2))
         ec, ef = (boundary_error(lab, truth, mask, fine.resolution) for lab in (cells, fine.labels()))
-        near = mask & (distance_transform_edt(~edges(truth)) * fine.resolution <= NEAR_BOUNDARY)
-        ece = [reliability_table(*calibration_sample(fine.probabilities[m], truth[m])[:2]).ece for m in (mask, near)]
+        ece = fine_calibration(fine, truth, mask)
         print(f"{what} ({mask.mean():.0%}): area right cell map {np.mean(cells[mask] == truth[mask]):.1%}, fine map "
               f"{np.mean(fine.labels()[mask] == truth[mask]):.1%}; boundary error median / p90 cell map "
               f"{ec[0] * 1e3:.1f} / {ec[1] * 1e3:.1f} mm, fine map {ef[0] * 1e3:.1f} / {ef[1] * 1e3:.1f} mm; fine map "
-              f"ECE {ece[0]:.3f}, within {NEAR_BOUNDARY * 1e3:g} mm of a boundary {ece[1]:.3f}")
+              f"ECE {ece['all']:.3f}, within {NEAR_BOUNDARY * 1e3:g} mm of a boundary {ece['near_boundary']:.3f}")
     if args.readings:
         for s in res.steps:
             r = s.boundary

@@ -153,13 +153,17 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
                                 "fine_map": float(np.mean(labels[known] == truth[known]))}
     summary["boundary_error_m"] = {name: {"median": _finite(e[0]), "p90": _finite(e[1])}
                                    for name, e in (("cell_map", cell_err), ("fine_map", fine_err))}
-    # calibration of the fine map's most probable material, over all points and over those within 5 mm of a
-    # true boundary (where the cell map cannot be sure)
-    near = distance_transform_edt(~edges(truth)) * fine.resolution <= NEAR_BOUNDARY
-    summary["calibration_ece"] = {
-        where: reliability_table(*calibration_sample(fine.probabilities[mask], truth[mask])[:2]).ece
-        for where, mask in (("all", known), ("near_boundary", known & near)) if mask.any()}
+    summary["calibration_ece"] = fine_calibration(fine, truth, known)
     return FineResult(fine, summary, truth)
+
+
+def fine_calibration(fine: FineMap, truth: np.ndarray, mask: np.ndarray) -> dict[str, float]:
+    """Expected calibration error of the fine map's most probable material against ``truth`` (material index per
+    point) over the points of ``mask``: "all" of them and "near_boundary", those within NEAR_BOUNDARY of a true
+    boundary (where the cell map cannot be sure); a key is left out where it has no point."""
+    near = distance_transform_edt(~edges(truth)) * fine.resolution <= NEAR_BOUNDARY
+    return {where: reliability_table(*calibration_sample(fine.probabilities[m], truth[m])[:2]).ece
+            for where, m in (("all", mask), ("near_boundary", mask & near)) if m.any()}
 
 
 def _finite(v: float) -> float | None:

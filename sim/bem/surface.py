@@ -62,8 +62,9 @@ class Surface:
             cells cover the sensel).
         mixing: how the stacks' compliances were combined: "uniform", "wall", "buried" or "local" (module docstring).
         buried: the columns differ only under a top layer they all share (a buried lump, not a wall at the surface):
-            the columns' local model is too stiff over a finite buried change, so a press takes its force from the
-            point's contact law and only the image's shape from the surface (:func:`palpate.sim.bem.press.law_scaled`).
+            the surface's force over a finite buried change is not held (too stiff), so a press takes its force from
+            the point's contact law and only the image's shape from the surface
+            (:func:`palpate.sim.bem.press.law_scaled`).
     """
 
     cell: float
@@ -157,6 +158,11 @@ def _lattice(stack: Stack, cell: float, span: int) -> np.ndarray:
     return influence(stack, cell, dx, dy)
 
 
+def _kernel_table(stack: Stack, cell: float, span: int) -> np.ndarray:
+    """The stack's own compliance (m/Pa) for every lattice offset -2 span..2 span cells, flattened."""
+    return _lattice(stack.scaled(), float(cell), 2 * span).ravel() / stack.top_modulus
+
+
 def sensel_overlap(tip: FingertipSpec, centres: np.ndarray, cell: float) -> np.ndarray:
     """(rows * cols, n) share of each sensel footprint covered by each square cell (centres (n, 2) m, side m)."""
     b = sensel_bounds(tip).reshape(-1, 4)
@@ -189,7 +195,7 @@ def _compliance(stack: Stack, cell: float, span: int, flat_ij: np.ndarray, facto
     flat index into the lattice of offsets -2 span..2 span squared). A block of rows at a time, so that no
     temporary is (n, n): those would cost fresh pages and cache misses on every press."""
     width = 4 * span + 1
-    table = _lattice(stack.scaled(), float(cell), 2 * span).ravel() / stack.top_modulus
+    table = _kernel_table(stack, cell, span)
     n = len(flat_ij)
     out = np.empty((n, n), dtype=np.float32)
     for start in range(0, n, ROWS):
@@ -209,12 +215,12 @@ def _buried_factor(stacks, used, ref: int, stack_of: np.ndarray, on_object: np.n
     BURIED_SHARE x the pair's mean smoothed share of s x log(kernel_s / kernel_ref) at the pair's offset."""
     from scipy.ndimage import gaussian_filter
 
-    ref_table = _lattice(stacks[ref].scaled(), float(cell), 2 * span).ravel() / stacks[ref].top_modulus
+    ref_table = _kernel_table(stacks[ref], cell, span)
     terms = []
     for s in used:
         if s == ref:
             continue
-        table = _lattice(stacks[s].scaled(), float(cell), 2 * span).ravel() / stacks[s].top_modulus
+        table = _kernel_table(stacks[s], cell, span)
         share = gaussian_filter(np.where(on_object & (stack_of == s), 1.0, 0.0).reshape(shape), BURIED_SMOOTHING / cell,
                                 mode="constant").ravel()[keep]
         terms.append(((0.5 * BURIED_SHARE * share).astype(np.float32), np.log(table / ref_table).astype(np.float32)))
