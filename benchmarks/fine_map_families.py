@@ -1,8 +1,9 @@
 """The fine (1 mm) material map against the cell map on the shape-family scenes (benchmarks/scene_families.py),
 a raster of every cell with physics presses (``auto``: the image rung beside walls), one scene per family.
 
-Per scene: the share of the area each map labels right on the fine raster and the median distance of their
-boundaries from the true ones. Seeds from 100000 on are report seeds (never tuned on).
+Per scene: the share of the area each map labels right on the fine raster, the median distance of their
+boundaries from the true ones and the fine map's calibration error; then medians, and the calibration error of
+every scene's points pooled. Seeds from 100000 on are report seeds (never tuned on).
 
 Run: .venv/bin/python benchmarks/fine_map_families.py [--first 100000] [--scenes 9]
 """
@@ -15,8 +16,11 @@ import time
 import numpy as np
 from exploration import make_source_for
 from scene_families import FAMILIES, is_report_seed, make_scene
+from scipy.ndimage import distance_transform_edt
 
-from palpate.core.session.boundaries import boundary_reader, object_fine_map, training_moduli
+from palpate.core.mapping.calibration import calibration_sample, reliability_table
+from palpate.core.mapping.fine import edges
+from palpate.core.session.boundaries import NEAR_BOUNDARY, boundary_reader, object_fine_map, training_moduli
 from palpate.core.session.explore import explore_object
 from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory
@@ -42,7 +46,11 @@ def scene_row(seed: int) -> dict:
                          boundary_reader=reader)
     fine = object_fine_map(res, sc.objects[0], sc, training_moduli(training.readings))
     s = fine.summary
-    return {"seed": seed, "family": fs.family, "cells": len(res.steps), "walls": s["walls_read"],
+    known = fine.truth >= 0
+    near = known & (distance_transform_edt(~edges(fine.truth)) * fine.fine.resolution <= NEAR_BOUNDARY)
+    samples = {where: calibration_sample(fine.fine.probabilities[m], fine.truth[m])[:2]
+               for where, m in (("all", known), ("near", near))}
+    return {"samples": samples, "seed": seed, "family": fs.family, "cells": len(res.steps), "walls": s["walls_read"],
             "cell": s["area_accuracy"]["cell_map"], "fine": s["area_accuracy"]["fine_map"],
             "err_cell": s["boundary_error_m"]["cell_map"]["median"],
             "err_fine": s["boundary_error_m"]["fine_map"]["median"], "ece": s["calibration_ece"].get("all"),
@@ -71,6 +79,9 @@ def main() -> None:
     print(f"median over {len(rows)} scenes: cell map {np.median(cell):.1%}, fine map {np.median(fine):.1%}; fine map "
           f"better on {int(np.sum(fine > cell))}, worse on {int(np.sum(fine < cell))}; median ECE "
           f"{np.median([r['ece'] for r in rows]):.3f} (near boundaries {np.median([r['ece_near'] for r in rows]):.3f})")
+    pooled = {where: reliability_table(*(np.concatenate([r["samples"][where][k] for r in rows]) for k in (0, 1))).ece
+              for where in ("all", "near")}
+    print(f"ECE over every scene's points pooled: {pooled['all']:.3f} (near boundaries {pooled['near']:.3f})")
 
 
 if __name__ == "__main__":

@@ -84,6 +84,9 @@ def test_bad_maps_are_refused():
         fine_map(geometry, np.full((3, 2, 2), 0.5), [])
     with pytest.raises(ValidationError, match="resolution"):
         fine_map(geometry, np.full((2, 3, 2), 0.5), [], resolution=0.02)
+    for t in (0.0, -1.0, np.inf, np.nan):
+        with pytest.raises(ValidationError, match="temperature"):
+            fine_map(geometry, np.full((2, 3, 2), 0.5), [], temperature=t)
     voxel = MapGeometry("voxel", ("a", "b"), (0.0, 0.0), 0.01, (3, 2, 2), z_top=0.03)
     with pytest.raises(ValidationError, match="2-D"):
         fine_map(voxel, np.full((2, 3, 2), 0.5), [])
@@ -109,3 +112,24 @@ def test_a_reading_reaches_only_points_near_its_press_and_that_changes_nothing_v
     # a press off the map entirely changes nothing
     off = fine_map(geometry, probs, [*readings, ((0.5, 0.5), readings[0][1])], moduli=moduli)
     np.testing.assert_array_equal(off.probabilities, cut.probabilities)
+
+
+def test_the_temperature_sharpens_each_point_without_moving_its_label(templates):
+    soft, hard = 20e3, 120e3
+    geometry = MapGeometry("grid2d", ("soft", "hard", "none"), (0.0, 0.0), 0.01, (4, 2))
+    probs = np.full((2, 4, 3), 0.1)
+    probs[:, :2, 0], probs[:, 2:, 1] = 0.8, 0.8
+    wall_at = 0.021
+    img = _image(templates, soft, wall_at, 0.018, hard / soft)
+    readings = [((0.018, 0.01), read_boundary(img, DEPTH, templates, NOISE))]
+    plain, sharp = (fine_map(geometry, probs, readings, temperature=t) for t in (1.0, 0.5))
+    assert np.array_equal(plain.labels(), sharp.labels())
+    # at temperature 1/2 each point is its mixture squared and renormalised; a point's largest share only grows
+    squared = plain.probabilities**2 / np.sum(plain.probabilities**2, axis=-1, keepdims=True)
+    np.testing.assert_allclose(sharp.probabilities, squared, rtol=1e-12)
+    assert np.all(sharp.probabilities.max(axis=-1) >= plain.probabilities.max(axis=-1) - 1e-12)
+    assert np.any(sharp.probabilities.max(axis=-1) > plain.probabilities.max(axis=-1) + 0.05)
+    # an extreme temperature stays a distribution (no 0 / 0)
+    extreme = fine_map(geometry, probs, readings, temperature=1e-4)
+    assert np.all(np.isfinite(extreme.probabilities))
+    np.testing.assert_allclose(extreme.probabilities.sum(axis=-1), 1.0)

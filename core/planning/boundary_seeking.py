@@ -96,8 +96,9 @@ class BoundarySeeking:
         """(errors, fine, centres): the fine map's expected errors a press at each point of the fine raster would
         settle (cells of area, weighted by ``fine_weight``, discounted by crowding), shape (NY, NX); the fine map;
         its points' (x, y), m, (NY, NX, 2)."""
+        # the mixture as it is: the planner's weights were chosen on it (the calibrated sharpening is for reports)
         fine = fine_map(self.geometry, post.probabilities, self._readings, resolution=self.resolution,
-                        reach=self.reach, moduli=self.moduli)
+                        reach=self.reach, moduli=self.moduli, temperature=1.0)
         wrong = self.expected_errors(fine)
         res = fine.resolution
         n = int(round(self.geometry.cell_size / res))
