@@ -87,6 +87,9 @@ def test_bad_maps_are_refused():
     for t in (0.0, -1.0, np.inf, np.nan):
         with pytest.raises(ValidationError, match="temperature"):
             fine_map(geometry, np.full((2, 3, 2), 0.5), [], temperature=t)
+    for w in (-0.1, np.inf, np.nan):
+        with pytest.raises(ValidationError, match="far_weight"):
+            fine_map(geometry, np.full((2, 3, 2), 0.5), [], far_weight=w)
     voxel = MapGeometry("voxel", ("a", "b"), (0.0, 0.0), 0.01, (3, 2, 2), z_top=0.03)
     with pytest.raises(ValidationError, match="2-D"):
         fine_map(voxel, np.full((2, 3, 2), 0.5), [])
@@ -133,3 +136,23 @@ def test_the_temperature_sharpens_each_point_without_moving_its_label(templates)
     extreme = fine_map(geometry, probs, readings, temperature=1e-4)
     assert np.all(np.isfinite(extreme.probabilities))
     np.testing.assert_allclose(extreme.probabilities.sum(axis=-1), 1.0)
+
+
+def test_a_point_no_press_reaches_takes_its_nearest_press_material(templates):
+    soft, hard = 20e3, 120e3
+    geometry = MapGeometry("grid2d", ("soft", "hard"), (0.0, 0.0), 0.01, (8, 1))
+    probs = np.full((1, 8, 2), 0.5)  # the cell map knows nothing yet
+    probs[0, 0], probs[0, 7] = [0.9, 0.1], [0.1, 0.9]
+    readings = [((0.005, 0.005), read_boundary(_image(templates, soft, None, 0, 1), DEPTH, templates, NOISE)),
+                ((0.075, 0.005), read_boundary(_image(templates, hard, None, 0, 1), DEPTH, templates, NOISE))]
+    moduli = material_moduli({name: [read_boundary(_image(templates, e, None, 0, 1), DEPTH, templates, NOISE)]
+                              for name, e in (("soft", soft), ("hard", hard))})
+    near_only, with_far = (fine_map(geometry, probs, readings, moduli=moduli, far_weight=w) for w in (0.0, 0.05))
+    x = with_far.centres()[0, :, 0]
+    # 30-50 mm from both presses: beyond their reach, the nearest one decides, with little confidence
+    middle = (x > 0.030) & (x < 0.050)
+    assert np.array_equal(with_far.labels()[0], (x > 0.040).astype(int))
+    assert np.all(with_far.probabilities[0, middle].max(axis=-1) < 0.8)
+    assert np.allclose(near_only.probabilities[0, (x > 0.035) & (x < 0.045)], 0.5, atol=1e-3)
+    # near the presses the far term changes nothing visible
+    assert np.array_equal(near_only.labels()[0, x < 0.015], with_far.labels()[0, x < 0.015])

@@ -9,7 +9,9 @@ material gives way to a harder one. Each fine point's distribution mixes:
   wall (probability p_boundary), the distribution of the nearest cell on the point's side whose centre is clear of
   the wall (a press there felt one material; cells astride a wall are judged on a mixture), each side in proportion
   to the probability that the point lies there given the reading's offset and angle spreads; when it read none
-  (1 - p_boundary), the press's own cell's distribution.
+  (1 - p_boundary), the press's own cell's distribution;
+- its nearest press's reading as above, with a small weight however far: where no press reaches and the
+  cell map knows nothing (a uniform cell beyond eq. 6.15's neighbours), the nearest press decides the point.
 
 The mixture is then sharpened by a temperature (calibrated: the mixture alone is under-confident). The cell map
 itself (the seed's grid and eq. 6.15) is unchanged; this layer is computed from it.
@@ -17,10 +19,12 @@ itself (the seed's grid and eq. 6.15) is unchanged; this layer is computed from 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import distance_transform_edt
+from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
 from palpate.core.boundary.moduli import MaterialModuli
@@ -35,10 +39,15 @@ CELL_WEIGHT = 0.05
 #: Distance from a press over which its reading's weight falls by e, m (about the contact radius at depth).
 REACH = 6e-3
 #: Temperature of the mixed distributions (below 1: sharper). A mixture of the cell map's and the readings'
-#: distributions is under-confident (points it calls 0.75 are right 0.92 of the time); chosen on raster's physics
-#: maps of tuning scenes 0-17 (benchmarks/fine_map_families.py) as the grid point 0.70-0.84 with the lowest worse
-#: of the pooled ECE over all points and within 5 mm of a boundary. It never changes a point's most probable material.
-TEMPERATURE = 0.76
+#: distributions is under-confident (points it calls 0.75 are right 0.92 of the time); chosen, with FAR_WEIGHT, on
+#: raster's physics maps of tuning scenes 0-17 (benchmarks/fine_map_families.py) as the grid point 0.70-0.84 with the
+#: lowest worse of the pooled ECE over all points and within 5 mm of a boundary. It never changes a point's most
+#: probable material.
+TEMPERATURE = 0.82
+#: Weight of a point's nearest press's reading, however far, against CELL_WEIGHT (see :func:`fine_map`): of 0.003-1,
+#: the one with the most area right after a tenth of raster's presses (boundary policy, tuning scenes 0-17: median
+#: 0.76 -> 0.86) among those that keep the area right after a full raster.
+FAR_WEIGHT = 0.05
 #: Points farther than this many reaches from a press take nothing from its reading (weight below 1.4e-11): a
 #: reading costs the same on any size of map.
 CUTOFF = 5.0
@@ -132,7 +141,8 @@ def window_around(shape: tuple[int, int], origin: tuple[float, float], res: floa
 def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tuple[tuple[float, float],
              BoundaryReading]], *, resolution: float = RESOLUTION, reach: float = REACH,
              cell_weight: float = CELL_WEIGHT, clear: float = REACH, moduli: MaterialModuli | None = None,
-             cutoff: float | None = CUTOFF, temperature: float = TEMPERATURE) -> FineMap:
+             cutoff: float | None = CUTOFF, temperature: float = TEMPERATURE,
+             far_weight: float = FAR_WEIGHT) -> FineMap:
     """The fine map of a 2-D cell map (see the module docstring).
 
     Args:
@@ -144,6 +154,8 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         moduli: the reference materials' moduli as the reading reads them (:mod:`palpate.core.boundary.moduli`):
             when given, each side of a read wall is the material its read modulus matches, not a neighbour cell's.
         cutoff: a reading reaches points within this many ``reach`` of its press (None: every point).
+        far_weight: weight of each point's nearest reading, however far (0: none; a point out of every reading's
+            reach then keeps its cell's distribution).
         temperature: each point's distribution is raised to 1 / temperature and renormalised (1: the mixture as it
             is; below 1 sharper); the most probable material stays.
 
@@ -157,9 +169,10 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     probs = np.asarray(probabilities, dtype=float)
     if probs.shape[:2] != (ny, nx) or probs.ndim != 3:
         raise ValidationError(f"fine_map: probabilities must be ({ny}, {nx}, M), got {probs.shape}")
-    if not (0 < resolution <= geometry.cell_size and reach > 0 and cell_weight > 0 and 0 < temperature < np.inf):
+    if not (0 < resolution <= geometry.cell_size and reach > 0 and cell_weight > 0 and 0 < temperature < np.inf
+            and 0 <= far_weight < np.inf):
         raise ValidationError("fine_map: resolution must be in (0, cell size], reach, cell_weight and temperature "
-                              "> 0 and finite")
+                              "> 0 and finite, far_weight >= 0 and finite")
     n = int(round(geometry.cell_size / resolution))
     out = FineMap(geometry.origin, geometry.cell_size / n, np.zeros((ny * n, nx * n, probs.shape[2])),
                   geometry.materials)
@@ -171,38 +184,57 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     astride = _astride(geometry, readings, clear) if moduli is None else None
     res = out.resolution
     radius = None if cutoff is None else cutoff * reach
+    fields = []  # per reading on the map: (location, the reading's field at points relative to it)
     for (x0, y0), r in readings:
         window = window_around(pts.shape[:2], geometry.origin, res, (x0, y0), radius)
         if window is None:
             continue
-        rel = pts[window] - np.array([x0, y0])
-        w = np.exp(-np.sum(rel**2, axis=-1) / reach**2)
         own = probs[_cell_of(geometry, np.array([x0, y0]))[::-1]]
-        n_vec = r.normal
-        foot = np.array([x0, y0]) + r.foot
         if moduli is not None:
             matched = own * moduli.probabilities(r.log_plain, geometry.materials)
             own = matched / matched.sum() if matched.sum() > 0 else own
             hard = moduli.probabilities(r.log_hard, geometry.materials)
             soft = moduli.probabilities(r.log_soft, geometry.materials)
         else:
-            hard = _clear_cell(geometry, probs, astride, foot, n_vec, clear)
-            soft = _clear_cell(geometry, probs, astride, foot, -n_vec, clear)
-        s = rel @ n_vec - r.offset
-        along = np.abs(rel @ np.array([-n_vec[1], n_vec[0]]))
-        spread = np.sqrt(r.offset_sd**2 + (r.angle_sd * along) ** 2 + (0.25 * res) ** 2)
-        q = ndtr(s / spread)[..., None]
-        wall = q * hard + (1 - q) * soft
-        p_wall = 1.0 - r.p_plain
-        dist = p_wall * wall + (1 - p_wall) * own
-        acc[window] += w[..., None] * dist
+            foot = np.array([x0, y0]) + r.foot
+            hard = _clear_cell(geometry, probs, astride, foot, r.normal, clear)
+            soft = _clear_cell(geometry, probs, astride, foot, -r.normal, clear)
+        field = functools.partial(_reading_field, r, own, hard, soft, res)
+        rel = pts[window] - np.array([x0, y0])
+        w = np.exp(-np.sum(rel**2, axis=-1) / reach**2)
+        acc[window] += w[..., None] * field(rel)
         weight[window] += w
+        fields.append(((x0, y0), field))
+    if far_weight > 0 and fields:
+        # each point also hears its nearest press, however far: where no press reaches and the cell map knows
+        # nothing (a uniform cell), that decides the point as the press says, with little confidence
+        flat = pts.reshape(-1, 2)
+        _, nearest = cKDTree(np.array([xy for xy, _ in fields])).query(flat)
+        far = np.empty((len(flat), probs.shape[2]))
+        for k in np.unique(nearest):
+            at = nearest == k
+            far[at] = fields[k][1](flat[at] - np.array(fields[k][0]))
+        acc += far_weight * far.reshape(acc.shape)
+        weight += far_weight
     mixed = acc / weight[..., None]
     if temperature != 1.0:
         # scaled by each point's largest first: no underflow to 0/0 however sharp
         mixed = np.power(mixed / mixed.max(axis=-1, keepdims=True), 1.0 / temperature)
         mixed /= mixed.sum(axis=-1, keepdims=True)
     return FineMap(out.origin, out.resolution, mixed, out.materials)
+
+
+def _reading_field(r: BoundaryReading, own: np.ndarray, hard: np.ndarray, soft: np.ndarray, res: float,
+                   rel: np.ndarray) -> np.ndarray:
+    """A reading's distribution at points ``rel`` (..., 2) m from its press: each side of a read wall in proportion
+    to the probability that the point lies there, the press's own material where no wall was read."""
+    n_vec = r.normal
+    s = rel @ n_vec - r.offset
+    along = np.abs(rel @ np.array([-n_vec[1], n_vec[0]]))
+    spread = np.sqrt(r.offset_sd**2 + (r.angle_sd * along) ** 2 + (0.25 * res) ** 2)
+    q = ndtr(s / spread)[..., None]
+    p_wall = 1.0 - r.p_plain
+    return p_wall * (q * hard + (1 - q) * soft) + (1 - p_wall) * own
 
 
 def edges(labels: np.ndarray) -> np.ndarray:

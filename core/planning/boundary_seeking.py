@@ -49,6 +49,8 @@ class BoundarySeeking:
         shift: how far off its cell's centre a press may go, as a share of the half-width, [0, 1] (0 = centres
             only, as info_gain).
         spread_stride: info_gain's first lattice (every ``spread_stride``-th cell).
+        far_weight: the fine map's weight of a point's nearest reading however far (:data:`.fine.FAR_WEIGHT`; 0:
+            plan on the readings in reach only).
         resolution, reach: the fine map's (m).
     """
 
@@ -63,6 +65,7 @@ class BoundarySeeking:
     crowding: float = 3e-3
     shift: float = 0.5
     spread_stride: int = 3
+    far_weight: float = 0.0
     resolution: float = RESOLUTION
     reach: float = REACH
     _info: InfoGain = field(init=False, repr=False)
@@ -72,7 +75,7 @@ class BoundarySeeking:
     def __post_init__(self) -> None:
         if self.geometry.voxel:
             raise ValidationError("the boundary policy plans on a fine 2-D map; a voxel map needs another policy")
-        for key in ("fine_weight", "crowding", "travel_cost_per_mm"):
+        for key in ("fine_weight", "crowding", "travel_cost_per_mm", "far_weight"):
             v = getattr(self, key)
             if not (np.isfinite(v) and v >= 0):
                 raise ValidationError(f"boundary policy: {key} must be a finite number >= 0, got {v!r}")
@@ -96,9 +99,9 @@ class BoundarySeeking:
         """(errors, fine, centres): the fine map's expected errors a press at each point of the fine raster would
         settle (cells of area, weighted by ``fine_weight``, discounted by crowding), shape (NY, NX); the fine map;
         its points' (x, y), m, (NY, NX, 2)."""
-        # the mixture as it is: the planner's weights were chosen on it (the calibrated sharpening is for reports)
+        # the plain mixture, as the planner's weights were chosen on it (the calibrated sharpening is for reports)
         fine = fine_map(self.geometry, post.probabilities, self._readings, resolution=self.resolution,
-                        reach=self.reach, moduli=self.moduli, temperature=1.0)
+                        reach=self.reach, moduli=self.moduli, temperature=1.0, far_weight=self.far_weight)
         wrong = self.expected_errors(fine)
         res = fine.resolution
         n = int(round(self.geometry.cell_size / res))
