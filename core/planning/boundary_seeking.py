@@ -24,7 +24,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 from palpate.core.errors import ValidationError
-from palpate.core.mapping.fine import CUTOFF, REACH, RESOLUTION, FineMap, fine_map, window_around
+from palpate.core.mapping.fine import CUTOFF, FAR_WEIGHT, REACH, RESOLUTION, FineMap, fine_map, window_around
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.planning.info_gain import InfoGain
 from palpate.core.planning.map_views import plane_shape, postprocess
@@ -49,8 +49,9 @@ class BoundarySeeking:
         shift: how far off its cell's centre a press may go, as a share of the half-width, [0, 1] (0 = centres
             only, as info_gain).
         spread_stride: info_gain's first lattice (every ``spread_stride``-th cell).
-        far_weight: the fine map's weight of a point's nearest reading however far (:data:`.fine.FAR_WEIGHT`; 0:
-            plan on the readings in reach only).
+        far_weight: the fine map's weight of a point's nearest reading however far (0: plan on the readings in
+            reach only; the default, the reported map's, took tuning scenes 0-17 to 95% of the area right in 0.25 of
+            raster's presses against 0.26 with 0).
         resolution, reach: the fine map's (m).
     """
 
@@ -65,7 +66,7 @@ class BoundarySeeking:
     crowding: float = 3e-3
     shift: float = 0.5
     spread_stride: int = 3
-    far_weight: float = 0.0
+    far_weight: float = FAR_WEIGHT
     resolution: float = RESOLUTION
     reach: float = REACH
     _info: InfoGain = field(init=False, repr=False)
