@@ -26,12 +26,13 @@ through the calibration's own statistics (:data:`~palpate.sim.realism.calibrate.
    ``--offset`` box widths off the truth (towards the box's far side: + where u < 0.5, - otherwise; the moduli
    through the scenario, then calibrate's own matching of the moduli to mean n1 moves them) with the shipped
    protocol's tuning seeds (101-104; one report seed, whose statistics are not used), ``--budget`` candidates
-   and ``--design`` (1: Nelder-Mead from the start, as the shipped fit). Printed: recovered against true values
+   and ``--design`` (1: the search from the start, as the shipped fit), ``--search`` (nelder-mead, as the
+   shipped fit, or least-squares). Printed: recovered against true values
    and the objective at the truth against the fit's.
 
     .venv/bin/python benchmarks/realism_identifiability.py [--quick] [--jacobian-seeds 48] [--sessions 300]
         [--step 0.05] [--ridge 1e-3] [--threshold 0.15] [--generators 7001,7002,7003] [--budget 80] [--design 1]
-        [--offset 0.3] [--tune-seeds 101,102,103,104] [--report-seeds 201] [--no-recovery]
+        [--search nelder-mead] [--offset 0.3] [--tune-seeds 101,102,103,104] [--report-seeds 201] [--no-recovery]
 
 ``--quick`` (a smoke run, about a minute): 2 Jacobian seeds, 30 sessions, no recovery.
 """
@@ -66,6 +67,7 @@ from palpate.sim.realism.calibrate import (
 )
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import resolve_profile
+from palpate.sim.realism.search import SEARCHES
 
 REPO = Path(__file__).resolve().parent.parent
 SHORT = {"log_mean_n1": "mean_n1", "log_mean_a1": "mean_a1", "log_cv_n1": "cv_n1", "log_cv_a1": "cv_a1",
@@ -309,7 +311,8 @@ def recovery(setup: Setup, generator: int, args, log) -> dict:
         try:
             result = calibrate(table, start_scenario, start, setup.free, tune_seeds=args.tune, report_seeds=report,
                                budget=args.budget, fidelity=setup.fidelity, name="recovered",
-                               table_name=f"session {generator}", design=args.design, fit_a2_sign=True, log=log)
+                               table_name=f"session {generator}", design=args.design, fit_a2_sign=True,
+                               search=args.search, log=log)
             break
         except PalpateError as exc:
             print(f"    seed {generator}: the fit's report run failed ({type(exc).__name__}); again with report "
@@ -373,6 +376,8 @@ def main() -> int:
     ap.add_argument("--budget", type=int, default=80, help="candidates per recovery fit (default 80)")
     ap.add_argument("--design", type=int, default=1, help="Latin hypercube points (1: Nelder-Mead from the start, "
                     "as the shipped fit)")
+    ap.add_argument("--search", default="nelder-mead", choices=SEARCHES,
+                    help="the recovery fits' search after the design (default nelder-mead, as the shipped fit)")
     ap.add_argument("--offset", type=float, default=0.3, help="start's distance from the truth in box units")
     ap.add_argument("--tune-seeds", default="101,102,103,104")
     ap.add_argument("--report-seeds", default="201", help="the fit's report seeds (unused here; default 201)")
@@ -413,7 +418,7 @@ def main() -> int:
     if not args.no_recovery:
         print(f"\nRecovery: generating seeds {args.generators}; start {args.offset} box widths off the truth "
               f"(+ where u < 0.5, - otherwise); tuning seeds {args.tune}, report seeds {args.report}, budget "
-              f"{args.budget}, design {args.design}, --fit-a2-sign", flush=True)
+              f"{args.budget}, design {args.design}, search {args.search}, --fit-a2-sign", flush=True)
         fits = []
         for g in _seeds(args.generators):
             t1 = time.process_time()

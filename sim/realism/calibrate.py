@@ -12,9 +12,10 @@ averaging them over the seeds; the objective is the sum of squared differences t
 tolerance in :data:`SCALES`. Negative shares enter the objective smoothed (a logistic step a tenth of the column's
 spread wide) so the objective is continuous; every report uses the plain shares.
 
-Search: a Latin hypercube over the free parameters' box (seeded), then Nelder-Mead from its best point, within the
-box, until the evaluation budget is spent. Deterministic: the same table, scenario, start profile, free parameters,
-seeds and budget give the same profile. The fitted profile is then simulated on *report* seeds it was not tuned on,
+Search: a Latin hypercube over the free parameters' box (seeded), then from its best point Nelder-Mead or a
+least-squares trust region (:mod:`~palpate.sim.realism.search`), within the box, until the evaluation budget is
+spent. Deterministic: the same table, scenario, start profile, free parameters, seeds, search and budget give the
+same profile. The fitted profile is then simulated on *report* seeds it was not tuned on,
 and its statistics there are what the profile's provenance and the command report.
 
 The scenario's moduli may be fitted too (free parameters ``young.<material>``: a factor on that reference material's
@@ -40,6 +41,7 @@ from palpate.core.world.scenario import Scenario
 from palpate.core.world.scene import Scene
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import parse_profile, profile_tables
+from palpate.sim.realism.search import SEARCHES, BudgetSpent, run_search
 from palpate.sim.source import SimSource
 
 #: The statistics computed per material (see the module docstring).
@@ -312,12 +314,13 @@ class Calibration:
 def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free: Sequence[FreeParameter], *,
               tune_seeds: Sequence[int], report_seeds: Sequence[int], budget: int, fidelity: str | None = None,
               name: str = "fitted", table_name: str = "table", search_seed: int = 0, design: int | None = None,
-              fit_a2_sign: bool = False, log: Callable[[str], None] = lambda s: None) -> Calibration:
-    """Fit ``free`` parameters of ``start`` to ``table`` (module docstring). ``budget``: candidates simulated;
-    ``design``: how many of them the Latin hypercube takes (None: a third of the budget, at least 2 per parameter;
-    0: Nelder-Mead straight from the start, to refine a fitted profile); ``fit_a2_sign``: the share of a2 < 0 in
-    the objective too (:data:`SCALES_WITH_A2_SIGN`; off: :data:`SCALES`, as every shipped fit)."""
-    from scipy.optimize import minimize
+              fit_a2_sign: bool = False, search: str = "nelder-mead",
+              log: Callable[[str], None] = lambda s: None) -> Calibration:
+    """Fit ``free`` parameters of ``start`` to ``table`` (module docstring). ``budget``: candidates simulated,
+    whichever search asks for them; ``design``: how many of them the Latin hypercube takes (None: a third of the
+    budget, at least 2 per parameter; 0: the search straight from the start, to refine a fitted profile);
+    ``search``: what follows the design (:data:`~palpate.sim.realism.search.SEARCHES`); ``fit_a2_sign``: the share
+    of a2 < 0 in the objective too (:data:`SCALES_WITH_A2_SIGN`; off: :data:`SCALES`, as every shipped fit)."""
     from scipy.stats import qmc
 
     materials = tuple(m for m in table.materials if m in scenario.references)
@@ -330,25 +333,38 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
         raise ValidationError(f"tuning and report seeds must be non-empty and disjoint; shared: {overlap}")
     if budget < 2:
         raise ValidationError(f"the evaluation budget must be >= 2, got {budget}")
+    if search not in SEARCHES:
+        raise ValidationError(f"unknown search {search!r}; known: {', '.join(SEARCHES)}")
     fidelity = fidelity or scenario.fidelity
     real = real_moments(table, materials)
     scales = SCALES_WITH_A2_SIGN if fit_a2_sign else SCALES
     history: list[tuple[float, np.ndarray]] = []
+    fitted_cols = np.isfinite(scales)
+    failed = np.full(len(materials) * int(fitted_cols.sum()), np.sqrt(FAILED / (len(materials) * fitted_cols.sum())))
+    seen: dict[bytes, np.ndarray] = {}
 
-    def score(u: np.ndarray) -> float:
+    def residuals(u: np.ndarray) -> np.ndarray:
+        u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
+        if u.tobytes() in seen:
+            return seen[u.tobytes()]
+        if len(history) >= budget:
+            raise BudgetSpent
         values = [p.value(x) for p, x in zip(free, u, strict=True)]
         try:
             prof, sc = with_values(start, free, values), with_moduli(scenario, free, values)
             runs = [simulate_seed(sc, prof, s, fidelity) for s in tune_seeds]
-            j = objective(sim_moments(runs, materials, scenario.references, smooth=True), real, scales)
+            sim = sim_moments(runs, materials, scenario.references, smooth=True)
+            r = ((sim - real) / scales[None, :])[:, fitted_cols].ravel()
         except (PalpateError, ValidationError) as exc:
-            j = FAILED
+            r = failed
             log(f"  candidate failed: {exc}")
-        history.append((j, np.asarray(u, dtype=float)))
+        j = float(np.sum(r ** 2))
+        seen[u.tobytes()] = r
+        history.append((j, u))
         best = min(h[0] for h in history)
         log(f"  {len(history):4d}/{budget}  objective {j:10.3f}  best {best:10.3f}  " + ", ".join(
             f"{p.key.split('.')[1]}={v:.3g}" for p, v in zip(free, values, strict=True)))
-        return j
+        return r
 
     d = len(free)
     start_values = current_values(start, free)
@@ -359,14 +375,8 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
     n_design = min(max(2 * d + 2, budget // 3), budget - 1) if design is None else min(max(design, 1), budget - 1)
     points = qmc.LatinHypercube(d=d, seed=search_seed).random(n_design - 1) if n_design > 1 else np.empty((0, d))
     for u in [u0, *points]:
-        score(u)
-    remaining = budget - len(history)
-    if remaining > 0:
-        best_u = min(history, key=lambda h: h[0])[1]
-        simplex = np.vstack([best_u] + [np.clip(best_u + 0.15 * np.eye(d)[i] * (1 if best_u[i] < 0.85 else -1),
-                                                0.0, 1.0) for i in range(d)])
-        minimize(score, best_u, method="Nelder-Mead", bounds=[(0.0, 1.0)] * d,
-                 options={"maxfev": remaining, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-3})
+        residuals(u)
+    run_search(search, residuals, min(history, key=lambda h: h[0])[1], budget - len(history))
     j_best, u_best = min(history, key=lambda h: h[0])
     values = [p.value(x) for p, x in zip(free, u_best, strict=True)]
     fitted, fitted_scenario = with_values(start, free, values, name=name), with_moduli(scenario, free, values)
@@ -378,7 +388,8 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
         "method": "method of simulated moments (sim/realism/calibrate.py): per material log mean n1 and a1, log CV "
                   "of n1 and a1, share of n2 < 0, leave-one-out self posterior, "
                   + ("share of a2 < 0; " if fit_a2_sign else "(a2's sign reported only); ")
-                  + "Latin hypercube then Nelder-Mead",
+                  + f"Latin hypercube then {search}",
+        "search": search,
         "fit_a2_sign": bool(fit_a2_sign),
         "table": table_name, "scenario": scenario.name, "fidelity": fidelity, "started_from": start.name,
         "tune_seeds": [int(s) for s in tune_seeds], "report_seeds": [int(s) for s in report_seeds],

@@ -52,8 +52,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"seeds reported on, never tuned on (default {DEFAULT_REPORT_SEEDS})")
     r.add_argument("--budget", type=int, default=150, help="candidates simulated (default 150)")
     r.add_argument("--design", type=int, default=None,
-                   help="candidates of the Latin hypercube before Nelder-Mead (default: a third of the budget; 0: "
-                   "refine the start profile with Nelder-Mead only)")
+                   help="candidates of the Latin hypercube before the search (default: a third of the budget; 0: "
+                   "refine the start profile with the search only)")
+    r.add_argument("--search", default="nelder-mead", choices=("nelder-mead", "least-squares"),
+                   help="the search after the design: nelder-mead (default) or least-squares (a Gauss-Newton trust "
+                   "region on the moments' residuals, forward differences of 0.05 box widths; converges where "
+                   "Nelder-Mead stalls with five or more free parameters)")
     r.add_argument("--fidelity", default=None, choices=("analytic", "bem", "rigid", "flex", "auto"),
                    help="fidelity of the simulated presses (default: the scenario's)")
     r.add_argument("--fit-a2-sign", action="store_true",
@@ -100,7 +104,7 @@ def run_calibrate_realism(args: argparse.Namespace) -> int:
           f"{len(free)} free parameters, budget {budget}, tuning seeds {tune}, report seeds {report}", file=sys.stderr)
     result = calibrate(table, scenario, start, free, tune_seeds=tune, report_seeds=report, budget=budget,
                        fidelity=fidelity, name=args.name or args.out.stem, table_name=args.table.name,
-                       design=args.design, fit_a2_sign=args.fit_a2_sign,
+                       design=args.design, fit_a2_sign=args.fit_a2_sign, search=args.search,
                        log=lambda s: print(s, file=sys.stderr, flush=True))
     try:
         args.out.parent.mkdir(parents=True, exist_ok=True)
