@@ -12,12 +12,14 @@ trials that pass (truth) or fail (the others), with the trial count and a 95% Wi
 **The shipped profile**: ``--shipped`` simulates S fresh sessions of the scenario's training protocol with its
 realism profile (seeds from 1001 on until S finished; a failed one is said and replaced: neither tuning, report nor
 main-job seeds) and judges the real table against them, printing per material the classifier accuracy, the energy
-distance and its rank, and the bands.
+distance and its rank, and the bands. ``--profile PATH`` judges that profile file (e.g. a candidate refit) the same
+way, on the same seeds, instead of the scenario's.
 
     .venv/bin/python benchmarks/realism_predictive.py [--trials 100] [--sessions 100] [--rng 0]
         [--truths "simulator,0.6x spread"]
     .venv/bin/python benchmarks/realism_predictive.py --shipped [--sessions 100] [--fidelity analytic]
         [--presses-csv CACHE.csv]
+    .venv/bin/python benchmarks/realism_predictive.py --profile CANDIDATE.toml [--sessions 100]
 
 ``--presses-csv`` keeps the simulated sessions (realism_targets.py's ``--write-presses`` format, with each seed's
 leave-one-out posteriors recomputed on reading) so a second judgement does not simulate again.
@@ -164,8 +166,9 @@ def read_sessions(path: Path, materials: Sequence[str]) -> list[PressTable]:
             for _, t in sorted(by_seed.items(), key=lambda kv: int(kv[0]))]
 
 
-def shipped(sessions: int, fidelity: str | None, cache: Path | None) -> None:
-    """Simulate ``sessions`` fresh seeds of thesis_ch6 with its profile and judge the real table against them."""
+def shipped(sessions: int, fidelity: str | None, cache: Path | None, profile_path: Path | None = None) -> None:
+    """Simulate ``sessions`` fresh seeds of thesis_ch6 with its profile (or the one at ``profile_path``) and judge
+    the real table against them."""
     from palpate.core.world.scenario_file import load_scenario
     from palpate.sim.realism.calibrate import simulate_seed
     from palpate.sim.realism.profile_file import resolve_profile
@@ -182,7 +185,7 @@ def shipped(sessions: int, fidelity: str | None, cache: Path | None) -> None:
         tables = read_sessions(cache, refs)
         print(f"read {len(tables)} sessions from {cache}")
     else:
-        profile = resolve_profile(scenario.realism.profile)
+        profile = resolve_profile(profile_path or scenario.realism.profile)
         tables, rows, dropped, failed = [], [], 0, []
         seed = 1000
         while len(tables) < sessions:  # a failed session is replaced by the next seed's
@@ -217,9 +220,11 @@ def main() -> int:
     ap.add_argument("--shipped", action="store_true", help="judge the shipped profile instead")
     ap.add_argument("--fidelity", help="fidelity of the shipped profile's sessions (default: the scenario's)")
     ap.add_argument("--presses-csv", type=Path, help="read the sessions from (or write them to) this CSV")
+    ap.add_argument("--profile", type=Path, help="judge this profile file instead of the scenario's (implies "
+                    "--shipped)")
     args = ap.parse_args()
-    if args.shipped:
-        shipped(args.sessions, args.fidelity, args.presses_csv)
+    if args.shipped or args.profile:
+        shipped(args.sessions, args.fidelity, args.presses_csv, args.profile)
     else:
         truths = [t.strip() for t in args.truths.split(",")]
         if any(t not in TRUTHS for t in truths):

@@ -381,7 +381,17 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
     values = [p.value(x) for p, x in zip(free, u_best, strict=True)]
     fitted, fitted_scenario = with_values(start, free, values, name=name), with_moduli(scenario, free, values)
     tune_runs = [simulate_seed(fitted_scenario, fitted, s, fidelity) for s in tune_seeds]
-    report_runs = tuple(simulate_seed(fitted_scenario, fitted, s, fidelity) for s in report_seeds)
+    report_runs, report_failed = [], {}
+    for s in report_seeds:  # a session that fails on a report seed is reported, it does not discard the fit
+        try:
+            report_runs.append(simulate_seed(fitted_scenario, fitted, s, fidelity))
+        except PalpateError as exc:
+            report_failed[str(s)] = f"{type(exc).__name__}: {exc}"
+            log(f"  report seed {s} failed: {exc}")
+    if not report_runs:
+        raise PalpateError(f"calibrate: the fitted profile failed on every report seed {list(report_seeds)}: "
+                           f"{report_failed}")
+    report_runs = tuple(report_runs)
     tuned = sim_moments(tune_runs, materials, scenario.references, smooth=False)
     report = sim_moments(report_runs, materials, scenario.references, smooth=False)
     provenance = {
@@ -392,7 +402,8 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
         "search": search,
         "fit_a2_sign": bool(fit_a2_sign),
         "table": table_name, "scenario": scenario.name, "fidelity": fidelity, "started_from": start.name,
-        "tune_seeds": [int(s) for s in tune_seeds], "report_seeds": [int(s) for s in report_seeds],
+        "tune_seeds": [int(s) for s in tune_seeds], "report_seeds": [int(r.seed) for r in report_runs],
+        "report_seeds_failed": report_failed,
         "evaluations": len(history), "design": n_design, "objective": j_best, "search_seed": int(search_seed),
         "free": {p.key: v for p, v in zip(free, values, strict=True)},
         "moduli_kpa": {m: fitted_scenario.materials[m].material.young * 1e-3 for m in scenario.references},

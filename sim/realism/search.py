@@ -1,17 +1,21 @@
 """The searches of ``palpate calibrate realism``: where a fit goes after its start and Latin-hypercube design.
 
 Both work in box positions u in [0, 1]^d (:class:`~palpate.sim.realism.calibrate.FreeParameter`) on a candidate
-evaluation that simulates the tuning seeds with common random numbers, so the objective is a deterministic (if not
-smooth) function of u. Each simulated candidate costs the same, so the budget counts candidates, whichever search
-asks for them.
+evaluation that simulates the tuning seeds with common random numbers, so the objective is a deterministic but
+rough function of u: a press whose fit changes moves a CV or a negative share by a step, and a parameter can have
+no effect at all over part of its box (a foam's plateau strain above the strains the presses reach). Each
+candidate costs the same, so the budget counts candidates, whichever search asks for them.
 
-- ``nelder-mead``: the simplex from the best design point (derivative-free, robust to the objective's small
-  steps, but it walks: with five or more parameters it stalls far above the objective's floor long before the
-  budget is spent).
-- ``least-squares``: a trust-region Gauss-Newton step on the residual vector ((sim - real) / tolerance per moment),
-  its Jacobian from forward differences of ``step`` box widths (scipy's ``least_squares``, method ``trf``
-  within the box). The residuals' structure is what the moments method has: each statistic is a nearly linear function
-  of the parameters over a box width, which the Gauss-Newton model uses and the simplex does not.
+- ``nelder-mead``: the simplex from the best design point (derivative-free, but it walks: with five or more
+  parameters it stops far above the objective's floor long before the budget is spent).
+- ``trust-region``: Gauss-Newton on the residual vector ((sim - real) / tolerance per moment) with a model
+  *fitted*, not differenced: in a box of half-width rho around the centre, the residuals of at least 2d + 1
+  candidates (new ones from a seeded Latin hypercube in that box, plus every earlier one inside it) are regressed
+  on u, which averages the objective's steps out of the slope and sees a parameter's effect from rho away. The
+  step minimises the fitted model within the box (bounded linear least squares); a trial that lowers the objective
+  is the new centre (rho doubles when the step reached the box's side), otherwise rho halves; below
+  :data:`RHO_MIN` it starts again from :data:`RHO_START` around the best candidate, with d more candidates in
+  each model than the last time.
 """
 
 from __future__ import annotations
@@ -23,10 +27,10 @@ import numpy as np
 from palpate.core.errors import ValidationError
 
 #: The searches :func:`run_search` knows.
-SEARCHES = ("nelder-mead", "least-squares")
-#: Finite-difference step of the least-squares search, in box widths: the moments' Jacobian is measured with this
-#: step (benchmarks/realism_identifiability.py); a smaller one sees the steps a press's fit takes, not the slope.
-STEP = 0.05
+SEARCHES = ("nelder-mead", "trust-region")
+#: The trust region's first half-width, in box widths (the Nelder-Mead simplex spans the same), its largest and the
+#: smallest before a restart: below ~0.02 box widths the objective's steps are all a model would see.
+RHO_START, RHO_MAX, RHO_MIN = 0.15, 0.5, 0.02
 
 
 class BudgetSpent(Exception):
@@ -34,12 +38,12 @@ class BudgetSpent(Exception):
 
 
 def run_search(search: str, residuals: Callable[[np.ndarray], np.ndarray], start: np.ndarray, remaining: int,
-               step: float = STEP) -> None:
+               seed: int = 0) -> None:
     """Spend up to ``remaining`` candidates improving on ``start`` (box positions) with ``search``.
 
     ``residuals(u)``: the residual vector of the candidate at u (its squared sum is the objective); it records every
     candidate itself and raises :class:`BudgetSpent` when the budget is gone, which ends the search quietly. The
-    caller takes the best candidate from its own record.
+    caller takes the best candidate from its own record. ``seed``: the trust region's sampling (deterministic).
     """
     if search not in SEARCHES:
         raise ValidationError(f"unknown search {search!r}; known: {', '.join(SEARCHES)}")
@@ -49,7 +53,7 @@ def run_search(search: str, residuals: Callable[[np.ndarray], np.ndarray], start
         if search == "nelder-mead":
             _nelder_mead(residuals, np.asarray(start, float), remaining)
         else:
-            _least_squares(residuals, np.asarray(start, float), step)
+            _trust_region(residuals, np.asarray(start, float), seed)
     except BudgetSpent:
         pass
 
@@ -65,21 +69,44 @@ def _nelder_mead(residuals, start: np.ndarray, remaining: int) -> None:
              options={"maxfev": remaining, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-3})
 
 
-def _least_squares(residuals, start: np.ndarray, step: float) -> None:
-    from scipy.optimize import least_squares
+def _trust_region(residuals, start: np.ndarray, seed: int) -> None:
+    from scipy.optimize import lsq_linear
+    from scipy.stats import qmc
 
-    if not 0.0 < step < 0.5:
-        raise ValidationError(f"the least-squares search's step must be in (0, 0.5) box widths, got {step}")
+    d = len(start)
+    rng = np.random.default_rng(seed)
+    seen: list[tuple[np.ndarray, np.ndarray]] = []
 
-    def jacobian(u: np.ndarray) -> np.ndarray:
-        # forward differences of a fixed step in box widths, turned inwards at the box's upper side (scipy's own
-        # steps are relative to u, i.e. vanish near a box's lower end)
-        r0 = residuals(u)
-        cols = []
-        for i in range(len(u)):
-            h = step if u[i] + step <= 1.0 else -step
-            cols.append((residuals(u + h * np.eye(len(u))[i]) - r0) / h)
-        return np.column_stack(cols)
+    def evaluate(u: np.ndarray) -> np.ndarray:
+        r = np.asarray(residuals(u), dtype=float)
+        seen.append((np.clip(u, 0.0, 1.0), r))
+        return r
 
-    least_squares(residuals, np.clip(start, 0.0, 1.0), jac=jacobian, bounds=(0.0, 1.0), method="trf", x_scale=1.0,
-                  max_nfev=10_000)
+    centre, r_centre, rho = np.clip(start, 0.0, 1.0), evaluate(start), RHO_START
+    points_per_model, idle = 2 * d + 1, 0
+    while idle < 100:  # otherwise it ends when the budget is spent (BudgetSpent)
+        spent = len(seen)
+        lo, hi = np.maximum(centre - rho, 0.0), np.minimum(centre + rho, 1.0)
+        inside = [(u, r) for u, r in seen if np.all(u >= lo - 1e-12) and np.all(u <= hi + 1e-12)]
+        need = points_per_model - len(inside)
+        if need > 0:
+            points = qmc.LatinHypercube(d=d, seed=rng).random(need)
+            inside += [(u, evaluate(u)) for u in lo + points * (hi - lo)]
+        u = np.array([p for p, _ in inside]) - centre
+        coef, *_ = np.linalg.lstsq(np.column_stack([np.ones(len(u)), u]), np.array([q for _, q in inside]),
+                                   rcond=None)
+        b, jac = coef[0], coef[1:].T  # the smoothed residuals at the centre and their slope, per box width
+        step = lsq_linear(jac, -b, bounds=(lo - centre, hi - centre)).x
+        better = False
+        if np.max(np.abs(step)) > 1e-9:
+            r_trial = evaluate(centre + step)
+            better = float(np.sum(r_trial ** 2)) < float(np.sum(r_centre ** 2))
+        if better:
+            rho = min(2.0 * rho, RHO_MAX) if np.any(np.abs(step) >= 0.99 * rho) else rho
+            centre, r_centre = np.clip(centre + step, 0.0, 1.0), r_trial
+        else:
+            rho *= 0.5
+            if rho < RHO_MIN:
+                centre, r_centre = min(seen, key=lambda s: float(np.sum(s[1] ** 2)))
+                rho, points_per_model = RHO_START, points_per_model + d
+        idle = idle + 1 if len(seen) == spent else 0

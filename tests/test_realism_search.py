@@ -1,0 +1,94 @@
+"""The calibration's searches on problems with a known answer, and a fit that survives a failed report session."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import palpate.sim.realism.calibrate as calibration
+from palpate.core.errors import PalpateError, PressShortfall, ValidationError
+from palpate.core.perception.param_stats import PressTable
+from palpate.core.world.scenario_file import load_scenario
+from palpate.sim.realism.calibrate import SeedRun, calibrate, free_parameters
+from palpate.sim.realism.profile import LAB
+from palpate.sim.realism.search import BudgetSpent, run_search
+
+SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "thesis_ch6.toml"
+
+
+def _rough_problem(d: int, seed: int, budget: int):
+    """Residuals linear in u with a known zero, plus steps (a press's fit changing) and a dead band (a parameter
+    without effect over part of its box); records every candidate and spends ``budget`` at most."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(3 * d + 3, d)) * 10.0
+    truth = rng.uniform(0.15, 0.85, d)
+    seen: list[tuple[float, np.ndarray]] = []
+
+    def residuals(u: np.ndarray) -> np.ndarray:
+        if len(seen) >= budget:
+            raise BudgetSpent
+        assert np.all(u >= 0.0) and np.all(u <= 1.0), u
+        x = u - truth
+        x[0] = max(x[0], 0.0) if truth[0] < 0.5 else min(x[0], 0.0)  # no slope on one side of the truth
+        r = a @ x + 2.0 * np.floor(3.0 * np.sin(40.0 * u.sum()))
+        seen.append((float(r @ r), u.copy()))
+        return r
+
+    start = np.clip(truth + np.where(truth < 0.5, 0.3, -0.3), 0.0, 1.0)
+    return residuals, start, truth, seen
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_trust_region_finds_the_zero_of_a_rough_problem_where_nelder_mead_stalls(seed):
+    budget = 80
+    errors = {}
+    for search in ("trust-region", "nelder-mead"):
+        residuals, start, truth, seen = _rough_problem(5, seed, budget)
+        run_search(search, residuals, start, budget)
+        best = min(seen, key=lambda s: s[0])
+        errors[search] = float(np.sqrt(np.mean((best[1] - truth) ** 2)))
+        assert len(seen) <= budget
+    assert errors["trust-region"] < 0.1
+    assert errors["trust-region"] < errors["nelder-mead"]
+
+
+def test_the_trust_region_spends_its_budget_and_repeats_itself():
+    paths = []
+    for _ in range(2):
+        residuals, start, _, seen = _rough_problem(4, 7, 40)
+        run_search("trust-region", residuals, start, 40, seed=3)
+        paths.append(np.array([u for _, u in seen]))
+    assert len(paths[0]) == 40
+    np.testing.assert_array_equal(paths[0], paths[1])
+    with pytest.raises(ValidationError, match="unknown search 'simplex'"):
+        run_search("simplex", lambda u: u, np.zeros(2), 5)
+
+
+def test_a_fit_keeps_going_when_a_report_session_fails(monkeypatch):
+    scenario = load_scenario(SCENARIO)
+    refs = tuple(scenario.references)
+    rng = np.random.default_rng(0)
+    real = PressTable(refs, tuple(np.column_stack([rng.uniform(50, 100, 10) * (i + 1), rng.normal(0, 5, 10),
+                                                   np.ones(10), rng.uniform(2, 4, 10), rng.normal(0, 5, 10),
+                                                   np.ones(10)]) for i in range(len(refs))))
+    calls = []
+
+    def fake_session(sc, profile, seed, fidelity):
+        calls.append(seed)
+        if seed == 202:
+            raise PressShortfall("the drive could not follow the hard foam")
+        noise = np.random.default_rng(seed).normal(1.0, 0.01, (10, 6))
+        return SeedRun(seed, PressTable(refs, tuple(r * noise for r in real.rows)), np.ones(len(refs)))
+
+    monkeypatch.setattr(calibration, "simulate_seed", fake_session)
+    free = free_parameters(["press.tilt_deg"])
+    result = calibrate(real, scenario, LAB, free, tune_seeds=[101], report_seeds=[201, 202, 203], budget=3,
+                       search="trust-region")
+    assert [r.seed for r in result.report_runs] == [201, 203]
+    assert result.profile.provenance["report_seeds"] == [201, 203]
+    assert "PressShortfall" in result.profile.provenance["report_seeds_failed"]["202"]
+    assert result.evaluations == 3
+    monkeypatch.setattr(calibration, "simulate_seed",
+                        lambda sc, p, s, f: fake_session(sc, p, 202 if s >= 200 else s, f))
+    with pytest.raises(PalpateError, match="every report seed"):
+        calibrate(real, scenario, LAB, free, tune_seeds=[101], report_seeds=[202], budget=2)
