@@ -16,9 +16,10 @@ from palpate.sim.realism.search import BudgetSpent, run_search
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "thesis_ch6.toml"
 
 
-def _rough_problem(d: int, seed: int, budget: int):
+def _rough_problem(d: int, seed: int, budget: int, failing: float = 0.0):
     """Residuals linear in u with a known zero, plus steps (a press's fit changing) and a dead band (a parameter
-    without effect over part of its box); records every candidate and spends ``budget`` at most."""
+    without effect over part of its box); candidates with u[1] + u[2] below ``failing`` fail (NaN, as a press the
+    drive cannot follow); records every candidate and spends ``budget`` at most."""
     rng = np.random.default_rng(seed)
     a = rng.normal(size=(3 * d + 3, d)) * 10.0
     truth = rng.uniform(0.15, 0.85, d)
@@ -31,7 +32,9 @@ def _rough_problem(d: int, seed: int, budget: int):
         x = u - truth
         x[0] = max(x[0], 0.0) if truth[0] < 0.5 else min(x[0], 0.0)  # no slope on one side of the truth
         r = a @ x + 2.0 * np.floor(3.0 * np.sin(40.0 * u.sum()))
-        seen.append((float(r @ r), u.copy()))
+        if u[1] + u[2] < failing:
+            r = np.full_like(r, np.nan)
+        seen.append((float(r @ r) if np.all(np.isfinite(r)) else np.inf, u.copy()))
         return r
 
     start = np.clip(truth + np.where(truth < 0.5, 0.3, -0.3), 0.0, 1.0)
@@ -50,6 +53,18 @@ def test_the_trust_region_finds_the_zero_of_a_rough_problem_where_nelder_mead_st
         assert len(seen) <= budget
     assert errors["trust-region"] < 0.1
     assert errors["trust-region"] < errors["nelder-mead"]
+
+
+@pytest.mark.parametrize("seed, margin, start_fails, tol", [(4, 0.02, False, 0.05), (3, 0.1, True, 0.1)])
+def test_the_trust_region_finds_an_answer_beside_candidates_that_fail(seed, margin, start_fails, tol):
+    # the answer lies ``margin`` from a region where every candidate fails (NaN residuals), or the start is in it
+    truth = _rough_problem(5, seed, 80)[2]
+    residuals, start, truth, seen = _rough_problem(5, seed, 80, failing=truth[1] + truth[2] - margin)
+    assert (start[1] + start[2] < truth[1] + truth[2] - margin) == start_fails
+    run_search("trust-region", residuals, start, 80)
+    assert sum(np.isinf(j) for j, _ in seen) >= 5  # it did meet them
+    best = min(seen, key=lambda s: s[0])
+    assert np.sqrt(np.mean((best[1] - truth) ** 2)) < tol  # from 0.3 box widths off
 
 
 def test_the_trust_region_spends_its_budget_and_repeats_itself():

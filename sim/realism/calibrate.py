@@ -41,7 +41,7 @@ from palpate.core.world.scenario import Scenario
 from palpate.core.world.scene import Scene
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import parse_profile, profile_tables
-from palpate.sim.realism.search import SEARCHES, BudgetSpent, run_search
+from palpate.sim.realism.search import SEARCHES, BudgetSpent, objective_of, run_search
 from palpate.sim.source import SimSource
 
 #: The statistics computed per material (see the module docstring).
@@ -56,8 +56,6 @@ SCALES = np.array([0.15, 0.3, 0.15, 0.15, 0.15, np.inf, 0.06])
 #: (whether c_A keeps growing through the press, i.e. the pad is wider than the patch), which the other statistics
 #: do not see; the same tolerance as n2's share.
 SCALES_WITH_A2_SIGN = np.where(np.isinf(SCALES), 0.15, SCALES)
-#: Objective of a candidate whose presses could not be fitted (a wall, not a number to descend).
-FAILED = 1e6
 
 
 @dataclass(frozen=True)
@@ -340,7 +338,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
     scales = SCALES_WITH_A2_SIGN if fit_a2_sign else SCALES
     history: list[tuple[float, np.ndarray]] = []
     fitted_cols = np.isfinite(scales)
-    failed = np.full(len(materials) * int(fitted_cols.sum()), np.sqrt(FAILED / (len(materials) * fitted_cols.sum())))
+    failed = np.full(len(materials) * int(fitted_cols.sum()), np.nan)  # the searches' mark of a failed candidate
     seen: dict[bytes, np.ndarray] = {}
 
     def residuals(u: np.ndarray) -> np.ndarray:
@@ -358,7 +356,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
         except (PalpateError, ValidationError) as exc:
             r = failed
             log(f"  candidate failed: {exc}")
-        j = float(np.sum(r ** 2))
+        j = objective_of(r)
         seen[u.tobytes()] = r
         history.append((j, u))
         best = min(h[0] for h in history)

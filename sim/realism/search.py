@@ -15,7 +15,8 @@ candidate costs the same, so the budget counts candidates, whichever search asks
   step minimises the fitted model within the box (bounded linear least squares); a trial that lowers the objective
   is the new centre (rho doubles when the step reached the box's side), otherwise rho halves; below
   :data:`RHO_MIN` it starts again from :data:`RHO_START` around the best candidate, with d more candidates in
-  each model than the last time.
+  each model than the last time. Candidates that fail (NaN residuals) stay out of the models; where too many
+  fail to fit one, rho doubles, up to the whole box.
 """
 
 from __future__ import annotations
@@ -31,6 +32,15 @@ SEARCHES = ("nelder-mead", "trust-region")
 #: The trust region's first half-width, in box widths (the Nelder-Mead simplex spans the same), its largest and the
 #: smallest before a restart: below ~0.02 box widths the objective's steps are all a model would see.
 RHO_START, RHO_MAX, RHO_MIN = 0.15, 0.5, 0.02
+#: Objective of a candidate whose presses could not be simulated or fitted (residuals NaN): a wall, not a number to
+#: descend; the trust region leaves such candidates out of its models.
+FAILED = 1e6
+
+
+def objective_of(residuals: np.ndarray) -> float:
+    """The objective of a residual vector: its sum of squares, :data:`FAILED` when any residual is not finite."""
+    r = np.asarray(residuals, dtype=float)
+    return float(np.sum(r ** 2)) if np.all(np.isfinite(r)) else FAILED
 
 
 class BudgetSpent(Exception):
@@ -41,7 +51,8 @@ def run_search(search: str, residuals: Callable[[np.ndarray], np.ndarray], start
                seed: int = 0) -> None:
     """Spend up to ``remaining`` candidates improving on ``start`` (box positions) with ``search``.
 
-    ``residuals(u)``: the residual vector of the candidate at u (its squared sum is the objective); it records every
+    ``residuals(u)``: the residual vector of the candidate at u (:func:`objective_of` is the objective; NaN: the
+    candidate failed); it records every
     candidate itself and raises :class:`BudgetSpent` when the budget is gone, which ends the search quietly. The
     caller takes the best candidate from its own record. ``seed``: the trust region's sampling (deterministic).
     """
@@ -65,7 +76,7 @@ def _nelder_mead(residuals, start: np.ndarray, remaining: int) -> None:
     # the first simplex spans 0.15 of each box, towards the box's middle
     simplex = np.vstack([start] + [np.clip(start + 0.15 * np.eye(d)[i] * (1 if start[i] < 0.85 else -1), 0.0, 1.0)
                                    for i in range(d)])
-    minimize(lambda u: float(np.sum(residuals(u) ** 2)), start, method="Nelder-Mead", bounds=[(0.0, 1.0)] * d,
+    minimize(lambda u: objective_of(residuals(u)), start, method="Nelder-Mead", bounds=[(0.0, 1.0)] * d,
              options={"maxfev": remaining, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-3})
 
 
@@ -75,38 +86,52 @@ def _trust_region(residuals, start: np.ndarray, seed: int) -> None:
 
     d = len(start)
     rng = np.random.default_rng(seed)
-    seen: list[tuple[np.ndarray, np.ndarray]] = []
+    seen: list[tuple[np.ndarray, np.ndarray]] = []  # the candidates that did not fail
+    calls = 0
 
     def evaluate(u: np.ndarray) -> np.ndarray:
+        nonlocal calls
+        calls += 1
         r = np.asarray(residuals(u), dtype=float)
-        seen.append((np.clip(u, 0.0, 1.0), r))
+        if np.all(np.isfinite(r)):  # a failed candidate tells nothing about the residuals' slope
+            seen.append((np.clip(u, 0.0, 1.0), r))
         return r
 
-    centre, r_centre, rho = np.clip(start, 0.0, 1.0), evaluate(start), RHO_START
+    def inside(lo: np.ndarray, hi: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        return [(u, r) for u, r in seen if np.all(u >= lo - 1e-12) and np.all(u <= hi + 1e-12)]
+
+    centre, rho = np.clip(start, 0.0, 1.0), RHO_START
+    r_centre = evaluate(centre)
     points_per_model, idle = 2 * d + 1, 0
     while idle < 100:  # otherwise it ends when the budget is spent (BudgetSpent)
-        spent = len(seen)
+        before = calls
         lo, hi = np.maximum(centre - rho, 0.0), np.minimum(centre + rho, 1.0)
-        inside = [(u, r) for u, r in seen if np.all(u >= lo - 1e-12) and np.all(u <= hi + 1e-12)]
-        need = points_per_model - len(inside)
+        need = points_per_model - len(inside(lo, hi))
         if need > 0:
-            points = qmc.LatinHypercube(d=d, seed=rng).random(need)
-            inside += [(u, evaluate(u)) for u in lo + points * (hi - lo)]
-        u = np.array([p for p, _ in inside]) - centre
-        coef, *_ = np.linalg.lstsq(np.column_stack([np.ones(len(u)), u]), np.array([q for _, q in inside]),
-                                   rcond=None)
-        b, jac = coef[0], coef[1:].T  # the smoothed residuals at the centre and their slope, per box width
-        step = lsq_linear(jac, -b, bounds=(lo - centre, hi - centre)).x
+            for u in lo + qmc.LatinHypercube(d=d, seed=rng).random(need) * (hi - lo):
+                evaluate(u)
+        near = inside(lo, hi)
         better = False
-        if np.max(np.abs(step)) > 1e-9:
-            r_trial = evaluate(centre + step)
-            better = float(np.sum(r_trial ** 2)) < float(np.sum(r_centre ** 2))
+        if len(near) > d:  # enough to fit the model (candidates that failed are not in it)
+            u = np.array([p for p, _ in near]) - centre
+            coef, *_ = np.linalg.lstsq(np.column_stack([np.ones(len(u)), u]), np.array([q for _, q in near]),
+                                       rcond=None)
+            b, jac = coef[0], coef[1:].T  # the smoothed residuals at the centre and their slope, per box width
+            step = lsq_linear(jac, -b, bounds=(lo - centre, hi - centre)).x
+            if np.max(np.abs(step)) > 1e-9:
+                r_trial = evaluate(centre + step)
+                better = objective_of(r_trial) < objective_of(r_centre)
         if better:
             rho = min(2.0 * rho, RHO_MAX) if np.any(np.abs(step) >= 0.99 * rho) else rho
             centre, r_centre = np.clip(centre + step, 0.0, 1.0), r_trial
+        elif len(near) <= d:  # too many failed around here to fit a model: look wider, up to the whole box
+            rho = min(2.0 * rho, 1.0)
+            if not seen:
+                points_per_model += 1  # a new draw each time, so the budget is spent, not the loop
         else:
             rho *= 0.5
             if rho < RHO_MIN:
-                centre, r_centre = min(seen, key=lambda s: float(np.sum(s[1] ** 2)))
+                if seen:
+                    centre, r_centre = min(seen, key=lambda s: objective_of(s[1]))
                 rho, points_per_model = RHO_START, points_per_model + d
-        idle = idle + 1 if len(seen) == spent else 0
+        idle = idle + 1 if calls == before else 0
