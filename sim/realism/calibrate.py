@@ -12,10 +12,10 @@ averaging them over the seeds; the objective is the sum of squared differences t
 tolerance in :data:`SCALES`. Negative shares enter the objective smoothed (a logistic step a tenth of the column's
 spread wide) so the objective is continuous; every report uses the plain shares.
 
-Search: a Latin hypercube over the free parameters' box (seeded), then from its best point Nelder-Mead or a
-least-squares trust region (:mod:`~palpate.sim.realism.search`), within the box, until the evaluation budget is
-spent. Deterministic: the same table, scenario, start profile, free parameters, seeds, search and budget give the
-same profile. The fitted profile is then simulated on *report* seeds it was not tuned on,
+Search: a Latin hypercube over the free parameters' box (seeded), then from its best point a trust region on a
+fitted linear model of the residuals, or Nelder-Mead (:mod:`~palpate.sim.realism.search`), within the box, until
+the evaluation budget is spent. Deterministic: the same table, scenario, start profile, free parameters, seeds,
+search and budget give the same profile. The fitted profile is then simulated on *report* seeds it was not tuned on,
 and its statistics there are what the profile's provenance and the command report.
 
 The scenario's moduli may be fitted too (free parameters ``young.<material>``: a factor on that reference material's
@@ -312,7 +312,7 @@ class Calibration:
 def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free: Sequence[FreeParameter], *,
               tune_seeds: Sequence[int], report_seeds: Sequence[int], budget: int, fidelity: str | None = None,
               name: str = "fitted", table_name: str = "table", search_seed: int = 0, design: int | None = None,
-              fit_a2_sign: bool = False, search: str = "nelder-mead",
+              fit_a2_sign: bool = False, search: str = "trust-region",
               log: Callable[[str], None] = lambda s: None) -> Calibration:
     """Fit ``free`` parameters of ``start`` to ``table`` (module docstring). ``budget``: candidates simulated,
     whichever search asks for them; ``design``: how many of them the Latin hypercube takes (None: a third of the
@@ -374,7 +374,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
     points = qmc.LatinHypercube(d=d, seed=search_seed).random(n_design - 1) if n_design > 1 else np.empty((0, d))
     for u in [u0, *points]:
         residuals(u)
-    run_search(search, residuals, min(history, key=lambda h: h[0])[1], budget - len(history))
+    run_search(search, residuals, min(history, key=lambda h: h[0])[1], budget - len(history), seed=search_seed)
     j_best, u_best = min(history, key=lambda h: h[0])
     values = [p.value(x) for p, x in zip(free, u_best, strict=True)]
     fitted, fitted_scenario = with_values(start, free, values, name=name), with_moduli(scenario, free, values)

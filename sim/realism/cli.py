@@ -54,9 +54,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--design", type=int, default=None,
                    help="candidates of the Latin hypercube before the search (default: a third of the budget; 0: "
                    "refine the start profile with the search only)")
-    r.add_argument("--search", default="nelder-mead", choices=("nelder-mead", "trust-region"),
-                   help="the search after the design: nelder-mead (default) or trust-region (Gauss-Newton on a "
-                   "linear model of the moments' residuals fitted to candidates around the current point)")
+    r.add_argument("--search", default="trust-region", choices=("trust-region", "nelder-mead"),
+                   help="the search after the design: trust-region (default; Gauss-Newton on a linear model of the "
+                   "moments' residuals fitted to candidates around the current point) or nelder-mead (the simplex; "
+                   "stalls with five or more free parameters)")
     r.add_argument("--fidelity", default=None, choices=("analytic", "bem", "rigid", "flex", "auto"),
                    help="fidelity of the simulated presses (default: the scenario's)")
     r.add_argument("--fit-a2-sign", action="store_true",
