@@ -107,3 +107,26 @@ def test_a_fit_keeps_going_when_a_report_session_fails(monkeypatch):
                         lambda sc, p, s, f: fake_session(sc, p, 202 if s >= 200 else s, f))
     with pytest.raises(PalpateError, match="every report seed"):
         calibrate(real, scenario, LAB, free, tune_seeds=[101], report_seeds=[202], budget=2)
+
+
+def test_tolerances_replace_a_statistics_weight_and_bad_ones_are_refused(tmp_path):
+    from palpate.core.cli import main
+    from palpate.sim.realism.moments import MOMENTS, SCALES, objective, with_tolerances
+
+    tight = with_tolerances(SCALES, {"log_mean_a1": 0.1})
+    real = np.zeros((2, len(MOMENTS)))
+    off = real.copy()
+    off[:, MOMENTS.index("log_mean_a1")] = 0.3
+    assert objective(off, real, SCALES) == pytest.approx(2.0)
+    assert objective(off, real, tight) == pytest.approx(18.0)  # three times the default's weight, squared
+    assert np.isinf(with_tolerances(SCALES, {"loo_self": np.inf})[MOMENTS.index("loo_self")])
+    for bad, match in (({"mean_a1": 0.1}, "unknown statistic 'mean_a1'"), ({"log_cv_n1": 0.0}, "must be > 0"),
+                       ({m: np.inf for m in MOMENTS}, "nothing to fit")):
+        with pytest.raises(ValidationError, match=match):
+            with_tolerances(SCALES, bad)
+    table = Path(__file__).resolve().parent.parent / "models" / "realism" / "seed000_tables_6_3_to_6_5.csv"
+    out = tmp_path / "p.toml"
+    for arg in ("log_mean_a1", "log_mean_a1=x", "mean_a1=0.1"):
+        assert main(["calibrate", "realism", str(table), "--scenario", str(SCENARIO), "--out", str(out),
+                     "--tolerance", arg, "--quick"]) == 2
+    assert not out.exists()

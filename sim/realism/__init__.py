@@ -7,7 +7,8 @@
 - :mod:`~palpate.sim.realism.taxels`: the pad's non-ideal response (gain spread and drift, creep, hysteresis,
   crosstalk, non-linearity);
 - :mod:`~palpate.sim.realism.stage`: one press's realism, as :class:`~palpate.sim.source.SimSource` applies it;
-- :mod:`~palpate.sim.realism.calibrate` and :mod:`~palpate.sim.realism.cli`: ``palpate calibrate realism``, the
+- :mod:`~palpate.sim.realism.calibrate`, :mod:`~palpate.sim.realism.moments`, :mod:`~palpate.sim.realism.search`
+  and :mod:`~palpate.sim.realism.cli`: ``palpate calibrate realism``, the
   simulation-based fit of a profile to a per-press parameter table.
 
 The contact mechanics (analytic, rigid, flex) are not edited: the finger's pulp turns the bone's trajectory into

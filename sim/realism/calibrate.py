@@ -1,15 +1,15 @@
 """Fit a realism profile to a real per-press parameter table: the method of simulated moments.
 
 The table (``palpate memory``'s CSV: material, n1, n2, a1, a2, phi_n, phi_a; e.g. seed 000's Tables 6.3-6.5) gives,
-per material, the statistics :data:`MOMENTS`: the location of n1 and a1 (log of the mean), their spread (log of the
-coefficient of variation), the shares of negative n2 and a2, and how well leave-one-out cross-validation reads the
-material as itself (mean posterior, Table 6.7); all but a2's sign are fitted (:data:`SCALES`; with ``fit_a2_sign``
-that too, :data:`SCALES_WITH_A2_SIGN`).
+per material, the statistics of :mod:`~palpate.sim.realism.moments` (``MOMENTS``): the location of n1 and a1 (log
+of the mean), their spread (log of the coefficient of variation), the shares of negative n2 and a2, and how well
+leave-one-out cross-validation reads the material as itself (mean posterior, Table 6.7); all but a2's sign are
+fitted (``SCALES``; with ``fit_a2_sign`` that too, ``SCALES_WITH_A2_SIGN``; ``tolerances`` replaces any).
 A candidate profile is scored by simulating the scenario's training protocol (its reference materials, presses,
 depth, force, speed, fingertip and sensors) on each *tuning* seed with common random numbers, computing the same
 statistics per seed (samples of the same size as the table's, so a CV is compared with a CV of as many presses) and
 averaging them over the seeds; the objective is the sum of squared differences to the table's, each divided by the
-tolerance in :data:`SCALES`. Negative shares enter the objective smoothed (a logistic step a tenth of the column's
+tolerance. Negative shares enter the objective smoothed (a logistic step a tenth of the column's
 spread wide) so the objective is continuous; every report uses the plain shares.
 
 Search: a Latin hypercube over the free parameters' box (seeded), then from its best point a trust region on a
@@ -34,28 +34,23 @@ import numpy as np
 
 from palpate.core.errors import PalpateError, ValidationError
 from palpate.core.perception.param_stats import PressTable, table_from_fits
-from palpate.core.perception.realism_targets import loo_self
 from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory, training_seeds
 from palpate.core.world.scenario import Scenario
 from palpate.core.world.scene import Scene
+from palpate.sim.realism.moments import (  # noqa: F401 (the calibration's statistics, imported from here too)
+    MOMENTS,
+    SCALES,
+    SCALES_WITH_A2_SIGN,
+    objective,
+    real_moments,
+    table_moments,
+    with_tolerances,
+)
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import parse_profile, profile_tables
 from palpate.sim.realism.search import SEARCHES, BudgetSpent, objective_of, run_search
 from palpate.sim.source import SimSource
-
-#: The statistics computed per material (see the module docstring).
-MOMENTS = ("log_mean_n1", "log_mean_a1", "log_cv_n1", "log_cv_a1", "negative_n2", "negative_a2", "loo_self")
-#: Tolerance of each statistic in the objective: a difference of one scale costs 1; inf: reported, not fitted.
-#: a1's location is fitted loosely (0.3 in log): the pad's turn-on pressure moves it on soft materials (which of
-#: the covered sensels read), and it is where leave-one-out tells a sponge from a rubber (seed 000: a1 3.0 and 2.9,
-#: which makes Table 6.7's confusion), but the hard foam's (10.9) also depends on the real pad's sensel size and
-#: pitch, which a profile does not change. The sign of a2 is left to the report.
-SCALES = np.array([0.15, 0.3, 0.15, 0.15, 0.15, np.inf, 0.06])
-#: The tolerances with a2's sign fitted too (``--fit-a2-sign``): the share of a2 < 0 is the cutaneous fit's shape
-#: (whether c_A keeps growing through the press, i.e. the pad is wider than the patch), which the other statistics
-#: do not see; the same tolerance as n2's share.
-SCALES_WITH_A2_SIGN = np.where(np.isinf(SCALES), 0.15, SCALES)
 
 
 @dataclass(frozen=True)
@@ -181,37 +176,6 @@ def current_values(profile: RealismProfile, free: Sequence[FreeParameter]) -> li
             for p in free]
 
 
-def _negative_share(x: np.ndarray, smooth: bool) -> float:
-    if not smooth:
-        return float(np.mean(x < 0))
-    width = 0.1 * float(np.std(x)) + 1e-12
-    return float(np.mean(1.0 / (1.0 + np.exp(np.clip(x / width, -50.0, 50.0)))))
-
-
-def table_moments(table: PressTable, materials: Sequence[str], loo_self: np.ndarray, smooth: bool) -> np.ndarray:
-    """:data:`MOMENTS` of each material (rows in ``materials`` order), shape (M, len(MOMENTS)).
-
-    Raises ValidationError when a material has fewer than 3 presses or a non-positive mean n1 or a1.
-    """
-    out = np.empty((len(materials), len(MOMENTS)))
-    for i, name in enumerate(materials):
-        r = table.of(name)
-        if len(r) < 3:
-            raise ValidationError(f"{name}: {len(r)} fitted presses; the moments need at least 3")
-        n1, n2, a1, a2 = r[:, 0], r[:, 1], r[:, 3], r[:, 4]
-        if n1.mean() <= 0 or a1.mean() <= 0:
-            raise ValidationError(f"{name}: mean n1 {n1.mean():.3g} and mean a1 {a1.mean():.3g} must be > 0")
-        out[i] = [np.log(n1.mean()), np.log(a1.mean()), np.log(n1.std(ddof=1) / n1.mean() + 1e-9),
-                  np.log(a1.std(ddof=1) / a1.mean() + 1e-9), _negative_share(n2, smooth),
-                  _negative_share(a2, smooth), loo_self[i]]
-    return out
-
-
-def real_moments(table: PressTable, materials: Sequence[str]) -> np.ndarray:
-    """:data:`MOMENTS` of the real table (leave-one-out as a run computes it: ddof 0)."""
-    return table_moments(table, materials, loo_self(table, materials), smooth=False)
-
-
 @dataclass(frozen=True)
 class SeedRun:
     """One simulated training session of every reference material: its table, its leave-one-out diagonal and, per
@@ -246,15 +210,9 @@ def simulate_seed(scenario: Scenario, profile: RealismProfile, seed: int, fideli
 
 def sim_moments(runs: Sequence[SeedRun], materials: Sequence[str], references: Sequence[str],
                 smooth: bool) -> np.ndarray:
-    """:data:`MOMENTS` averaged over seeds (each seed's statistics from its own presses)."""
+    """The moments (:mod:`~palpate.sim.realism.moments`) averaged over seeds (each seed's from its own presses)."""
     idx = [list(references).index(m) for m in materials]
     return np.mean([table_moments(r.table, materials, r.loo_self[idx], smooth) for r in runs], axis=0)
-
-
-def objective(sim: np.ndarray, real: np.ndarray, scales: np.ndarray = SCALES) -> float:
-    """Sum over materials and moments of ((sim - real) / scale)^2 (``scales``: :data:`SCALES` or
-    :data:`SCALES_WITH_A2_SIGN`)."""
-    return float(np.sum(((sim - real) / scales[None, :]) ** 2))  # an infinite scale weighs 0
 
 
 def match_moduli(table: PressTable, scenario: Scenario, start: RealismProfile, free: Sequence[FreeParameter],
@@ -312,13 +270,14 @@ class Calibration:
 def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free: Sequence[FreeParameter], *,
               tune_seeds: Sequence[int], report_seeds: Sequence[int], budget: int, fidelity: str | None = None,
               name: str = "fitted", table_name: str = "table", search_seed: int = 0, design: int | None = None,
-              fit_a2_sign: bool = False, search: str = "trust-region",
+              fit_a2_sign: bool = False, search: str = "trust-region", tolerances: dict[str, float] | None = None,
               log: Callable[[str], None] = lambda s: None) -> Calibration:
     """Fit ``free`` parameters of ``start`` to ``table`` (module docstring). ``budget``: candidates simulated,
     whichever search asks for them; ``design``: how many of them the Latin hypercube takes (None: a third of the
     budget, at least 2 per parameter; 0: the search straight from the start, to refine a fitted profile);
     ``search``: what follows the design (:data:`~palpate.sim.realism.search.SEARCHES`); ``fit_a2_sign``: the share
-    of a2 < 0 in the objective too (:data:`SCALES_WITH_A2_SIGN`; off: :data:`SCALES`, as every shipped fit)."""
+    of a2 < 0 in the objective too (``SCALES_WITH_A2_SIGN``; off: ``SCALES``, as every shipped fit);
+    ``tolerances``: statistic name (``MOMENTS``) -> tolerance replacing its default (inf: not fitted)."""
     from scipy.stats import qmc
 
     materials = tuple(m for m in table.materials if m in scenario.references)
@@ -335,7 +294,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
         raise ValidationError(f"unknown search {search!r}; known: {', '.join(SEARCHES)}")
     fidelity = fidelity or scenario.fidelity
     real = real_moments(table, materials)
-    scales = SCALES_WITH_A2_SIGN if fit_a2_sign else SCALES
+    scales = with_tolerances(SCALES_WITH_A2_SIGN if fit_a2_sign else SCALES, tolerances or {})
     history: list[tuple[float, np.ndarray]] = []
     fitted_cols = np.isfinite(scales)
     failed = np.full(len(materials) * int(fitted_cols.sum()), np.nan)  # the searches' mark of a failed candidate
@@ -399,6 +358,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
                   + f"Latin hypercube then {search}",
         "search": search,
         "fit_a2_sign": bool(fit_a2_sign),
+        "tolerances": {m: float(x) for m, x in zip(MOMENTS, scales, strict=True) if np.isfinite(x)},  # the fitted
         "table": table_name, "scenario": scenario.name, "fidelity": fidelity, "started_from": start.name,
         "tune_seeds": [int(s) for s in tune_seeds], "report_seeds": [int(r.seed) for r in report_runs],
         "report_seeds_failed": report_failed,

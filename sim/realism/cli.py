@@ -62,6 +62,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="fidelity of the simulated presses (default: the scenario's)")
     r.add_argument("--fit-a2-sign", action="store_true",
                    help="fit the share of presses with a2 < 0 too (default: reported only, as the shipped fits)")
+    r.add_argument("--tolerance", action="append", default=[], metavar="STATISTIC=VALUE",
+                   help="replace a statistic's tolerance in the objective (repeatable; statistics: log_mean_n1, "
+                   "log_mean_a1, log_cv_n1, log_cv_a1, negative_n2, negative_a2, loo_self; inf: reported only), "
+                   "e.g. log_mean_a1=0.1 to weigh a1's location three times the default")
     r.add_argument("--name", default=None, help="the profile's name (default: the output file's stem)")
     r.add_argument("--quick", action="store_true",
                    help="a smoke run: budget 6, two tuning and two report seeds, analytic fidelity")
@@ -77,6 +81,19 @@ def _seeds(text: str, option: str) -> list[int]:
     if not seeds or any(s < 0 for s in seeds) or len(set(seeds)) != len(seeds):
         raise ValidationError(f"{option}: expected distinct seeds >= 0, got {text!r}")
     return seeds
+
+
+def _tolerances(items: list[str]) -> dict[str, float]:
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise ValidationError(f"--tolerance: expected STATISTIC=VALUE, got {item!r}")
+    return out
 
 
 def run_calibrate_realism(args: argparse.Namespace) -> int:
@@ -96,6 +113,7 @@ def run_calibrate_realism(args: argparse.Namespace) -> int:
     moduli = [f"young.{m.strip()}" for m in args.fit_moduli.split(",") if m.strip()]
     free = free_parameters([*(args.free.split(",") if args.free else DEFAULT_FREE), *moduli], scenario.references)
     tune, report = _seeds(args.tune_seeds, "--tune-seeds"), _seeds(args.report_seeds, "--report-seeds")
+    tolerances = _tolerances(args.tolerance)
     budget, fidelity = args.budget, args.fidelity
     if args.quick:
         budget, tune, report, fidelity = 6, tune[:2], report[:2], "analytic"
@@ -104,7 +122,7 @@ def run_calibrate_realism(args: argparse.Namespace) -> int:
           f"{len(free)} free parameters, budget {budget}, tuning seeds {tune}, report seeds {report}", file=sys.stderr)
     result = calibrate(table, scenario, start, free, tune_seeds=tune, report_seeds=report, budget=budget,
                        fidelity=fidelity, name=args.name or args.out.stem, table_name=args.table.name,
-                       design=args.design, fit_a2_sign=args.fit_a2_sign, search=args.search,
+                       design=args.design, fit_a2_sign=args.fit_a2_sign, search=args.search, tolerances=tolerances,
                        log=lambda s: print(s, file=sys.stderr, flush=True))
     try:
         args.out.parent.mkdir(parents=True, exist_ok=True)
