@@ -13,8 +13,10 @@ true ones): what a planner that knew where the map is wrong would score with the
 --share S ends every run after S of the raster's presses (quicker tuning runs; a run that has not reached the
 target by then counts as cells + 1).
 
+--jobs J runs J scenes at once in separate processes (rows and tables as with one; the wall time printed last).
+
 Run: .venv/bin/python benchmarks/exploration_fine.py [--first 0] [--scenes 9] [--policies raster,boundary]
-     [--clairvoyant] [--share S] [--boundary FIELD=VALUE ...] [--json PATH] [--from-json PATH ...]
+     [--clairvoyant] [--share S] [--boundary FIELD=VALUE ...] [--jobs J] [--json PATH] [--from-json PATH ...]
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from fine_map_families import trained_scene
@@ -164,6 +167,7 @@ def main() -> None:
     parser.add_argument("--boundary", action="append", default=[], metavar="FIELD=VALUE",
                         help=f"add the row {TUNED}: the boundary policy with FIELD set (repeatable)")
     parser.add_argument("--share", type=float, default=1.0, help="end runs after this share of raster's presses")
+    parser.add_argument("--jobs", type=int, default=1, help="scenes run at once, one process each (default 1)")
     parser.add_argument("--json", default=None, help="write every row to this JSON file")
     parser.add_argument("--from-json", nargs="+", default=None, metavar="PATH",
                         help="print the tables of rows written by earlier runs (--json) instead of running")
@@ -174,18 +178,28 @@ def main() -> None:
         return
     policies = tuple(p.strip() for p in args.policies.split(",") if p.strip()) + (
         (CLAIRVOYANT,) if args.clairvoyant else ()) + ((TUNED,) if args.boundary else ())
-    register_tuned({k: float(v) for k, v in (kv.split("=", 1) for kv in args.boundary)})
-    rows = []
-    for seed in range(args.first, args.first + args.scenes):
-        got = scene_rows(seed, policies, args.share)
-        rows.extend(got)
-        print(f"scene {seed} ({got[0]['family']}, {got[0]['cells']} cells): " + ", ".join(
-            f"{r['policy']} {ratio(r):.2f} (fine {r['fine_final']:.1%}, {r['off_centre']} off-centre, "
-            f"{r['cpu_s']:.0f} s)" for r in got), flush=True)
-        if args.json:
-            with open(args.json, "w") as fh:
-                json.dump(rows, fh, indent=1)
+    settings = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.boundary)}
+    register_tuned(settings)
+    seeds = range(args.first, args.first + args.scenes)
+    rows, wall = [], time.perf_counter()
+    pool = ProcessPoolExecutor(args.jobs, initializer=register_tuned, initargs=(settings,)) if args.jobs > 1 else None
+    try:
+        scenes = pool.map(scene_rows, seeds, [policies] * len(seeds), [args.share] * len(seeds)) if pool else (
+            scene_rows(seed, policies, args.share) for seed in seeds)
+        for got in scenes:  # in seed order either way
+            rows.extend(got)
+            print(f"scene {got[0]['seed']} ({got[0]['family']}, {got[0]['cells']} cells): " + ", ".join(
+                f"{r['policy']} {ratio(r):.2f} (fine {r['fine_final']:.1%}, {r['off_centre']} off-centre, "
+                f"{r['cpu_s']:.0f} s)" for r in got), flush=True)
+            if args.json:
+                with open(args.json, "w") as fh:
+                    json.dump(rows, fh, indent=1)
+    finally:
+        if pool:
+            pool.shutdown(cancel_futures=True)
     report(rows, policies)
+    print(f"\n{len(seeds)} scenes x {len(policies)} policies in {time.perf_counter() - wall:.0f} s wall "
+          f"({args.jobs} job(s)); exploration CPU {sum(r['cpu_s'] for r in rows):.0f} s")
 
 
 if __name__ == "__main__":
