@@ -52,9 +52,9 @@ def run_search(search: str, residuals: Callable[[np.ndarray], np.ndarray], start
     """Spend up to ``remaining`` candidates improving on ``start`` (box positions) with ``search``.
 
     ``residuals(u)``: the residual vector of the candidate at u (:func:`objective_of` is the objective; NaN: the
-    candidate failed); it records every
-    candidate itself and raises :class:`BudgetSpent` when the budget is gone, which ends the search quietly. The
-    caller takes the best candidate from its own record. ``seed``: the trust region's sampling (deterministic).
+    candidate failed); it records every candidate itself and raises :class:`BudgetSpent` when the budget is gone,
+    which ends the search quietly. The caller takes the best candidate from its own record. ``seed``: the trust
+    region's sampling (deterministic).
     """
     if search not in SEARCHES:
         raise ValidationError(f"unknown search {search!r}; known: {', '.join(SEARCHES)}")
