@@ -26,12 +26,12 @@ through the calibration's own statistics (:data:`~palpate.sim.realism.calibrate.
    ``--offset`` box widths off the truth (towards the box's far side: + where u < 0.5, - otherwise; the moduli
    through the scenario, then calibrate's own matching of the moduli to mean n1 moves them) with the shipped
    protocol's tuning seeds (101-104; two report seeds, whose statistics are not used), ``--budget`` candidates
-   and ``--design`` (1: the search from the start, as the shipped fit), ``--search`` (trust-region, the
-   command's default, or nelder-mead, as the shipped fit). Printed: recovered against true values
-   and the objective at the truth against the fit's.
+   (default 100) of which ``--design`` a Latin hypercube (default 20; 1: the search from the start, as the
+   shipped fit), ``--search`` (trust-region, the command's default, or nelder-mead, as the shipped fit). Printed:
+   recovered against true values and the objective at the truth against the fit's.
 
     .venv/bin/python benchmarks/realism_identifiability.py [--quick] [--jacobian-seeds 48] [--sessions 300]
-        [--step 0.05] [--ridge 1e-3] [--threshold 0.15] [--generators 7001,7002,7003] [--budget 80] [--design 1]
+        [--step 0.05] [--ridge 1e-3] [--threshold 0.15] [--generators 7001,7002,7003] [--budget 100] [--design 20]
         [--search trust-region] [--offset 0.3] [--tune-seeds 101,102,103,104] [--report-seeds 201,202] [--no-recovery]
 
 ``--quick`` (a smoke run, about a minute): 2 Jacobian seeds, 30 sessions, no recovery.
@@ -363,9 +363,9 @@ def main() -> int:
     ap.add_argument("--ridge", type=float, default=1e-3, help="ridge on Sigma, in tolerance^2 (default 1e-3)")
     ap.add_argument("--threshold", type=float, default=0.15, help="CR sd (box widths) for identifiable")
     ap.add_argument("--generators", default="7001,7002,7003", help="seeds of the sessions that play the table")
-    ap.add_argument("--budget", type=int, default=80, help="candidates per recovery fit (default 80)")
-    ap.add_argument("--design", type=int, default=1, help="Latin hypercube points (1: Nelder-Mead from the start, "
-                    "as the shipped fit)")
+    ap.add_argument("--budget", type=int, default=100, help="candidates per recovery fit (default 100)")
+    ap.add_argument("--design", type=int, default=20, help="Latin hypercube points among them (default 20; 1: the "
+                    "search from the start, as the shipped fit)")
     ap.add_argument("--search", default="trust-region", choices=SEARCHES,
                     help="the recovery fits' search after the design (default trust-region, the command's)")
     ap.add_argument("--offset", type=float, default=0.3, help="start's distance from the truth in box units")
