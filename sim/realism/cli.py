@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import RecordingError, ValidationError
+from palpate.sim.realism.search import SEARCHES
 
 DEFAULT_TUNE_SEEDS = "101,102,103,104"
 DEFAULT_REPORT_SEEDS = "201,202,203,204,205,206"
@@ -54,7 +55,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--design", type=int, default=None,
                    help="candidates of the Latin hypercube before the search (default: a third of the budget; 0: "
                    "refine the start profile with the search only)")
-    r.add_argument("--search", default="trust-region", choices=("trust-region", "nelder-mead"),
+    r.add_argument("--search", default="trust-region", choices=SEARCHES,
                    help="the search after the design: trust-region (default; Gauss-Newton on a linear model of the "
                    "moments' residuals fitted to candidates around the current point) or nelder-mead (the simplex; "
                    "stalls with five or more free parameters)")
@@ -88,11 +89,11 @@ def _tolerances(items: list[str]) -> dict[str, float]:
     for item in items:
         name, sep, value = item.partition("=")
         try:
+            if not sep:
+                raise ValueError
             out[name.strip()] = float(value)
         except ValueError:
-            sep = ""
-        if not sep:
-            raise ValidationError(f"--tolerance: expected STATISTIC=VALUE, got {item!r}")
+            raise ValidationError(f"--tolerance: expected STATISTIC=VALUE, got {item!r}") from None
     return out
 
 
