@@ -1,7 +1,7 @@
 """The 3-D FE image reference (models/image_reference.json): computes the cases of sim/validity/image_cases.py,
 prints each case's image summary, the mesh convergence of the image (rms change under h -> h / sqrt(2) as a share
 of the finer image's peak sensel pressure, and the force change), the checks of the model (the full model against
-the half model and the axisymmetric FE on a plain block, wider sides) and the sanity figures.
+the half model and the axisymmetric FE on a plain block at nu 0.45 and 0.49, wider sides) and the sanity figures.
 
 Run: .venv/bin/python benchmarks/image_reference.py [--quick | --core] [--write] [--only SUBSTRING] [--no-checks]
   --quick: the plain block and the 20|115 kPa wall on the axis, the block's convergence only (~2 min);
@@ -29,6 +29,7 @@ from palpate.sim.validity.image_reference import (
     FORMAT,
     GROWTH,
     IMAGE_REFERENCE_PATH,
+    NEAR_INCOMPRESSIBLE,
     VERSION,
     H,
     compute_case,
@@ -40,7 +41,8 @@ from palpate.sim.validity.image_reference import (
 TIP = FingertipSpec()
 TAXELS = TaxelSensorSpec()
 CONVERGENCE = ("block_115kPa_nu0.45", "wall_20-115kPa_t0_o+0mm_nu0.45", "wall_20-115kPa_t0_o+2mm_nu0.45",
-               "wall_20-115kPa_t45_o+0mm_nu0.45", "lump_2000-115kPa_near0mm", "skin_20-200kPa_0.5mm")
+               "wall_20-115kPa_t45_o+0mm_nu0.45", "lump_2000-115kPa_near0mm", "skin_20-200kPa_0.5mm",
+               "block_115kPa_nu0.49")
 
 
 def _image(entry: dict) -> PressImage:
@@ -98,6 +100,17 @@ def checks() -> None:
     print(f"full model vs axisymmetric FE (refinement 1): force % "
           f"{' '.join(f'{100 * v:+.2f}' for v in err.force_error)}; image rms % of peak "
           f"{' '.join(f'{100 * v:.2f}' for v in err.rms_share)}")
+    # near incompressibility: the default mesh against the one the nu >= 0.48 cases use
+    m49 = Material("115kPa", 115e3, 0.49)
+    axi = fe_press(AxisymmetricSample(m49, THICKNESS), TIP.radius, depths, refinement=1.0)
+    axi_image = radial_image(axi.depth, axi.force, axi.r, axi.pressure, TIP)
+    for label, mesh in (("default mesh", {"h": H, "growth": GROWTH}),
+                        ("near-incompressible mesh", NEAR_INCOMPRESSIBLE)):
+        img, field = fe3d_image(BoxBlock(m49, THICKNESS, HALF, HALF), TIP, depths, **mesh)
+        err = image_errors(img, axi_image, TIP)
+        print(f"nu 0.49 plain block, {label} ({field.dofs} dofs) vs axisymmetric FE: force % "
+              f"{' '.join(f'{100 * v:+.2f}' for v in err.force_error)}; image rms % of peak "
+              f"{' '.join(f'{100 * v:.2f}' for v in err.rms_share)}", flush=True)
     wide, _ = fe3d_image(BoxBlock(m, THICKNESS, 1.5 * HALF, 1.5 * HALF), TIP, depths, h=H, growth=GROWTH)
     err = image_errors(half, wide, TIP)
     print(f"sides at {1e3 * HALF:g} mm vs {1.5e3 * HALF:g} mm: force % "
@@ -166,7 +179,8 @@ def main() -> None:
         study = CONVERGENCE
     cases = [c for c in cases if args.only in c.name]
     doc = _load_or_new(IMAGE_REFERENCE_PATH) if args.write else new_document(TIP)
-    print(f"3-D FE images: h {1e3 * H:g} mm across the contact, growth {GROWTH:g}; {len(cases)} cases")
+    print(f"3-D FE images: h {1e3 * H:g} mm across the contact, growth {GROWTH:g} (nu >= 0.48: {NEAR_INCOMPRESSIBLE}); "
+          f"{len(cases)} cases")
     for case in cases:
         entry = compute_case(case, TIP)
         doc["cases"][case.name] = entry

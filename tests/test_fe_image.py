@@ -172,7 +172,7 @@ def test_a_recomputed_case_matches_the_cache():
     pytest.importorskip("skfem")
     reference = load_image_reference()
     case = next(c for c in core_cases() if c.name == "wall_20-115kPa_t0_o+2mm_nu0.45")
-    entry = compute_case(case, TIP, h=reference.h)
+    entry = compute_case(case, TIP)
     np.testing.assert_allclose(entry["force"], reference_image(reference, case).force, rtol=1e-6)
     np.testing.assert_allclose(entry["pressure"], reference_image(reference, case).pressure, rtol=1e-6,
                                atol=1e-6 * np.max(entry["pressure"]))
@@ -234,3 +234,23 @@ def test_the_plain_block_image_matches_the_axisymmetric_fe():
     assert np.all(np.abs(err.force_error) < 0.015), err.force_error
     assert np.all(err.rms_share < 0.02), err.rms_share
     np.testing.assert_array_equal(err.active, err.reference_active)
+
+
+@pytest.mark.physics
+def test_the_nearly_incompressible_mesh_matches_the_axisymmetric_fe():
+    # at nu 0.49 the default mesh's tall bricks under the contact stiffen the block (+6..+9%, the benchmark); the
+    # mesh the reference uses there holds force within 3% from 1 mm deep and the image within 3% of its peak
+    pytest.importorskip("skfem")
+    from palpate.sim.reference.fe import fe_press
+    from palpate.sim.reference.fe3d_image import fe3d_image, radial_image
+    from palpate.sim.reference.sample import AxisymmetricSample
+    from palpate.sim.validity.image_reference import NEAR_INCOMPRESSIBLE, case_mesh
+
+    case = next(c for c in image_cases() if c.name == "block_115kPa_nu0.49")
+    assert case_mesh(case) == NEAR_INCOMPRESSIBLE
+    image, _ = fe3d_image(case.block, TIP, DEPTHS, **case_mesh(case))
+    axi = fe_press(AxisymmetricSample(case.block.material, case.block.thickness), TIP.radius, DEPTHS)
+    err = image_errors(image, radial_image(axi.depth, axi.force, axi.r, axi.pressure, TIP), TIP)
+    deep = np.asarray(DEPTHS) >= 0.001
+    assert np.all(np.abs(err.force_error[deep]) < 0.03), err.force_error
+    assert np.all(err.rms_share[deep] < 0.03), err.rms_share

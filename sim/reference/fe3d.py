@@ -198,10 +198,12 @@ def _flank(x: np.ndarray, at: float, h: float) -> np.ndarray:
     return x
 
 
-def block_grids(block: BoxBlock, a_max: float, h: float, growth: float = 1.3, half: bool = True) -> TensorGrid:
-    """Grid lines: spacing ``h`` out to 1.3 a_max from the press axis (and 0.25 a_max deep), growing by ``growth``
-    per cell beyond; the lump's faces, an axis-aligned wall (with lines h/4 either side) and the skin's bottom are
-    grid lines. ``half``: y from 0 only (the half model), else across the whole block."""
+def block_grids(block: BoxBlock, a_max: float, h: float, growth: float = 1.3, half: bool = True, *,
+                depth_growth: float | None = None, depth_uniform: float = 0.25) -> TensorGrid:
+    """Grid lines: spacing ``h`` out to 1.3 a_max from the press axis (and ``depth_uniform`` a_max deep), growing
+    by ``growth`` per cell beyond (with depth by ``depth_growth``, None: ``growth``); the lump's faces, an
+    axis-aligned wall (with lines h/4 either side) and the skin's bottom are grid lines. ``half``: y from 0 only
+    (the half model), else across the whole block."""
     bx, by, bz = [], [], []
     lump = block.lump
     if lump is not None:
@@ -233,5 +235,5 @@ def block_grids(block: BoxBlock, a_max: float, h: float, growth: float = 1.3, ha
             x = _flank(x, at, h)
         else:
             y = _flank(y, at, h)
-    z = graded_line(block.thickness, h, 0.25 * a_max, growth, bz)
+    z = graded_line(block.thickness, h, depth_uniform * a_max, growth if depth_growth is None else depth_growth, bz)
     return TensorGrid(x=x, y=y, depth=z)

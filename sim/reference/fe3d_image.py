@@ -50,12 +50,14 @@ def field_image(field: SurfaceContact, tip: FingertipSpec) -> PressImage:
 
 
 def fe3d_image(block: BoxBlock, tip: FingertipSpec, depths, *, h: float = 0.001, growth: float = 1.3,
-               half: bool | None = None) -> tuple[PressImage, SurfaceContact]:
+               half: bool | None = None, depth_growth: float | None = None,
+               depth_uniform: float = 0.25) -> tuple[PressImage, SurfaceContact]:
     """The 3-D FE's image of a press of ``tip`` (its sphere and its pad) ``depths`` (m) into the centre of
     ``block``'s top: the pad's x, y are the FE's x, y with the press axis at the origin. Returns the image and
-    the nodal field it comes from (``h``, ``growth``, ``half``: see
+    the nodal field it comes from (the mesh and ``half``: see
     :func:`palpate.sim.reference.fe3d_solve.contact_field`)."""
-    field = contact_field(block, tip.radius, depths, h=h, growth=growth, half=half)
+    field = contact_field(block, tip.radius, depths, h=h, growth=growth, half=half, depth_growth=depth_growth,
+                          depth_uniform=depth_uniform)
     return field_image(field, tip), field
 
 

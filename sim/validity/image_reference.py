@@ -30,6 +30,11 @@ H = 0.0007
 GROWTH = 1.3
 #: The refinement study: each case at h x these factors (h / sqrt(2) steps), the last the finest.
 CONVERGENCE_FACTORS = (1.0, 1 / 2**0.5)
+#: Cases with a material at or above this Poisson ratio get NEAR_INCOMPRESSIBLE's mesh: trilinear bricks with
+#: one-point volume converge slowly there, and tall bricks under the contact stiffen the block (the plain block at
+#: nu 0.49 +6% at 1 mm with the default mesh against the axisymmetric FE; benchmarks/image_reference.py).
+NEAR_INCOMPRESSIBLE_NU = 0.48
+NEAR_INCOMPRESSIBLE = {"h": 0.0005, "growth": GROWTH, "depth_growth": 1.1, "depth_uniform": 1.0}
 MAX_CASES = 500
 
 
@@ -60,21 +65,33 @@ def image_entry(image: PressImage) -> dict:
     return {"depth": image.depth.tolist(), "force": image.force.tolist(), "pressure": image.pressure.tolist()}
 
 
-def compute_case(case: ImageCase, tip: FingertipSpec, h: float = H, growth: float = GROWTH) -> dict:
-    """One case's entry of the file: its image at mesh edge ``h`` m and what it cost."""
+def case_mesh(case: ImageCase) -> dict:
+    """The mesh a case is computed on (keyword arguments of :func:`fe3d_image`): h, growth and, near
+    incompressibility, the finer depth grading (see NEAR_INCOMPRESSIBLE_NU)."""
+    b = case.block
+    materials = [b.material] + [x.material for x in (b.wall, b.lump, b.skin) if x is not None]
+    if max(m.poisson for m in materials) >= NEAR_INCOMPRESSIBLE_NU:
+        return dict(NEAR_INCOMPRESSIBLE)
+    return {"h": H, "growth": GROWTH}
+
+
+def compute_case(case: ImageCase, tip: FingertipSpec, mesh: dict | None = None) -> dict:
+    """One case's entry of the file: its image on ``mesh`` (None: :func:`case_mesh`), the mesh and what it cost."""
+    mesh = case_mesh(case) if mesh is None else mesh
     t0 = time.perf_counter()
-    image, field = fe3d_image(case.block, tip, case.depths, h=h, growth=growth)
+    image, field = fe3d_image(case.block, tip, case.depths, **mesh)
     return {"family": case.family, "split": case.split, "describe": describe(case), **image_entry(image),
-            "dofs": field.dofs, "half": field.half, "seconds": round(time.perf_counter() - t0, 1)}
+            "mesh": mesh, "dofs": field.dofs, "half": field.half, "seconds": round(time.perf_counter() - t0, 1)}
 
 
-def convergence_study(case: ImageCase, tip: FingertipSpec, h: float = H, growth: float = GROWTH,
-                      factors=CONVERGENCE_FACTORS) -> dict:
-    """The case at h x each factor: its dofs, force and image per level (the file's ``convergence`` entry)."""
+def convergence_study(case: ImageCase, tip: FingertipSpec, factors=CONVERGENCE_FACTORS) -> dict:
+    """The case on its mesh (:func:`case_mesh`) with h x each factor: its dofs, force and image per level (the
+    file's ``convergence`` entry)."""
+    mesh = case_mesh(case)
     levels = []
     for factor in factors:
-        image, field = fe3d_image(case.block, tip, case.depths, h=h * factor, growth=growth)
-        levels.append({"h": h * factor, "dofs": field.dofs, **image_entry(image)})
+        image, field = fe3d_image(case.block, tip, case.depths, **{**mesh, "h": mesh["h"] * factor})
+        levels.append({"h": mesh["h"] * factor, "dofs": field.dofs, **image_entry(image)})
     return {"depth": list(case.depths), "levels": levels}
 
 
