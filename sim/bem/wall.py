@@ -12,9 +12,13 @@ v their distance along it and C_soft the soft material's own compliance (lambda 
 ratio of the FE's nodal compliances with and without the wall on one mesh (so its discretisation cancels), over
 u, u' in +-9 mm and v in 0..9 mm, per Poisson ratio and contrast, on a 30 mm block
 (:mod:`.wall_measure`, models/bem_wall_table.json); between the tabulated values it is interpolated linearly (in
-log contrast), and points within 1.5 node spacings of the wall take the value there on their own side: nearer,
-the table's steep, uneven values make C_wall indefinite for some walls (84 of 600 surfaces clamped at one
-spacing, none at 1.5; tests/test_bem.py keeps a sweep of them positive definite).
+log contrast), and points within NEAR_WALL node spacings of the wall take the value there on their own side:
+nearer, the table's steep, uneven values make C_wall indefinite for some walls. The clamp is the smallest, in
+quarter spacings, that leaves every surface of a sweep positive definite (walls -3..+3 mm from the press point
+every 0.25 mm and -1.5..+1.5 mm every 0.05 mm, contrasts 2-22.5x, nu 0.3-0.49, 1-4 mm deep, and rotated walls:
+at 1.0 spacing 312 of 1800 surfaces are indefinite, at 1.1 120, from 1.2 none); tests/test_bem.py keeps a sweep
+of them positive definite. Clamping farther (1.5) loads the stiff side's strip next to the wall too much: a
+sensel that the wall crosses reads high.
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ TABLE_PATH = models_dir() / "bem_wall_table.json"
 FORMAT = "palpate-bem-wall"
 VERSION = 1
 #: Points nearer the wall than this many node spacings take the value there, on their own side.
-NEAR_WALL = 1.5
+NEAR_WALL = 1.25
 
 
 @dataclass(frozen=True)
