@@ -26,10 +26,10 @@ def _cases(split: str, family: str):
 
 
 @pytest.mark.parametrize("case", _cases("report", "wall"), ids=lambda c: c.name)
-def test_bem_image_on_held_out_walls_leans_the_right_way_and_beats_analytic(case):
-    """Walls the wall table and the rung were not tuned on: the image leans to the side the 3-D FE's does wherever
-    the FE's asymmetry exceeds 0.1, and its rms sensel error is below analytic's at every depth from 1 mm.
-    (How close it comes, force and rms against the 5% / 10% targets, is benchmarks/image_validity.py's table.)"""
+def test_bem_image_on_held_out_walls_meets_the_image_targets_and_beats_analytic(case):
+    """Walls the wall table and the rung were not tuned on, from 1 mm deep: the image leans to the side the 3-D
+    FE's does, within 20% of its asymmetry wherever that exceeds 0.1; rms within 10% of the peak and below
+    analytic's; force within 5%."""
     entry = REFERENCE.cases[case.name]
     bem = score(case, entry.image, "bem", entry.split, REFERENCE.tip).errors
     analytic = score(case, entry.image, "analytic", entry.split, REFERENCE.tip).errors
@@ -37,12 +37,10 @@ def test_bem_image_on_held_out_walls_leans_the_right_way_and_beats_analytic(case
         big = np.abs(ref) > 0.1
         assert np.all(np.sign(got[big]) == np.sign(ref[big]))
     deep = bem.depth >= 1e-3
+    assert np.all(bem.asymmetry_ok()[deep]), (bem.asymmetry, bem.reference_asymmetry)
     assert np.all(bem.rms_share[deep] < analytic.rms_share[deep])
-    # the image targets: rms within 10% of the peak; the force within 5% where the FE itself is (below nu 0.49 its
-    # plain block is within 0.7% of the exact law, at 0.49 it is 6.9% stiff)
     assert np.all(bem.rms_share[deep] <= 0.10)
-    if case.block.material.poisson < 0.49:
-        assert np.all(np.abs(bem.force_error[deep]) <= 0.05)
+    assert np.all(np.abs(bem.force_error[deep]) <= 0.05)
 
 
 @pytest.mark.parametrize("case", _cases("tuning", "wall")[:3], ids=lambda c: c.name)
@@ -130,3 +128,5 @@ def test_bem_image_on_held_out_lumps_is_within_ten_percent_of_the_peak_leans_rig
     assert np.all(bem.rms_share[deep] <= 0.10)
     assert np.all(bem.rms_share[deep] <= analytic.rms_share[deep] + 0.01)
     assert np.all(bem.asymmetry_ok()[deep])
+    # beside the axis the force target holds; a box under the axis is the on-axis law's (5.1% soft at 4 mm)
+    assert np.all(np.abs(bem.force_error[deep]) <= (0.052 if case.block.lump.near < 0 else 0.05))
