@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 
@@ -34,7 +35,7 @@ CONVERGENCE_FACTORS = (1.0, 1 / 2**0.5)
 #: one-point volume converge slowly there, and tall bricks under the contact stiffen the block (the plain block at
 #: nu 0.49 +6% at 1 mm with the default mesh against the axisymmetric FE; benchmarks/image_reference.py).
 NEAR_INCOMPRESSIBLE_NU = 0.48
-NEAR_INCOMPRESSIBLE = {"h": 0.0005, "growth": GROWTH, "depth_growth": 1.1, "depth_uniform": 1.0}
+NEAR_INCOMPRESSIBLE = MappingProxyType({"h": 0.0005, "growth": GROWTH, "depth_growth": 1.1, "depth_uniform": 1.0})
 MAX_CASES = 500
 
 
@@ -125,7 +126,8 @@ class ConvergenceChange:
 @dataclass(frozen=True)
 class ImageReference:
     """A loaded image reference: case name -> case; the refinement study (each level against the finest); the
-    pad (FingertipSpec) and mesh edge h (m) it was computed with."""
+    pad (FingertipSpec) and the default mesh edge h (m) it was computed with (cases near incompressibility use
+    their own mesh, :func:`case_mesh`, recorded in their entries)."""
 
     cases: dict[str, ImageReferenceCase]
     convergence: tuple[ConvergenceChange, ...]
