@@ -67,7 +67,7 @@ from palpate.sim.realism.calibrate import (
 )
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import resolve_profile
-from palpate.sim.realism.search import SEARCHES
+from palpate.sim.realism.search import FAILED, SEARCHES
 
 REPO = Path(__file__).resolve().parent.parent
 SHORT = {"log_mean_n1": "mean_n1", "log_mean_a1": "mean_a1", "log_cv_n1": "cv_n1", "log_cv_a1": "cv_a1",
@@ -298,7 +298,11 @@ def recovery(setup: Setup, generator: int, args, log) -> dict:
     real = real_moments(table, setup.materials)
 
     def j_at(values, scenario):
-        sim = np.mean([session(setup, values, s, True, scenario).reshape(real.shape) for s in args.tune], axis=0)
+        try:
+            sim = np.mean([session(setup, values, s, True, scenario).reshape(real.shape) for s in args.tune],
+                          axis=0)
+        except (PalpateError, ValidationError):
+            return FAILED  # a tuning session the drive cannot follow: the search scores such a candidate the same
         return objective(sim, real, SCALES_WITH_A2_SIGN)
 
     j_truth = j_at(setup.truth, setup.scenario)
