@@ -26,6 +26,7 @@ from palpate.sim.reference.sample import AxisymmetricSample
 from palpate.sim.validity.image import PressImage, active_sensels, asymmetry, image_errors
 from palpate.sim.validity.image_cases import HALF, THICKNESS, core_cases, image_cases, wall_case
 from palpate.sim.validity.image_reference import (
+    DEFAULT_MESH,
     FORMAT,
     GROWTH,
     IMAGE_REFERENCE_PATH,
@@ -104,8 +105,7 @@ def checks() -> None:
     m49 = Material("115kPa", 115e3, 0.49)
     axi = fe_press(AxisymmetricSample(m49, THICKNESS), TIP.radius, depths, refinement=1.0)
     axi_image = radial_image(axi.depth, axi.force, axi.r, axi.pressure, TIP)
-    for label, mesh in (("default mesh", {"h": H, "growth": GROWTH}),
-                        ("near-incompressible mesh", NEAR_INCOMPRESSIBLE)):
+    for label, mesh in (("default mesh", DEFAULT_MESH), ("near-incompressible mesh", NEAR_INCOMPRESSIBLE)):
         img, field = fe3d_image(BoxBlock(m49, THICKNESS, HALF, HALF), TIP, depths, **mesh)
         err = image_errors(img, axi_image, TIP)
         print(f"nu 0.49 plain block, {label} ({field.dofs} dofs) vs axisymmetric FE: force % "

@@ -213,8 +213,8 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         far = np.empty((len(flat), probs.shape[2]))
         # one pass: the points sorted by their nearest reading, each reading's run evaluated at once
         order = np.argsort(nearest, kind="stable")
-        readings, starts = np.unique(nearest[order], return_index=True)
-        for k, at in zip(readings, np.split(order, starts[1:]), strict=True):
+        runs, starts = np.unique(nearest[order], return_index=True)
+        for k, at in zip(runs, np.split(order, starts[1:]), strict=True):
             far[at] = fields[k][1](flat[at] - np.array(fields[k][0]))
         acc += far_weight * far.reshape(acc.shape)
         weight += far_weight

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import RecordingError, ValidationError
+from palpate.sim.realism.moments import MOMENTS
 from palpate.sim.realism.search import SEARCHES
 
 DEFAULT_TUNE_SEEDS = "101,102,103,104"
@@ -64,9 +65,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--fit-a2-sign", action="store_true",
                    help="fit the share of presses with a2 < 0 too (default: reported only, as the shipped fits)")
     r.add_argument("--tolerance", action="append", default=[], metavar="STATISTIC=VALUE",
-                   help="replace a statistic's tolerance in the objective (repeatable; statistics: log_mean_n1, "
-                   "log_mean_a1, log_cv_n1, log_cv_a1, negative_n2, negative_a2, loo_self; inf: reported only), "
-                   "e.g. log_mean_a1=0.1 to weigh a1's location three times the default")
+                   help=f"replace a statistic's tolerance in the objective (repeatable; statistics: "
+                   f"{', '.join(MOMENTS)}; inf: reported only), e.g. log_mean_a1=0.1 to weigh a1's location three "
+                   "times the default")
     r.add_argument("--name", default=None, help="the profile's name (default: the output file's stem)")
     r.add_argument("--quick", action="store_true",
                    help="a smoke run: budget 6, two tuning and two report seeds, analytic fidelity")

@@ -35,6 +35,8 @@ CONVERGENCE_FACTORS = (1.0, 1 / 2**0.5)
 #: one-point volume converge slowly there, and tall bricks under the contact stiffen the block (the plain block at
 #: nu 0.49 +6% at 1 mm with the default mesh against the axisymmetric FE; benchmarks/image_reference.py).
 NEAR_INCOMPRESSIBLE_NU = 0.48
+#: The two meshes as keyword arguments of :func:`fe3d_image`.
+DEFAULT_MESH = MappingProxyType({"h": H, "growth": GROWTH})
 NEAR_INCOMPRESSIBLE = MappingProxyType({"h": 0.0005, "growth": GROWTH, "depth_growth": 1.1, "depth_uniform": 1.0})
 MAX_CASES = 500
 
@@ -73,7 +75,7 @@ def case_mesh(case: ImageCase) -> dict:
     materials = [b.material] + [x.material for x in (b.wall, b.lump, b.skin) if x is not None]
     if max(m.poisson for m in materials) >= NEAR_INCOMPRESSIBLE_NU:
         return dict(NEAR_INCOMPRESSIBLE)
-    return {"h": H, "growth": GROWTH}
+    return dict(DEFAULT_MESH)
 
 
 def compute_case(case: ImageCase, tip: FingertipSpec, mesh: dict | None = None) -> dict:
