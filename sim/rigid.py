@@ -93,12 +93,16 @@ def equivalent_radius(clearance: np.ndarray, radius: float) -> np.ndarray:
     return np.where(h < radius, np.sqrt(np.maximum(2.0 * radius * hc - hc * hc, 0.0)), np.inf)
 
 
-def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray, rows: np.ndarray | None = None,
+                 weights: np.ndarray | None = None) -> np.ndarray:
     """The law's pressure (Pa) at radii r_eq (..., m) for indentations ``depth`` (n,) m: shape (n, ...).
 
     Beyond the law's deepest tabulated depth the pressure grows as a Hertz contact would (d^0.5 at fixed r / a),
     which only a runaway reaches (and the run then stops with its error). ``rows``: a boolean mask (n,) of the
-    depths wanted; the others are left 0 (a table read at a few heights need not evaluate the rest)."""
+    depths wanted; the others are left 0 (a table read at a few heights need not evaluate the rest). ``weights``
+    (r_eq's last axis, e.g. m^2 a point): return the pressure summed with them instead, (n, ...) without the last
+    axis (N where the weights are areas), as ``law_pressure(...) @ weights`` gives it bit for bit, without
+    spreading the unwanted rows over every point."""
     d = np.maximum(np.asarray(depth, dtype=float), 0.0)
     over = d > law.max_depth
     basis = law.basis_at(np.minimum(d, law.max_depth))
@@ -111,15 +115,25 @@ def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray, rows: np.
     # (depth, radius) pairs inside the contact: each term evaluated as a dense sum over all pairs would be
     r_u, inverse = np.unique(r_eq.reshape(-1), return_inverse=True)
     rr = r_u**2
-    hit = rr[None, :] < (b[:, -1] ** 2)[:, None]
+    b2 = b**2  # once per depth, not once per (depth, radius) pair
+    hit = rr[None, :] < b2[:, -1][:, None]
     if rows is not None:
         hit &= np.asarray(rows, dtype=bool)[:, None]
     di, ri = np.nonzero(hit)
     out = np.zeros((len(d), rr.size))
-    terms = c[di] * np.sqrt(np.maximum(b[di] ** 2 - rr[ri, None], 0.0))
+    terms = c[di] * np.sqrt(np.maximum(b2[di] - rr[ri, None], 0.0))
     out[di, ri] = np.sum(terms, axis=-1) * scale[di]
-    # C order, as a dense evaluation gives it: a BLAS product over it then sums in the same order
-    return np.ascontiguousarray(out[:, inverse.reshape(-1)]).reshape((len(d),) + r_eq.shape)
+    if weights is None:
+        # C order, as a dense evaluation gives it: a BLAS product over it then sums in the same order
+        return np.ascontiguousarray(out[:, inverse.reshape(-1)]).reshape((len(d),) + r_eq.shape)
+    # only the rows some pair touched: the others sum to exactly 0 (every term 0.0); each wanted row is the same
+    # dense row, summed by the same product, as the full table's
+    touched = np.unique(di)
+    summed = np.zeros((len(d),) + r_eq.shape[:-1])
+    if touched.size:
+        dense = np.ascontiguousarray(out[touched][:, inverse.reshape(-1)]).reshape((touched.size,) + r_eq.shape)
+        summed[touched] = dense @ np.asarray(weights, dtype=float)
+    return summed
 
 
 def contact_geometry(obj: ObjectSpec, centre_xy: np.ndarray, tip, mesh=None, *, rings: int = 96, sectors: int = 24,
@@ -292,7 +306,7 @@ def run_rigid_press(
         i = x.astype(int)
         rows = np.zeros(n_tab, dtype=bool)
         rows[i] = rows[i + 1] = True  # the heights the run reached, of the table's 1000
-        p_tab = law_pressure(law, d_tab, sensel_r, rows) @ qw
+        p_tab = law_pressure(law, d_tab, sensel_r, rows, weights=qw)
         w = (x - i)[:, None, None]
         p = p_tab[i] * (1.0 - w) + p_tab[i + 1] * w
         if tau > 0:

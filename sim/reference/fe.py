@@ -202,7 +202,7 @@ def _mesh(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray, 
     rows = at[np.broadcast_to(outer[:, :, None], (len(outer), 16, 16))].ravel()
     cols = at[np.broadcast_to(outer[:, None, :], (len(outer), 16, 16))].ravel()
     kept = np.flatnonzero((rows >= 0) & (cols >= 0))
-    keys, slot = np.unique(cols[kept].astype(np.int64) * len(free) + rows[kept], return_inverse=True)
+    keys, slot = _unique_inverse(cols[kept].astype(np.int64) * len(free) + rows[kept])
     indptr = np.searchsorted(keys // len(free), np.arange(len(free) + 1))
     on_top = uz[np.isclose(locs[1, uz], top)]
     r_top = r_nodes[r_nodes <= reach + 1e-12]
@@ -215,6 +215,19 @@ def _mesh(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray, 
                  mu_part=mu_part, element_dofs=element_dofs, free=free, at=at, kept=kept, slot=slot.reshape(-1),
                  indices=(keys % len(free)).astype(np.int32), indptr=indptr.astype(np.int32), r_top=r_top,
                  loads=loads, vertex=vertex)
+
+
+def _unique_inverse(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(keys, return_inverse=True)`` for integer keys, by a stable argsort: an element's keys come in
+    sorted runs, which a stable sort merges in a third of the time of unique's own sort."""
+    order = np.argsort(keys, kind="stable")
+    ordered = keys[order]
+    first = np.empty(len(keys), dtype=bool)
+    first[:1] = True
+    np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
+    inverse = np.empty(len(keys), dtype=np.intp)
+    inverse[order] = np.cumsum(first) - 1
+    return ordered[first], inverse
 
 
 def _hat_loads(r_top: np.ndarray, dof_r: np.ndarray, dof_index: np.ndarray, n_dofs: int) -> np.ndarray:
