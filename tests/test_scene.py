@@ -57,5 +57,10 @@ def test_a_material_map_sets_the_surface_material_and_its_materials_must_be_defi
     assert [m.name for m in obj.materials()] == ["medium", "soft", "hard"]
     idx = material_index_at(obj, np.array([[0.02, 0.02, 0.019], [0.07, 0.02, 0.019]]), ["soft", "medium", "hard"])
     assert idx.tolist() == [0, 2]
+    # a map material the caller does not name is -1; where the map names nothing (unmeasured) the bulk stays
+    hm = HapticMaterialMap((0.0, 0.0), 0.05, ["soft", "hard"], p, measured=np.array([[True, False]]))
+    obj = ObjectSpec("o", "box", (0.1, 0.05, 0.02), (0.05, 0.025), MID, material_map=hm, map_materials=(SOFT, HARD))
+    pts = np.array([[0.02, 0.02, 0.019], [0.07, 0.02, 0.019], [0.07, 0.02, 0.005], [0.2, 0.02, 0.019]])
+    assert material_index_at(obj, pts, ["medium", "hard"]).tolist() == [-1, 0, 0, -1]
     with pytest.raises(ValidationError, match="map_materials"):
         ObjectSpec("o", "box", (0.1, 0.05, 0.02), (0.05, 0.025), MID, material_map=hm, map_materials=(SOFT,))

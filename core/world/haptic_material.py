@@ -202,13 +202,17 @@ class HapticMaterialMap:
         inside = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
         return np.clip(iy, 0, ny - 1), np.clip(ix, 0, nx - 1), inside
 
-    def material_names_at(self, xy: np.ndarray) -> list[str | None]:
-        """Most probable material at each (x, y) point (n, 2); None outside the map or where not measured."""
+    def material_codes_at(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(best, named) at each (x, y) point (n, 2), m: the index into ``materials`` of the most probable material
+        and whether the point names one (inside the map and measured); :meth:`material_names_at` as arrays."""
         if self.probabilities is None:
             raise ValidationError("haptic material has no material-probability maps to name a material from")
         iy, ix, inside = self.cell_index(xy)
-        best = np.argmax(self.probabilities[iy, ix], axis=1)
-        ok = inside & self.measured[iy, ix]
+        return np.argmax(self.probabilities[iy, ix], axis=1), inside & self.measured[iy, ix]
+
+    def material_names_at(self, xy: np.ndarray) -> list[str | None]:
+        """Most probable material at each (x, y) point (n, 2); None outside the map or where not measured."""
+        best, ok = self.material_codes_at(xy)
         return [self.materials[b] if o else None for b, o in zip(best, ok, strict=True)]
 
     def write(self, folder: str | Path) -> Path:

@@ -212,10 +212,10 @@ def material_index_at(obj: ObjectSpec, points: np.ndarray, names: list[str]) -> 
         out[inside] = lookup.get(layer.material.name, -1)
         start += layer.thickness
     if obj.material_map is not None:
-        surface_names = obj.material_map.material_names_at(pts[:, :2])  # type: ignore[attr-defined]
-        mapped = np.array([lookup.get(n, -1) if n is not None else -2 for n in surface_names], dtype=int)
-        keep = mapped != -2
-        out[keep] = mapped[keep]
+        # the map's own materials indexed into ``names`` once, not once a point (presses look up thousands)
+        best, named = obj.material_map.material_codes_at(pts[:, :2])  # type: ignore[attr-defined]
+        codes = np.array([lookup.get(n, -1) for n in obj.material_map.materials], dtype=int)  # type: ignore
+        out[named] = codes[best[named]]
     for inc in obj.inclusions:
         out[inc.contains(pts)] = lookup.get(inc.material.name, -1)
     outside = ~obj.contains_xy(pts[:, :2]) | (pts[:, 2] < 0.0) | (pts[:, 2] > top + 1e-12)
