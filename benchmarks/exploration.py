@@ -161,11 +161,15 @@ def chosen_rows(text: str, parser: argparse.ArgumentParser) -> list[str]:
 
 
 def make_source_for(scenario):
+    """``make(objects, seed, variability)``: sim sources of the scenario's fingertip and sensors sharing one dict of
+    contact laws, as a run's sources do (:func:`~palpate.core.session.sources.scenario_source_maker`): policies
+    explored with one maker solve a press point's law once."""
     factory = load_source("sim")
+    laws: dict = {}
 
     def make(objects, seed, variability):
         return factory(Scene(objects, scenario.fingertip, scenario.taxels, scenario.pose),
-                       fidelity=scenario.fidelity, seed=seed, variability=variability)
+                       fidelity=scenario.fidelity, seed=seed, variability=variability, laws=laws)
 
     return make
 

@@ -75,24 +75,31 @@ TENTH = 0.1
 SHARES = (0.1, 0.2, 0.25, 0.3, 0.4, 0.5, 1.0)
 
 
-def fine_curve(sc, res, memory, moduli, truth) -> tuple[np.ndarray, np.ndarray]:
+def fine_curve(sc, res, memory, moduli, truth, keep: set[int] = frozenset()) -> tuple[np.ndarray, np.ndarray]:
     """Per press k = 1..N of an exploration, the share of the known area the fine map and the cell map label
-    right, rebuilt press by press as the run's maps are."""
+    right, rebuilt press by press as the run's maps are: every press until the fine map first reaches
+    :data:`TARGET`, then only the press counts in ``keep`` (1-based) and the last; NaN where not rebuilt (the maps
+    are rebuilt from all the presses so far, so a rebuild costs as much as the press count)."""
     ex = sc.exploration
     grid = new_map(res.geometry)
     settings = MapPostprocessing.of(ex)
     known = truth >= 0
-    fine_acc, cell_acc, readings = [], [], []
-    for s in res.steps:
+    n = len(res.steps)
+    fine_acc, cell_acc = np.full(n, np.nan), np.full(n, np.nan)
+    readings, reached = [], False
+    for k, s in enumerate(res.steps, start=1):
         apply_press(grid, s.result, memory, None, fallback_xy=s.target, calibration=ex.calibration)
         if s.boundary is not None:
             readings.append((s.result.location, s.boundary))
+        if reached and k not in keep and k != n:
+            continue
         post = settings.apply(grid, ex.calibration)
         fine = fine_map(res.geometry, post.probabilities, readings, moduli=moduli)
         cells = fine.cells_on_raster(np.argmax(post.probabilities, axis=-1))
-        fine_acc.append(float(np.mean(fine.labels()[known] == truth[known])))
-        cell_acc.append(float(np.mean(cells[known] == truth[known])))
-    return np.array(fine_acc), np.array(cell_acc)
+        fine_acc[k - 1] = float(np.mean(fine.labels()[known] == truth[known]))
+        cell_acc[k - 1] = float(np.mean(cells[known] == truth[known]))
+        reached = reached or fine_acc[k - 1] >= TARGET
+    return fine_acc, cell_acc
 
 
 def first_at(curve: np.ndarray, level: float) -> int | None:
@@ -113,9 +120,10 @@ def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0) -> list
         t0 = time.process_time()
         res = explore_object(sc, sc.objects[0], training.memory, make, 7000 + seed, Progress(enabled=False),
                              boundary_reader=reader, moduli=moduli)
-        fine, cell = fine_curve(sc, res, training.memory, moduli, truth)
         n = cells
         tenth = max(1, int(round(TENTH * n)))
+        keep = {min(tenth, len(res.steps))} | {max(1, int(round(q * n))) for q in SHARES}
+        fine, cell = fine_curve(sc, res, training.memory, moduli, truth, keep)
         rows.append({"seed": seed, "family": fs.family, "split": "report" if is_report_seed(seed) else "tuning",
                      "policy": policy, "cells": n, "presses": len(res.steps), "to_target": first_at(fine, TARGET),
                      "fine_final": float(fine[-1]), "cell_final": float(cell[-1]),
