@@ -163,15 +163,17 @@ class SimSource:
                           + (f"; note: {note}" if note else ""))
         return self._auto(obj, target)
 
-    def _auto(self, obj: ObjectSpec, target: PressTarget) -> Choice:
-        """``auto``'s decision for a press at ``target`` (a force target's depth from the contact law)."""
+    def _auto(self, obj: ObjectSpec, target: PressTarget, at: tuple[float, float] | None = None) -> Choice:
+        """``auto``'s decision for a press at ``target`` (a force target's depth from the contact law at ``at``, m:
+        where the press lands, default the target)."""
         if self._table is None:
             self._table = load_table()
         tip = self.scene.fingertip
         surface_z, _ = surface_at(obj, target.x, target.y, self._mesh(obj))
         depth = target.depth
         if target.force is not None:
-            law = self._law(obj, target.x, target.y, surface_z,
+            x, y = (target.x, target.y) if at is None else at
+            law = self._law(obj, x, y, surface_z,
                             min(MAX_DEPTH_OVER_RADIUS * tip.radius, MAX_DEPTH_OVER_THICKNESS * surface_z))
             reach = law.depth_for_force(target.force) if target.force < law.force[-1] else law.max_depth
             depth = reach if depth is None else min(depth, reach)
@@ -208,33 +210,19 @@ class SimSource:
         if obj is None:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")
         tip = self.scene.fingertip
-        choice = self.explain(target)
-        fidelity = choice.fidelity
         mesh = self._mesh(obj)
         surface_z, normal = surface_at(obj, target.x, target.y, mesh)
         # a fourth child for the realism keeps the first three (press, taxels, pose) as they always were
         s_profile, s_taxel, s_pose, s_real = np.random.SeedSequence([self.seed, self._presses]).spawn(4)
-        self._presses += 1
         timestep = self.timestep or 0.002
         seed = int(s_profile.generate_state(1)[0])
-
-        # a material or a layer the rung does not hold: refused before its contact law is solved
-        held = poisson_refusal(obj, fidelity) or layer_refusal(obj, fidelity)
-        if held is not None:
-            raise ValidationError(f"{obj.name}: {held}")
         by_radius = MAX_DEPTH_OVER_RADIUS * tip.radius
-        # and no deeper than the share of the material over the rigid base that every rung holds
+        # no deeper than the share of the material over the rigid base that every rung holds
         deepest = min(by_radius, MAX_DEPTH_OVER_THICKNESS * surface_z)
         capped = False
         if target.depth is not None and target.depth > deepest and target.force is not None:
             # "this force, but no deeper than ...": no press goes past the deepest allowed either
             target, capped = replace(target, depth=deepest), deepest < by_radius
-        if target.depth is not None and target.depth > deepest:
-            if deepest < by_radius:
-                raise ValidationError(f"{obj.name}: {depth_refusal(target.depth, surface_z)}")
-            raise ValidationError(f"press target depth {target.depth * 1e3:.2f} mm is over {MAX_DEPTH_OVER_RADIUS} tip "
-                                  f"radii ({tip.radius * 1e3:.1f} mm tip): the contact would reach the sphere's "
-                                  f"equator; press at most {deepest * 1e3:.2f} mm deep")
 
         def profile_for(depth_for_force) -> PressProfile:
             prof = press_profile(target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002),
@@ -251,6 +239,31 @@ class SimSource:
                 prof.meta["depth_limited_from"] = float(planned)
             return prof
 
+        point = None
+        if self.fidelity == "auto" and target.force is not None:
+            # auto finds a force target's depth from the law where the press lands (the press's own draws put it
+            # off the target by a fraction of a millimetre), which is the law the press then feels: one solve
+            try:
+                point = profile_for(lambda force: 1e-3)
+            except ValidationError:
+                self._presses += 1  # counted as a press refused after its decision always was
+                raise
+            choice = self._auto(obj, target, at=(point.x, point.y))
+        else:
+            choice = self.explain(target)
+        fidelity = choice.fidelity
+        self._presses += 1
+        # a material or a layer the rung does not hold: refused before its contact law is solved
+        held = poisson_refusal(obj, fidelity) or layer_refusal(obj, fidelity)
+        if held is not None:
+            raise ValidationError(f"{obj.name}: {held}")
+        if target.depth is not None and target.depth > deepest:
+            if deepest < by_radius:
+                raise ValidationError(f"{obj.name}: {depth_refusal(target.depth, surface_z)}")
+            raise ValidationError(f"press target depth {target.depth * 1e3:.2f} mm is over {MAX_DEPTH_OVER_RADIUS} tip "
+                                  f"radii ({tip.radius * 1e3:.1f} mm tip): the contact would reach the sphere's "
+                                  f"equator; press at most {deepest * 1e3:.2f} mm deep")
+
         law = None
         real = None
         if target.force is None and self._session is None:
@@ -259,7 +272,7 @@ class SimSource:
                 law = self._law(obj, profile.x, profile.y, surface_z, law_depth(profile))
         else:
             # the same seed draws the same press point whatever the depth: find it, then invert the law felt there
-            point = profile_for(lambda force: 1e-3)
+            point = profile_for(lambda force: 1e-3) if point is None else point
             law = self._law(obj, point.x, point.y, surface_z, deepest)
 
             def depth_for_force(force: float) -> float:
