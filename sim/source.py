@@ -246,7 +246,7 @@ class SimSource:
             try:
                 point = profile_for(lambda force: 1e-3)
             except ValidationError:
-                self._presses += 1  # counted as a press refused after its decision always was
+                self._presses += 1  # a press refused here was always counted (its decision came first)
                 raise
             choice = self._auto(obj, target, at=(point.x, point.y))
         else:
