@@ -11,7 +11,7 @@ from palpate.core.perception.param_stats import PressTable
 from palpate.core.world.scenario_file import load_scenario
 from palpate.sim.realism.calibrate import SeedRun, calibrate, free_parameters
 from palpate.sim.realism.profile import LAB
-from palpate.sim.realism.search import BudgetSpent, objective_of, run_search, starts_apart
+from palpate.sim.realism.search import BudgetSpent, run_search
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "thesis_ch6.toml"
 
@@ -77,69 +77,6 @@ def test_the_trust_region_spends_its_budget_and_repeats_itself():
     np.testing.assert_array_equal(paths[0], paths[1])
     with pytest.raises(ValidationError, match="unknown search 'simplex'"):
         run_search("simplex", lambda u: u, np.zeros(2), 5)
-
-
-def _two_basins(d: int, seed: int, budget: int, floor: float = 20.0):
-    """Residuals linear in u around two centres with one slope: the global zero (u near 0.6-0.85) and a local basin
-    (u near 0.15-0.4) whose objective cannot go below ``floor`` (an extra residual sqrt(floor)), whichever is lower
-    (continuous objective), plus small steps; records every candidate and spends ``budget`` at most."""
-    rng = np.random.default_rng(seed)
-    a = rng.normal(size=(3 * d, d)) * 5.0
-    glob, local = rng.uniform(0.6, 0.85, d), rng.uniform(0.15, 0.4, d)
-    seen: list[tuple[float, np.ndarray]] = []
-
-    def residuals(u: np.ndarray) -> np.ndarray:
-        if len(seen) >= budget:
-            raise BudgetSpent
-        to_glob, to_local = np.append(a @ (u - glob), 0.0), np.append(a @ (u - local), np.sqrt(floor))
-        r = to_glob if to_glob @ to_glob <= to_local @ to_local else to_local
-        r[:-1] += 0.2 * np.floor(3.0 * np.sin(40.0 * u.sum()))
-        seen.append((float(r @ r), u.copy()))
-        return r
-
-    return residuals, glob, local, seen
-
-
-def _fit_after_design(search: str, seed: int, budget: int = 100, design: int = 20):
-    """As calibrate: a Latin hypercube, then the search from its best point given every design candidate."""
-    from scipy.stats import qmc
-
-    residuals, glob, local, seen = _two_basins(5, seed, budget)
-    candidates = [(u, residuals(u)) for u in qmc.LatinHypercube(d=5, seed=seed).random(design)]
-    start = min(candidates, key=lambda c: objective_of(c[1]))[0]
-    run_search(search, residuals, start, budget - design, seed=seed, candidates=candidates)
-    return start, min(seen, key=lambda s: s[0])[1], glob, local, seen
-
-
-@pytest.mark.parametrize("seed", [3, 4, 5, 9])
-def test_the_multi_start_leaves_the_wrong_basin_the_design_points_at(seed):
-    start, single, glob, local, _ = _fit_after_design("trust-region", seed)
-    # the design's best point is in the local basin, and the single trust region descends into its floor
-    assert np.max(np.abs(start - local)) < np.max(np.abs(start - glob))
-    assert np.max(np.abs(single - local)) < 0.1 and np.max(np.abs(single - glob)) > 0.4
-    _, multi, glob, _, _ = _fit_after_design("multi-start", seed)
-    assert np.max(np.abs(multi - glob)) < 0.1
-
-
-def test_the_multi_start_spends_its_budget_and_repeats_itself():
-    paths = []
-    for _ in range(2):
-        *_, seen = _fit_after_design("multi-start", 4, budget=90, design=20)
-        paths.append(np.array([u for _, u in seen]))
-    assert len(paths[0]) == 90
-    np.testing.assert_array_equal(paths[0], paths[1])
-    # without the design's candidates it starts from the start alone, and still spends exactly its budget
-    residuals, start, _, seen = _rough_problem(5, 2, 50)
-    run_search("multi-start", residuals, start, 50, seed=1)
-    assert len(seen) == 50
-
-
-def test_starts_are_the_best_candidates_apart():
-    u = np.array([[0.1, 0.1], [0.2, 0.15], [0.5, 0.5], [0.9, 0.1], [0.45, 0.6]])
-    r = [np.array([x]) for x in (1.0, 0.5, 3.0, 4.0, np.nan)]  # the last failed: never a start
-    chosen = starts_apart(list(zip(u, r, strict=True)), 3, 0.3)
-    np.testing.assert_array_equal([c[0] for c in chosen], u[[1, 2, 3]])  # u[0] is 0.1 from the best
-    assert len(starts_apart(list(zip(u, r, strict=True)), 3, 0.9)) == 1
 
 
 def test_a_fit_keeps_going_when_a_report_session_fails(monkeypatch):

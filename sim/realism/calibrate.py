@@ -13,11 +13,10 @@ tolerance. Negative shares enter the objective smoothed (a logistic step a tenth
 spread wide) so the objective is continuous; every report uses the plain shares.
 
 Search: a Latin hypercube over the free parameters' box (seeded), then from its best point a trust region on a
-fitted linear model of the residuals, or that trust region raced from several of its best points far apart
-(``multi-start``), or Nelder-Mead (:mod:`~palpate.sim.realism.search`), within the box, until the evaluation budget
-is spent. Deterministic: the same table, scenario, start profile, free parameters, seeds, search and budget give
-the same profile. The fitted profile is then simulated on *report* seeds it was not tuned on, and its statistics
-there are what the profile's provenance and the command report.
+fitted linear model of the residuals, or Nelder-Mead (:mod:`~palpate.sim.realism.search`), within the box, until
+the evaluation budget is spent. Deterministic: the same table, scenario, start profile, free parameters, seeds,
+search and budget give the same profile. The fitted profile is then simulated on *report* seeds it was not tuned on,
+and its statistics there are what the profile's provenance and the command report.
 
 The scenario's moduli may be fitted too (free parameters ``young.<material>``: a factor on that reference material's
 Young's modulus): with a compliant finger n1 no longer scales with the modulus, so moduli chosen from the table's
@@ -334,8 +333,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
     points = qmc.LatinHypercube(d=d, seed=search_seed).random(n_design - 1) if n_design > 1 else np.empty((0, d))
     for u in [u0, *points]:
         residuals(u)
-    run_search(search, residuals, min(history, key=lambda h: h[0])[1], budget - len(history), seed=search_seed,
-               candidates=[(u, seen[u.tobytes()]) for _, u in history])
+    run_search(search, residuals, min(history, key=lambda h: h[0])[1], budget - len(history), seed=search_seed)
     j_best, u_best = min(history, key=lambda h: h[0])
     values = [p.value(x) for p, x in zip(free, u_best, strict=True)]
     fitted, fitted_scenario = with_values(start, free, values, name=name), with_moduli(scenario, free, values)
