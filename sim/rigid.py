@@ -100,9 +100,10 @@ def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray, rows: np.
     Beyond the law's deepest tabulated depth the pressure grows as a Hertz contact would (d^0.5 at fixed r / a),
     which only a runaway reaches (and the run then stops with its error). ``rows``: a boolean mask (n,) of the
     depths wanted; the others are left 0 (a table read at a few heights need not evaluate the rest). ``weights``
-    (r_eq's last axis, e.g. m^2 a point): return the pressure summed with them instead, (n, ...) without the last
-    axis (N where the weights are areas), as ``law_pressure(...) @ weights`` gives it bit for bit, without
-    spreading the unwanted rows over every point."""
+    (r_eq's last axis, e.g. a sensel's quadrature weights): return the pressure summed with them instead, (n, ...)
+    without the last axis, without spreading the unwanted rows over every point: for r_eq of several axes (a
+    sensel's points) bit for bit ``law_pressure(...) @ weights``; for one axis a BLAS product over fewer rows may
+    round the last bit otherwise (the rigid press's force table keeps the whole product)."""
     d = np.maximum(np.asarray(depth, dtype=float), 0.0)
     over = d > law.max_depth
     basis = law.basis_at(np.minimum(d, law.max_depth))

@@ -53,6 +53,10 @@ def test_law_pressure_equals_the_dense_evaluation_and_leaves_unasked_rows_zero(l
     rows = rng.random(len(depth)) < 0.3
     part = rigid.law_pressure(law, depth, r_eq, rows)
     assert np.array_equal(part[rows], dense[rows]) and not part[~rows].any()
+    # summed over a sensel's quadrature points in the call: the rows' sums as the whole table's, the rest 0
+    summed = rigid.law_pressure(law, depth, r_eq, rows, weights=weights)
+    assert summed.shape == (len(depth), 4, 4)
+    assert np.array_equal(summed, part @ weights)
 
 
 def test_a_rigid_press_equals_one_built_on_whole_tables(monkeypatch, law):
@@ -63,9 +67,10 @@ def test_a_rigid_press_equals_one_built_on_whole_tables(monkeypatch, law):
     real = rigid.law_pressure
     asked = []
 
-    def whole(law_, depth, r_eq, rows=None):
+    def whole(law_, depth, r_eq, rows=None, weights=None):
         asked.append(rows is not None)
-        return real(law_, depth, r_eq)  # every row of every table
+        table = real(law_, depth, r_eq)  # every row of every table, summed over the whole of it
+        return table if weights is None else table @ weights
 
     monkeypatch.setattr(rigid, "law_pressure", whole)
     plain = rigid.run_rigid_press(scene, obj, profile, law=law)
