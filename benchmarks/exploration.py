@@ -36,10 +36,9 @@ from palpate.core.planning.outcomes import outcome_posteriors, outcome_table
 from palpate.core.session.explore import explore_object
 from palpate.core.session.progress import Progress
 from palpate.core.session.report import object_summary
-from palpate.core.session.sources import load_source
+from palpate.core.session.sources import scenario_source_maker
 from palpate.core.session.training import train_memory
 from palpate.core.world.scenario_file import parse_scenario
-from palpate.core.world.scene import Scene
 
 #: Benchmark rows: name -> (scenario policy, info_gain objective). "info_gain" is the default (accuracy) objective.
 ROWS = {"raster": ("raster", None), "random": ("random", None), "predefined": ("predefined", None),
@@ -161,17 +160,10 @@ def chosen_rows(text: str, parser: argparse.ArgumentParser) -> list[str]:
 
 
 def make_source_for(scenario):
-    """``make(objects, seed, variability)``: sim sources of the scenario's fingertip and sensors sharing one dict of
-    contact laws, as a run's sources do (:func:`~palpate.core.session.sources.scenario_source_maker`): policies
-    explored with one maker solve a press point's law once."""
-    factory = load_source("sim")
-    laws: dict = {}
-
-    def make(objects, seed, variability):
-        return factory(Scene(objects, scenario.fingertip, scenario.taxels, scenario.pose),
-                       fidelity=scenario.fidelity, seed=seed, variability=variability, laws=laws)
-
-    return make
+    """``make(objects, seed, variability)``: the run's own source maker
+    (:func:`~palpate.core.session.sources.scenario_source_maker`), whose sources share one dict of contact laws:
+    policies explored with one maker solve a press point's law once."""
+    return scenario_source_maker(scenario)
 
 
 def first_reaching(values: list, ok) -> int | None:

@@ -129,7 +129,7 @@ def law_pressure(law: ContactLaw, depth: np.ndarray, r_eq: np.ndarray, rows: np.
         return np.ascontiguousarray(out[:, inverse.reshape(-1)]).reshape((len(d),) + r_eq.shape)
     # only the rows some pair touched: the others sum to exactly 0 (every term 0.0); each wanted row is the same
     # dense row, summed by the same product, as the full table's
-    touched = np.unique(di)
+    touched = np.flatnonzero(hit.any(axis=1))
     summed = np.zeros((len(d),) + r_eq.shape[:-1])
     if touched.size:
         dense = np.ascontiguousarray(out[touched][:, inverse.reshape(-1)]).reshape((touched.size,) + r_eq.shape)

@@ -214,7 +214,7 @@ def material_index_at(obj: ObjectSpec, points: np.ndarray, names: list[str]) -> 
     if obj.material_map is not None:
         # the map's own materials indexed into ``names`` once, not once a point (presses look up thousands)
         best, named = obj.material_map.material_codes_at(pts[:, :2])  # type: ignore[attr-defined]
-        codes = np.array([lookup.get(n, -1) for n in obj.material_map.materials], dtype=int)  # type: ignore
+        codes = np.array([lookup.get(n, -1) for n in obj.material_map.materials], dtype=int)  # type: ignore[attr-defined]
         out[named] = codes[best[named]]
     for inc in obj.inclusions:
         out[inc.contains(pts)] = lookup.get(inc.material.name, -1)
