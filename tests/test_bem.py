@@ -4,6 +4,7 @@ forms, the exact axisymmetric layered contact law), its wall model and its refus
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -162,6 +163,17 @@ def test_over_a_buried_change_a_cell_settles_through_the_shared_top_and_couples_
     assert ratio(over, at(5.25e-3, 1.25e-3)) < 0.4 and ratio(over, at(5.25e-3, 2.25e-3)) < 0.4
     away = at(-5.25e-3, 0.25e-3)
     assert ratio(away, away) == pytest.approx(1.0, abs=1e-3)
+
+
+def test_a_soft_lump_under_a_stiff_top_blends_its_kernels_without_a_nan():
+    """A stiff top over a soft box bends like a plate on a foundation: its kernel turns negative far out, where the
+    blend of the columns' kernels has no log; the surface is built without a warning and is finite."""
+    box = Inclusion(Material("lump", 57e3, 0.4), "box", (6e-3, 0.0, 0.04 - 1.33e-3 - 7.2e-3), (0.012, 0.03, 0.0144))
+    obj = ObjectSpec("b", "box", (0.08, 0.08, 0.04), (0.0, 0.0), Material("m", 450e3, 0.4), inclusions=(box,))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        surface = build_surface(obj, 0.0, 0.0, 0.04, TIP, 7e-3, CELL, 5e-3)
+    assert surface.mixing == "buried" and np.all(np.isfinite(surface.compliance))
 
 
 def test_a_buried_lump_takes_its_force_from_the_points_law_and_its_image_leans_towards_the_lump():

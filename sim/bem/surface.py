@@ -223,7 +223,10 @@ def _buried_factor(stacks, used, ref: int, stack_of: np.ndarray, on_object: np.n
         table = _kernel_table(stacks[s], cell, span)
         share = gaussian_filter(np.where(on_object & (stack_of == s), 1.0, 0.0).reshape(shape), BURIED_SMOOTHING / cell,
                                 mode="constant").ravel()[keep]
-        terms.append(((0.5 * BURIED_SHARE * share).astype(np.float32), np.log(table / ref_table).astype(np.float32)))
+        # a stiff top over a soft layer bends like a plate on a foundation: its kernel changes sign far out, where
+        # a blend of logs means nothing; there the reference column's kernel stands (log ratio 0)
+        ratio = np.divide(table, ref_table, out=np.ones_like(table), where=(table > 0) & (ref_table > 0))
+        terms.append(((0.5 * BURIED_SHARE * share).astype(np.float32), np.log(ratio).astype(np.float32)))
 
     def factor(rows: slice, pair: np.ndarray) -> np.ndarray:
         out = np.zeros(pair.shape, dtype=np.float32)
