@@ -26,10 +26,11 @@ from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory
 
 
-def trained_scene(seed: int):
-    """A family scene with physics presses (``auto``) as a raster scenario, its boundary reader, source maker and
-    memory trained on its references (readings kept): (scene, scenario, reader, make, training)."""
-    fs = make_scene(seed)
+def trained_scene(seed: int, fs=None):
+    """A family scene (``fs``, default the shape family scene of ``seed``) with physics presses (``auto``) as a
+    raster scenario, its boundary reader, source maker and memory trained on its references (readings kept):
+    (scene, scenario, reader, make, training)."""
+    fs = make_scene(seed) if fs is None else fs
     sc = fs.scenario("raster", fidelity="auto")
     reader, why = boundary_reader(sc)
     if reader is None:

@@ -65,6 +65,8 @@ class FamilyScene:
         materials: the scene's materials as (name, like-reference, Young's modulus kPa, Poisson), slot order.
         references: the reference materials present (the memory's classes), softest first.
         labels: (ny_px, nx_px) slot index per PX_MM pixel, row 0 at y = 0.
+        lumps: buried inclusions as TOML tables (``[[objects.inclusions]]``: material, shape, center_mm, size_mm);
+            benchmarks/lump_scenes.py draws them.
     """
 
     seed: int
@@ -77,6 +79,7 @@ class FamilyScene:
     references: tuple[str, ...]
     labels: np.ndarray
     confused: bool = False
+    lumps: tuple[dict, ...] = ()
 
     def moduli(self) -> tuple[float, ...]:
         """Young's modulus (kPa) of each reference material, in ``references`` order."""
@@ -114,6 +117,8 @@ class FamilyScene:
         obj = {"name": f"scene{self.seed}", "size_mm": [sx, sy, HEIGHT_MM], "position_mm": [sx / 2, sy / 2],
                "material": self.materials[0][0], "grid_origin_mm": list(self.grid_origin_mm),
                "grid_cells": [nx, ny], "regions": [[c + 1, r + 1] for r in range(1, ny, 3) for c in range(1, nx, 3)]}
+        if self.lumps:
+            obj["inclusions"] = [dict(lump) for lump in self.lumps]
         ex = {"policy": policy, "budget": budget or nx * ny, "presses_per_region": 1, "cell_mm": self.cell_mm,
               "depth_mm": 4.0, "max_force_n": 10.0, "variability": "human"}
         if objective is not None:
