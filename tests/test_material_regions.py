@@ -66,3 +66,41 @@ def test_the_summary_keeps_a_fine_maps_regions_of_a_quarter_cell_or_more_and_at_
     assert [(r["material"], r["points"]) for r in report] == [("a", 10000 - 25 - 24 - 58), ("b", 25)]
     every = region_report(_map(labels), (0.0, 0.0), 1e-3, ("a", "b"))
     assert len(every) == MAX_REGIONS and every[0]["material"] == "a"
+
+
+def _voxels(labels: np.ndarray, sure: float = 0.9) -> np.ndarray:
+    p = np.full(labels.shape + (2,), 1.0 - sure)
+    p[labels == 0, 0] = sure
+    p[labels == 1, 1] = sure
+    p[labels < 0] = 0.5  # never reached: uniform
+    return p
+
+
+def test_a_buried_lump_in_a_voxel_map_is_one_region_with_its_centroid_depths_and_volume():
+    from palpate.core.mapping.regions import volume_regions
+
+    labels = np.zeros((12, 10, 4), dtype=int)  # (nx, ny, nz), iz = 0 at the surface
+    labels[3:6, 2:4, 1:3] = 1  # 3 x 2 voxels laterally, from one voxel down to three
+    labels[:, :, 3] = -1  # the bottom layer never reached
+    regions = volume_regions(_voxels(labels), (0.01, -0.02), 0.04, 0.005, ("bulk", "lump"))
+    assert [r.material for r in regions] == ["bulk", "lump"]
+    lump = regions[1]
+    assert lump.voxels == 12 and lump.volume_m3 == pytest.approx(12 * 0.005**3)
+    assert lump.centroid_m == pytest.approx((0.01 + 0.0225, -0.02 + 0.015, 0.04 - 0.010))
+    assert (lump.top_depth_m, lump.bottom_depth_m) == pytest.approx((0.005, 0.015))
+    assert lump.probability == pytest.approx(0.9)
+    assert regions[0].voxels == 12 * 10 * 3 - 12  # the uniform layer is in no region
+    assert regions[0].bottom_depth_m == pytest.approx(0.015)
+
+
+def test_voxels_touching_only_along_an_edge_are_two_regions_and_bad_voxel_maps_are_refused():
+    from palpate.core.mapping.regions import volume_regions
+
+    labels = np.zeros((4, 4, 3), dtype=int)
+    labels[1, 1, 0] = labels[2, 1, 1] = 1  # share an edge, not a face
+    regions = volume_regions(_voxels(labels), (0.0, 0.0), 0.0, 0.01, ("a", "b"))
+    assert sorted(r.voxels for r in regions if r.material == "b") == [1, 1]
+    with pytest.raises(ValidationError, match=r"\(nx, ny, nz, 2\)"):
+        volume_regions(np.full((3, 3, 2), 0.5), (0.0, 0.0), 0.0, 0.01, ("a", "b"))
+    with pytest.raises(ValidationError, match="finite"):
+        volume_regions(np.full((3, 3, 2, 2), np.nan), (0.0, 0.0), 0.0, 0.01, ("a", "b"))

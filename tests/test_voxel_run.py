@@ -1,5 +1,6 @@
 """Seed 001 in simulation: a voxel map from presses, evidence per layer, and an exact replay."""
 
+import json
 import tomllib
 from pathlib import Path
 
@@ -46,6 +47,11 @@ def test_presses_fill_columns_down_to_their_depth_and_read_as_the_soft_material(
     assert obj["accuracy"]["explored_before_postprocessing"] >= 0.95
     ent = obj["mean_entropy_after_each_press"]
     assert ent[len(ent) // 2 - 1] > ent[-1]  # the entropy falls from 50% to 100% of the exploration
+    # where the map says the materials lie, in 3-D: the largest region is the object's, from the surface down
+    largest = obj["material_regions"][0]
+    assert largest["material"] == obj["true_materials"][0] and largest["top_depth_m"] == 0.0
+    assert largest["voxels"] <= int(np.sum(np.ptp(VoxelGrid.load(out / "maps" / "Object_1_postprocessed.npz")
+                                                  .probabilities, axis=-1) > 0))
 
 
 def test_replay_rebuilds_the_voxel_map_exactly(voxel_run, tmp_path):
@@ -55,6 +61,9 @@ def test_replay_rebuilds_the_voxel_map_exactly(voxel_run, tmp_path):
     a = VoxelGrid.load(out / "maps" / "Object_1.npz")
     b = VoxelGrid.load(tmp_path / "maps" / "Object_1.npz")
     np.testing.assert_array_equal(a.probabilities, b.probabilities)
+    run, replayed = (json.loads((d / "summary.json").read_text())["objects"][0]["material_regions"]
+                     for d in (out, tmp_path))
+    assert replayed == run and run
 
 
 def test_layer_fits_cut_the_press_at_each_layer():

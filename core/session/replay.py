@@ -31,7 +31,7 @@ from palpate.core.mapping.calibration import MapCalibration
 from palpate.core.mapping.fine import fine_map
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
-from palpate.core.mapping.regions import region_report
+from palpate.core.mapping.regions import map_region_report, region_report
 from palpate.core.mapping.snapshot import MapSnapshot
 from palpate.core.names import inside, unique_stems
 from palpate.core.perception.classifier_memory import ClassifierMemory
@@ -315,8 +315,7 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
             "presses": len(state.rows), "per_press": state.rows,
             "mean_entropy_after_each_press": [r["mean_entropy"] for r in state.rows],
             "mean_entropy_after_postprocessing": float(post.mean_entropy()),
-            "material_regions": None if g.voxel else region_report(post.probabilities, g.origin, g.cell_size,
-                                                                    g.materials),
+            "material_regions": map_region_report(g, post.probabilities),
         })
         if state.readings:
             fine = fine_map(g, post.probabilities, [(xy, r) for xy, r in state.readings if r is not None],

@@ -15,7 +15,7 @@ from palpate.core import __version__
 from palpate.core.errors import PalpateError
 from palpate.core.mapping.accuracy import map_accuracy
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
-from palpate.core.mapping.regions import region_report
+from palpate.core.mapping.regions import map_region_report
 from palpate.core.perception.fit import PressFit
 from palpate.core.session.explore import ObjectResult, PressStep
 
@@ -146,8 +146,7 @@ def object_summary(obj: ObjectResult) -> dict:
         "stop_reason": obj.stop_reason,
         "per_press": rows,
         "regions": [[c + 1, r + 1] for c, r in obj.regions],
-        "material_regions": None if obj.geometry.voxel else region_report(
-            obj.post.probabilities, obj.geometry.origin, obj.geometry.cell_size, obj.geometry.materials),
+        "material_regions": map_region_report(obj.geometry, obj.post.probabilities),
         "posterior_per_cycle": [[list(row) for row in cycle] for cycle in obj.cycle_posteriors],
         "accuracy": {"explored_before_postprocessing": map_accuracy(obj.grid.probabilities, obj.truth,
                                                                     obj.grid.explored),
