@@ -1,0 +1,158 @@
+"""Buried lumps on the voxel map: does a raster of every column (presses to 10 mm or 40 N, 5 mm voxels two layers
+deep, physics presses) report each lump where it lies, at its depth and by its material?
+
+Seeded scenes: a block 50-70 x 40-60 mm of one of three reference materials (soft 20, medium 115, hard 450 kPa)
+with 1-2 buried boxes or spheres of another (8-20 mm across, tops 0.5-8 mm down), kept 5 mm apart and 5 mm inside
+the block. Per lump, from summary.json's ``material_regions`` of the post-processed voxel map: **located** when a
+region of another material than the block's has its centroid within 5 mm of the lump's centre laterally and at most
+twice the lump's volume within the map's depth (and two voxels); **named** when it is the lump's material;
+**top right** when that region's shallowest voxel holds the lump's top. Seeds below 100000 are tuning seeds, from
+100000 on report seeds. The layered judges are trained once, on tuning scene 0's references.
+
+Run: .venv/bin/python benchmarks/voxel_lumps.py [--first 100000] [--scenes 24] [--jobs 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from concurrent.futures import ProcessPoolExecutor
+from functools import cache
+
+import numpy as np
+from exploration import make_source_for
+from exploration_voxels import CELL_MM, DEPTH_MM, FORCE_N, MATERIALS, NAMES
+from lump_scenes import lump_top_mm
+from scene_families import HEIGHT_MM, is_report_seed
+
+from palpate.core.mapping.regions import map_region_report
+from palpate.core.perception.layered_memory import train_layered_memory
+from palpate.core.session.explore import explore_object
+from palpate.core.session.progress import Progress
+from palpate.core.session.training import train_memory
+from palpate.core.world.scenario_file import parse_scenario
+
+#: How far a region's centroid may lie from a lump's centre laterally, mm.
+NEAR_MM = 5.0
+#: Depth bands of a lump's top, mm.
+BANDS = ((0.0, 2.0), (2.0, 5.0), (5.0, 8.0))
+
+
+def voxel_lump_scene(seed: int) -> tuple[dict, list[dict]]:
+    """A seeded block with buried lumps as a raster voxel scenario dictionary, and its lumps (TOML inclusions)."""
+    rng = np.random.default_rng([seed, 27])
+    nx, ny = int(rng.integers(10, 15)), int(rng.integers(8, 13))
+    sx, sy = nx * CELL_MM, ny * CELL_MM
+    block = int(rng.integers(len(NAMES)))
+    lumps: list[dict] = []
+    taken: list[tuple[float, float, float, float]] = []
+    for _ in range(int(rng.integers(1, 3))):
+        for _try in range(50):
+            if rng.random() < 0.5:
+                w, h, t = (float(v) for v in rng.uniform([8.0, 8.0, 5.0], [20.0, 20.0, 15.0]))
+                size, half = [round(w, 2), round(h, 2), round(t, 2)], (w / 2, h / 2, t / 2)
+            else:
+                r = float(rng.uniform(4.0, 10.0))
+                size, half = [round(r, 2)], (r, r, r)
+            if sx - 10.0 <= 2 * half[0] or sy - 10.0 <= 2 * half[1]:
+                continue
+            x = float(rng.uniform(5.0 + half[0], sx - 5.0 - half[0]))
+            y = float(rng.uniform(5.0 + half[1], sy - 5.0 - half[1]))
+            box = (x - half[0], x + half[0], y - half[1], y + half[1])
+            if any(b[0] - 5 < box[1] and box[0] < b[1] + 5 and b[2] - 5 < box[3] and box[2] < b[3] + 5 for b in taken):
+                continue
+            top = float(rng.uniform(0.5, 8.0))
+            other = [i for i in range(len(NAMES)) if i != block]
+            lumps.append({"material": NAMES[int(rng.choice(other))], "shape": "sphere" if len(size) == 1 else "box",
+                          "center_mm": [round(x, 3), round(y, 3), round(HEIGHT_MM - top - half[2], 3)],
+                          "size_mm": size})
+            taken.append(box)
+            break
+    obj = {"name": f"block{seed}", "size_mm": [sx, sy, HEIGHT_MM], "position_mm": [sx / 2, sy / 2],
+           "material": NAMES[block], "inclusions": lumps}
+    ex = {"map": "voxel", "cell_mm": CELL_MM, "voxel_depth_mm": DEPTH_MM, "policy": "raster", "budget": nx * ny,
+          "depth_mm": DEPTH_MM, "max_force_n": FORCE_N, "variability": "human"}
+    return ({"scenario": {"name": f"voxel_lumps{seed}", "seed": seed, "fidelity": "analytic"}, "materials": MATERIALS,
+             "training": {"presses_per_material": 10, "depth_mm": DEPTH_MM, "max_force_n": FORCE_N},
+             "exploration": ex, "objects": [obj], "outputs": {"figures": False, "haptic_material": False}}, lumps)
+
+
+def _volume_in_map_mm3(lump: dict) -> float:
+    """The lump's volume within the map's depth (DEPTH_MM under the surface), mm^3."""
+    top = lump_top_mm(lump)
+    if lump["shape"] == "box":
+        sx, sy, sz = lump["size_mm"]
+        return sx * sy * max(0.0, min(top + sz, DEPTH_MM) - top)
+    r = lump["size_mm"][0]
+    lo, hi = top, min(top + 2 * r, DEPTH_MM)  # depths through the sphere: a cap between them
+    if hi <= lo:
+        return 0.0
+    cap = lambda h: math.pi * h * h * (3 * r - h) / 3  # noqa: E731  (a cap of height h)
+    return cap(hi - lo + 0.0) if lo == top else cap(hi - top) - cap(lo - top)
+
+
+@cache
+def _judges():
+    base = parse_scenario(voxel_lump_scene(0)[0], "voxel_lumps")
+    training = train_memory(base, make_source_for(base), np.arange(3) + 1000, Progress(enabled=False))
+    return training.memory, train_layered_memory(training.memory, training.presses, CELL_MM * 1e-3,
+                                                 int(DEPTH_MM / CELL_MM))
+
+
+def scene_row(seed: int) -> dict:
+    t0 = time.process_time()
+    memory, layers = _judges()
+    raw, lumps = voxel_lump_scene(seed)
+    sc = parse_scenario(raw, f"voxel_lumps{seed}")
+    res = explore_object(sc, sc.objects[0], memory, make_source_for(sc), 9000 + seed, Progress(enabled=False),
+                         layers=layers)
+    regions = [r for r in map_region_report(res.geometry, res.post.probabilities)
+               if r["material"] != raw["objects"][0]["material"]]
+    rows = []
+    for lump in lumps:
+        centre = np.array(lump["center_mm"][:2])
+        dist = [float(np.hypot(*(np.array(r["centroid_m"][:2]) * 1e3 - centre))) for r in regions]
+        limit = 2 * _volume_in_map_mm3(lump) + 2 * CELL_MM**3
+        fits = [r for r, d in zip(regions, dist, strict=True) if d <= NEAR_MM and r["volume_m3"] * 1e9 <= limit]
+        top = lump_top_mm(lump)
+        rows.append({"top": top, "shape": lump["shape"], "located": bool(fits),
+                     "named": any(r["material"] == lump["material"] for r in fits),
+                     "top_right": any(int(r["top_depth_m"] * 1e3 / CELL_MM + 0.5) == int(top // CELL_MM)
+                                      for r in fits),
+                     "error": min(dist) if dist else None})
+    return {"seed": seed, "presses": len(res.steps), "lumps": rows, "cpu": time.process_time() - t0,
+            "accuracy": res.steps[-1].accuracy_postprocessed}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--first", type=int, default=100000)
+    parser.add_argument("--scenes", type=int, default=24)
+    parser.add_argument("--jobs", type=int, default=1, help="scenes run in this many processes")
+    args = parser.parse_args()
+    print(f"{'seed':>7} {'split':6} {'presses':>7} {'voxels right':>12}  lumps (top mm, shape: located L, named N, "
+          "top's layer right T; distance to the nearest region of another material, mm)")
+    rows = []
+    with ProcessPoolExecutor(args.jobs) as pool:
+        for r in pool.map(scene_row, range(args.first, args.first + args.scenes)):
+            rows.append(r)
+            desc = "; ".join(f"{lu['top']:.1f} {lu['shape']}: {'L' if lu['located'] else '-'}"
+                             f"{'N' if lu['named'] else '-'}{'T' if lu['top_right'] else '-'} "
+                             f"{'-' if lu['error'] is None else format(lu['error'], '.1f')}" for lu in r["lumps"])
+            print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} "
+                  f"{r['accuracy']:12.1%}  {desc} ({r['cpu']:.0f} s CPU)", flush=True)
+    lumps = [lu for r in rows for lu in r["lumps"]]
+    print(f"\n{len(lumps)} lumps in {len(rows)} scenes; per band of the top's depth: lumps, located, named, top's "
+          "layer right, median distance mm")
+    for lo, hi in BANDS:
+        band = [lu for lu in lumps if lo <= lu["top"] < hi]
+        if band:
+            err = [lu["error"] for lu in band if lu["error"] is not None]
+            print(f"{lo:.0f}-{hi:.0f} mm | {len(band)} | {sum(lu['located'] for lu in band)} | "
+                  f"{sum(lu['named'] for lu in band)} | {sum(lu['top_right'] for lu in band)} | "
+                  f"{np.median(err) if err else float('nan'):.1f}")
+
+
+if __name__ == "__main__":
+    main()
