@@ -55,6 +55,7 @@ def scene_row(seed: int) -> dict:
             "cell": s["area_accuracy"]["cell_map"], "fine": s["area_accuracy"]["fine_map"],
             "err_cell": s["boundary_error_m"]["cell_map"]["median"],
             "err_fine": s["boundary_error_m"]["fine_map"]["median"], "ece": s["calibration_ece"].get("all"),
+            "spots": len(s["stiffness_anomalies"] or ()),
             "ece_near": s["calibration_ece"].get("near_boundary")}
 
 
@@ -64,8 +65,9 @@ def main() -> None:
     parser.add_argument("--scenes", type=int, default=len(FAMILIES))
     args = parser.parse_args()
     print(f"{'seed':>7} {'split':6} {'family':10} {'cells':>5} {'walls':>5} {'cell map':>8} {'fine map':>8} "
-          f"{'err cell':>8} {'err fine':>8} {'ECE':>5} {'near':>5}")
-    print("(area right; median boundary error, mm; the fine map's ECE, all and within 5 mm of a boundary)")
+          f"{'err cell':>8} {'err fine':>8} {'ECE':>5} {'near':>5} {'spots':>5}")
+    print("(area right; median boundary error, mm; the fine map's ECE, all and within 5 mm of a boundary; stiffness "
+          "anomalies, on scenes without lumps all stray)")
     rows = []
     for seed in range(args.first, args.first + args.scenes):
         t0 = time.process_time()
@@ -74,12 +76,13 @@ def main() -> None:
         mm = lambda v: f"{v * 1e3:8.2f}" if v is not None else "       -"  # noqa: E731
         print(f"{seed:7d} {'report' if is_report_seed(seed) else 'tuning':6} {r['family']:10} {r['cells']:5d} "
               f"{r['walls']:5d} {r['cell']:8.1%} {r['fine']:8.1%} {mm(r['err_cell'])} {mm(r['err_fine'])} "
-              f"{r['ece']:5.3f} {r['ece_near']:5.3f}  "
+              f"{r['ece']:5.3f} {r['ece_near']:5.3f} {r['spots']:5d}  "
               f"({time.process_time() - t0:.0f} s CPU)", flush=True)
     cell, fine = np.array([r["cell"] for r in rows]), np.array([r["fine"] for r in rows])
     print(f"median over {len(rows)} scenes: cell map {np.median(cell):.1%}, fine map {np.median(fine):.1%}; fine map "
           f"better on {int(np.sum(fine > cell))}, worse on {int(np.sum(fine < cell))}; median ECE "
-          f"{np.median([r['ece'] for r in rows]):.3f} (near boundaries {np.median([r['ece_near'] for r in rows]):.3f})")
+          f"{np.median([r['ece'] for r in rows]):.3f} (near boundaries "
+          f"{np.median([r['ece_near'] for r in rows]):.3f}); stiffness anomalies {sum(r['spots'] for r in rows)}")
     pooled = {where: reliability_table(*(np.concatenate([r["samples"][where][k] for r in rows]) for k in (0, 1))).ece
               for where in ("all", "near")}
     print(f"ECE over every scene's points pooled: {pooled['all']:.3f} (near boundaries {pooled['near']:.3f})")

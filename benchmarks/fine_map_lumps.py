@@ -6,8 +6,10 @@ Per lump, on the cell map and on the fine map: **located** when a region of the 
 at most twice the lump's widest footprint; **named** when that region's material is the lump's reference; the
 distance from the lump's centre to the nearest region of another material, of any size. Per scene: the fine map's
 regions of another material than the block's that lie on no lump (centroid more than 5 mm outside every footprint:
-spurious) and the area right away from the lumps (more than 5 mm outside every footprint). Lumps are grouped by the
-depth of their top. Seeds from 100000 on are report seeds (never tuned on).
+spurious), the stiffness anomalies (summary.json's ``stiffness_anomalies``) on no lump (stray spots) and the area
+right away from the lumps (more than 5 mm outside every footprint). A lump is **spotted** when an anomaly lies
+within 5 mm of its footprint. Lumps are grouped by the depth of their top. Seeds from 100000 on are report seeds
+(never tuned on).
 
 Run: .venv/bin/python benchmarks/fine_map_lumps.py [--first 100000] [--scenes 24] [--jobs 2]
 """
@@ -88,14 +90,17 @@ def scene_row(seed: int) -> dict:
     near_any = np.zeros(x.shape, dtype=bool)
     locations = np.array([s.result.location[:2] for s in res.steps])
     laws: dict = {}
+    spots = [np.unravel_index(np.argmin(np.hypot(x - a["centroid_m"][0] * 1e3, y - a["centroid_m"][1] * 1e3)),
+                              x.shape) for a in fine.summary["stiffness_anomalies"] or ()]
     lumps = []
     for lump in fs.lumps:
         ref = like[lump["material"]]
         change, sensed = force_change(sc, lump, locations, laws)
+        near = distance_transform_edt(~lump_footprint(lump, x, y)) * fine.fine.resolution * 1e3 <= NEAR_MM
         lumps.append({"top": lump_top_mm(lump), "shape": lump["shape"], "harder": _harder(ref, block),
-                      "change": change, "felt": sensed}
+                      "change": change, "felt": sensed, "spotted": any(near[i] for i in spots)}
                      | {m: judge(regions, lump, block, ref) for m, regions in maps.items()})
-        near_any |= distance_transform_edt(~lump_footprint(lump, x, y)) * fine.fine.resolution * 1e3 <= NEAR_MM
+        near_any |= near
     spurious = 0
     for r in maps["fine"]:
         if r["material"] == block:
@@ -107,6 +112,7 @@ def scene_row(seed: int) -> dict:
     away = (truth >= 0) & ~near_any
     labels = fine.fine.labels()
     return {"seed": seed, "presses": len(res.steps), "lumps": lumps, "spurious": spurious,
+            "stray_spots": sum(not near_any[i] for i in spots),
             "away": float(np.mean(labels[away] == truth[away])) if away.any() else None,
             "cpu": time.process_time() - t0}
 
@@ -130,16 +136,18 @@ def main() -> None:
         for r in pool.map(scene_row, seeds):
             rows.append(r)
             desc = "; ".join(f"{lu['top']:.1f} {lu['shape']} {'harder' if lu['harder'] else 'softer'}"
-                             f"{' felt' if lu['felt'] else ''}: "
+                             f"{' felt' if lu['felt'] else ''}{' spotted' if lu['spotted'] else ''}: "
                              + " | ".join(_mark(lu[m]) for m in ("cell", "fine")) for lu in r["lumps"])
             away = "-" if r["away"] is None else f"{r['away']:.1%}"
             print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} {desc}"
-                  f"; spurious {r['spurious']}, area right away from lumps {away} ({r['cpu']:.0f} s CPU)",
+                  f"; spurious {r['spurious']}, stray spots {r['stray_spots']}, area right away from lumps {away} "
+                  f"({r['cpu']:.0f} s CPU)",
                   flush=True)
     lumps = [lu for r in rows for lu in r["lumps"]]
     print(f"\n{len(lumps)} lumps in {len(rows)} scenes. Per band of the top's depth: lumps | the median over lumps "
           "of the largest force change a press saw | felt by a press | located / named / median error mm, cell map "
-          "| the same, fine map | of those felt, located by the fine map | harder and softer located by the fine map")
+          "| the same, fine map | of those felt, located by the fine map | harder and softer located by the fine map "
+          "| in a stiffness anomaly (a spot within 5 mm of its footprint), located or spotted")
     for lo, hi in BANDS:
         band = [lu for lu in lumps if lo <= lu["top"] < hi]
         if not band:
@@ -152,10 +160,14 @@ def main() -> None:
         hard = [lu["fine"]["located"] for lu in band if lu["harder"]]
         soft = [lu["fine"]["located"] for lu in band if not lu["harder"]]
         sensed = [lu["fine"]["located"] for lu in band if lu["felt"]]
+        spotted = sum(lu["spotted"] for lu in band)
+        either = sum(lu["spotted"] or lu["fine"]["located"] for lu in band)
         change = np.median([np.expm1(lu["change"]) for lu in band])
         print(f"{lo:.0f}-{hi:.0f} mm | {len(band)} | {change:.0%} | {len(sensed)} | {cols[0]} | {cols[1]} | "
-              f"{sum(sensed)}/{len(sensed)} | harder {sum(hard)}/{len(hard)}, softer {sum(soft)}/{len(soft)}")
+              f"{sum(sensed)}/{len(sensed)} | harder {sum(hard)}/{len(hard)}, softer {sum(soft)}/{len(soft)} | "
+              f"spotted {spotted}, located or spotted {either}")
     away = [r["away"] for r in rows if r["away"] is not None]
+    print(f"stray stiffness spots (on no lump) {sum(r['stray_spots'] for r in rows)} in {len(rows)} scenes")
     print(f"spurious regions on the fine map {sum(r['spurious'] for r in rows)} in {len(rows)} scenes; area right "
           f"away from lumps median {np.median(away):.1%}, worst {min(away):.1%}")
 

@@ -242,6 +242,9 @@ def test_run_writes_a_fine_map_and_replay_rebuilds_it_bit_for_bit(small_run, tmp
                      "--quiet"]) == 0
         with np.load(tmp_path / "maps" / "slab_fine.npz", allow_pickle=False) as replayed:
             np.testing.assert_array_equal(replayed["probabilities"], p)
+        again = json.loads((tmp_path / "summary.json").read_text())["objects"][0]["fine_map"]
+        assert isinstance(fine["stiffness_anomalies"], list)
+        assert again["stiffness_anomalies"] == fine["stiffness_anomalies"]
         # and in seed 002's format at its own resolution, read back by palpate's own reader
         hm = HapticMaterialMap.read(out / "haptic_materials" / "slab_fine")
         assert hm.cell_size == pytest.approx(0.001) and hm.probabilities.shape == p.shape

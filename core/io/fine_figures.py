@@ -1,5 +1,5 @@
-"""The fine material map's figure: the cell map, the fine map with the walls the presses read, and the truth, on
-one 1 mm raster."""
+"""The fine material map's figure: the cell map, the fine map with the walls the presses read and the spots that
+read harder or softer than the map says, and the truth, on one 1 mm raster."""
 
 from __future__ import annotations
 
@@ -15,18 +15,22 @@ SEGMENT_CM = 0.4
 
 
 def plot_fine_map(path: Path, name: str, fine: FineMap, cells: np.ndarray, truth: np.ndarray | None,
-                  walls: list[tuple[tuple[float, float], tuple[float, float]]]) -> Path:
+                  walls: list[tuple[tuple[float, float], tuple[float, float]]],
+                  spots: list[tuple[tuple[float, float], str]] = ()) -> Path:
     """Draw :func:`fine_map_figure` into ``path``."""
-    return _save(fine_map_figure(name, fine, cells, truth, walls), path)
+    return _save(fine_map_figure(name, fine, cells, truth, walls, spots), path)
 
 
 def fine_map_figure(name: str, fine: FineMap, cells: np.ndarray, truth: np.ndarray | None,
-                    walls: list[tuple[tuple[float, float], tuple[float, float]]]):
+                    walls: list[tuple[tuple[float, float], tuple[float, float]]],
+                    spots: list[tuple[tuple[float, float], str]] = ()):
     """Panels: the cell map's probabilities on the fine raster (``cells``: (ny, nx, M)), the fine map's with each
-    read wall (``walls``: its foot (x, y) and normal, m) as a white segment, and the truth (index per point, -1:
-    none) when known."""
+    read wall (``walls``: its foot (x, y) and normal, m) as a white segment and each stiffness spot (``spots``: its
+    centroid (x, y), m, and "harder" or "softer") as a white triangle up or down, and the truth (index per point,
+    -1: none) when known."""
     materials = list(fine.materials)
-    panels = [(rgb_image(cells), "cell map"), (rgb_image(fine.probabilities), "fine map, read walls in white")]
+    title = "fine map, read walls in white" + (", spots: harder ^ softer v" if spots else "")
+    panels = [(rgb_image(cells), "cell map"), (rgb_image(fine.probabilities), title)]
     if truth is not None and (truth >= 0).any():
         p = np.zeros(truth.shape + (len(materials),))
         p[truth >= 0] = np.eye(len(materials))[truth[truth >= 0]]
@@ -42,6 +46,9 @@ def fine_map_figure(name: str, fine: FineMap, cells: np.ndarray, truth: np.ndarr
     for foot, normal in walls:
         f, t = np.asarray(foot) * 100, np.array([-normal[1], normal[0]]) * SEGMENT_CM
         axes[1].plot([f[0] - t[0], f[0] + t[0]], [f[1] - t[1], f[1] + t[1]], color="white", lw=1.2)
+    for (x, y), sign in spots:
+        axes[1].plot(x * 100, y * 100, marker="^" if sign == "harder" else "v", ms=7, mfc="white", mec="black",
+                     mew=0.8, ls="none")
     axes[1].set_xlim(ext[0], ext[1])
     axes[1].set_ylim(ext[2], ext[3])
     axes[0].set_ylabel("y (cm)")

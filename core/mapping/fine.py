@@ -87,13 +87,6 @@ class FineMap:
         return np.repeat(np.repeat(cell_values, n, axis=0), n, axis=1)
 
 
-def _cell_of(geometry: MapGeometry, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    nx, ny = geometry.plane_shape
-    ix = np.clip(np.floor((xy[..., 0] - geometry.origin[0]) / geometry.cell_size).astype(int), 0, nx - 1)
-    iy = np.clip(np.floor((xy[..., 1] - geometry.origin[1]) / geometry.cell_size).astype(int), 0, ny - 1)
-    return ix, iy
-
-
 def _clear_cell(geometry: MapGeometry, probs: np.ndarray, astride: np.ndarray, foot: np.ndarray, step: np.ndarray,
                 clear: float) -> np.ndarray:
     """The distribution of the first cell along ``step`` (a unit vector) from the wall's foot whose centre lies at
@@ -102,14 +95,14 @@ def _clear_cell(geometry: MapGeometry, probs: np.ndarray, astride: np.ndarray, f
     nx, ny = geometry.plane_shape
     first = None
     for k in range(1, 4 * max(nx, ny)):
-        ix, iy = _cell_of(geometry, foot + step * (k * geometry.cell_size / 4))
+        ix, iy = geometry.cells_at(foot + step * (k * geometry.cell_size / 4))
         centre = np.array(geometry.origin) + (np.array([ix, iy]) + 0.5) * geometry.cell_size
         if abs(float((centre - foot) @ step)) < clear:
             continue
         first = probs[iy, ix] if first is None else first
         if astride[iy, ix] < 0.5:
             return probs[iy, ix]
-    return first if first is not None else probs[_cell_of(geometry, foot)[::-1]]
+    return first if first is not None else probs[geometry.cells_at(foot)[::-1]]
 
 
 def _astride(geometry: MapGeometry, readings, clear: float) -> np.ndarray:
@@ -118,7 +111,7 @@ def _astride(geometry: MapGeometry, readings, clear: float) -> np.ndarray:
     nx, ny = geometry.plane_shape
     out = np.zeros((ny, nx))
     for (x0, y0), r in readings:
-        ix, iy = _cell_of(geometry, np.array([x0, y0]))
+        ix, iy = geometry.cells_at(np.array([x0, y0]))
         out[iy, ix] = float(r.posterior[:, np.abs(r.offsets) < clear].sum())
     return out
 
@@ -177,7 +170,7 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     out = FineMap(geometry.origin, geometry.cell_size / n, np.zeros((ny * n, nx * n, probs.shape[2])),
                   geometry.materials)
     pts = out.centres()
-    ix, iy = _cell_of(geometry, pts)
+    ix, iy = geometry.cells_at(pts)
     acc = cell_weight * probs[iy, ix]
     weight = np.full(pts.shape[:2], cell_weight)
     # which cells' presses straddle a wall: only needed when neighbour cells name the sides
@@ -189,7 +182,7 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         window = window_around(pts.shape[:2], geometry.origin, res, (x0, y0), radius)
         if window is None:
             continue
-        own = probs[_cell_of(geometry, np.array([x0, y0]))[::-1]]
+        own = probs[geometry.cells_at(np.array([x0, y0]))[::-1]]
         if moduli is not None:
             matched = own * moduli.probabilities(r.log_plain, geometry.materials)
             own = matched / matched.sum() if matched.sum() > 0 else own

@@ -140,6 +140,14 @@ class MapGeometry:
         nx, ny = self.plane_shape
         return cell_centres(self.origin, self.cell_size, nx, ny)
 
+    def cells_at(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(ix, iy) of the plane cells holding the points ``xy`` (..., 2), m; points off the plane take the nearest
+        cell on its rim."""
+        nx, ny = self.plane_shape
+        ix = np.clip(np.floor((xy[..., 0] - self.origin[0]) / self.cell_size).astype(int), 0, nx - 1)
+        iy = np.clip(np.floor((xy[..., 1] - self.origin[1]) / self.cell_size).astype(int), 0, ny - 1)
+        return ix, iy
+
     def to_dict(self) -> dict:
         """JSON-ready form, as recordings store it (keys carry their unit)."""
         out = {"map": self.kind, "origin_m": list(self.origin), "cell_size_m": self.cell_size,

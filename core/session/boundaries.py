@@ -23,6 +23,7 @@ from palpate.core.boundary.reading import NoiseModel
 from palpate.core.boundary.templates import TEMPLATES_FILE, BoundaryTemplates, Pad, read_templates
 from palpate.core.errors import ValidationError
 from palpate.core.files import writing
+from palpate.core.mapping.anomalies import anomaly_report
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
 from palpate.core.mapping.fine import FineMap, boundary_error, edges, fine_map
 from palpate.core.mapping.regions import region_report
@@ -142,6 +143,7 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
     # where each material lies at the fine map's resolution (a buried lump is one region)
     summary["material_regions"] = region_report(fine.probabilities, fine.origin, fine.resolution, fine.materials,
                                                  cell=obj.geometry.cell_size)
+    summary["stiffness_anomalies"] = anomaly_report(obj.geometry, obj.post.probabilities, readings, moduli)
     truth = fine_truth(entry, scenario, fine)
     known = truth >= 0
     if not known.any():

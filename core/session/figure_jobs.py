@@ -148,10 +148,12 @@ class FigureDrawer:
             self._pool = None
 
 
-def fine_map_job(obj: ObjectResult, fine, truth: np.ndarray | None) -> FigureJob:
-    """An object's fine map beside its cell map and the truth (:mod:`palpate.core.io.fine_figures`)."""
+def fine_map_job(obj: ObjectResult, fine, truth: np.ndarray | None, anomalies: list[dict] | None = None) -> FigureJob:
+    """An object's fine map beside its cell map and the truth (:mod:`palpate.core.io.fine_figures`), with its
+    stiffness spots (``anomalies``: summary.json's ``stiffness_anomalies``)."""
     cells = fine.cells_on_raster(obj.post.probabilities)
     walls = [(tuple(np.asarray(s.result.location) + s.boundary.foot), tuple(s.boundary.normal)) for s in obj.steps
              if s.boundary is not None and s.boundary.p_boundary > 0.5]
+    spots = [(tuple(a["centroid_m"]), a["sign"]) for a in anomalies or ()]
     return FigureJob(f"{file_stem(obj.name)}_fine_map.png", fine_figures.plot_fine_map,
-                     (obj.name, fine, cells, truth, walls))
+                     (obj.name, fine, cells, truth, walls, spots))

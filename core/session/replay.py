@@ -27,6 +27,7 @@ from palpate.core.io import figures as fig
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.io.recording import Annotation, recording_to_press_recording
+from palpate.core.mapping.anomalies import anomaly_report
 from palpate.core.mapping.calibration import MapCalibration
 from palpate.core.mapping.fine import fine_map
 from palpate.core.mapping.geometry import MapGeometry
@@ -318,14 +319,15 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
             "material_regions": map_region_report(g, post.probabilities),
         })
         if state.readings:
-            fine = fine_map(g, post.probabilities, [(xy, r) for xy, r in state.readings if r is not None],
-                            moduli=moduli)
+            read = [(xy, r) for xy, r in state.readings if r is not None]
+            fine = fine_map(g, post.probabilities, read, moduli=moduli)
             save_fine_map(inside(out, out / "maps" / f"{stems[name]}_fine.npz"), fine)
             summary_objects[-1]["fine_map"] = {
                 "resolution_m": fine.resolution, "presses_read": len(state.readings),
                 "sides_named_by": "modulus" if moduli else "neighbour cells",
                 "material_regions": region_report(fine.probabilities, fine.origin, fine.resolution, fine.materials,
-                                                  cell=g.cell_size)}
+                                                  cell=g.cell_size),
+                "stiffness_anomalies": anomaly_report(g, post.probabilities, read, moduli)}
         if figures and not g.voxel:
             (out / "figures").mkdir(exist_ok=True)
             fig.plot_map_snapshots(inside(out, out / "figures" / f"{stems[name]}_map.png"), name,

@@ -267,7 +267,7 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
                 export_fine_map(inside(out, out / "haptic_materials" / f"{file_stem(obj.name)}_fine"), fine.fine,
                                 obj.name, scenario)
             if draw:
-                drawer.submit([fine_map_job(obj, fine.fine, fine.truth)])
+                drawer.submit([fine_map_job(obj, fine.fine, fine.truth, fine.summary.get("stiffness_anomalies"))])
     timing["maps_s"] = time.perf_counter() - t0
     cpu["maps_s"] = time.process_time() - c0
 

@@ -1,0 +1,143 @@
+"""Spots harder or softer than the map says: where a buried lump lies though no press named its material.
+
+A lump a few millimetres under the surface stiffens (or softens) the presses over it by tens of percent, yet the
+memory still names the material on top, so the map shows nothing there. Each press's boundary reading also gives
+the modulus of the one material that best explains its image (``log_plain``, in the reading's own units); the
+reference materials' training presses give each material's mean and spread of it
+(:class:`palpate.core.boundary.moduli.MaterialModuli`). A press whose modulus lies ``z`` spreads or more from that
+of the material the map names at its cell is anomalous, unless a wall at the surface explains it: its image then
+reads as a wall (``p_plain`` below :data:`P_PLAIN_MIN`) and the map names another material within one cell. On the
+map's rim only harder presses count (an object's free edge within reach reads softer). Nearby anomalous presses of
+one sign (harder or softer) make one spot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse.csgraph import connected_components
+
+from palpate.core.boundary.moduli import MaterialModuli
+from palpate.core.boundary.reading import BoundaryReading
+from palpate.core.errors import ValidationError
+from palpate.core.mapping.geometry import MapGeometry
+
+#: Spreads of the named material's read modulus beyond which a press is anomalous. Chosen on tuning scenes (lumps
+#: 0-23 of benchmarks/lump_scenes.py, shape families 0-17; raster, physics presses) as the smallest half value with
+#: at most one spot on no lump per ten scenes: 3 finds 20 of 46 lumps with 2 such spots in 42 scenes (2.5: 23 with
+#: 12; 3.5: 18 with 1).
+Z_MIN = 3.0
+#: A press whose image reads as one material at least this likely is judged on its modulus alone.
+P_PLAIN_MIN = 0.2
+#: Anomalous presses within this many cells of each other make one spot.
+LINK_CELLS = 1.5
+
+
+@dataclass(frozen=True)
+class StiffnessAnomaly:
+    """A spot whose presses read harder or softer than the material the map names there.
+
+    Attributes:
+        sign: "harder" or "softer".
+        material: the material the map names under the spot's strongest press.
+        presses: how many presses it holds.
+        centroid_m: (x, y) of its presses weighted by |z|, m.
+        z: its strongest press's distance from the named material's mean log modulus, in that material's spreads
+            (signed: > 0 harder).
+    """
+
+    sign: str
+    material: str
+    presses: int
+    centroid_m: tuple[float, float]
+    z: float
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (summary.json)."""
+        return {"sign": self.sign, "material": self.material, "presses": self.presses,
+                "centroid_m": list(self.centroid_m), "z": self.z}
+
+
+def press_z(geometry: MapGeometry, probabilities: np.ndarray, readings, moduli: MaterialModuli) -> np.ndarray:
+    """Per reading, its read modulus against the material the map names at its cell, in that material's spreads
+    (NaN where the map names a material the moduli do not know)."""
+    probs = np.asarray(probabilities, dtype=float)
+    out = np.full(len(readings), np.nan)
+    for i, ((x, y), r) in enumerate(readings):
+        ix, iy = geometry.cells_at(np.array([x, y]))
+        named = geometry.materials[int(np.argmax(probs[iy, ix]))]
+        if named in moduli.materials:
+            k = moduli.materials.index(named)
+            out[i] = (r.log_plain - moduli.log_mean[k]) / moduli.log_sd[k]
+    return out
+
+
+def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
+                        readings: list[tuple[tuple[float, float], BoundaryReading]], moduli: MaterialModuli, *,
+                        z_min: float = Z_MIN, p_plain_min: float = P_PLAIN_MIN,
+                        link_cells: float = LINK_CELLS) -> list[StiffnessAnomaly]:
+    """The spots of a 2-D map (``probabilities`` (ny, nx, M), e.g. post-processed) where presses read harder or
+    softer than it says (see the module docstring), strongest first.
+
+    Args:
+        geometry: the map's geometry (2-D).
+        probabilities: its distributions.
+        readings: per press, its measured (x, y) location, m, and its boundary reading.
+        moduli: the reference materials' read moduli.
+        z_min, p_plain_min, link_cells: see :data:`Z_MIN`, :data:`P_PLAIN_MIN`, :data:`LINK_CELLS`.
+
+    Raises:
+        ValidationError: a voxel map, probabilities of another shape, or settings that are not positive.
+    """
+    if geometry.voxel:
+        raise ValidationError("stiffness_anomalies: 2-D maps only")
+    nx, ny = geometry.plane_shape
+    probs = np.asarray(probabilities, dtype=float)
+    if probs.shape != (ny, nx, len(geometry.materials)):
+        raise ValidationError(f"stiffness_anomalies: probabilities must be ({ny}, {nx}, {len(geometry.materials)}), "
+                              f"got {probs.shape}")
+    if not (z_min > 0 and 0 <= p_plain_min <= 1 and link_cells > 0):
+        raise ValidationError("stiffness_anomalies: z_min and link_cells must be > 0, p_plain_min in [0, 1]")
+    if not readings:
+        return []
+    z = press_z(geometry, probs, readings, moduli)
+    labels = np.argmax(probs, axis=-1)
+    keep = []
+    for i, ((x, y), r) in enumerate(readings):
+        if not (np.isfinite(z[i]) and abs(z[i]) >= z_min and np.isfinite(r.log_plain)):
+            continue
+        ix, iy = geometry.cells_at(np.array([x, y]))
+        if z[i] < 0 and (ix in (0, nx - 1) or iy in (0, ny - 1)):
+            continue  # the object's free edge may lie within reach of the map's rim: it reads softer
+        around = labels[max(iy - 1, 0):iy + 2, max(ix - 1, 0):ix + 2]
+        # a wall at the surface reads as a wall and shows in the map; a lump under one material does neither
+        if r.p_plain >= p_plain_min or np.all(around == labels[iy, ix]):
+            keep.append(i)
+    if not keep:
+        return []
+    xy = np.array([readings[i][0][:2] for i in keep], dtype=float)
+    zk = z[keep]
+    near = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1)) <= link_cells * geometry.cell_size
+    near &= np.sign(zk)[:, None] == np.sign(zk)[None, :]
+    _, spot = connected_components(near, directed=False)
+    out = []
+    for s in np.unique(spot):
+        members = np.flatnonzero(spot == s)
+        w = np.abs(zk[members])
+        strongest = members[int(np.argmax(w))]
+        ix, iy = geometry.cells_at(xy[strongest])
+        centre = (w @ xy[members]) / w.sum()
+        out.append(StiffnessAnomaly("harder" if zk[strongest] > 0 else "softer",
+                                    geometry.materials[int(labels[iy, ix])], len(members),
+                                    (float(centre[0]), float(centre[1])), float(zk[strongest])))
+    return sorted(out, key=lambda a: -abs(a.z))
+
+
+def anomaly_report(geometry: MapGeometry, probabilities: np.ndarray,
+                   readings: list[tuple[tuple[float, float], BoundaryReading]],
+                   moduli: MaterialModuli | None) -> list[dict] | None:
+    """summary.json's ``stiffness_anomalies`` of a 2-D map (None without the reference materials' moduli)."""
+    if moduli is None:
+        return None
+    return [a.to_dict() for a in stiffness_anomalies(geometry, probabilities, readings, moduli)]

@@ -1,0 +1,86 @@
+"""Spots harder or softer than the map says: presses over a lump under one material make one spot where it lies; a
+wall at the surface that the map shows makes none; bad input is refused by name."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from palpate.core.boundary.moduli import MaterialModuli
+from palpate.core.boundary.reading import BoundaryReading
+from palpate.core.errors import ValidationError
+from palpate.core.mapping.anomalies import stiffness_anomalies
+from palpate.core.mapping.geometry import MapGeometry
+
+MATERIALS = ("soft", "medium", "hard")
+MODULI = MaterialModuli(MATERIALS, np.array([0.0, 1.7, 3.1]), np.array([0.15, 0.15, 0.15]))
+GEOMETRY = MapGeometry("grid2d", MATERIALS, (0.0, 0.0), 0.01, (8, 6))
+
+
+def _reading(log_plain: float, p_plain: float = 0.9) -> BoundaryReading:
+    return BoundaryReading(p_boundary=1.0 - p_plain, angle=0.0, angle_sd=0.1, offset=0.0, offset_sd=1e-3,
+                           contrast=2.0, reach=5.5e-3, posterior=np.full((1, 1), 1.0 - p_plain), p_plain=p_plain,
+                           angles=np.zeros(1), offsets=np.zeros(1), log_plain=log_plain)
+
+
+def _map(labels: np.ndarray) -> np.ndarray:
+    p = np.full(labels.shape + (3,), 0.05)
+    for m in range(3):
+        p[labels == m, m] = 0.9
+    return p
+
+
+def _raster(log_plain_at, p_plain_at=lambda x, y: 0.9):
+    """One press at every cell centre: (location, reading)."""
+    out = []
+    for iy in range(6):
+        for ix in range(8):
+            x, y = 0.005 + 0.01 * ix, 0.005 + 0.01 * iy
+            out.append(((x, y), _reading(log_plain_at(x, y), p_plain_at(x, y))))
+    return out
+
+
+def test_presses_over_a_buried_lump_make_one_harder_spot_where_it_lies():
+    labels = np.ones((6, 8), dtype=int)  # the map names medium everywhere
+    lump = {(0.035, 0.025), (0.045, 0.025), (0.035, 0.035)}  # three presses read 4-5 spreads harder
+    readings = _raster(lambda x, y: 1.7 + (0.7 if (round(x, 3), round(y, 3)) in lump else 0.05 * np.sin(40 * x)),
+                       lambda x, y: 0.1 if (round(x, 3), round(y, 3)) in lump else 0.9)  # asymmetric images
+    spots = stiffness_anomalies(GEOMETRY, _map(labels), readings, MODULI)
+    assert len(spots) == 1
+    spot = spots[0]
+    assert spot.sign == "harder" and spot.material == "medium" and spot.presses == 3
+    assert spot.z == pytest.approx(0.7 / 0.15)
+    assert spot.centroid_m == pytest.approx((0.115 / 3, 0.085 / 3))
+    # a softer lump elsewhere is a spot of its own; on the map's rim a softer press is the object's free edge
+    inner, rim = 4 * 8 + 1, 0  # cells (1, 4) and (0, 0)
+    readings[inner] = (readings[inner][0], _reading(1.0))
+    readings[rim] = (readings[rim][0], _reading(1.0))
+    spots = stiffness_anomalies(GEOMETRY, _map(labels), readings, MODULI)
+    assert sorted((s.sign, s.centroid_m) for s in spots)[1] == ("softer", pytest.approx((0.015, 0.045)))
+    assert len(spots) == 2
+    readings[rim] = (readings[rim][0], _reading(2.4))
+    assert len(stiffness_anomalies(GEOMETRY, _map(labels), readings, MODULI)) == 3  # a harder one there counts
+
+
+def test_a_wall_the_map_shows_makes_no_spot_and_nor_does_a_material_read_as_itself():
+    labels = np.ones((6, 8), dtype=int)
+    labels[:, 4:] = 2  # medium | hard wall at x = 40 mm
+    # presses beside the wall read in between (a wall's image), those elsewhere as their own material
+    readings = _raster(lambda x, y: 2.4 if 0.03 < x < 0.05 else (1.7 if x < 0.04 else 3.1),
+                       lambda x, y: 0.0 if 0.03 < x < 0.05 else 0.9)
+    assert stiffness_anomalies(GEOMETRY, _map(labels), readings, MODULI) == []
+    # the same in-between reading where the map shows no wall and the image looks like one material is a spot
+    readings = _raster(lambda x, y: 2.4 if 0.03 < x < 0.05 else (1.7 if x < 0.04 else 3.1))
+    assert {s.sign for s in stiffness_anomalies(GEOMETRY, _map(labels), readings, MODULI)} == {"harder", "softer"}
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"probabilities": np.zeros((6, 8, 2))}, r"\(6, 8, 3\)"),
+    ({"z_min": 0.0}, "z_min"),
+    ({"geometry": MapGeometry("voxel", MATERIALS, (0.0, 0.0), 0.01, (8, 6, 2), z_top=0.03)}, "2-D"),
+])
+def test_bad_input_is_refused_by_name(kwargs, match):
+    args = {"geometry": GEOMETRY, "probabilities": _map(np.ones((6, 8), dtype=int)), "readings": [],
+            "moduli": MODULI} | kwargs
+    with pytest.raises(ValidationError, match=match):
+        stiffness_anomalies(**args)
