@@ -24,10 +24,10 @@ from dataclasses import replace
 import numpy as np
 from fine_map_families import trained_scene
 from lump_scenes import footprint_area_mm2, lump_footprint, lump_top_mm, make_lump_scene
-from scene_families import is_report_seed
+from scene_families import REFERENCES, is_report_seed
 from scipy.ndimage import distance_transform_edt
 
-from palpate.core.mapping.regions import region_report
+from palpate.core.mapping.regions import map_region_report
 from palpate.core.session.boundaries import object_fine_map, training_moduli
 from palpate.core.session.explore import explore_object
 from palpate.core.session.progress import Progress
@@ -81,7 +81,7 @@ def scene_row(seed: int) -> dict:
                          boundary_reader=reader)
     fine = object_fine_map(res, sc.objects[0], sc, training_moduli(training.readings))
     g = res.geometry
-    maps = {"cell": region_report(res.post.probabilities, g.origin, g.cell_size, fine.fine.materials),
+    maps = {"cell": map_region_report(g, res.post.probabilities),
             "fine": fine.summary["material_regions"]}
     block = fs.materials[0][1]
     like = {name: ref for name, ref, _, _ in fs.materials}
@@ -118,7 +118,7 @@ def scene_row(seed: int) -> dict:
 
 
 def _harder(ref: str, block: str) -> bool:
-    order = [n for n, _, _ in __import__("scene_families").REFERENCES]
+    order = [name for name, _, _ in REFERENCES]  # softest first
     return order.index(ref) > order.index(block)
 
 
