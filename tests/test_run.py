@@ -136,6 +136,8 @@ def test_summary_reports_calibration_and_attainable_accuracy(small_run):
     text = format_report(summary, out)
     assert f"attainable accuracy (every column pressed once, same physics) {100 * ceiling['ceiling']:.0f}%" in text
     assert f"calibration error (ECE) of the post-processed map {cal['ece']:.3f} over {cal['cells']} cells" in text
+    fine = obj["fine_map"]["area_accuracy"]["fine_map"]
+    assert f"fine map (1 mm): {100 * fine:.0f}% of the area right" in text
 
 
 def test_run_writes_every_output(small_run):

@@ -84,3 +84,13 @@ def test_bad_input_is_refused_by_name(kwargs, match):
             "moduli": MODULI} | kwargs
     with pytest.raises(ValidationError, match=match):
         stiffness_anomalies(**args)
+
+
+def test_the_run_report_names_the_strongest_spots_and_counts_the_rest():
+    from palpate.core.cli.run import _fine_map_lines
+
+    spots = [{"sign": "harder" if k % 2 else "softer", "centroid_m": [0.01 * k, 0.02], "z": 9.0 - k}
+             for k in range(6)]
+    (line,) = _fine_map_lines({"stiffness_anomalies": spots}, most=4)
+    assert line.count(" at (") == 4 and "and 2 more" in line and "softer at (0.0, 2.0) cm" in line
+    assert _fine_map_lines({"stiffness_anomalies": []}) == []

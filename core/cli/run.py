@@ -146,6 +146,7 @@ def format_report(summary: dict, out: Path) -> str:
         if cal:
             lines.append(f"    calibration error (ECE) of the post-processed map {cal['ece']:.3f} over {cal['cells']} "
                          "cells")
+        lines += _fine_map_lines(obj.get("fine_map") or {})
         if obj.get("posterior_per_cycle"):
             final = obj["posterior_per_cycle"][-1]
             for (c, r), p in zip(obj["regions"], final, strict=True):
@@ -159,6 +160,24 @@ def format_report(summary: dict, out: Path) -> str:
     lines.append("timing: " + ", ".join(f"{k[:-2]} {v:.1f} s" for k, v in t.items()))
     lines.append(f"outputs in {out}/ (summary.json, memory.json, maps/, figures/, haptic_materials/)")
     return "\n".join(lines)
+
+
+def _fine_map_lines(fine: dict, most: int = 4) -> list[str]:
+    """The fine map's lines of the report: its area right beside the cell map's, and where presses read harder or
+    softer than the map names (the ``most`` strongest spots)."""
+    lines = []
+    area = fine.get("area_accuracy")
+    if area:
+        lines.append(f"    fine map ({fine['resolution_m'] * 1e3:g} mm): {_pct(area['fine_map'])} of the area right "
+                     f"(cell map {_pct(area['cell_map'])}), {fine['walls_read']} walls read")
+    spots = fine.get("stiffness_anomalies") or []
+    if spots:
+        where = ", ".join(f"{a['sign']} at ({a['centroid_m'][0] * 100:.1f}, {a['centroid_m'][1] * 100:.1f}) cm"
+                          for a in spots[:most])
+        more = f" and {len(spots) - most} more" if len(spots) > most else ""
+        lines.append(f"    {len(spots)} spot(s) reading harder or softer than the map names (a lump under the "
+                     f"surface?): {where}{more}")
+    return lines
 
 
 def _pct(v) -> str:
