@@ -77,6 +77,7 @@ def test_a_wall_the_map_shows_makes_no_spot_and_nor_does_a_material_read_as_itse
 @pytest.mark.parametrize(("kwargs", "match"), [
     ({"probabilities": np.zeros((6, 8, 2))}, r"\(6, 8, 3\)"),
     ({"z_min": 0.0}, "z_min"),
+    ({"probabilities": np.full((6, 8, 3), np.nan)}, "finite"),
     ({"geometry": MapGeometry("voxel", MATERIALS, (0.0, 0.0), 0.01, (8, 6, 2), z_top=0.03)}, "2-D"),
 ])
 def test_bad_input_is_refused_by_name(kwargs, match):

@@ -16,7 +16,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from palpate.core.boundary.moduli import MaterialModuli
 from palpate.core.boundary.reading import BoundaryReading
@@ -88,15 +90,16 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
         z_min, p_plain_min, link_cells: see :data:`Z_MIN`, :data:`P_PLAIN_MIN`, :data:`LINK_CELLS`.
 
     Raises:
-        ValidationError: a voxel map, probabilities of another shape, or settings that are not positive.
+        ValidationError: a voxel map, probabilities of another shape or not finite, or settings that are not
+            positive.
     """
     if geometry.voxel:
         raise ValidationError("stiffness_anomalies: 2-D maps only")
     nx, ny = geometry.plane_shape
     probs = np.asarray(probabilities, dtype=float)
-    if probs.shape != (ny, nx, len(geometry.materials)):
-        raise ValidationError(f"stiffness_anomalies: probabilities must be ({ny}, {nx}, {len(geometry.materials)}), "
-                              f"got {probs.shape}")
+    if probs.shape != (ny, nx, len(geometry.materials)) or not np.all(np.isfinite(probs)):
+        raise ValidationError(f"stiffness_anomalies: probabilities must be finite, ({ny}, {nx}, "
+                              f"{len(geometry.materials)}), got {probs.shape}")
     if not (z_min > 0 and 0 <= p_plain_min <= 1 and link_cells > 0):
         raise ValidationError("stiffness_anomalies: z_min and link_cells must be > 0, p_plain_min in [0, 1]")
     if not readings:
@@ -118,9 +121,11 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
         return []
     xy = np.array([readings[i][0][:2] for i in keep], dtype=float)
     zk = z[keep]
-    near = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1)) <= link_cells * geometry.cell_size
-    near &= np.sign(zk)[:, None] == np.sign(zk)[None, :]
-    _, spot = connected_components(near, directed=False)
+    # neighbours by a tree, not a dense matrix: a long run may hold thousands of anomalous presses
+    pairs = cKDTree(xy).query_pairs(link_cells * geometry.cell_size, output_type="ndarray")
+    pairs = pairs[np.sign(zk[pairs[:, 0]]) == np.sign(zk[pairs[:, 1]])]
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(keep), len(keep)))
+    _, spot = connected_components(graph, directed=False)
     out = []
     for s in np.unique(spot):
         members = np.flatnonzero(spot == s)
