@@ -95,3 +95,28 @@ def test_the_run_report_names_the_strongest_spots_and_counts_the_rest():
     (line,) = _fine_map_lines({"stiffness_anomalies": spots}, most=4)
     assert line.count(" at (") == 4 and "and 2 more" in line and "softer at (0.0, 2.0) cm" in line
     assert _fine_map_lines({"stiffness_anomalies": []}) == []
+
+
+def test_spots_are_recorded_as_scene_entities_that_a_replay_reads_past(tmp_path):
+    import json
+
+    from mcap.reader import make_reader
+
+    from palpate.core.io.mcap_reader import read_recording
+    from palpate.core.io.mcap_writer import RecordingWriter
+
+    spots = [{"sign": "harder", "material": "medium", "presses": 3, "centroid_m": [0.035, 0.025], "z": 4.7},
+             {"sign": "softer", "material": "medium", "presses": 1, "centroid_m": [0.015, 0.045], "z": -4.7}]
+    path = tmp_path / "spots.mcap"
+    with RecordingWriter(path, {"scenario": "spots"}) as writer:
+        writer.write_spots(2.0, "slab", spots, 0.03)
+    with open(path, "rb") as f:
+        (msg,) = [(c.topic, s.name, json.loads(m.data)) for s, c, m in make_reader(f).iter_messages()]
+    topic, schema, update = msg
+    assert (topic, schema) == ("/spots/slab", "foxglove.SceneUpdate")
+    harder, softer = update["entities"]
+    assert harder["id"] == "spot/slab/0" and harder["cubes"][0]["pose"]["position"]["x"] == pytest.approx(0.035)
+    assert harder["cubes"][0]["color"]["r"] > harder["cubes"][0]["color"]["b"]  # red
+    assert softer["cubes"][0]["color"]["b"] > softer["cubes"][0]["color"]["r"]  # blue
+    assert softer["texts"][0]["text"] == "softer -4.7"
+    assert read_recording(path).frames == []  # a view: the reader skips it

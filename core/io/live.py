@@ -21,7 +21,7 @@ from palpate.core.extras import missing_extra
 from palpate.core.io.live_guard import GuardLimits, LiveGuard, listening_fds
 
 DEFAULT_PORT = 8765
-_STATE_TOPICS = ("/map/", "/scene")
+_STATE_TOPICS = ("/map/", "/scene", "/spots/")
 
 
 class LiveServer:

@@ -47,6 +47,8 @@ topic                            schema                         what it shows
                                                                 ``explored`` (uint8)
 ``/scene``                       ``foxglove.SceneUpdate``       each object as an entity: its box or cylinder
                                                                 and its name (cubes, cylinders and texts)
+``/spots/<object>``              ``foxglove.SceneUpdate``       once, if any: the fine map's stiffness spots
+                                                                (a red / blue marker and its sign and z)
 ===============================  =============================  ==================================================
 
 Times: each message's ``log_time`` and Foxglove ``timestamp`` are ``round(t * 1e9)`` ns, so ``t`` must be >= 0;

@@ -237,6 +237,7 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         fines.append(None if reader is None else object_fine_map(objects[-1], entry, scenario, moduli))
         if fines[-1] is not None:
             log.show_fine_map(objects[-1].name, fines[-1].fine, entry.spec.height)
+            log.show_spots(objects[-1].name, fines[-1].summary.get("stiffness_anomalies"), entry.spec.height)
         _warn(progress, saturation_warning(entry.spec.name, saturation([s.result for s in objects[-1].steps])))
         _warn(progress, solver_warning(entry.spec.name, solver_warnings([s.result for s in objects[-1].steps])))
         if draw:
