@@ -22,7 +22,7 @@ import argparse
 import math
 
 import numpy as np
-from scene_families import HEIGHT_MM, PX_MM, REFERENCES, FamilyScene
+from scene_families import HEIGHT_MM, PX_MM, REFERENCES, FamilyScene, slot_materials
 
 #: Depth of a lump's top under the surface, mm (drawn uniformly).
 TOP_MM = (0.5, 6.0)
@@ -61,14 +61,7 @@ def make_lump_scene(seed: int) -> FamilyScene:
     sy = off[1] + ny * c + rng.uniform(0.1, 0.9) * c
     k = int(rng.choice([2, 3, 3]))
     refs = sorted(rng.choice(len(REFERENCES), k, replace=False).tolist())
-    order = rng.permutation(k)
-    materials = []
-    for slot in range(k):
-        name, e, nu = REFERENCES[refs[order[slot]]]
-        if rng.random() < 0.3:
-            materials.append((f"{name}_like{slot}", name, round(e * float(rng.uniform(0.8, 1.25)), 2), nu))
-        else:
-            materials.append((name, name, e, nu))
+    materials = slot_materials(rng, refs, rng.permutation(k))
     lumps: list[dict] = []
     boxes: list[tuple[float, float, float, float]] = []  # footprints' bounds, for keeping lumps apart
     for _ in range(int(rng.integers(1, 4))):

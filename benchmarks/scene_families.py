@@ -280,6 +280,19 @@ def _paint(rng, masks: list[np.ndarray], k: int, shape: tuple[int, int]) -> np.n
     return labels
 
 
+def slot_materials(rng, refs: list[int], order: np.ndarray) -> list[tuple[str, str, float, float]]:
+    """Each slot's material, (name, like-reference, Young's modulus kPa, Poisson): slot i stands for reference
+    ``refs[order[i]]``, as itself or (30%) a like-material 0.8-1.25x its modulus."""
+    materials = []
+    for slot in range(len(order)):
+        name, e, nu = REFERENCES[refs[order[slot]]]
+        if rng.random() < 0.3:
+            materials.append((f"{name}_like{slot}", name, round(e * float(rng.uniform(0.8, 1.25)), 2), nu))
+        else:
+            materials.append((name, name, e, nu))
+    return materials
+
+
 def make_scene(seed: int, family: str | None = None) -> FamilyScene:
     """The seeded scene of ``seed`` (family ``FAMILIES[seed % len(FAMILIES)]`` unless given)."""
     rng = np.random.default_rng([seed, 15])
@@ -295,13 +308,7 @@ def make_scene(seed: int, family: str | None = None) -> FamilyScene:
     x, y = np.meshgrid((np.arange(npx) + 0.5) * PX_MM, (np.arange(npy) + 0.5) * PX_MM)
     labels = _paint(rng, _masks(family, rng, x, y, sx, sy, c), k, (npy, npx))
     order = rng.permutation(k)  # which reference each slot stands for
-    materials = []
-    for slot in range(k):
-        name, e, nu = REFERENCES[refs[order[slot]]]
-        if rng.random() < 0.3:
-            materials.append((f"{name}_like{slot}", name, round(e * float(rng.uniform(0.8, 1.25)), 2), nu))
-        else:
-            materials.append((name, name, e, nu))
+    materials = slot_materials(rng, refs, order)
     # the memory knows every drawn reference, also one whose slot was painted over entirely (it may still be read)
     references = tuple(r[0] for r in REFERENCES if r[0] in {m[1] for m in materials})
     return FamilyScene(seed, family, c, (float(sx), float(sy)), (float(off[0]), float(off[1])), (nx, ny),
