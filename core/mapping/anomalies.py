@@ -64,15 +64,20 @@ class StiffnessAnomaly:
 def press_z(geometry: MapGeometry, probabilities: np.ndarray, readings, moduli: MaterialModuli) -> np.ndarray:
     """Per reading, its read modulus against the material the map names at its cell, in that material's spreads
     (NaN where the map names a material the moduli do not know)."""
-    probs = np.asarray(probabilities, dtype=float)
-    out = np.full(len(readings), np.nan)
-    for i, ((x, y), r) in enumerate(readings):
-        ix, iy = geometry.cells_at(np.array([x, y]))
-        named = geometry.materials[int(np.argmax(probs[iy, ix]))]
-        if named in moduli.materials:
-            k = moduli.materials.index(named)
-            out[i] = (r.log_plain - moduli.log_mean[k]) / moduli.log_sd[k]
-    return out
+    return _named_z(geometry, np.argmax(np.asarray(probabilities, dtype=float), axis=-1), readings, moduli)[2]
+
+
+def _named_z(geometry: MapGeometry, labels: np.ndarray, readings, moduli: MaterialModuli):
+    """(ix, iy, z): each reading's cell and :func:`press_z`, with ``labels`` the map's most probable material per
+    cell (ny, nx)."""
+    xy = np.array([loc[:2] for loc, _ in readings], dtype=float).reshape(-1, 2)
+    ix, iy = geometry.cells_at(xy)
+    known = np.array([moduli.materials.index(m) if m in moduli.materials else -1 for m in geometry.materials])
+    k = known[labels[iy, ix]]
+    log_plain = np.array([r.log_plain for _, r in readings], dtype=float)
+    z = np.full(len(readings), np.nan)
+    z[k >= 0] = (log_plain[k >= 0] - moduli.log_mean[k[k >= 0]]) / moduli.log_sd[k[k >= 0]]
+    return ix, iy, z
 
 
 def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
@@ -104,13 +109,13 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
         raise ValidationError("stiffness_anomalies: z_min and link_cells must be > 0, p_plain_min in [0, 1]")
     if not readings:
         return []
-    z = press_z(geometry, probs, readings, moduli)
     labels = np.argmax(probs, axis=-1)
+    cx, cy, z = _named_z(geometry, labels, readings, moduli)
     keep = []
-    for i, ((x, y), r) in enumerate(readings):
-        if not (np.isfinite(z[i]) and abs(z[i]) >= z_min and np.isfinite(r.log_plain)):
+    for i, (_, r) in enumerate(readings):
+        if not (np.isfinite(z[i]) and abs(z[i]) >= z_min):
             continue
-        ix, iy = geometry.cells_at(np.array([x, y]))
+        ix, iy = cx[i], cy[i]
         if z[i] < 0 and (ix in (0, nx - 1) or iy in (0, ny - 1)):
             continue  # the object's free edge may lie within reach of the map's rim: it reads softer
         around = labels[max(iy - 1, 0):iy + 2, max(ix - 1, 0):ix + 2]
@@ -131,10 +136,10 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
         members = np.flatnonzero(spot == s)
         w = np.abs(zk[members])
         strongest = members[int(np.argmax(w))]
-        ix, iy = geometry.cells_at(xy[strongest])
+        at = keep[strongest]
         centre = (w @ xy[members]) / w.sum()
         out.append(StiffnessAnomaly("harder" if zk[strongest] > 0 else "softer",
-                                    geometry.materials[int(labels[iy, ix])], len(members),
+                                    geometry.materials[int(labels[cy[at], cx[at]])], len(members),
                                     (float(centre[0]), float(centre[1])), float(zk[strongest])))
     return sorted(out, key=lambda a: -abs(a.z))
 
