@@ -129,6 +129,16 @@ def fine_truth(entry: ObjectEntry, scenario: Scenario, fine: FineMap) -> np.ndar
     return ground_truth_cells(entry, scenario, pts.reshape(-1, 2), z).reshape(pts.shape[:2])
 
 
+def fine_map_findings(fine: FineMap, geometry, probabilities: np.ndarray, readings, moduli: MaterialModuli | None
+                      ) -> dict:
+    """What a fine map's summary says it found, for a run and a replay alike: where each material lies at its
+    resolution (a buried lump is one region) and the spots that read harder or softer than the cell map
+    (``probabilities``, post-processed) names."""
+    return {"material_regions": region_report(fine.probabilities, fine.origin, fine.resolution, fine.materials,
+                                              cell=geometry.cell_size),
+            "stiffness_anomalies": anomaly_report(geometry, probabilities, readings, moduli)}
+
+
 def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: MaterialModuli | None) -> FineResult | None:
     """The fine map of an explored 2-D object from its post-processed cell map and its presses' readings (None for
     voxel maps), with its summary: walls read, and with ground truth the share of the area each map labels right on
@@ -140,10 +150,7 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
     summary = {"resolution_m": fine.resolution, "presses_read": len(readings),
                "walls_read": sum(1 for _, r in readings if r.p_boundary > 0.5),
                "sides_named_by": "modulus" if moduli is not None else "neighbour cells"}
-    # where each material lies at the fine map's resolution (a buried lump is one region)
-    summary["material_regions"] = region_report(fine.probabilities, fine.origin, fine.resolution, fine.materials,
-                                                 cell=obj.geometry.cell_size)
-    summary["stiffness_anomalies"] = anomaly_report(obj.geometry, obj.post.probabilities, readings, moduli)
+    summary |= fine_map_findings(fine, obj.geometry, obj.post.probabilities, readings, moduli)
     truth = fine_truth(entry, scenario, fine)
     known = truth >= 0
     if not known.any():

@@ -27,12 +27,11 @@ from palpate.core.io import figures as fig
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.io.recording import Annotation, recording_to_press_recording
-from palpate.core.mapping.anomalies import anomaly_report
 from palpate.core.mapping.calibration import MapCalibration
 from palpate.core.mapping.fine import fine_map
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
-from palpate.core.mapping.regions import map_region_report, region_report
+from palpate.core.mapping.regions import map_region_report
 from palpate.core.mapping.snapshot import MapSnapshot
 from palpate.core.names import inside, unique_stems
 from palpate.core.perception.classifier_memory import ClassifierMemory
@@ -42,7 +41,7 @@ from palpate.core.perception.memory_loading import check_replayable, memory_algo
 from palpate.core.perception.pipeline import presses_from_recording
 from palpate.core.perception.press import PressResult, perceive_press, press_result
 from palpate.core.perception.streams import GroundTruth, PressRecording
-from palpate.core.session.boundaries import replay_reader, save_fine_map, training_moduli
+from palpate.core.session.boundaries import fine_map_findings, replay_reader, save_fine_map, training_moduli
 from palpate.core.session.explore import MapPostprocessing, apply_press
 from palpate.core.session.output_guard import prepare_output_folder
 from palpate.core.session.progress import Progress
@@ -324,10 +323,8 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
             save_fine_map(inside(out, out / "maps" / f"{stems[name]}_fine.npz"), fine)
             summary_objects[-1]["fine_map"] = {
                 "resolution_m": fine.resolution, "presses_read": len(state.readings),
-                "sides_named_by": "modulus" if moduli else "neighbour cells",
-                "material_regions": region_report(fine.probabilities, fine.origin, fine.resolution, fine.materials,
-                                                  cell=g.cell_size),
-                "stiffness_anomalies": anomaly_report(g, post.probabilities, read, moduli)}
+                "sides_named_by": "modulus" if moduli else "neighbour cells"} | fine_map_findings(
+                fine, g, post.probabilities, read, moduli)
         if figures and not g.voxel:
             (out / "figures").mkdir(exist_ok=True)
             fig.plot_map_snapshots(inside(out, out / "figures" / f"{stems[name]}_map.png"), name,
