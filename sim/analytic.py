@@ -23,9 +23,9 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Material, ObjectSpec, Scene, material_at
+from palpate.sim.bem.law import press_law
 from palpate.sim.blas import one_blas_thread
 from palpate.sim.contact.law import ContactLaw
-from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import gauss_points, sensel_bounds
 from palpate.sim.limits import check_holds
@@ -278,7 +278,7 @@ def analytic_samples(
     depth = np.maximum(profile.surface_z + radius - z, 0.0)
     if law is None:
         with one_blas_thread():  # its FE solves (an inclusion, an edge within reach): see palpate.sim.blas
-            law = object_law(obj, profile.x, profile.y, profile.surface_z, radius, law_depth(profile))
+            law = press_law(obj, profile.x, profile.y, profile.surface_z, tip, law_depth(profile))
     normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
     # the contact is where the sphere faces the surface: at -R n in the tip frame, projected on the pad plane
     centre = -radius * normal[:2]

@@ -31,9 +31,9 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import local_material
+from palpate.sim.bem.law import press_law
 from palpate.sim.blas import one_blas_thread
 from palpate.sim.contact.law import ContactLaw
-from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import PressProfile
 from palpate.sim.fingertip import cap_height, sensel_quadrature
 from palpate.sim.limits import check_holds
@@ -202,7 +202,7 @@ def run_rigid_press(
         law = None
     if law is None:
         with one_blas_thread():  # its FE solves (an inclusion, an edge within reach): see palpate.sim.blas
-            law = object_law(obj, profile.x, profile.y, profile.surface_z, radius, law_depth(profile))
+            law = press_law(obj, profile.x, profile.y, profile.surface_z, scene.fingertip, law_depth(profile))
     axis = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
     centres = profile.centres()
     start = centres[0]

@@ -21,10 +21,10 @@ from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import material_under, run_analytic_press
+from palpate.sim.bem.law import press_law
 from palpate.sim.bem.press import run_bem_press
 from palpate.sim.bem.wall import load_wall_table
 from palpate.sim.blas import blas_controller, one_blas_thread
-from palpate.sim.contact.stack import object_law
 from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profile
 from palpate.sim.flex.model import SOLVER_ITERATIONS
 from palpate.sim.flex.press import run_flex_press
@@ -143,7 +143,7 @@ class SimSource:
         if hit is not None and hit[1] == held:
             return hit[0]
         with one_blas_thread(self._blas_controller()):
-            law = object_law(obj, x, y, surface_z, self.scene.fingertip.radius, max_depth, cache=self._laws)
+            law = press_law(obj, x, y, surface_z, self.scene.fingertip, max_depth, cache=self._laws)
         if len(self._law_memo) > 512:
             self._law_memo.clear()
         kept = tuple(self._laws.values())  # held, so that no id in the snapshot is reused while it is kept

@@ -17,7 +17,8 @@ from palpate.core.world.scene import FingertipSpec, Inclusion, Layer, Material, 
 from palpate.sim import simulate_press
 from palpate.sim.analytic import law_sensel_pressure
 from palpate.sim.bem.kernel import influence, love_rectangle
-from palpate.sim.bem.press import run_bem_press, solve_ladder
+from palpate.sim.bem.press import run_bem_press
+from palpate.sim.bem.solve import solve_ladder
 from palpate.sim.bem.surface import ROWS, build_surface, column_kinds, column_stacks, stack_compliance
 from palpate.sim.bem.wall import NEAR_WALL, Wall, WallTable, find_wall, load_wall_table
 from palpate.sim.contact.lcp import solve_contact

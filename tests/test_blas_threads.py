@@ -28,13 +28,13 @@ def _lump() -> ObjectSpec:
 @pytest.mark.parametrize("module", [source, analytic, rigid], ids=["source", "analytic", "rigid"])
 def test_a_press_asks_for_its_law_on_one_blas_thread(monkeypatch, module):
     seen = []
-    real = module.object_law
+    real = module.press_law
 
     def spy(*args, **kwargs):
         seen.append(_blas_threads())
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(module, "object_law", spy)
+    monkeypatch.setattr(module, "press_law", spy)
     obj = _lump()
     scene = Scene(objects=(obj,), fingertip=FingertipSpec(radius=R))
     target = PressTarget(0.0, 0.0, depth=0.001, speed=0.01)

@@ -272,24 +272,33 @@ def test_a_run_sharing_laws_among_its_sources_gives_the_maps_of_one_that_does_no
 def test_auto_decides_a_force_press_on_the_law_where_it_lands_and_solves_no_other(monkeypatch):
     """A force target's depth (what auto places in its validity table) comes from the law at the point the press's
     own draws put it, the law the press then feels: beside a wall, where every point has a law of its own, one
-    axisymmetric solve a press, not one at the target and another a fraction of a millimetre away."""
+    surface solve a press (and no axisymmetric one), not one at the target and another a fraction of a millimetre
+    away."""
     from palpate.core.world.scene import Inclusion
     from palpate.sim import source as source_mod
+    from palpate.sim.bem import law as law_mod
     from palpate.sim.contact import stack as st
 
     wall = ObjectSpec("slab", "box", (0.1, 0.1, 0.03), (0.0, 0.0), Material("foam", 3e4, 0.3),
                       inclusions=(Inclusion(Material("rubber", 1.5e5, 0.45), "box", (0.03, 0.0, 0.015),
                                             (0.06, 0.1, 0.03)),))
     solved: list = []
-    real = st.axisymmetric_law
+    averaged: list = []
+    real, real_average = law_mod.surface_law, st.axisymmetric_law
 
     def spy(*args, **kwargs):
-        solved.append(args[3] if len(args) > 3 else kwargs["max_depth"])
-        return real(*args, **kwargs)
+        law = real(*args, **kwargs)
+        solved.append(law is not None)
+        return law
 
-    monkeypatch.setattr(st, "axisymmetric_law", spy)
+    def spy_average(*args, **kwargs):
+        averaged.append(args)
+        return real_average(*args, **kwargs)
+
+    monkeypatch.setattr(law_mod, "surface_law", spy)
+    monkeypatch.setattr(st, "axisymmetric_law", spy_average)
     src = source_mod.SimSource(Scene((wall,)), fidelity="auto", seed=3, variability="human")
     targets = [PressTarget(-0.002 + 0.0015 * k, 0.0, force=2.0, speed=0.01) for k in range(3)]
     for t in targets:
         src.press(t)
-    assert len(solved) == 3
+    assert solved == [True] * 3 and not averaged

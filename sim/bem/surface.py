@@ -20,7 +20,7 @@ what lies around them (``Surface.mixing``):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -325,3 +325,13 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
     compliance = _compliance(base, cell, span, flat_ij, factor)
     return Surface(cell=float(cell), centres=centres, stack_of=own, stacks=tuple(stacks[i] for i in used),
                    compliance=compliance, overlap=sensel_overlap(tip, centres, cell), mixing=mixing, buried=buried)
+
+
+def uniform_surface(surface: Surface, stack: Stack, reach: float) -> Surface:
+    """``surface``'s cells over ``stack`` everywhere (the one it was built with ``reach``, m): the like-against-like
+    reference of a surface with several stacks (a ratio of the two solves cancels the cells' own error)."""
+    span = int(math.ceil(reach / surface.cell))
+    ij = np.rint(surface.centres / surface.cell - 0.5).astype(int)
+    flat_ij = ij[:, 0] * (4 * span + 1) + ij[:, 1]
+    return replace(surface, stack_of=np.zeros(len(ij), dtype=int), stacks=(stack,),
+                   compliance=_compliance(stack, surface.cell, span, flat_ij), mixing="uniform", buried=False)

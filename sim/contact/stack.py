@@ -4,7 +4,9 @@ nearby edges) pressed at (x, y).
 Where the object is laterally uniform within reach of the press (every depth one material across a disc of radius
 1.5 a + depth, a the deepest contact radius), it is exactly its column of layers on the rigid table, and the law is
 the layered solution (:mod:`.law`). Otherwise (an inclusion, a map boundary, an edge within reach) the object is
-averaged around the press axis and solved axisymmetrically (:mod:`.axisymmetric`).
+averaged around the press axis and solved axisymmetrically (:mod:`.axisymmetric`). Presses take
+:func:`palpate.sim.bem.law.press_law`, which replaces that average by the surface solve's force where the top itself
+changes material within the contact (a wall: the average is up to ~47% off there).
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 :mod:`.image_cases` at the reference's depths, scored by :func:`.image.image_errors`.
 
 ``analytic`` and ``bem`` are evaluated at the depths directly (both are quasi-static: the image at a depth does not
-depend on how the press got there); ``rigid`` shares analytic's contact law and image, so it is scored as analytic.
+depend on how the press got there); ``rigid`` shares analytic's contact law (:func:`palpate.sim.bem.law.press_law`)
+and image, so it is scored as analytic.
 ``flex`` presses once to just past the deepest depth and is read on the loading branch; it is scored on the plain
 objects it serves (blocks, skins) only: unmeasured over walls and lumps, ``auto`` never picks it there.
 """
@@ -19,7 +20,9 @@ from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, ObjectSpec, Scene
 from palpate.sim.analytic import law_sensel_pressure
-from palpate.sim.bem.press import CELL, law_scaled, solve_ladder
+from palpate.sim.bem.law import press_law
+from palpate.sim.bem.press import CELL, law_scaled
+from palpate.sim.bem.solve import solve_ladder
 from palpate.sim.bem.surface import build_surface
 from palpate.sim.bem.wall import WallTable
 from palpate.sim.blas import one_blas_thread
@@ -62,7 +65,7 @@ def rung_image(case: ImageCase, rung: str, tip: FingertipSpec, walls: WallTable 
     depths = np.asarray(case.depths, dtype=float)
     with one_blas_thread():
         if rung == "analytic":
-            law = object_law(obj, x, y, obj.height, tip.radius, 1.05 * depths[-1])
+            law = press_law(obj, x, y, obj.height, tip, 1.05 * depths[-1], walls=walls)
             return PressImage(depths, law.force_at(depths), law_sensel_pressure(law, depths, sensel_bounds(tip))), ""
         if rung == "bem":
             a = math.sqrt(tip.radius * depths[-1])
