@@ -153,18 +153,11 @@ def _no_constant(name: str):
     raise ValueError(f"{name} is not a number JSON allows (expected finite numbers only)")
 
 
-def _finite_float(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise ValueError(f"{text[:40]} is too large for a number (expected finite numbers only)")
-    return value
-
-
 def parse_json(text: str, source: str, what: str) -> object:
     """Decode a JSON document; ValidationError naming ``source`` (and the line) for anything a file can do wrong:
     invalid JSON, duplicate keys, NaN/Infinity, numbers of more than 4300 digits, nesting over ``json_depth``."""
     try:
-        doc = json.loads(text, object_pairs_hook=_pairs, parse_constant=_no_constant, parse_float=_finite_float)
+        doc = json.loads(text, object_pairs_hook=_pairs, parse_constant=_no_constant)
     except json.JSONDecodeError as exc:
         raise ValidationError(f"{source}:{exc.lineno}: not valid JSON ({what}): {exc.msg}") from None
     except _DuplicateKey as exc:
@@ -174,22 +167,46 @@ def parse_json(text: str, source: str, what: str) -> object:
         raise limits.exceeded("json_depth", f"{source}: {what}: nesting depth", float("inf")) from None
     except ValueError as exc:  # Python's limit on integer digits, or parse_constant
         raise ValidationError(f"{source}: {what}: {str(exc)[:120]}") from None
-    depth = json_depth(doc)
+    try:
+        depth = json_depth(doc)
+    except OverflowError:
+        raise ValidationError(f"{source}: {what}: a number too large for a float (expected finite numbers only)") \
+            from None
     limits.check("json_depth", f"{source}: {what}: nesting depth", depth)
     return doc
 
 
 def json_depth(doc: object) -> int:
-    """Nesting depth of a decoded JSON value (a scalar is 0), computed without recursion."""
+    """Nesting depth of a decoded JSON value (a scalar is 0), computed without recursion; OverflowError at a number
+    that decoded to an infinite float (its digits too large for one). Lists of numbers only are checked at once as
+    a numpy array (a table of numbers costs a conversion, not a Python step per number)."""
     deepest, stack = 0, [(doc, 0)]
     while stack:
         node, depth = stack.pop()
+        if isinstance(node, list):
+            numbers = _numbers(node)
+            if numbers is not None:
+                if not np.isfinite(numbers).all():
+                    raise OverflowError("a number too large for a float")
+                deepest = max(deepest, depth + numbers.ndim)
+                continue
         children = node.values() if isinstance(node, dict) else node if isinstance(node, list) else None
         if children is None:
+            if isinstance(node, float) and not math.isfinite(node):
+                raise OverflowError("a number too large for a float")
             continue
         deepest = max(deepest, depth + 1)
-        stack.extend((c, depth + 1) for c in children if isinstance(c, (dict, list)))
+        stack.extend((c, depth + 1) for c in children if isinstance(c, (dict, list, float)))
     return deepest
+
+
+def _numbers(node: list) -> np.ndarray | None:
+    """``node`` as a numeric array if it is a (nested, rectangular) list of numbers only, else None."""
+    try:
+        arr = np.array(node)
+    except (ValueError, TypeError, OverflowError):  # ragged, or deeper than numpy's dimensions
+        return None
+    return arr if arr.dtype.kind in "fiub" else None
 
 
 def read_json(path: str | Path, what: str) -> object:

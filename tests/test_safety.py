@@ -14,7 +14,7 @@ import pytest
 from palpate.core import limits
 from palpate.core.cli import main
 from palpate.core.errors import ValidationError
-from palpate.core.files import read_json, read_text, read_toml
+from palpate.core.files import parse_json, read_json, read_text, read_toml
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.mapping.grids import Grid2D
@@ -462,3 +462,19 @@ def test_a_map_reaching_past_its_object_is_named_with_the_scenario_and_object(tm
     code, _, err = _cli(["run", path, "--out", tmp_path / "out", "--quiet"], capsys)
     assert code == 2
     _one_line_error(err, "s.toml: object 'Block', cell [1, 1]", "check the object's size_mm")
+
+
+@pytest.mark.parametrize("text", ['{"t": [[1.0, 2.0], [3.0, 1e999]]}', '{"t": [["inf", -1e999]]}', "1e999",
+                                  '[{"a": [1, 2]}, {"b": [0.5, 1e400]}]'])
+def test_a_number_too_large_for_a_float_is_refused_wherever_it_sits(text):
+    with pytest.raises(ValidationError, match="too large for a float"):
+        parse_json(text, "doc.json", "a test document")
+
+
+def test_tables_of_numbers_are_read_as_written_and_their_nesting_counted():
+    doc = {"t": [[1e308, -2.5], [3, 4]], "s": ["inf", 1.5, True, None], "n": 12345678901234567890123}
+    assert parse_json(json.dumps(doc), "doc.json", "a test document") == doc
+    deep = "[" * 65 + "1.5" + "]" * 65
+    with pytest.raises(ValidationError, match="json_depth"):
+        parse_json(deep, "doc.json", "a test document")
+    assert parse_json("[" * 60 + "1.5" + "]" * 60, "doc.json", "a test document") is not None
