@@ -23,6 +23,7 @@ COMMANDS = {
     "palpate --version": [sys.executable, "-c", CLI, "--version"],
     "palpate scenarios list": [sys.executable, "-c", CLI, "scenarios", "list"],
     "import palpate; palpate.__version__": [sys.executable, "-c", "import palpate; palpate.__version__"],
+    "import palpate.sim (the simulator a run loads)": [sys.executable, "-c", "import palpate.sim"],
     "import numpy (for scale)": [sys.executable, "-c", "import numpy"],
 }
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import gammaincinv
 
 from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget
@@ -183,7 +183,8 @@ def tail_scale(dof: float, seed: int) -> float:
     if dof <= 0:
         return 1.0
     u = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(TAIL_STREAM,))).uniform()
-    return float(min(np.sqrt(dof / chi2.ppf(u, dof)), TAIL_SCALE_MAX))
+    # chi2's quantile as scipy.stats computes it (2 P^-1(nu / 2, u)), without importing scipy.stats (~0.3 s)
+    return float(min(np.sqrt(dof / (2.0 * gammaincinv(dof / 2.0, u))), TAIL_SCALE_MAX))
 
 
 #: Forces, N, at which :func:`stiff_depth` samples a force -> depth law (log-spaced, ~4% apart).

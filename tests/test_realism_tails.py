@@ -119,3 +119,13 @@ def test_the_parameter_round_trips_and_is_calibratable():
     (free,) = free_parameters(["press.tail_dof"])
     # a start with the tail off begins at the gentlest tail of the box, not at its heaviest
     assert free.position(0.0) == 1.0 and free.value(1.0) == pytest.approx(free.hi)
+
+
+@pytest.mark.parametrize("dof", [0.7, 1.0, 3.0, 12.5])
+def test_the_scale_is_the_chi2_quantile_of_the_press_stream(dof):
+    from palpate.sim.controller import TAIL_STREAM
+
+    for seed in (0, 5, 99991):
+        u = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(TAIL_STREAM,))).uniform()
+        want = min(np.sqrt(dof / stats.chi2.ppf(u, dof)), TAIL_SCALE_MAX)
+        assert tail_scale(dof, seed) == want

@@ -27,7 +27,6 @@ import math
 from dataclasses import replace
 
 import numpy as np
-from scipy.optimize import nnls
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import Material
@@ -172,6 +171,8 @@ def _fit_coeffs(fe) -> np.ndarray:
             # with few FE nodes inside a small contact the plain fit is rank-deficient, and its huge cancelling
             # coefficients put garbage between the nodes (1e17 Pa on a sensel while the force stays right): the
             # profiles are kept non-negative instead (a pressure falling from the axis, as a contact's does)
+            from scipy.optimize import nnls  # rarely needed; importing scipy.optimize costs ~0.1 s
+
             coef = nnls(design, p)[0]
         rows.append(coef)
     return np.array(rows)

@@ -38,7 +38,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import LinearNDInterpolator
 
 from palpate.core.errors import ValidationError
 from palpate.core.files import number_array
@@ -213,6 +212,8 @@ def lump_curve(table: LumpTable, moduli: np.ndarray, cell_over_radius: float, ce
                               f"{moduli!r}, {cell_over_radius!r}, {centring!r}")
     points = np.vstack([np.log(table.moduli), np.zeros((1, 2))])  # the window without a lump: the block, r = 1
     values = np.vstack([table.factor, np.ones((1, table.factor.shape[1]))])
+    from scipy.interpolate import LinearNDInterpolator  # only flex presses over a lump: ~0.1 s to import
+
     with one_blas_thread():  # the triangulation's small LAPACK calls would leave OpenBLAS threads spinning (sim.blas)
         row = LinearNDInterpolator(points, values)(np.log(e)[None])[0]
     outside = bool(np.any(np.isnan(row)))
