@@ -98,3 +98,24 @@ def test_the_surface_law_grows_with_depth_and_integrates_to_its_force(depth):
     b3 = basis.radii**3
     integral = 2.0 * np.pi / 3.0 * np.sum(basis.coeffs * b3, axis=1)
     np.testing.assert_allclose(integral, law.force[1:], rtol=1e-3)  # as the column law it scales
+
+
+def test_the_quick_check_never_misses_a_change_of_material_at_the_top():
+    from palpate.sim.bem.law import may_change_at_top, top_sample
+
+    rng = np.random.default_rng(4)
+    missed = checked = 0
+    for _ in range(150):
+        shape = rng.choice(["sphere", "box", "column"])
+        c = (float(rng.uniform(-0.02, 0.02)), float(rng.uniform(-0.02, 0.02)), float(rng.uniform(0.015, 0.032)))
+        size = {"sphere": (float(rng.uniform(0.001, 0.008)),),
+                "box": tuple(float(v) for v in rng.uniform(0.002, 0.015, 3)),
+                "column": tuple(float(v) for v in rng.uniform(0.002, 0.015, 2))}[str(shape)]
+        obj = _block([Inclusion(HARD, str(shape), c, size)])
+        x, y = (float(v) for v in rng.uniform(-0.02, 0.02, 2))
+        top, inside = top_sample(obj, x, y, 0.03, 0.006)
+        changes = bool(inside.all() and np.any(top != top[0]))
+        quick = may_change_at_top(obj, x, y, 0.03, 0.006)
+        missed += changes and not quick
+        checked += changes
+    assert checked >= 10 and missed == 0

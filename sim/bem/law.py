@@ -50,6 +50,26 @@ def top_sample(obj: ObjectSpec, x: float, y: float, surface_z: float, reach: flo
     return np.column_stack([young, poisson]), np.asarray(inside, dtype=bool)
 
 
+def may_change_at_top(obj: ObjectSpec, x: float, y: float, surface_z: float, reach: float) -> bool:
+    """False when no inclusion reaching the top lies within ``reach`` m of (x, y) and no haptic-material map covers
+    the object (then its top is one material there, and :func:`top_sample` need not look)."""
+    if obj.material_map is not None:
+        return True
+    for inc in obj.inclusions:
+        cx, cy, cz = inc.center
+        if inc.shape == "sphere":
+            r = inc.size[0]
+            if cz + r >= surface_z - 1e-7 and math.hypot(cx - x, cy - y) < reach + r:
+                return True
+            continue
+        if inc.shape == "box" and cz + inc.size[2] / 2.0 < surface_z - 1e-7:
+            continue  # buried: the top over it is the object's
+        gap = math.hypot(max(abs(cx - x) - inc.size[0] / 2.0, 0.0), max(abs(cy - y) - inc.size[1] / 2.0, 0.0))
+        if gap < reach:
+            return True
+    return False
+
+
 def surface_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: FingertipSpec, max_depth: float,
                 column: ContactLaw, walls: WallTable | None = None) -> ContactLaw | None:
     """The law of a press at (x, y) (m) up to ``max_depth`` m from the surface solve (module docstring), or None
@@ -97,6 +117,8 @@ def press_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Finger
     :func:`palpate.sim.contact.stack.object_law`. ``cache``: a dict the caller keeps (shared with object_law's;
     press points 0.1 mm apart with the same materials around share a law)."""
     reach = surface_reach(tip.radius, max_depth)
+    if not may_change_at_top(obj, x, y, surface_z, reach):
+        return object_law(obj, x, y, surface_z, tip.radius, max_depth, cache=cache)
     top, inside = top_sample(obj, x, y, surface_z, reach)
     if inside.all() and np.any(top != top[0]):
         column = object_law(obj, x, y, surface_z, tip.radius, max_depth, cache=cache, lateral=False)
