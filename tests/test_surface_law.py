@@ -101,7 +101,7 @@ def test_the_surface_law_grows_with_depth_and_integrates_to_its_force(depth):
 
 
 def test_the_quick_check_never_misses_a_change_of_material_at_the_top():
-    from palpate.sim.bem.law import may_change_at_top, top_sample
+    from palpate.sim.bem.law import may_change_at_top, surface_columns, top_changes
 
     rng = np.random.default_rng(4)
     missed = checked = 0
@@ -113,9 +113,23 @@ def test_the_quick_check_never_misses_a_change_of_material_at_the_top():
                 "column": tuple(float(v) for v in rng.uniform(0.002, 0.015, 2))}[str(shape)]
         obj = _block([Inclusion(HARD, str(shape), c, size)])
         x, y = (float(v) for v in rng.uniform(-0.02, 0.02, 2))
-        top, inside = top_sample(obj, x, y, 0.03, 0.006)
-        changes = bool(inside.all() and np.any(top != top[0]))
+        changes = top_changes(*surface_columns(obj, x, y, 0.03, 0.006))
         quick = may_change_at_top(obj, x, y, 0.03, 0.006)
         missed += changes and not quick
         checked += changes
     assert checked >= 10 and missed == 0
+
+
+def test_a_cached_surface_law_is_missed_when_only_a_layer_under_the_far_side_changes():
+    tip, cache = _tip(), {}
+
+    def wall_over(sub: Material) -> ObjectSpec:
+        # the hard side is a 3 mm skin over ``sub``; the soft side and the press point's column do not change
+        return ObjectSpec("block", "box", (0.08, 0.08, 0.03), (0.0, 0.0), SOFT, inclusions=(
+            Inclusion(HARD, "box", (0.02, 0.0, 0.0285), (0.04, 0.08, 0.003)),
+            Inclusion(sub, "box", (0.02, 0.0, 0.0135), (0.04, 0.08, 0.027))))
+
+    first = press_law(wall_over(SOFT), -0.0015, 0.0, 0.03, tip, 0.004, cache=cache)
+    stiff = press_law(wall_over(replace(HARD, name="base", young=8 * HARD.young)), -0.0015, 0.0, 0.03, tip, 0.004,
+                      cache=cache)
+    assert stiff is not first and stiff.force[-1] > first.force[-1] * 1.01

@@ -26,7 +26,7 @@ from palpate.sim.bem.solve import CELL, ContactOutgrown, solve_fields
 from palpate.sim.bem.surface import build_surface, column_stacks, uniform_surface
 from palpate.sim.bem.wall import WallTable
 from palpate.sim.contact.law import ContactLaw
-from palpate.sim.contact.stack import object_law, object_lookup
+from palpate.sim.contact.stack import object_law
 from palpate.sim.limits import layer_refusal, poisson_refusal
 
 #: Depths solved, as fractions of the deepest tabulated; the force ratio is held below the shallowest (where the
@@ -39,20 +39,26 @@ def surface_reach(tip_radius: float, max_depth: float) -> float:
     return min(1.05 * math.sqrt(tip_radius * max_depth) + 2 * CELL, 0.995 * tip_radius)
 
 
-def top_sample(obj: ObjectSpec, x: float, y: float, surface_z: float, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """(E Pa and nu of the top, whether on the object) at the surface cells within ``reach`` m of (x, y)."""
+def surface_columns(obj: ObjectSpec, x: float, y: float, surface_z: float, reach: float):
+    """The columns under the surface cells within ``reach`` m of (x, y): (stack index per cell, the distinct
+    stacks, whether each cell is on the object), as :func:`palpate.sim.bem.surface.column_stacks`."""
     span = int(math.ceil(reach / CELL))
     k = (np.arange(-span, span) + 0.5) * CELL
     gx, gy = np.meshgrid(k, k, indexing="ij")
     cells = np.column_stack([gx.ravel(), gy.ravel()])
-    cells = cells[np.hypot(cells[:, 0], cells[:, 1]) <= reach]
-    young, poisson, inside = object_lookup(obj, x, y, surface_z)(cells, np.full(len(cells), 1e-7))
-    return np.column_stack([young, poisson]), np.asarray(inside, dtype=bool)
+    return column_stacks(obj, x, y, surface_z, cells[np.hypot(cells[:, 0], cells[:, 1]) <= reach])
+
+
+def top_changes(stack_of: np.ndarray, stacks, on_object: np.ndarray) -> bool:
+    """Whether every cell is on the object and their columns start with more than one material (a wall at the
+    top, not a change buried under a shared top)."""
+    tops = {(stacks[i].young[0], stacks[i].poisson[0]) for i in np.unique(stack_of)}
+    return bool(on_object.all()) and len(tops) > 1
 
 
 def may_change_at_top(obj: ObjectSpec, x: float, y: float, surface_z: float, reach: float) -> bool:
     """False when no inclusion reaching the top lies within ``reach`` m of (x, y) and no haptic-material map covers
-    the object (then its top is one material there, and :func:`top_sample` need not look)."""
+    the object (then its top is one material there, and :func:`surface_columns` need not look)."""
     if obj.material_map is not None:
         return True
     for inc in obj.inclusions:
@@ -80,8 +86,7 @@ def surface_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fing
     reach = surface_reach(radius, max_depth)
     depths = max_depth * FRACTIONS
     while True:
-        top, inside = top_sample(obj, x, y, surface_z, reach)
-        if not inside.all() or not np.any(top != top[0]):
+        if not top_changes(*surface_columns(obj, x, y, surface_z, reach)):
             return None  # an edge within reach, or one material at the top
         try:
             surface = build_surface(obj, x, y, surface_z, tip, reach, CELL, math.sqrt(radius * max_depth), walls)
@@ -119,11 +124,12 @@ def press_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Finger
     reach = surface_reach(tip.radius, max_depth)
     if not may_change_at_top(obj, x, y, surface_z, reach):
         return object_law(obj, x, y, surface_z, tip.radius, max_depth, cache=cache)
-    top, inside = top_sample(obj, x, y, surface_z, reach)
-    if inside.all() and np.any(top != top[0]):
+    stack_of, stacks, on_object = surface_columns(obj, x, y, surface_z, reach)
+    if top_changes(stack_of, stacks, on_object):
         column = object_law(obj, x, y, surface_z, tip.radius, max_depth, cache=cache, lateral=False)
+        # what the surface solve sees: every cell's column (the press point's among them)
         key = ("surface", tip.radius, obj.name, round(x / 1e-4), round(y / 1e-4), round(surface_z / 1e-6),
-               top.tobytes(), column.force.tobytes())
+               stack_of.tobytes(), stacks)
         hit = cache.get(key) if cache is not None else None
         if hit is not None and hit.max_depth >= max_depth:
             return hit
