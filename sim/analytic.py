@@ -1,18 +1,20 @@
 """``analytic`` fidelity: the contact law of the press point in closed form, the tip following the profile exactly.
 
 The force, contact radius and surface pressure against indentation come from the press point's
-:class:`~palpate.sim.contact.law.ContactLaw` (:func:`palpate.sim.contact.stack.object_law`): the exact sphere on the
+:class:`~palpate.sim.contact.law.ContactLaw` (:func:`palpate.sim.bem.law.press_law`): the exact sphere on the
 object's layer stack on the rigid table (finite thickness and layers exactly: Sneddon's sphere on a thick block,
-the bonded-layer stiffening on a thin one), or, where the material varies laterally within reach of the press (an
-inclusion, a haptic-material map, a nearby edge), the object averaged around the press axis and solved
-axisymmetrically. Each sensel reports the mean of the law's pressure p(r) = sum_k c_k sqrt(b_k^2 - r^2) over its
-square footprint, each Hertz profile integrated exactly along x and by Gauss-Legendre along y between the points
-where the circle crosses the sensel edges, so the integrand is smooth on every piece.
+the bonded-layer stiffening on a thin one); where the top changes material within the contact (a wall), that
+column law scaled to the surface solve's force; where the material varies otherwise within reach of the press (an
+inclusion, a nearby edge), the object averaged around the press axis and solved axisymmetrically. Each sensel
+reports the mean of the law's pressure p(r) = sum_k c_k sqrt(b_k^2 - r^2) over its square footprint, each Hertz
+profile integrated exactly along x and by Gauss-Legendre along y between the points where the circle crosses the
+sensel edges, so the integrand is smooth on every piece.
 
 Validity: quasi-static (damping ignored), flat surface under the tip (the object's own curvature is ignored),
 linear elasticity (small strain: the law is refused beyond 0.75 tip radii deep); off-axis inclusions and edges are
-averaged around the axis. The measured error against the FE reference per situation is the validity table
-(``palpate bench``, models/validity_table.json) that ``auto`` reads. No MuJoCo is needed.
+averaged around the axis; the image is axisymmetric (over a wall only ``bem`` renders which side carries more).
+The measured error against the FE reference per situation is the validity table (``palpate bench``,
+models/validity_table.json) that ``auto`` reads. No MuJoCo is needed.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ pressures (:mod:`.solve`), each warm-started from the last; the force is their s
 its footprint. Between the solved indentations, the neighbouring solutions are stretched as a growing contact is
 (:func:`between`) and blended.
 
-Unlike ``analytic``, which averages the material around the press axis, the image follows where the material is:
+Unlike ``analytic``, whose image is axisymmetric, the image follows where the material is:
 over a wall the harder side carries more, a lump beside the axis tilts the image. Validity: quasi-static, flat top,
 linear elasticity, frictionless; the compliance between two different columns is a local-compliance mean (see
 :mod:`.surface`), measured against the 3-D FE reference in the validity table.

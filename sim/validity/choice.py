@@ -17,7 +17,8 @@ Where the material changes off the press axis within reach (a wall, a map's boun
 taxel image matters too: the image table (:mod:`.image_table`, against the 3-D FE) must pass the family (``wall``
 where the change reaches the surface, else ``lump``; a family the image table has not measured leaves the choice
 to the force rule) for a rung to be chosen, and its force error there is the rung's prediction; ``analytic`` and
-``rigid`` average the material around the axis, so their images fail walls.
+``rigid`` render an axisymmetric image (their force beside a wall is the surface solve's), so their images fail
+walls.
 The cheapest remaining fidelity within the tolerance wins (analytic, then bem, then rigid, then flex); if none is,
 the most accurate one, and the reason says so.
 """
