@@ -12,8 +12,38 @@ from palpate.sim.stability import check_run, check_warnings
 
 
 def test_huge_stiffness_with_a_large_timestep_is_reported_naming_timestep_and_stiffness():
-    with pytest.raises(SimulationDiverged, match=r"timestep \(now 0\.02 s\).*young=1e\+11"):
+    # the rung halves the step for a stiff contact at most four times (0.02 s -> 1.25 ms); 1e11 Pa is beyond that
+    with pytest.raises(SimulationDiverged, match=r"timestep \(now 0\.00125 s\).*young=1e\+11"):
         simulate_press(1e11, fidelity="rigid", depth=0.002, timestep=0.02)
+
+
+def test_a_stiff_contact_gets_a_step_it_can_hold_and_a_soft_one_keeps_the_step_asked_for():
+    from palpate.sim.contact.law import solve_contact_law
+    from palpate.sim.reference.sample import AxisymmetricSample
+    from palpate.sim.rigid import STABLE_OMEGA_DT, stable_timestep
+    from palpate.sim.scene import FingerDrive
+
+    drive = FingerDrive()
+    steps = {}
+    for young, depth in ((4.347e8, 3e-5), (2e5, 3e-3)):  # the main job's hard foam; a soft block
+        law = solve_contact_law(AxisymmetricSample(bulk=Material("m", young, 0.4), thickness=0.04), 0.008, depth)
+        omega = np.sqrt(float(law.stiffness_at(depth)) / (drive.armature + drive.mass))
+        steps[young] = dt = stable_timestep(0.002, law, depth, drive)
+        assert omega * dt <= STABLE_OMEGA_DT
+    assert steps[2e5] == 0.002 and steps[4.347e8] in (0.001, 0.0005, 0.00025)
+
+
+def test_a_training_session_whose_hard_foam_presses_overshot_now_finishes():
+    # seed 1002's Material_3 presses (the foam's ~11 um share of a human press) overshot their depth by 10% at the
+    # 2 ms step (omega dt ~1.8) and stopped the session with PressShortfall
+    from palpate.core.world.resources import scenarios_dir
+    from palpate.core.world.scenario_file import load_scenario
+    from palpate.sim.realism.calibrate import simulate_seed
+    from palpate.sim.realism.profile_file import resolve_profile
+
+    scenario = load_scenario(scenarios_dir() / "thesis_ch6.toml")
+    run = simulate_seed(scenario, resolve_profile(scenario.realism.profile), 1002, "rigid")
+    assert len(run.table.of("Material_3")) == scenario.training.presses_per_material
 
 
 def test_the_same_material_is_stable_at_the_default_timestep():
