@@ -16,6 +16,7 @@ import math
 import os
 import stat
 import tomllib
+from array import array
 from functools import lru_cache, wraps
 from pathlib import Path
 
@@ -178,35 +179,32 @@ def parse_json(text: str, source: str, what: str) -> object:
 
 def json_depth(doc: object) -> int:
     """Nesting depth of a decoded JSON value (a scalar is 0), computed without recursion; OverflowError at a number
-    that decoded to an infinite float (its digits too large for one). Lists of numbers only are checked at once as
-    a numpy array (a table of numbers costs a conversion, not a Python step per number)."""
+    that decoded to an infinite float (its digits too large for one). A list of numbers only is taken in one C loop
+    (an array of doubles: no Python step per number, and no more memory than its numbers; strings, nulls, numbers
+    past a double and nested values fall back to walking the list)."""
     deepest, stack = 0, [(doc, 0)]
     while stack:
         node, depth = stack.pop()
-        if isinstance(node, list):
-            numbers = _numbers(node)
-            if numbers is not None:
-                if not np.isfinite(numbers).all():
+        if isinstance(node, dict):
+            children = node.values()
+        elif isinstance(node, list):
+            try:
+                numbers = array("d", node)
+            except (TypeError, OverflowError):
+                children = node
+            else:
+                # a sum of finite numbers is finite unless they are huge: only then are they looked at one by one
+                if not math.isfinite(sum(numbers)) and not all(map(math.isfinite, numbers)):
                     raise OverflowError("a number too large for a float")
-                deepest = max(deepest, depth + numbers.ndim)
+                deepest = max(deepest, depth + 1)
                 continue
-        children = node.values() if isinstance(node, dict) else node if isinstance(node, list) else None
-        if children is None:
+        else:
             if isinstance(node, float) and not math.isfinite(node):
                 raise OverflowError("a number too large for a float")
             continue
         deepest = max(deepest, depth + 1)
         stack.extend((c, depth + 1) for c in children if isinstance(c, (dict, list, float)))
     return deepest
-
-
-def _numbers(node: list) -> np.ndarray | None:
-    """``node`` as a numeric array if it is a (nested, rectangular) list of numbers only, else None."""
-    try:
-        arr = np.array(node)
-    except (ValueError, TypeError, OverflowError):  # ragged, or deeper than numpy's dimensions
-        return None
-    return arr if arr.dtype.kind in "fiub" else None
 
 
 def read_json(path: str | Path, what: str) -> object:

@@ -478,3 +478,19 @@ def test_tables_of_numbers_are_read_as_written_and_their_nesting_counted():
     with pytest.raises(ValidationError, match="json_depth"):
         parse_json(deep, "doc.json", "a test document")
     assert parse_json("[" * 60 + "1.5" + "]" * 60, "doc.json", "a test document") is not None
+
+
+def test_a_list_that_starts_with_numbers_and_holds_long_strings_is_read_without_padding_them():
+    # a table read as one array must not lay every string out at the longest one's width: 12 kB of text here would
+    # take 16 MB as a numpy string array
+    import tracemalloc
+
+    doc = [1.5] + ["y"] * 2000 + ["x" * 2000]
+    text = json.dumps(doc)
+    tracemalloc.start()
+    try:
+        assert parse_json(text, "doc.json", "a test document") == doc
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 * len(text)
