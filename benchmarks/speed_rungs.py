@@ -6,7 +6,8 @@ after a point's first one pays):
 
 - analytic: :func:`palpate.sim.analytic.run_analytic_press` (the law's force and per-sensel pressure at every taxel
   sample) against a vectorised numpy press of the same samples: Hertz's force and Hertz's pressure averaged over
-  each sensel by the same 6x6 Gauss-Legendre rule (the plain reference: what the rung computes, on a half-space);
+  each sensel by a 6x6 Gauss-Legendre rule (the plain reference: what the rung computes, on a half-space; the rung
+  integrates each footprint in closed form);
 - rigid: :func:`palpate.sim.rigid.run_rigid_press` (MuJoCo finger under the law, force table, sensel image)
   against bare MuJoCo stepping of the same compiled model, the servo driven along the same setpoints with a
   constant applied force (the plain reference: the stepping alone);

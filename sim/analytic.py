@@ -7,8 +7,7 @@ the bonded-layer stiffening on a thin one); where the top changes material withi
 column law scaled to the surface solve's force; where the material varies otherwise within reach of the press (an
 inclusion, a nearby edge), the object averaged around the press axis and solved axisymmetrically. Each sensel
 reports the mean of the law's pressure p(r) = sum_k c_k sqrt(b_k^2 - r^2) over its square footprint, each Hertz
-profile integrated exactly along x and by Gauss-Legendre along y between the points where the circle crosses the
-sensel edges, so the integrand is smooth on every piece.
+profile integrated over the footprint in closed form (four corner integrals of the spherical cap).
 
 Validity: quasi-static (damping ignored), flat surface under the tip (the object's own curvature is ignored),
 linear elasticity (small strain: the law is refused beyond 0.75 tip radii deep); off-axis inclusions and edges are
@@ -29,50 +28,35 @@ from palpate.sim.bem.law import press_law
 from palpate.sim.blas import one_blas_thread
 from palpate.sim.contact.law import ContactLaw
 from palpate.sim.controller import PressProfile
-from palpate.sim.fingertip import gauss_points, sensel_bounds
+from palpate.sim.fingertip import sensel_bounds
 from palpate.sim.limits import check_holds
 from palpate.sim.stability import check_depth, check_resolves_press, law_depth
 from palpate.sim.trace import PhysicsTrace
 
 
-def _chord_integral(x: np.ndarray, b: np.ndarray, bb: np.ndarray | None = None,
-                    b_safe: np.ndarray | None = None) -> np.ndarray:
-    """Antiderivative of sqrt(b^2 - x^2) in x, with x clipped to [-b, b] (b >= 0); ``bb`` = b * b and ``b_safe`` =
-    max(b, 1e-300) when the caller has them (both ends of a strip share them)."""
-    bb = b * b if bb is None else bb
-    xb = np.minimum(np.maximum(x, -b), b)
-    ratio = xb / (np.maximum(b, 1e-300) if b_safe is None else b_safe)
-    return 0.5 * (xb * np.sqrt(np.maximum(bb - xb * xb, 0.0)) + bb * np.arcsin(ratio))
+def _quadrant_inside(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Integral of sqrt(1 - u^2 - v^2) over [0, x] x [0, y] for x, y >= 0 with x^2 + y^2 <= 1 (the corner on or
+    inside the unit circle): the inner integral in v in closed form, the outer one by parts."""
+    z = np.sqrt(np.maximum(1.0 - x * x - y * y, 0.0))
+    return (x * y * z / 3.0 + y * (3.0 - y * y) / 6.0 * np.arctan2(x, z) + x * (3.0 - x * x) / 6.0 * np.arctan2(y, z)
+            - np.arctan2(x * y, z) / 3.0)
 
 
-def _rect_integrals(a: np.ndarray, x0: np.ndarray, x1: np.ndarray, y0: np.ndarray, y1: np.ndarray,
-                    order: int) -> np.ndarray:
-    """Integral of sqrt(a^2 - x^2 - y^2) over rectangles [x0, x1] x [y0, y1] cut by the disc r < a, all (P,)."""
-    y0 = np.maximum(y0, -a)
-    y1 = np.minimum(y1, a)
-    # the x-integral has kinks in y where the circle crosses a vertical sensel edge: split there
-    brk = [y0, y1]
-    for xe in (x0, x1):
-        h = np.sqrt(np.maximum(a**2 - xe**2, 0.0))
-        brk += [np.minimum(np.maximum(-h, y0), y1), np.minimum(np.maximum(h, y0), y1)]
-    edges = np.sort(np.stack(brk, axis=-1), axis=-1)  # (P, 6); pieces of zero width add nothing
-    s, w = gauss_points(order)
-    # smoothstep substitution: its Jacobian vanishes at both ends of a piece, which tames the (y - y_b)^1.5
-    # behaviour of the strip integral where the circle crosses a sensel edge (error ~2e-6 at order 6)
-    w = w * 6.0 * s * (1.0 - s)
-    s = s * s * (3.0 - 2.0 * s)
-    lo = edges[:, :-1, None]
-    width = edges[:, 1:, None] - lo  # (P, 5, 1)
-    # most pieces have zero width (a sensel inside the contact is one piece): they add 0, so they are left 0 and
-    # the sum below runs over the same terms in the same order
-    live = width[..., 0] > 0
-    pi, ki = np.nonzero(live)
-    y = lo[pi, ki] + width[pi, ki] * s  # (m, order)
-    b = np.sqrt(np.maximum(a[pi, None] ** 2 - y**2, 0.0))
-    bb, b_safe = b * b, np.maximum(b, 1e-300)
-    strip = np.zeros(live.shape + (len(s),))
-    strip[pi, ki] = _chord_integral(x1[pi, None], b, bb, b_safe) - _chord_integral(x0[pi, None], b, bb, b_safe)
-    return np.sum(strip * w * width, axis=(-1, -2))
+def _quadrant(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Integral of sqrt(1 - u^2 - v^2) over the unit disc's part of [0, x] x [0, y], odd in x and in y: a
+    rectangle's integral is four of these at its corners."""
+    ax, ay = np.minimum(np.abs(x), 1.0), np.minimum(np.abs(y), 1.0)
+    # beyond the circle at height ay the columns are whole half-chords: (pi / 4) (1 - u^2) du
+    inner = np.minimum(ax, np.sqrt(np.maximum(1.0 - ay * ay, 0.0)))
+    rest = 0.25 * np.pi * ((ax - ax**3 / 3.0) - (inner - inner**3 / 3.0))
+    return np.sign(x) * np.sign(y) * (_quadrant_inside(inner, ay) + rest)
+
+
+def _rect_integrals(a: np.ndarray, x0: np.ndarray, x1: np.ndarray, y0: np.ndarray, y1: np.ndarray) -> np.ndarray:
+    """Integral of sqrt(a^2 - x^2 - y^2) over rectangles [x0, x1] x [y0, y1] cut by the disc r < a (a > 0), all
+    (P,), m^3: exact (closed form)."""
+    u0, u1, v0, v1 = x0 / a, x1 / a, y0 / a, y1 / a
+    return a**3 * (_quadrant(u1, v1) - _quadrant(u0, v1) - _quadrant(u1, v0) + _quadrant(u0, v0))
 
 
 @dataclass(frozen=True)
@@ -108,7 +92,7 @@ def pad_sets(bounds: np.ndarray, centre: np.ndarray | None = None, share_symmetr
 
 def hertz_sensel_pressure(
     depth: np.ndarray, young_eff: float, radius: float, bounds: np.ndarray, centre: np.ndarray | None = None,
-    order: int = 6, share_symmetric: bool = True, pad: PadSets | None = None,
+    share_symmetric: bool = True, pad: PadSets | None = None,
 ) -> np.ndarray:
     """Mean Hertz pressure over each sensel, Pa.
 
@@ -118,7 +102,6 @@ def hertz_sensel_pressure(
         radius: tip radius, m.
         bounds: sensel footprints (rows, cols, 4) as (x0, x1, y0, y1), m, in the pad plane.
         centre: contact centre in the pad plane, m, shape (n, 2), or (2,) for a fixed centre; default the axis.
-        order: Gauss-Legendre points per smooth piece along y.
         share_symmetric: with a fixed centre, integrate once per set of sensels that are mirror images of
             each other about the centre (the pressure is radially symmetric), e.g. 3 of 16 for a centred pad.
         pad: :func:`pad_sets` of ``bounds`` and the fixed ``centre``, when the caller keeps it (presses of one pad).
@@ -141,7 +124,7 @@ def hertz_sensel_pressure(
         vals = np.zeros(hit.shape)
         if hit.any():
             ti, ui = np.nonzero(hit)
-            vals[hit] = _rect_integrals(a_all[ti], uniq[ui, 0], uniq[ui, 1], uniq[ui, 2], uniq[ui, 3], order)
+            vals[hit] = _rect_integrals(a_all[ti], uniq[ui, 0], uniq[ui, 1], uniq[ui, 2], uniq[ui, 3])
         integral = vals[:, inverse.reshape(-1)]
     else:
         rect = bounds.reshape(-1, 4)
@@ -157,7 +140,7 @@ def hertz_sensel_pressure(
         if hit.any():
             ak = np.broadcast_to(a_all[:, None], hit.shape)[hit]
             r = rel[hit]
-            integral[hit] = _rect_integrals(ak, r[:, 0], r[:, 1], r[:, 2], r[:, 3], order)
+            integral[hit] = _rect_integrals(ak, r[:, 0], r[:, 1], r[:, 2], r[:, 3])
     ye = np.asarray(young_eff, dtype=float)
     if ye.ndim:
         if ye.shape != (n,):
@@ -169,7 +152,7 @@ def hertz_sensel_pressure(
 
 
 def law_sensel_pressure(law: ContactLaw, depth: np.ndarray, bounds: np.ndarray, centre: np.ndarray | None = None,
-                        order: int = 6, pad: PadSets | None = None) -> np.ndarray:
+                        pad: PadSets | None = None) -> np.ndarray:
     """Mean pressure (Pa) of ``law``'s contact over each sensel at indentations ``depth`` (m), (n, rows, cols):
     the sum of the law's Hertz profiles, each integrated by :func:`hertz_sensel_pressure` (``pad``: its
     :func:`pad_sets` for a fixed ``centre``, when the caller keeps them)."""
@@ -182,7 +165,7 @@ def law_sensel_pressure(law: ContactLaw, depth: np.ndarray, bounds: np.ndarray, 
     # profile of every depth in one call (profile-major), summed profile by profile as separate calls would be
     c = None if centre is None or np.asarray(centre).shape == (2,) else np.tile(np.asarray(centre, float), (k_max, 1))
     every = hertz_sensel_pressure((radii**2 / radius).T.reshape(-1), (coeffs * np.pi * radius / 2.0).T.reshape(-1),
-                                  radius, bounds, centre if c is None else c, order=order,
+                                  radius, bounds, centre if c is None else c,
                                   pad=pad if c is None else None)
     every = every.reshape((k_max, n) + bounds.shape[:2])
     out = np.zeros((n,) + bounds.shape[:2])
@@ -209,8 +192,8 @@ def local_material(obj: ObjectSpec, x: float, y: float, surface_z: float) -> Mat
 class AnalyticSamples:
     """One analytic press up to its sensel pressures: sample times ``t`` (n,) s, indentations ``depth`` (n,) m, tip
     positions ``pos`` (n, 3) m, its contact ``law``, the material at the surface, the contact centre in the pad plane
-    (2,) m, the pad's sensel footprints ``bounds`` (rows, cols, 4) m and their :class:`PadSets`, the integration
-    order, the sampling rate (Hz) and the surface height (m)."""
+    (2,) m, the pad's sensel footprints ``bounds`` (rows, cols, 4) m and their :class:`PadSets`, the sampling rate
+    (Hz) and the surface height (m)."""
 
     t: np.ndarray
     depth: np.ndarray
@@ -220,13 +203,12 @@ class AnalyticSamples:
     centre: np.ndarray
     bounds: np.ndarray
     pad: PadSets
-    order: int
     rate: float
     surface_z: float
 
 
 def run_analytic_press(
-    scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None, order: int = 6,
+    scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None,
     law: ContactLaw | None = None, pads: dict | None = None,
 ) -> PhysicsTrace:
     """The press-and-release under the contact law, sampled at ``rate`` Hz (sensors interpolate between samples).
@@ -238,7 +220,6 @@ def run_analytic_press(
         rate: sampling rate of the trace, Hz; by default the taxel rate, so every taxel frame falls on an
             exactly integrated sample (the pose sensor interpolates position, smooth at this rate); the deepest
             point of the profile is sampled as well.
-        order: Gauss-Legendre order of the sensel integration.
         law: the press point's contact law (computed here when not given; a SimSource caches it).
         pads: a dict the caller keeps (a SimSource does) for the pad's sensel footprints and their symmetric sets,
             by fingertip and contact centre: the presses of one pad share them.
@@ -246,13 +227,13 @@ def run_analytic_press(
     Raises:
         ValidationError: a press deeper than 0.75 tip radii, or too short for the sampling rate.
     """
-    s = analytic_samples(scene, obj, profile, rate=rate, order=order, law=law, pads=pads)
-    pressure = law_sensel_pressure(s.law, s.depth, s.bounds, s.centre, order=s.order, pad=s.pad)
+    s = analytic_samples(scene, obj, profile, rate=rate, law=law, pads=pads)
+    pressure = law_sensel_pressure(s.law, s.depth, s.bounds, s.centre, pad=s.pad)
     return analytic_trace(s, pressure)
 
 
 def analytic_samples(
-    scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None, order: int = 6,
+    scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate: float | None = None,
     law: ContactLaw | None = None, pads: dict | None = None,
 ) -> AnalyticSamples:
     """:func:`run_analytic_press` up to the sensel pressures (same arguments and refusals): a batch of presses
@@ -293,7 +274,7 @@ def analytic_samples(
         found = (bounds, pad_sets(bounds, centre))
         if pads is not None:
             pads[key] = found
-    return AnalyticSamples(t, depth, pos, law, mat, centre, found[0], found[1], int(order), float(rate),
+    return AnalyticSamples(t, depth, pos, law, mat, centre, found[0], found[1], float(rate),
                            profile.surface_z)
 
 
@@ -305,7 +286,7 @@ def analytic_trace(s: AnalyticSamples, pressure: np.ndarray) -> PhysicsTrace:
         force=s.law.force_at(s.depth), indentation=s.depth, surface_z=s.surface_z,
         material=s.material.name,
         meta={"fidelity": "analytic", "rate": s.rate, "young_eff_surface": float(s.material.effective_modulus),
-              "order": s.order, "contact_law_max_depth": s.law.max_depth},
+              "contact_law_max_depth": s.law.max_depth},
     )
     trace.check_finite()
     return trace

@@ -70,7 +70,45 @@ def test_sensel_means_match_an_independent_brute_force_integral(centre):
     np.testing.assert_allclose(fast, slow, rtol=0, atol=2e-4 * slow.max())
     # the shared-symmetry shortcut and the per-sensel path agree
     plain = hertz_sensel_pressure(np.array([depth]), E_STAR, R, bounds, np.array(centre), share_symmetric=False)[0]
-    np.testing.assert_allclose(fast, plain, rtol=0, atol=1e-5 * plain.max())
+    np.testing.assert_allclose(fast, plain, rtol=0, atol=1e-10 * plain.max())
+
+
+def test_sensel_integral_is_exact_against_adaptive_quadrature():
+    """The closed-form footprint integral against nested adaptive quadrature of the Hertz pressure (each integral
+    over the chord of the disc only, the outer one split where the chord's ends cross the footprint's edges), on
+    footprints inside, across and outside the contact (corners beyond the circle, slivers at its rim, footprints
+    larger than the contact), to 1e-10 of the disc's scale."""
+    from scipy.integrate import quad
+
+    def reference(a, x0, x1, y0, y1):
+        def column(x):
+            c = np.sqrt(max(a * a - x * x, 0.0))
+            lo, hi = max(y0, -c), min(y1, c)
+            return quad(lambda y: np.sqrt(max(c * c - y * y, 0.0)), lo, hi, epsabs=1e-16, epsrel=1e-13,
+                        limit=200)[0] if hi > lo else 0.0
+        lo, hi = max(x0, -a), min(x1, a)
+        if hi <= lo:
+            return 0.0
+        kinks = sorted({k for y in (y0, y1) if abs(y) < a for k in (-np.sqrt(a * a - y * y), np.sqrt(a * a - y * y))
+                        if lo < k < hi})
+        edges = [lo, *kinks, hi]
+        pieces = zip(edges[:-1], edges[1:], strict=True)
+        return sum(quad(column, u, v, epsabs=1e-16, epsrel=1e-13, limit=200)[0] for u, v in pieces)
+
+    rng = np.random.default_rng(7)
+    a = 2.5e-3
+    cases = [(-0.004, 0.004, -0.004, 0.004), (0.001, 0.0035, 0.0015, 0.004), (a - 1e-5, a + 1e-3, -1e-4, 1e-4),
+             (-0.003, -0.0022, 0.0005, 0.0011), (0.0026, 0.003, 0.0, 0.001)]
+    cases += [tuple(np.sort(rng.uniform(-0.004, 0.004, 2)).tolist() + np.sort(rng.uniform(-0.004, 0.004, 2)).tolist())
+              for _ in range(12)]
+    depth = a * a / R
+    bounds = np.array(cases)[None]  # (1, P, 4): one row of footprints
+    got = hertz_sensel_pressure(np.array([depth]), E_STAR, R, bounds, centre=np.zeros((1, 2)))[0, 0]
+    area = (bounds[0, :, 1] - bounds[0, :, 0]) * (bounds[0, :, 3] - bounds[0, :, 2])
+    scale = 2.0 * E_STAR / (np.pi * R)
+    for (x0, x1, y0, y1), p, s in zip(cases, got, area, strict=True):
+        exact = reference(a, x0, x1, y0, y1)
+        assert p * s / scale == pytest.approx(exact, rel=0, abs=1e-10 * a**3)
 
 
 def test_centred_press_on_a_thick_block_gives_symmetric_counts_and_sneddons_sphere():

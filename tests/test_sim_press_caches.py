@@ -79,39 +79,6 @@ def test_a_rigid_press_equals_one_built_on_whole_tables(monkeypatch, law):
         assert np.array_equal(getattr(fast, name), getattr(plain, name)), name
 
 
-def _rect_dense(a, x0, x1, y0, y1, order):
-    """Every strip piece of :func:`palpate.sim.analytic._rect_integrals`, zero-width ones included."""
-    y0 = np.maximum(y0, -a)
-    y1 = np.minimum(y1, a)
-    brk = [y0, y1]
-    for xe in (x0, x1):
-        h = np.sqrt(np.maximum(a**2 - xe**2, 0.0))
-        brk += [np.minimum(np.maximum(-h, y0), y1), np.minimum(np.maximum(h, y0), y1)]
-    edges = np.sort(np.stack(brk, axis=-1), axis=-1)
-    x, w = np.polynomial.legendre.leggauss(order)
-    s, w = (x + 1.0) / 2.0, w / 2.0
-    w = w * 6.0 * s * (1.0 - s)
-    s = s * s * (3.0 - 2.0 * s)
-    lo = edges[:, :-1, None]
-    width = edges[:, 1:, None] - lo
-    y = lo + width * s
-    b = np.sqrt(np.maximum(a[:, None, None] ** 2 - y**2, 0.0))
-    strip = analytic._chord_integral(x1[:, None, None], b) - analytic._chord_integral(x0[:, None, None], b)
-    return np.sum(strip * w * width, axis=(-1, -2))
-
-
-def test_sensel_strips_skip_only_pieces_that_add_nothing():
-    rng = np.random.default_rng(7)
-    n = 400
-    a = rng.uniform(1e-4, 6e-3, n)
-    x0 = rng.uniform(-6e-3, 5e-3, n)
-    y0 = rng.uniform(-6e-3, 5e-3, n)
-    x1, y1 = x0 + 1.8e-3, y0 + 1.8e-3
-    got = analytic._rect_integrals(a, x0, x1, y0, y1, 6)
-    assert np.count_nonzero(got) > n // 2
-    assert np.array_equal(got, _rect_dense(a, x0, x1, y0, y1, 6))
-
-
 def test_one_integration_of_every_profile_equals_a_call_per_profile(law):
     bounds = sensel_bounds(FingertipSpec(radius=R))
     depth = np.linspace(0.0, law.max_depth, 41)

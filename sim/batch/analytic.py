@@ -41,11 +41,11 @@ def cpu_analytic_traces(jobs: Sequence[AnalyticJob]) -> list[PhysicsTrace]:
 
 def batch_sensel_pressure(samples: Sequence[AnalyticSamples]) -> list[np.ndarray]:
     """Each press's sensel pressures (n_i, rows, cols), Pa, as :func:`palpate.sim.analytic.law_sensel_pressure`
-    gives them, integrated together per pad (same footprints, contact centre and order)."""
+    gives them, integrated together per pad (same footprints and contact centre)."""
     out: list[np.ndarray | None] = [None] * len(samples)
     groups: dict[tuple, list[int]] = {}
     for i, s in enumerate(samples):
-        key = (id(s.pad), s.order, float(s.centre[0]), float(s.centre[1]), s.law.tip_radius,
+        key = (id(s.pad), float(s.centre[0]), float(s.centre[1]), s.law.tip_radius,
                s.law.coeffs.shape[1], s.bounds.shape)
         groups.setdefault(key, []).append(i)
     for members in groups.values():
@@ -63,7 +63,7 @@ def _group_pressure(group: list[AnalyticSamples]) -> list[np.ndarray]:
     """Pressures of presses on one pad (see :func:`batch_sensel_pressure`): each law's distinct depths integrated
     once (presses of one robot protocol repeat them), their profiles in chunks, summed profile by profile."""
     first = group[0]
-    radius, order, bounds, centre, pad = first.law.tip_radius, first.order, first.bounds, first.centre, first.pad
+    radius, bounds, centre, pad = first.law.tip_radius, first.bounds, first.centre, first.pad
     rows, cols = bounds.shape[:2]
     by_law: dict[int, list[int]] = {}
     for i, s in enumerate(group):
@@ -83,7 +83,7 @@ def _group_pressure(group: list[AnalyticSamples]) -> list[np.ndarray]:
         for start in range(0, n, max(CHUNK // k_max, 1)):
             stop = min(start + max(CHUNK // k_max, 1), n)
             part = hertz_sensel_pressure(sq[:, start:stop].reshape(-1), ye[:, start:stop].reshape(-1), radius,
-                                         bounds, centre, order=order, pad=pad)
+                                         bounds, centre, pad=pad)
             every[:, start:stop] = part.reshape(k_max, stop - start, rows, cols)
         acc = np.zeros((n, rows, cols))
         for k in range(k_max):
