@@ -15,7 +15,7 @@ from palpate.sim.hertz import hertz_depth_for_force
 from palpate.sim.realism.finger import series_law
 from palpate.sim.realism.material import relax_force
 from palpate.sim.realism.profile import IDEAL, FingerPulp, MaterialRealism, PoseRealism, TaxelRealism
-from palpate.sim.realism.taxels import TaxelResponse, gain_map
+from palpate.sim.realism.taxels import TaxelResponse, _running_peak, gain_map
 from palpate.sim.sensors import sample_poses
 from palpate.sim.source import SimSource
 from palpate.sim.trace import PhysicsTrace
@@ -343,3 +343,16 @@ def test_a_person_presses_on_until_the_object_feels_stiff_a_sponge_deeper_than_a
 def test_bad_push_settings_are_refused(field, value):
     with pytest.raises(ValidationError, match=f"Variability.{field}"):
         replace(ROBOT, **{field: value})
+
+
+def test_running_peak_equals_the_frame_by_frame_recursion():
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 5, 64, 257):
+        p = rng.uniform(0.0, 5e4, (n, 4, 4))
+        loaded = rng.random((n, 4, 4)) < 0.85
+        p = np.where(loaded, p, 0.0)
+        top, expected = np.zeros((4, 4)), np.empty_like(p)
+        for k in range(n):
+            top = np.where(loaded[k], np.maximum(top, p[k]), 0.0)
+            expected[k] = top
+        assert np.array_equal(_running_peak(p, loaded), expected)

@@ -109,10 +109,17 @@ def _loaded_time(t: np.ndarray, loaded: np.ndarray) -> np.ndarray:
 
 
 def _running_peak(p: np.ndarray, loaded: np.ndarray) -> np.ndarray:
-    """Each sensel's peak since it was last unloaded, at each frame (0 while unloaded)."""
-    peak = np.empty_like(p)
-    top = np.zeros(p.shape[1:])
-    for k in range(len(p)):
-        top = np.where(loaded[k], np.maximum(top, p[k]), 0.0)
-        peak[k] = top
+    """Each sensel's peak since it was last unloaded, at each frame (0 while unloaded), of pressures ``p`` >= 0.
+
+    A running maximum that restarts at every unloaded frame, as log2(frames) doubling steps over whole arrays
+    (each frame takes the maximum of itself and the frame 2^j before it when no unloaded frame lies between):
+    maxima are exact, so this equals the frame-by-frame recursion.
+    """
+    peak = np.where(loaded, p, 0.0)
+    run = np.cumsum(~loaded, axis=0)  # a new run of loaded frames starts at each unloaded frame (its value 0)
+    shift = 1
+    while shift < len(peak):
+        earlier = np.where(run[shift:] == run[:-shift], peak[:-shift], 0.0)
+        peak[shift:] = np.maximum(peak[shift:], earlier)
+        shift *= 2
     return peak
