@@ -77,23 +77,26 @@ def may_change_at_top(obj: ObjectSpec, x: float, y: float, surface_z: float, rea
 
 
 def surface_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: FingertipSpec, max_depth: float,
-                column: ContactLaw, walls: WallTable | None = None) -> ContactLaw | None:
+                column: ContactLaw, walls: WallTable | None = None, columns=None) -> ContactLaw | None:
     """The law of a press at (x, y) (m) up to ``max_depth`` m from the surface solve (module docstring), or None
-    where it does not apply. ``column``: the press point's column law (laterally uniform) up to ``max_depth``."""
+    where it does not apply. ``column``: the press point's column law (laterally uniform) up to ``max_depth``;
+    ``columns``: :func:`surface_columns` at :func:`surface_reach`, when the caller has them."""
     if poisson_refusal(obj, "bem") or layer_refusal(obj, "bem"):
         return None
     radius = tip.radius
     reach = surface_reach(radius, max_depth)
     depths = max_depth * FRACTIONS
+    # the column the column law has: the one on the axis itself (a cell beside it may lie across a wall)
+    _, axis, _ = column_stacks(obj, x, y, surface_z, np.zeros((1, 2)))
     while True:
-        if not top_changes(*surface_columns(obj, x, y, surface_z, reach)):
+        if columns is None:
+            columns = surface_columns(obj, x, y, surface_z, reach)
+        if not top_changes(*columns):
             return None  # an edge within reach, or one material at the top
         try:
             surface = build_surface(obj, x, y, surface_z, tip, reach, CELL, math.sqrt(radius * max_depth), walls)
             if surface.buried:
                 return None
-            # the column the column law has: the one on the axis itself (a cell beside it may lie across a wall)
-            _, axis, _ = column_stacks(obj, x, y, surface_z, np.zeros((1, 2)))
             alone = uniform_surface(surface, axis[0], reach)
             real = solve_fields(surface, radius, depths).sum(axis=1)
             own = solve_fields(alone, radius, depths).sum(axis=1)
@@ -101,7 +104,7 @@ def surface_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fing
         except ContactOutgrown:
             if reach >= 0.995 * radius:
                 return None
-            reach = min(1.3 * reach, 0.995 * radius)
+            reach, columns = min(1.3 * reach, 0.995 * radius), None
         except ValidationError:  # a wall outside the wall table
             return None
     if not (np.all(real > 0) and np.all(own > 0)):
@@ -133,7 +136,7 @@ def press_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Finger
         hit = cache.get(key) if cache is not None else None
         if hit is not None and hit.max_depth >= max_depth:
             return hit
-        law = surface_law(obj, x, y, surface_z, tip, max_depth, column, walls)
+        law = surface_law(obj, x, y, surface_z, tip, max_depth, column, walls, (stack_of, stacks, on_object))
         if law is not None:
             if cache is not None:
                 if len(cache) > 512:  # as object_law's: a long run pressing everywhere must not grow without bound

@@ -189,6 +189,13 @@ def power_mean(a: np.ndarray, b: np.ndarray, power: float) -> np.ndarray:
     return (0.5 * (a**power + b**power)) ** (1.0 / power)
 
 
+def _lattice_index(centres: np.ndarray, cell: float, span: int) -> np.ndarray:
+    """Flat lattice index (row times (4 span + 1) plus column) of cell centres (n, 2) m, as :func:`_compliance`
+    reads them."""
+    ij = np.rint(centres / cell - 0.5).astype(int)
+    return ij[:, 0] * (4 * span + 1) + ij[:, 1]
+
+
 def _compliance(stack: Stack, cell: float, span: int, flat_ij: np.ndarray, factor=None) -> np.ndarray:
     """(n, n) m/Pa: the stack's own compliance between the cells at flat lattice indices ``flat_ij`` (n,) (row
     times (4 span + 1) plus column), each row block times ``factor(rows, pair)`` when given (pair: each pair's
@@ -266,8 +273,7 @@ def build_surface(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fi
     # this rung away from edges within reach)
     centres, own = lattice[keep], stack_of[keep]
     used, own = np.unique(own, return_inverse=True)
-    ij = np.rint(centres / cell - 0.5).astype(int)
-    flat_ij = ij[:, 0] * (4 * span + 1) + ij[:, 1]
+    flat_ij = _lattice_index(centres, cell, span)
     mixing = "uniform"
     base, factor = stacks[used[0]], None
     top = {(stacks[i].young[0], stacks[i].poisson[0]) for i in used}
@@ -331,7 +337,6 @@ def uniform_surface(surface: Surface, stack: Stack, reach: float) -> Surface:
     """``surface``'s cells over ``stack`` everywhere (the one it was built with ``reach``, m): the like-against-like
     reference of a surface with several stacks (a ratio of the two solves cancels the cells' own error)."""
     span = int(math.ceil(reach / surface.cell))
-    ij = np.rint(surface.centres / surface.cell - 0.5).astype(int)
-    flat_ij = ij[:, 0] * (4 * span + 1) + ij[:, 1]
-    return replace(surface, stack_of=np.zeros(len(ij), dtype=int), stacks=(stack,),
+    flat_ij = _lattice_index(surface.centres, surface.cell, span)
+    return replace(surface, stack_of=np.zeros(len(flat_ij), dtype=int), stacks=(stack,),
                    compliance=_compliance(stack, surface.cell, span, flat_ij), mixing="uniform", buried=False)
