@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.sim.bem.surface import Surface
+from palpate.sim.bem.surface import Surface, lattice_ij
 from palpate.sim.contact.lcp import solve_contact
 
 #: Default cell side, m.
@@ -22,7 +22,7 @@ class ContactOutgrown(ValidationError):
 def on_grid(surface: Surface) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
     """Each cell's (row, column) on the smallest grid that holds the surface, the grid's lower corner in cells
     from the press point, and its shape."""
-    ij = np.rint(surface.centres / surface.cell - 0.5).astype(int)
+    ij = lattice_ij(surface.centres, surface.cell)
     lo = ij.min(axis=0)
     return ij - lo, lo, tuple(int(v) for v in ij.max(axis=0) - lo + 1)
 
@@ -44,7 +44,7 @@ def solve_fields(surface: Surface, tip_radius: float, depths: np.ndarray) -> np.
         gap = d - profile
         guess = gap > 0.5 * d
         if k > 0:
-            back = np.rint(surface.centres * math.sqrt(depths[k - 1] / d) / surface.cell - 0.5).astype(int) - lo
+            back = lattice_ij(surface.centres * math.sqrt(depths[k - 1] / d), surface.cell) - lo
             guess |= last[np.clip(back[:, 0], 0, shape[0] - 1), np.clip(back[:, 1], 0, shape[1] - 1)]
         fields[k], active = solve_contact(surface.compliance, gap, guess)
         if active.any() and np.max(r2[active]) > edge:

@@ -189,10 +189,16 @@ def power_mean(a: np.ndarray, b: np.ndarray, power: float) -> np.ndarray:
     return (0.5 * (a**power + b**power)) ** (1.0 / power)
 
 
+def lattice_ij(centres: np.ndarray, cell: float) -> np.ndarray:
+    """(row, column) (n, 2) of cell centres (n, 2) m on the lattice of side ``cell`` m whose cells' corners meet at
+    the press point."""
+    return np.rint(centres / cell - 0.5).astype(int)
+
+
 def _lattice_index(centres: np.ndarray, cell: float, span: int) -> np.ndarray:
     """Flat lattice index (row times (4 span + 1) plus column) of cell centres (n, 2) m, as :func:`_compliance`
     reads them."""
-    ij = np.rint(centres / cell - 0.5).astype(int)
+    ij = lattice_ij(centres, cell)
     return ij[:, 0] * (4 * span + 1) + ij[:, 1]
 
 
