@@ -156,3 +156,49 @@ def test_a_point_no_press_reaches_takes_its_nearest_press_material(templates):
     assert np.allclose(near_only.probabilities[0, (x > 0.035) & (x < 0.045)], 0.5, atol=1e-3)
     # near the presses the far term changes nothing visible
     assert np.array_equal(near_only.labels()[0, x < 0.015], with_far.labels()[0, x < 0.015])
+
+
+def _five_presses(templates, soft: float, hard: float):
+    """A map 100 mm square of 20 mm cells the cell map knows nothing of, pressed at its centre on the hard
+    material and 40 mm around it on the soft one."""
+    geometry = MapGeometry("grid2d", ("soft", "hard"), (0.0, 0.0), 0.02, (5, 5))
+    probs = np.full((5, 5, 2), 0.5)
+    sites = [((0.05, 0.05), hard), ((0.01, 0.05), soft), ((0.09, 0.05), soft), ((0.05, 0.01), soft),
+             ((0.05, 0.09), soft)]
+    readings = [(xy, read_boundary(_image(templates, e, None, 0, 1), DEPTH, templates, NOISE)) for xy, e in sites]
+    moduli = material_moduli({name: [read_boundary(_image(templates, e, None, 0, 1), DEPTH, templates, NOISE)]
+                              for name, e in (("soft", soft), ("hard", hard))})
+    return geometry, probs, readings, moduli
+
+
+def test_a_press_on_a_small_feature_owns_the_points_near_it_not_its_whole_gap(templates):
+    geometry, probs, readings, moduli = _five_presses(templates, 20e3, 120e3)
+    nearest, blended = (fine_map(geometry, probs, readings, moduli=moduli, far_power=p) for p in (None, 2.0))
+    pts = blended.centres()
+    d = np.abs(pts - 0.05)
+    # the nearest press alone: the centre press's whole Voronoi square (within 20 mm of it on both axes)
+    voronoi = (d[..., 0] < 0.02) & (d[..., 1] < 0.02)
+    assert np.array_equal(nearest.labels() == 1, voronoi)
+    # blended by inverse squared distance: a smaller region around the centre press, inside that square
+    hard = blended.labels() == 1
+    assert np.all(hard <= voronoi)
+    assert 0.3 * voronoi.sum() < hard.sum() < 0.8 * voronoi.sum()
+    assert np.all(hard[np.hypot(*(pts - 0.05).transpose(2, 0, 1)) < 0.012])
+    np.testing.assert_allclose(blended.probabilities.sum(axis=-1), 1.0)
+
+
+def test_the_far_term_is_the_same_in_any_chunks(templates, monkeypatch):
+    import palpate.core.mapping.fine as fine
+
+    geometry, probs, readings, moduli = _five_presses(templates, 20e3, 120e3)
+    whole = fine_map(geometry, probs, readings, moduli=moduli)
+    monkeypatch.setattr(fine, "FAR_CHUNK", 37)
+    np.testing.assert_allclose(fine_map(geometry, probs, readings, moduli=moduli).probabilities,
+                               whole.probabilities, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("power", [0.0, -1.0, np.inf, np.nan])
+def test_a_far_power_that_is_not_a_positive_number_is_refused(power):
+    geometry = MapGeometry("grid2d", ("a", "b"), (0.0, 0.0), 0.01, (3, 2))
+    with pytest.raises(ValidationError, match="far_power"):
+        fine_map(geometry, np.full((2, 3, 2), 0.5), [], far_power=power)
