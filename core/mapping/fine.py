@@ -10,9 +10,8 @@ material gives way to a harder one. Each fine point's distribution mixes:
   the wall (a press there felt one material; cells astride a wall are judged on a mixture), each side in proportion
   to the probability that the point lies there given the reading's offset and angle spreads; when it read none
   (1 - p_boundary), the press's own cell's distribution;
-- its nearest presses' readings as above, blended by inverse squared distance, with a small weight however far:
-  where no press reaches and the cell map knows nothing (a uniform cell beyond eq. 6.15's neighbours), the nearest
-  presses decide the point (a press on a small feature owns the points near it, not its whole share of the gap).
+- its nearest press's reading as above, with a small weight however far: where no press reaches and the
+  cell map knows nothing (a uniform cell beyond eq. 6.15's neighbours), the nearest press decides the point.
 
 The mixture is then sharpened by a temperature (calibrated: the mixture alone is under-confident). The cell map
 itself (the seed's grid and eq. 6.15) is unchanged; this layer is computed from it.
@@ -20,6 +19,7 @@ itself (the seed's grid and eq. 6.15) is unchanged; this layer is computed from 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,15 +48,6 @@ TEMPERATURE = 0.82
 #: the one with the most area right after a tenth of raster's presses (boundary policy, tuning scenes 0-17: median
 #: 0.76 -> 0.86) among those that keep the area right after a full raster.
 FAR_WEIGHT = 0.05
-#: How many of a point's nearest readings the far term blends, and the power of its inverse-distance weights
-#: (None: the nearest reading alone). Of None, 1, 2, 3 (8 neighbours) and 2 (4 neighbours), on the boundary and
-#: max_entropy policies' explorations of tuning scenes 0-17 (benchmarks/exploration_fine.py): the boundary policy's
-#: 95th percentile of presses to 95% of the area right 0.66 (None) -> 0.58, its families behind max_entropy's 5 -> 2,
-#: its median 0.27 either way.
-FAR_NEIGHBOURS = 8
-FAR_POWER = 2.0
-#: Point-neighbour pairs the far term evaluates at once (memory bound: ~8 (8 + 3 M) bytes a pair).
-FAR_CHUNK = 1 << 16
 #: Points farther than this many reaches from a press take nothing from its reading (weight below 1.4e-11): a
 #: reading costs the same on any size of map.
 CUTOFF = 5.0
@@ -144,7 +135,7 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
              BoundaryReading]], *, resolution: float = RESOLUTION, reach: float = REACH,
              cell_weight: float = CELL_WEIGHT, clear: float = REACH, moduli: MaterialModuli | None = None,
              cutoff: float | None = CUTOFF, temperature: float = TEMPERATURE,
-             far_weight: float = FAR_WEIGHT, far_power: float | None = FAR_POWER) -> FineMap:
+             far_weight: float = FAR_WEIGHT) -> FineMap:
     """The fine map of a 2-D cell map (see the module docstring).
 
     Args:
@@ -156,10 +147,8 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         moduli: the reference materials' moduli as the reading reads them (:mod:`palpate.core.boundary.moduli`):
             when given, each side of a read wall is the material its read modulus matches, not a neighbour cell's.
         cutoff: a reading reaches points within this many ``reach`` of its press (None: every point).
-        far_weight: weight of each point's nearest readings, however far (0: none; a point out of every reading's
+        far_weight: weight of each point's nearest reading, however far (0: none; a point out of every reading's
             reach then keeps its cell's distribution).
-        far_power: the far term blends the FAR_NEIGHBOURS nearest readings with weights 1 / distance^far_power
-            (None: the nearest reading alone).
         temperature: each point's distribution is raised to 1 / temperature and renormalised (1: the mixture as it
             is; below 1 sharper); the most probable material stays.
 
@@ -174,9 +163,9 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     if probs.shape[:2] != (ny, nx) or probs.ndim != 3:
         raise ValidationError(f"fine_map: probabilities must be ({ny}, {nx}, M), got {probs.shape}")
     if not (0 < resolution <= geometry.cell_size and reach > 0 and cell_weight > 0 and 0 < temperature < np.inf
-            and 0 <= far_weight < np.inf and (far_power is None or 0 < far_power < np.inf)):
+            and 0 <= far_weight < np.inf):
         raise ValidationError("fine_map: resolution must be in (0, cell size], reach, cell_weight and temperature "
-                              "> 0 and finite, far_weight >= 0 and finite, far_power None or > 0 and finite")
+                              "> 0 and finite, far_weight >= 0 and finite")
     n = int(round(geometry.cell_size / resolution))
     out = FineMap(geometry.origin, geometry.cell_size / n, np.zeros((ny * n, nx * n, probs.shape[2])),
                   geometry.materials)
@@ -188,7 +177,7 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     astride = _astride(geometry, readings, clear) if moduli is None else None
     res = out.resolution
     radius = None if cutoff is None else cutoff * reach
-    fields = []  # per reading on the map: its location and field parameters (see _reading_field)
+    fields = []  # per reading on the map: (location, the reading's field at points relative to it)
     for (x0, y0), r in readings:
         window = window_around(pts.shape[:2], geometry.origin, res, (x0, y0), radius)
         if window is None:
@@ -203,15 +192,23 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
             foot = np.array([x0, y0]) + r.foot
             hard = _clear_cell(geometry, probs, astride, foot, r.normal, clear)
             soft = _clear_cell(geometry, probs, astride, foot, -r.normal, clear)
-        params = (x0, y0, r.normal[0], r.normal[1], r.offset, r.offset_sd, r.angle_sd, 1.0 - r.p_plain,
-                  *own, *hard, *soft)
+        field = functools.partial(_reading_field, r, own, hard, soft, res)
         rel = pts[window] - np.array([x0, y0])
         w = np.exp(-np.sum(rel**2, axis=-1) / reach**2)
-        acc[window] += w[..., None] * _reading_field(np.array(params), rel, res)
+        acc[window] += w[..., None] * field(rel)
         weight[window] += w
-        fields.append(params)
+        fields.append(((x0, y0), field))
     if far_weight > 0 and fields:
-        far = _far_field(pts.reshape(-1, 2), np.array(fields), res, far_power)
+        # each point also hears its nearest press, however far: where no press reaches and the cell map knows
+        # nothing (a uniform cell), that decides the point as the press says, with little confidence
+        flat = pts.reshape(-1, 2)
+        _, nearest = cKDTree(np.array([xy for xy, _ in fields])).query(flat)
+        far = np.empty((len(flat), probs.shape[2]))
+        # one pass: the points sorted by their nearest reading, each reading's run evaluated at once
+        order = np.argsort(nearest, kind="stable")
+        runs, starts = np.unique(nearest[order], return_index=True)
+        for k, at in zip(runs, np.split(order, starts[1:]), strict=True):
+            far[at] = fields[k][1](flat[at] - np.array(fields[k][0]))
         acc += far_weight * far.reshape(acc.shape)
         weight += far_weight
     mixed = acc / weight[..., None]
@@ -222,54 +219,16 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     return FineMap(out.origin, out.resolution, mixed, out.materials)
 
 
-def _far_field(flat: np.ndarray, fields: np.ndarray, res: float, power: float | None) -> np.ndarray:
-    """Per point (N, 2) m, what the readings (``fields``: their parameter rows, see :func:`_reading_field`) say
-    however far: the nearest reading's field (``power`` None), or the fields of the FAR_NEIGHBOURS nearest blended
-    by inverse distance to the ``power`` (Shepard): one press on a small feature then owns the points near it, not
-    its whole share of the gap to the presses around it."""
-    k = 1 if power is None else min(FAR_NEIGHBOURS, len(fields))
-    dist, nearest = cKDTree(fields[:, :2]).query(flat, k=k)
-    dist, nearest = dist.reshape(len(flat), k), nearest.reshape(len(flat), k)
-    if power is None:
-        w = np.ones((len(flat), 1))
-    else:
-        # relative to each point's nearest distance: no overflow, and a point on a press takes that press alone
-        ratio = dist[:, :1] / np.maximum(dist, 1e-300)
-        w = np.where(dist[:, :1] > 0, ratio**power, (np.arange(k) == 0)[None, :].astype(float))
-        w /= w.sum(axis=1, keepdims=True)
-    m = (fields.shape[1] - 8) // 3
-    far = np.empty((len(flat), m))
-    chunk = max(1, FAR_CHUNK // k)  # bounded memory on any size of map
-    columns = fields.T  # a column at a time: gathering whole rows per (point, neighbour) costs 5x more
-    for a in range(0, len(flat), chunk):
-        at = nearest[a:a + chunk]
-        rel = flat[a:a + chunk, None, :] - np.stack([columns[0][at], columns[1][at]], axis=-1)
-        q = _side_probability(*(columns[c][at] for c in range(2, 7)), rel, res)
-        p_wall, wk = columns[7][at], w[a:a + chunk]
-        own, hard, soft = wk * (1.0 - p_wall), wk * p_wall * q, wk * p_wall * (1.0 - q)
-        for j in range(m):
-            far[a:a + chunk, j] = np.sum(own * columns[8 + j][at] + hard * columns[8 + m + j][at]
-                                         + soft * columns[8 + 2 * m + j][at], axis=1)
-    return far
-
-
-def _side_probability(nx, ny, offset, offset_sd, angle_sd, rel: np.ndarray, res: float) -> np.ndarray:
-    """Probability that points ``rel`` (..., 2) m from a press lie on the harder side of its read wall (normal
-    (nx, ny), offset and its sd in m, the angle's sd in rad; each broadcast against ``rel``'s leading axes)."""
-    s = rel[..., 0] * nx + rel[..., 1] * ny - offset
-    along = np.abs(rel[..., 1] * nx - rel[..., 0] * ny)
-    spread = np.sqrt(offset_sd**2 + (angle_sd * along) ** 2 + (0.25 * res) ** 2)
-    return ndtr(s / spread)
-
-
-def _reading_field(params: np.ndarray, rel: np.ndarray, res: float) -> np.ndarray:
+def _reading_field(r: BoundaryReading, own: np.ndarray, hard: np.ndarray, soft: np.ndarray, res: float,
+                   rel: np.ndarray) -> np.ndarray:
     """A reading's distribution at points ``rel`` (..., 2) m from its press: each side of a read wall in proportion
-    to the probability that the point lies there, the press's own material where no wall was read. ``params``
-    (8 + 3 M,): location x, y (m), normal x, y, offset (m), offset sd (m), angle sd (rad), probability of a wall,
-    then the own, harder-side and softer-side distributions."""
-    m = (len(params) - 8) // 3
-    q = _side_probability(*params[2:7], rel, res)[..., None]
-    p_wall, own, hard, soft = params[7], params[8:8 + m], params[8 + m:8 + 2 * m], params[8 + 2 * m:]
+    to the probability that the point lies there, the press's own material where no wall was read."""
+    n_vec = r.normal
+    s = rel @ n_vec - r.offset
+    along = np.abs(rel @ np.array([-n_vec[1], n_vec[0]]))
+    spread = np.sqrt(r.offset_sd**2 + (r.angle_sd * along) ** 2 + (0.25 * res) ** 2)
+    q = ndtr(s / spread)[..., None]
+    p_wall = 1.0 - r.p_plain
     return p_wall * (q * hard + (1 - q) * soft) + (1 - p_wall) * own
 
 

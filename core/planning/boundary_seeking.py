@@ -49,7 +49,7 @@ class BoundarySeeking:
         shift: how far off its cell's centre a press may go, as a share of the half-width, [0, 1] (0 = centres
             only, as info_gain).
         spread_stride: info_gain's first lattice (every ``spread_stride``-th cell).
-        far_weight: the fine map's weight of a point's nearest readings however far (0: plan on the readings in
+        far_weight: the fine map's weight of a point's nearest reading however far (0: plan on the readings in
             reach only; the default, the reported map's, took tuning scenes 0-17 to 95% of the area right in 0.25 of
             raster's presses against 0.26 with 0).
         resolution, reach: the fine map's (m).
