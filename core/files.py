@@ -9,6 +9,7 @@ never echoed whole into an error.
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import errno
 import json
@@ -237,6 +238,54 @@ def number_array(value, where: str, ndim: int, max_size: int | None = None) -> n
             or not np.all(np.isfinite(arr))):
         raise ValidationError(f"{where} must be a {ndim}-D array of {size} finite numbers")
     return arr
+
+
+#: The ``packed`` tag of an array of decimals stored as integers (see :func:`pack_decimals`).
+PACKED = "fixed-point"
+_PACKED_KEYS = {"packed", "dtype", "shape", "divisor", "base64"}
+_PACKED_DTYPES = ("<i2", "<i4", "<i8")
+
+
+def pack_decimals(values, decimals: int) -> dict:
+    """``values`` rounded to ``decimals`` places as a JSON object: the integers value x 10^decimals, little-endian
+    in base64, with their dtype, shape and divisor. A third of the text of a list of the same numbers, read in a
+    millisecond where a JSON list of 10^5 numbers takes ~0.1 s; :func:`decimal_array` gives back exactly the floats
+    the list's decimals would parse to (an integer over a power of ten, correctly rounded)."""
+    arr = np.rint(np.asarray(values, dtype=float) * 10**decimals)
+    if not (0 <= decimals <= 12 and np.all(np.isfinite(arr)) and np.all(np.abs(arr) < 2**53)):
+        raise ValidationError("pack_decimals: finite values and 0-12 decimals, no more than 15 digits in all")
+    big = float(np.max(np.abs(arr))) if arr.size else 0.0
+    dtype = next(d for d, bits in zip(_PACKED_DTYPES, (15, 31, 63), strict=True) if big < 2**bits)
+    return {"packed": PACKED, "dtype": dtype, "shape": list(arr.shape), "divisor": 10**decimals,
+            "base64": base64.b64encode(arr.astype(dtype).tobytes()).decode("ascii")}
+
+
+def decimal_array(value, where: str, ndim: int, max_size: int | None = None) -> np.ndarray:
+    """:func:`number_array` of a list of numbers or of a :func:`pack_decimals` object, checked alike; a packed
+    object's tags, shape and length are checked before anything is decoded."""
+    if not isinstance(value, dict):
+        return number_array(value, where, ndim, max_size)
+    shape, divisor, dtype, text = (value.get(k) for k in ("shape", "divisor", "dtype", "base64"))
+    if (set(value) != _PACKED_KEYS or value["packed"] != PACKED or dtype not in _PACKED_DTYPES
+            or not isinstance(text, str) or not isinstance(shape, list) or len(shape) != ndim
+            or not all(type(n) is int and 0 < n for n in shape) or type(divisor) is not int
+            or divisor not in {10**k for k in range(13)}):
+        raise ValidationError(f"{where} must be a list of numbers or a packed array ({sorted(_PACKED_KEYS)}, "
+                              f"packed {PACKED!r}, dtype one of {_PACKED_DTYPES}, a {ndim}-D shape of positive "
+                              "integers, a power-of-ten divisor)")
+    size = math.prod(shape)
+    if max_size is not None and size > max_size:
+        raise ValidationError(f"{where} must hold at most {max_size} numbers, its shape {shape} holds {size}")
+    nbytes = size * np.dtype(dtype).itemsize
+    if len(text) != 4 * math.ceil(nbytes / 3):
+        raise ValidationError(f"{where}: {len(text)} base64 characters for {nbytes} bytes of {shape} {dtype}")
+    try:
+        raw = base64.b64decode(text, validate=True)
+    except ValueError:
+        raise ValidationError(f"{where}: not base64") from None
+    if len(raw) != nbytes:
+        raise ValidationError(f"{where}: {len(raw)} bytes for {nbytes} bytes of {shape} {dtype}")
+    return np.frombuffer(raw, dtype=dtype).reshape(shape).astype(float) / divisor
 
 
 def per_file_version(read, maxsize: int = 4):

@@ -235,11 +235,20 @@ def test_wall_table_file_is_checked(tmp_path):
     assert table.share.shape[2:] == (len(table.offsets), len(table.offsets), len(table.along))
     np.testing.assert_allclose(table.share, table.share.transpose(0, 1, 3, 2, 4), atol=1e-9)
     doc = table.to_dict({"how": "test"})
-    doc["share"][0][0][0][0][0] = "x"
-    bad = tmp_path / "bad.json"
-    bad.write_text(json.dumps(doc))
-    with pytest.raises(ValidationError, match="bad.json"):
-        load_wall_table(bad)
+    # written packed; read back exactly; a list of the same numbers reads the same; a damaged value is refused
+    written = tmp_path / "table.json"
+    written.write_text(json.dumps(doc))
+    np.testing.assert_array_equal(load_wall_table(written).share, table.share)
+    listed = tmp_path / "listed.json"
+    listed.write_text(json.dumps(dict(doc, share=table.share.tolist())))
+    np.testing.assert_array_equal(load_wall_table(listed).share, table.share)
+    damaged = table.share.tolist()
+    damaged[0][0][0][0][0] = "x"
+    for share, name in ((damaged, "bad.json"), (dict(doc["share"], base64=doc["share"]["base64"][:-4]), "cut.json")):
+        bad = tmp_path / name
+        bad.write_text(json.dumps(dict(doc, share=share)))
+        with pytest.raises(ValidationError, match=name):
+            load_wall_table(bad)
     with pytest.raises(ValidationError, match="not found"):
         load_wall_table(tmp_path / "missing.json")
 

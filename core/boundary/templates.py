@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.files import number_array, read_json
+from palpate.core.files import decimal_array, number_array, pack_decimals, read_json
 
 FORMAT = "palpate-boundary-templates"
 VERSION = 1
@@ -125,8 +125,8 @@ def templates_from_document(doc: object, source: str) -> BoundaryTemplates:
         angles = number_array(doc["angles_deg"], f"{source}: angles_deg", 1, 64)
         offsets = number_array(doc["offsets"], f"{source}: offsets", 1, 256)
         contrasts = number_array(doc["contrasts"], f"{source}: contrasts", 1, 64)
-        wall = number_array(doc["wall"], f"{source}: wall", 6, MAX_IMAGES * 64)
-        plain = number_array(doc["plain"], f"{source}: plain", 3, 64 * 64)
+        wall = decimal_array(doc["wall"], f"{source}: wall", 6, MAX_IMAGES * 64)
+        plain = decimal_array(doc["plain"], f"{source}: plain", 3, 64 * 64)
     except (KeyError, TypeError, ValueError) as exc:
         raise ValidationError(f"{source}: a templates file needs pad, poisson, depths, angles_deg, offsets, "
                               f"contrasts, wall and plain ({exc})") from None
@@ -171,5 +171,4 @@ def templates_document(pad: Pad, poisson: float, depths, angles_deg, offsets, co
                     "sensel_size": pad.sensel_size},
             "poisson": poisson, "depths": list(map(float, depths)), "angles_deg": list(map(float, angles_deg)),
             "offsets": list(map(float, offsets)), "contrasts": list(map(float, contrasts)),
-            "wall": np.round(np.asarray(wall, dtype=float), 1).tolist(),
-            "plain": np.round(np.asarray(plain, dtype=float), 1).tolist()}
+            "wall": pack_decimals(wall, 1), "plain": pack_decimals(plain, 1)}

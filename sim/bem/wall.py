@@ -30,13 +30,15 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core.errors import ValidationError
-from palpate.core.files import per_file_version
+from palpate.core.files import decimal_array, pack_decimals, per_file_version
 from palpate.core.world.resources import models_dir
 from palpate.sim.validity.reference import read_document
 
 TABLE_PATH = models_dir() / "bem_wall_table.json"
 FORMAT = "palpate-bem-wall"
 VERSION = 1
+#: Most numbers a wall table's lambda may hold (the shipped one holds 234 099).
+MAX_SHARE = 4_000_000
 #: Points nearer the wall than this many node spacings take the value there, on their own side.
 NEAR_WALL = 1.25
 
@@ -81,7 +83,7 @@ class WallTable:
         return {"format": FORMAT, "version": VERSION, "measured_with": measured_with,
                 "thickness": self.thickness, "offsets": self.offsets.tolist(), "along": self.along.tolist(),
                 "poisson": self.poisson.tolist(), "contrast": self.contrast.tolist(),
-                "share": np.round(self.share, 4).tolist()}
+                "share": pack_decimals(self.share, 4)}
 
 
 def load_wall_table(path: Path = TABLE_PATH) -> WallTable:
@@ -96,7 +98,8 @@ def _read_wall_table(path: Path) -> WallTable:
         table = WallTable(offsets=np.asarray(doc["offsets"], dtype=float), along=np.asarray(doc["along"], dtype=float),
                           poisson=np.asarray(doc["poisson"], dtype=float),
                           contrast=np.asarray(doc["contrast"], dtype=float),
-                          share=np.asarray(doc["share"], dtype=float), thickness=float(doc["thickness"]))
+                          share=decimal_array(doc["share"], f"{path}: share", 5, MAX_SHARE),
+                          thickness=float(doc["thickness"]))
     except (KeyError, TypeError, ValueError) as exc:
         raise ValidationError(f"{path}: not a wall table ({exc})") from None
     for name in ("offsets", "along", "poisson", "contrast", "share"):
