@@ -43,6 +43,16 @@ def law_scaled(force: np.ndarray, pressure: np.ndarray, depth: np.ndarray, law) 
     return np.where(force > 0, target, 0.0), pressure * scale.reshape((-1,) + (1,) * (pressure.ndim - 1))
 
 
+def force_from_law(surface: Surface, force: np.ndarray, pressure: np.ndarray, depth: np.ndarray,
+                   law_for) -> tuple[np.ndarray, np.ndarray]:
+    """The surface solve's force and sensel pressures at ``depth`` (m), as :func:`law_scaled` makes them where the
+    surface's change is buried (a lump under a shared top: the force is the press point's law's, ``law_for()``,
+    asked only then), as solved elsewhere."""
+    if not surface.buried:
+        return force, pressure
+    return law_scaled(force, pressure, depth, law_for())
+
+
 def between(surface: Surface, nodes: np.ndarray, fields: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray,
                                                                                                  np.ndarray]:
     """Force (N) and sensel pressures (Pa, (m, rows * cols)) at any ``depth`` (m, (m,)) from the fields solved at
@@ -142,12 +152,10 @@ def run_bem_press(scene: Scene, obj: ObjectSpec, profile: PressProfile, *, rate:
         mixing = surface.mixing
         # the release retraces the press (quasi-static elasticity): each distinct depth is computed once
         unique, back = np.unique(np.round(depth, 12), return_inverse=True)
-        f_u, p_u = between(surface, nodes, fields, unique)
-        if surface.buried:
-            deepest = max(law_depth(profile), d_max)
-            law = (law_for(deepest) if law_for is not None
-                   else object_law(obj, profile.x, profile.y, profile.surface_z, radius, deepest))
-            f_u, p_u = law_scaled(f_u, p_u, unique, law)
+        deepest = max(law_depth(profile), d_max)
+        f_u, p_u = force_from_law(surface, *between(surface, nodes, fields, unique), unique,
+                                  lambda: law_for(deepest) if law_for is not None
+                                  else object_law(obj, profile.x, profile.y, profile.surface_z, radius, deepest))
         force = f_u[back]
         pressure = p_u[back].reshape(len(t), tip.rows, tip.cols)
     normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)

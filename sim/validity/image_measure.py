@@ -21,7 +21,7 @@ from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, ObjectSpec, Scene
 from palpate.sim.analytic import law_sensel_pressure
 from palpate.sim.bem.law import press_law
-from palpate.sim.bem.press import CELL, law_scaled
+from palpate.sim.bem.press import CELL, force_from_law
 from palpate.sim.bem.solve import solve_ladder
 from palpate.sim.bem.surface import build_surface
 from palpate.sim.bem.wall import WallTable
@@ -71,10 +71,8 @@ def rung_image(case: ImageCase, rung: str, tip: FingertipSpec, walls: WallTable 
             a = math.sqrt(tip.radius * depths[-1])
             surface = build_surface(obj, x, y, obj.height, tip, min(1.2 * a + 2 * CELL, 0.97 * tip.radius), CELL,
                                     a, walls)
-            force, pressure = solve_ladder(surface, tip.radius, depths)
-            if surface.buried:  # as run_bem_press: the force from the point's law, the image's shape from the surface
-                law = object_law(obj, x, y, obj.height, tip.radius, 1.05 * depths[-1])
-                force, pressure = law_scaled(force, pressure, depths, law)
+            force, pressure = force_from_law(surface, *solve_ladder(surface, tip.radius, depths), depths,
+                                             lambda: object_law(obj, x, y, obj.height, tip.radius, 1.05 * depths[-1]))
             return PressImage(depths, force, pressure.reshape(len(depths), tip.rows, tip.cols)), surface.mixing
         if rung == "flex":
             return _flex_image(obj, x, y, depths, tip), ""
