@@ -59,6 +59,34 @@ def test_a_thin_layer_is_stiffer_than_a_thick_block_and_a_frictionless_base_soft
     assert np.all(bonded > sliding) and np.all(sliding > thick)
 
 
+def test_a_kept_mesh_serves_samples_of_its_geometry_and_a_change_of_geometry_or_base_misses(monkeypatch):
+    import palpate.sim.reference.fe as fe
+
+    d = np.array([0.5, 1.0]) * 1e-3
+    built = []
+    real = fe._mesh
+    monkeypatch.setattr(fe, "_mesh", lambda *a: built.append(a[0]) or real(*a))
+    meshes = {}
+    kw = dict(refinement=0.5, energy=True)
+    first = fe_press(AxisymmetricSample(SOFT, 0.01), R, d, meshes=meshes, **kw)
+    # another material on the same geometry: the kept mesh, and the answer a fresh mesh gives, bit for bit
+    other = AxisymmetricSample(Material("n", 5e5, 0.45), 0.01)
+    kept = fe_press(other, R, d, meshes=meshes, **kw)
+    assert len(built) == 1 and len(meshes) == 1
+    fresh = fe_press(other, R, d, **kw)
+    for name in ("force", "contact_radius", "pressure", "element_energy"):
+        np.testing.assert_array_equal(getattr(kept, name), getattr(fresh, name))
+    assert not np.array_equal(kept.force, first.force)
+    # a thicker sample, or the same one on a frictionless base: another mesh each
+    fe_press(AxisymmetricSample(SOFT, 0.012), R, d, meshes=meshes, **kw)
+    fe_press(AxisymmetricSample(SOFT, 0.01, base="frictionless"), R, d, meshes=meshes, **kw)
+    assert len(built) == 4 and len(meshes) == 3
+    # a few kept at most
+    for t in (0.013, 0.014, 0.015):
+        fe_press(AxisymmetricSample(SOFT, t), R, d, meshes=meshes, **kw)
+    assert len(meshes) <= fe.MAX_MESHES
+
+
 @pytest.mark.parametrize(
     ("make", "match"),
     [

@@ -135,11 +135,12 @@ def free_side(lookup, reach: float, breaks_r=()) -> float:
     return float(r[max(int(np.argmax(none)) - 1, 0)])
 
 
-def column_energy(column: AxisymmetricSample, tip_radius: float, max_depth: float, breaks_z=()) -> FEPress:
+def column_energy(column: AxisymmetricSample, tip_radius: float, max_depth: float, breaks_z=(),
+                  meshes: dict | None = None) -> FEPress:
     """The column's coarse FE answer at the tabulated depths, for its element energy shares (see the module
-    docstring)."""
+    docstring); ``meshes``: the caller's kept FE meshes (:func:`palpate.sim.reference.fe.fe_presses`)."""
     return fe_press(column, tip_radius, max_depth * DEPTH_FRACTIONS, refinement=REFINEMENT, growth=GROWTH,
-                    depth_growth=DEPTH_GROWTH, breaks_z=breaks_z, energy=True)
+                    depth_growth=DEPTH_GROWTH, breaks_z=breaks_z, energy=True, meshes=meshes)
 
 
 def lateral_effect(lookup, column_lookup, energy: FEPress) -> np.ndarray:

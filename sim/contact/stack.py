@@ -30,6 +30,8 @@ from palpate.sim.reference.sample import AxisymmetricSample
 
 #: Reach of lateral variation: a disc of radius REACH_A * a + depth at each depth.
 REACH_A = 1.5
+#: The key under which a law cache keeps its FE meshes (:func:`palpate.sim.reference.fe.fe_presses`).
+_MESHES = ("fe-meshes",)
 
 
 def object_breaks(obj: ObjectSpec, surface_z: float) -> list[float]:
@@ -235,7 +237,9 @@ def _column_energy(lookup, thickness: float, breaks: list[float], tip_radius: fl
         if young == top:
             return energy
         return replace(energy, force=energy.force * (top / young), pressure=energy.pressure * (top / young))
-    energy = column_energy(stack, tip_radius, max_depth, breaks)
+    # the FE meshes too: columns of one geometry (a run's training blocks) share one
+    meshes = cache.setdefault(_MESHES, {}) if cache is not None else None
+    energy = column_energy(stack, tip_radius, max_depth, breaks, meshes)
     if cache is not None:
         cache[key] = (energy, top)
     return energy

@@ -34,6 +34,8 @@ H0_OVER_A = 1.0 / 12.0
 #: wider (a thin bonded layer), it is widened by WIDENING, up to MAX_WIDENINGS times.
 WIDENING = 1.5
 MAX_WIDENINGS = 4
+#: Meshes a caller's ``meshes`` dict keeps at most (:func:`fe_presses`).
+MAX_MESHES = 4
 
 
 @dataclass(frozen=True)
@@ -251,7 +253,7 @@ def _hat_loads(r_top: np.ndarray, dof_r: np.ndarray, dof_index: np.ndarray, n_do
 
 def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinement: float = 1.0,
              growth: float = 1.15, depth_growth: float = 1.10, materials=None, breaks_r=(), breaks_z=(),
-             energy: bool = False, free_side: float = math.inf) -> FEPress:
+             energy: bool = False, free_side: float = math.inf, meshes: dict | None = None) -> FEPress:
     """Force, contact radius and surface pressure of a rigid sphere pressed ``depths`` (m) into ``sample``.
 
     Args:
@@ -266,19 +268,24 @@ def fe_press(sample: AxisymmetricSample, tip_radius: float, depths, *, refinemen
         energy: also return each element's strain-energy share at each depth (else ``element_energy`` is empty).
         free_side: radius, m, past which the top surface is absent (a free side that ``materials`` fills with a
             near-void so the mesh can run on): the sphere cannot touch it there. It is also a mesh line.
+        meshes: a dict the caller keeps (see :func:`fe_presses`).
     """
     return fe_presses(sample, tip_radius, depths, [materials], refinement=refinement, growth=growth,
                       depth_growth=depth_growth, breaks_r=breaks_r, breaks_z=breaks_z, energy=energy,
-                      free_side=free_side)[0]
+                      free_side=free_side, meshes=meshes)[0]
 
 
 def fe_presses(sample: AxisymmetricSample, tip_radius: float, depths, fields, *, refinement: float = 1.0,
                growth: float = 1.15, depth_growth: float = 1.10, breaks_r=(), breaks_z=(), energy: bool = False,
-               free_side: float = math.inf) -> list[FEPress]:
+               free_side: float = math.inf, meshes: dict | None = None) -> list[FEPress]:
     """:func:`fe_press` for each material field of ``fields`` (each as its ``materials``; None: the sample's own),
     all on one mesh: two fields compared like against like (their discretisation errors cancel in a ratio), and
     the mesh, its basis and the stiffness's geometric parts built once. Where the contact of any field reaches the
-    refined region's edge, the region is widened for all."""
+    refined region's edge, the region is widened for all.
+
+    ``meshes``: a dict the caller keeps across calls: a mesh is kept in it by what it is made of (its nodes, width,
+    base and hats' reach) and a later call on the same geometry, whatever its materials, takes it instead of
+    building it again (samples of one size pressed alike, e.g. a run's training blocks); at most MAX_MESHES kept."""
     d = np.sort(np.atleast_1d(np.asarray(depths, dtype=float)))
     if not (tip_radius > 0 and np.all(np.isfinite(d)) and d.size and d[0] > 0 and d[-1] < 0.9 * tip_radius):
         raise ValidationError(f"fe_press: depths must lie in (0, {0.9 * tip_radius}) m, got {depths!r}")
@@ -291,7 +298,8 @@ def fe_presses(sample: AxisymmetricSample, tip_radius: float, depths, fields, *,
     for _ in range(MAX_WIDENINGS + 1):
         try:
             return _solve(sample, tip_radius, d, reach, h0, list(fields), growth=growth, depth_growth=depth_growth,
-                          breaks_r=breaks_r, breaks_z=breaks_z, energy=energy, free_side=free_side)
+                          breaks_r=breaks_r, breaks_z=breaks_z, energy=energy, free_side=free_side,
+                          meshes=meshes)
         except _EdgeReached as exc:
             if exc.at_rim:
                 break
@@ -312,7 +320,8 @@ class _EdgeReached(ValidationError):
 
 
 def _solve(sample: AxisymmetricSample, tip_radius: float, d: np.ndarray, a_max: float, h0: float, fields: list, *,
-           growth: float, depth_growth: float, breaks_r, breaks_z, energy: bool, free_side: float) -> list[FEPress]:
+           growth: float, depth_growth: float, breaks_r, breaks_z, energy: bool, free_side: float,
+           meshes: dict | None = None) -> list[FEPress]:
     """:func:`fe_presses` on a mesh refined (spacing ``h0``, m) out to 1.3 ``a_max`` (m); _EdgeReached if the
     contact reaches the end of that region."""
     wide = not math.isfinite(sample.radius)
@@ -326,7 +335,15 @@ def _solve(sample: AxisymmetricSample, tip_radius: float, d: np.ndarray, a_max: 
         breaks_z += [inc.depth, inc.bottom]
     grid = sample_grids(sample.thickness, width, a_max, h0, breaks_r, breaks_z, growth=growth,
                         depth_growth=depth_growth)
-    mesh = _mesh(sample, grid.r, grid.depth, width, wide, 1.3 * a_max)
+    # what _mesh reads of the sample is its base alone
+    key = (sample.base, wide, float(width), float(1.3 * a_max), grid.r.tobytes(), grid.depth.tobytes())
+    mesh = None if meshes is None else meshes.get(key)
+    if mesh is None:
+        mesh = _mesh(sample, grid.r, grid.depth, width, wide, 1.3 * a_max)
+        if meshes is not None:
+            if len(meshes) >= MAX_MESHES:  # a few kept: a mesh holds megabytes
+                meshes.clear()
+            meshes[key] = mesh
     r_top = mesh.r_top
     weights = -mesh.loads.sum(axis=0)  # integral of each hat times r dr
     # beyond the sphere's equator the surface can never be touched
