@@ -213,10 +213,14 @@ def _mesh(sample: AxisymmetricSample, r_nodes: np.ndarray, z_nodes: np.ndarray, 
     loads = _hat_loads(r_top, locs[0, on_top], on_top, n)[free]
     vertex = np.array([at[on_top[np.argmin(np.abs(locs[0, on_top] - rv))]] for rv in r_top])
     lam_part, mu_part = _stiffness_parts(basis)
-    return _Mesh(basis=basis, centroid_r=centroid[0], centroid_depth=top - centroid[1], lam_part=lam_part,
+    mesh = _Mesh(basis=basis, centroid_r=centroid[0], centroid_depth=top - centroid[1], lam_part=lam_part,
                  mu_part=mu_part, element_dofs=element_dofs, free=free, at=at, kept=kept, slot=slot.reshape(-1),
                  indices=(keys % len(free)).astype(np.int32), indptr=indptr.astype(np.int32), r_top=r_top,
                  loads=loads, vertex=vertex)
+    for value in vars(mesh).values():
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)  # one mesh serves every field and every caller that keeps it
+    return mesh
 
 
 def _unique_inverse(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
