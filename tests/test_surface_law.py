@@ -79,6 +79,27 @@ def test_a_cached_surface_law_is_reused_and_missed_when_a_material_changes():
     assert soft.force_at(0.003) < first.force_at(0.003)
 
 
+def test_walls_on_one_material_share_the_uniform_reference_solve_and_their_laws_are_as_if_solved_alone(monkeypatch):
+    import palpate.sim.bem.law as law_mod
+
+    solved = []
+    real = law_mod.uniform_surface
+    monkeypatch.setattr(law_mod, "uniform_surface", lambda *a: solved.append(a[1]) or real(*a))
+    tip, cache = _tip(), {}
+    # three press points beside the wall, on the soft side: one uniform reference for all three
+    points = (-0.002, -0.0015, -0.001)
+    kept = [press_law(_wall_block(HARD), x, 0.0, 0.03, tip, 0.004, cache=cache) for x in points]
+    assert len(solved) == 1
+    for x, law in zip(points, kept, strict=True):
+        alone = press_law(_wall_block(HARD), x, 0.0, 0.03, tip, 0.004, cache={})
+        for name in ("force", "coeffs"):
+            assert np.array_equal(getattr(law, name), getattr(alone, name))
+    # another material under the press point, or another depth: another reference
+    press_law(_wall_block(HARD), 0.002, 0.0, 0.03, tip, 0.004, cache=cache)  # on the hard side
+    press_law(_wall_block(HARD), -0.002, 0.0, 0.03, tip, 0.003, cache=cache)
+    assert len(solved) == 1 + 3 + 2
+
+
 def test_no_surface_law_where_an_edge_lies_within_the_contact():
     tip = _tip()
     obj = _wall_block(HARD)

@@ -22,8 +22,9 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.world.scene import FingertipSpec, ObjectSpec
+from palpate.sim.bem.kernel import Stack
 from palpate.sim.bem.solve import CELL, ContactOutgrown, solve_fields
-from palpate.sim.bem.surface import build_surface, column_stacks, uniform_surface
+from palpate.sim.bem.surface import Surface, build_surface, column_stacks, uniform_surface
 from palpate.sim.bem.wall import WallTable
 from palpate.sim.contact.law import ContactLaw
 from palpate.sim.contact.stack import object_law
@@ -77,10 +78,12 @@ def may_change_at_top(obj: ObjectSpec, x: float, y: float, surface_z: float, rea
 
 
 def surface_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: FingertipSpec, max_depth: float,
-                column: ContactLaw, walls: WallTable | None = None, columns=None) -> ContactLaw | None:
+                column: ContactLaw, walls: WallTable | None = None, columns=None,
+                cache: dict | None = None) -> ContactLaw | None:
     """The law of a press at (x, y) (m) up to ``max_depth`` m from the surface solve (module docstring), or None
     where it does not apply. ``column``: the press point's column law (laterally uniform) up to ``max_depth``;
-    ``columns``: :func:`surface_columns` at :func:`surface_reach`, when the caller has them."""
+    ``columns``: :func:`surface_columns` at :func:`surface_reach`, when the caller has them; ``cache``: a dict the
+    caller keeps, where the uniform reference solve is kept (:func:`uniform_forces`)."""
     if poisson_refusal(obj, "bem") or layer_refusal(obj, "bem"):
         return None
     radius = tip.radius
@@ -97,9 +100,8 @@ def surface_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fing
             surface = build_surface(obj, x, y, surface_z, tip, reach, CELL, math.sqrt(radius * max_depth), walls)
             if surface.buried:
                 return None
-            alone = uniform_surface(surface, axis[0], reach)
             real = solve_fields(surface, radius, depths).sum(axis=1)
-            own = solve_fields(alone, radius, depths).sum(axis=1)
+            own = uniform_forces(surface, axis[0], reach, radius, depths, cache)
             break
         except ContactOutgrown:
             if reach >= 0.995 * radius:
@@ -116,6 +118,22 @@ def surface_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fing
         return None
     return ContactLaw(tip_radius=column.tip_radius, contact_radius=column.contact_radius, depth=column.depth,
                       force=force, coeffs=column.coeffs * scale[:, None], surface_modulus=column.surface_modulus)
+
+
+def uniform_forces(surface: Surface, stack: Stack, reach: float, tip_radius: float, depths: np.ndarray,
+                   cache: dict | None = None) -> np.ndarray:
+    """The summed cell pressures (Pa, (n,)) of ``surface``'s cells all over ``stack`` (:func:`uniform_surface`, built
+    with ``reach`` m) pressed ``depths`` m: the reference a surface law is a ratio to. Kept in ``cache`` by all it
+    depends on (the stack, the cells' side and centres, the reach, the tip and the depths): walls on one material,
+    away from the object's edges, share it."""
+    key = ("uniform", stack, surface.cell, reach, tip_radius, surface.centres.tobytes(), depths.tobytes())
+    hit = cache.get(key) if cache is not None else None
+    if hit is None:
+        hit = solve_fields(uniform_surface(surface, stack, reach), tip_radius, depths).sum(axis=1)
+        hit.setflags(write=False)
+        if cache is not None:
+            cache[key] = hit
+    return hit
 
 
 def press_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: FingertipSpec, max_depth: float,
@@ -136,7 +154,7 @@ def press_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Finger
         hit = cache.get(key) if cache is not None else None
         if hit is not None and hit.max_depth >= max_depth:
             return hit
-        law = surface_law(obj, x, y, surface_z, tip, max_depth, column, walls, (stack_of, stacks, on_object))
+        law = surface_law(obj, x, y, surface_z, tip, max_depth, column, walls, (stack_of, stacks, on_object), cache)
         if law is not None:
             if cache is not None:
                 if len(cache) > 512:  # as object_law's: a long run pressing everywhere must not grow without bound
