@@ -64,8 +64,8 @@ def test_a_kept_mesh_serves_samples_of_its_geometry_and_a_change_of_geometry_or_
 
     d = np.array([0.5, 1.0]) * 1e-3
     built = []
-    real = fe._mesh
-    monkeypatch.setattr(fe, "_mesh", lambda *a: built.append(a[0]) or real(*a))
+    real = fe.build_mesh
+    monkeypatch.setattr(fe, "build_mesh", lambda *a: built.append(a[0]) or real(*a))
     meshes = {}
     kw = dict(refinement=0.5, energy=True)
     first = fe_press(AxisymmetricSample(SOFT, 0.01), R, d, meshes=meshes, **kw)
@@ -227,7 +227,7 @@ def test_the_closed_form_rungs_law_is_within_ten_percent_on_lumps_and_edges():
 def test_the_stiffness_matrix_is_the_axisymmetric_bilinear_form_as_skfem_assembles_it():
     from skfem import Basis, BilinearForm, ElementQuad2, ElementVector, MeshQuad1, asm
 
-    from palpate.sim.reference.fe import _stiffness
+    from palpate.sim.reference.fe_mesh import assemble_stiffness
 
     mesh = MeshQuad1.init_tensor(np.concatenate([[0.0], np.geomspace(1e-4, 0.02, 12)]), np.linspace(0, 0.01, 9))
     basis = Basis(mesh, ElementVector(ElementQuad2()), intorder=4)
@@ -244,7 +244,7 @@ def test_the_stiffness_matrix_is_the_axisymmetric_bilinear_form_as_skfem_assembl
 
     nqp = basis.X.shape[1]
     want = asm(form, basis, lam=np.repeat(lam[:, None], nqp, 1), mu=np.repeat(mu[:, None], nqp, 1))
-    got = _stiffness(basis, lam, mu)
+    got = assemble_stiffness(basis, lam, mu)
     assert abs(got - want).max() <= 1e-13 * abs(want).max()
 
 
@@ -255,7 +255,8 @@ def test_fields_solved_on_one_mesh_are_each_fields_own_solve_and_their_energy_is
     uncondensed solve's and add up to the work the pressure does (u^T K u = f^T u)."""
     import math
 
-    from palpate.sim.reference.fe import _mesh, _stiffness, fe_presses
+    from palpate.sim.reference.fe import fe_presses
+    from palpate.sim.reference.fe_mesh import assemble_stiffness, build_mesh
     from palpate.sim.reference.mesh import sample_grids
 
     sample = AxisymmetricSample(SOFT, 0.02)
@@ -276,7 +277,7 @@ def test_fields_solved_on_one_mesh_are_each_fields_own_solve_and_their_energy_is
     a_max = math.sqrt(R * d[-1]) * 1.15
     width = 12 * sample.thickness + 60 * a_max
     grid = sample_grids(sample.thickness, width, a_max, math.sqrt(R * d[0]) / 12 / 0.5)
-    mesh = _mesh(sample, grid.r, grid.depth, width, True, 1.3 * a_max)
+    mesh = build_mesh(sample, grid.r, grid.depth, width, True, 1.3 * a_max)
     young, poisson = ring(mesh.centroid_r, mesh.centroid_depth)
     lam, mu = young * poisson / ((1 + poisson) * (1 - 2 * poisson)), young / (2 * (1 + poisson))
     from scipy.sparse.linalg import spsolve
@@ -289,7 +290,7 @@ def test_fields_solved_on_one_mesh_are_each_fields_own_solve_and_their_energy_is
     # the same load on the uncondensed system (the bubbles solved with the rest), assembled another way
     bubbles = mesh.element_dofs[:, 16:].ravel()
     unknown = np.union1d(mesh.free, bubbles)
-    full = _stiffness(mesh.basis, lam, mu)[unknown][:, unknown]
+    full = assemble_stiffness(mesh.basis, lam, mu)[unknown][:, unknown]
     rhs = np.zeros(len(mesh.at))
     rhs[mesh.free] = f
     whole = np.zeros(len(mesh.at))
