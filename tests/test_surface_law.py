@@ -85,18 +85,19 @@ def test_walls_on_one_material_share_the_uniform_reference_solve_and_their_laws_
     solved = []
     real = law_mod.uniform_surface
     monkeypatch.setattr(law_mod, "uniform_surface", lambda *a: solved.append(a[1]) or real(*a))
+    law_of = law_mod.press_law  # the patched module's own (another test may have imported it anew)
     tip, cache = _tip(), {}
     # three press points beside the wall, on the soft side: one uniform reference for all three
     points = (-0.002, -0.0015, -0.001)
-    kept = [press_law(_wall_block(HARD), x, 0.0, 0.03, tip, 0.004, cache=cache) for x in points]
+    kept = [law_of(_wall_block(HARD), x, 0.0, 0.03, tip, 0.004, cache=cache) for x in points]
     assert len(solved) == 1
     for x, law in zip(points, kept, strict=True):
-        alone = press_law(_wall_block(HARD), x, 0.0, 0.03, tip, 0.004, cache={})
+        alone = law_of(_wall_block(HARD), x, 0.0, 0.03, tip, 0.004, cache={})
         for name in ("force", "coeffs"):
             assert np.array_equal(getattr(law, name), getattr(alone, name))
     # another material under the press point, or another depth: another reference
-    press_law(_wall_block(HARD), 0.002, 0.0, 0.03, tip, 0.004, cache=cache)  # on the hard side
-    press_law(_wall_block(HARD), -0.002, 0.0, 0.03, tip, 0.003, cache=cache)
+    law_of(_wall_block(HARD), 0.002, 0.0, 0.03, tip, 0.004, cache=cache)  # on the hard side
+    law_of(_wall_block(HARD), -0.002, 0.0, 0.03, tip, 0.003, cache=cache)
     assert len(solved) == 1 + 3 + 2
 
 
