@@ -11,12 +11,16 @@ Seeds below 100000 are tuning seeds, from 100000 on report seeds (never tuned on
 per family. --clairvoyant adds the boundary policy told where its fine map is wrong (its expected errors are the
 true ones): what a planner that knew where the map is wrong would score with the same presses and readings.
 --share S ends every run after S of the raster's presses (quicker tuning runs; a run that has not reached the
-target by then counts as cells + 1).
+target by then counts as cells + 1). --stays also scores the press after which the fine map stays at the target to
+the end of the run (the first press there can be a lucky guess a later press undoes; the fine map is then rebuilt
+after every press, which costs about twice the run): per policy its median and p95, and against max_entropy scene by
+scene (fewer / more presses, one-sided Wilcoxon signed-rank p).
 
 --jobs J runs J scenes at once in separate processes (rows and tables as with one; the wall time printed last).
 
 Run: .venv/bin/python benchmarks/exploration_fine.py [--first 0] [--scenes 9] [--policies raster,boundary]
-     [--clairvoyant] [--share S] [--boundary FIELD=VALUE ...] [--jobs J] [--json PATH] [--from-json PATH ...]
+     [--clairvoyant] [--share S] [--stays] [--boundary FIELD=VALUE ...] [--jobs J] [--json PATH]
+     [--from-json PATH ...]
 """
 
 from __future__ import annotations
@@ -107,7 +111,15 @@ def first_at(curve: np.ndarray, level: float) -> int | None:
     return int(hit[0]) + 1 if len(hit) else None
 
 
-def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0) -> list[dict]:
+def stays_at(curve: np.ndarray, level: float) -> int | None:
+    """The press (1-based) from which ``curve`` stays at or above ``level`` to its end; None if it ends below."""
+    below = np.flatnonzero(curve < level)
+    if len(below) and below[-1] == len(curve) - 1:
+        return None
+    return int(below[-1]) + 2 if len(below) else 1
+
+
+def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0, stays: bool = False) -> list[dict]:
     fs, base, reader, make, training = trained_scene(seed)
     moduli = training_moduli(training.readings)
     rows = []
@@ -123,6 +135,8 @@ def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0) -> list
         n = cells
         tenth = max(1, int(round(TENTH * n)))
         keep = {min(tenth, len(res.steps))} | {max(1, int(round(q * n))) for q in SHARES}
+        if stays:
+            keep = set(range(1, len(res.steps) + 1))
         fine, cell = fine_curve(sc, res, training.memory, moduli, truth, keep)
         rows.append({"seed": seed, "family": fs.family, "split": "report" if is_report_seed(seed) else "tuning",
                      "policy": policy, "cells": n, "presses": len(res.steps), "to_target": first_at(fine, TARGET),
@@ -132,12 +146,29 @@ def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0) -> list
                                  if (k := max(1, int(round(q * n)))) <= len(fine)},
                      "off_centre": sum(1 for s in res.steps if s.target != tuple(
                          res.geometry.cell_centres()[s.cell[1], s.cell[0]])),
-                     "cpu_s": time.process_time() - t0})
+                     "cpu_s": time.process_time() - t0} | ({"stays": stays_at(fine, TARGET)} if stays else {}))
     return rows
 
 
-def ratio(r: dict) -> float:
-    return (r["to_target"] if r["to_target"] is not None else r["cells"] + 1) / r["cells"]
+def ratio(r: dict, key: str = "to_target") -> float:
+    return (r[key] if r[key] is not None else r["cells"] + 1) / r["cells"]
+
+
+def report_stays(part: list[dict], policies: tuple[str, ...]) -> None:
+    """The --stays reading of one split: per policy, and each policy against max_entropy scene by scene."""
+    from scipy.stats import wilcoxon
+
+    by = {p: {r["seed"]: ratio(r, "stays") for r in part if r["policy"] == p} for p in policies}
+    print(f"presses after which the fine map stays at {TARGET:.0%} / raster's: policy, median, p95, against "
+          "max_entropy (fewer / more presses, one-sided Wilcoxon p)")
+    for p in policies:
+        rs = np.array(list(by[p].values()))
+        line = f"  {p:12} {np.median(rs):7.2f} {np.percentile(rs, 95):6.2f}"
+        if p != "max_entropy" and by.get("max_entropy"):
+            d = np.array([by[p][s] - by["max_entropy"][s] for s in by[p] if s in by["max_entropy"]])
+            pval = wilcoxon(d, alternative="less").pvalue if np.any(d != 0) else 1.0
+            line += f"   {int(np.sum(d < 0))} / {int(np.sum(d > 0))}, p {pval:.3f}"
+        print(line)
 
 
 def report(rows: list[dict], policies: tuple[str, ...]) -> None:
@@ -159,6 +190,8 @@ def report(rows: list[dict], policies: tuple[str, ...]) -> None:
             print(f"{p:12} {np.median(rs):7.2f} {np.percentile(rs, 95):6.2f} {rs.max():6.2f} "
                   f"{sum(r['to_target'] is not None for r in mine):4d}/{len(mine):<3d} "
                   f"{np.median([r['fine_final'] for r in mine]):9.1%} {ok}")
+        if all("stays" in r for r in part):
+            report_stays(part, policies)
         fams = sorted({r["family"] for r in part})
         print(f"per family, median ratio: {'family':10} " + " ".join(f"{p:>11}" for p in policies))
         for f in fams:
@@ -175,6 +208,8 @@ def main() -> None:
     parser.add_argument("--boundary", action="append", default=[], metavar="FIELD=VALUE",
                         help=f"add the row {TUNED}: the boundary policy with FIELD set (repeatable)")
     parser.add_argument("--share", type=float, default=1.0, help="end runs after this share of raster's presses")
+    parser.add_argument("--stays", action="store_true", help="also score the press from which the fine map stays "
+                        "at the target (rebuilds the fine map after every press)")
     parser.add_argument("--jobs", type=int, default=1, help="scenes run at once, one process each (default 1)")
     parser.add_argument("--json", default=None, help="write every row to this JSON file")
     parser.add_argument("--from-json", nargs="+", default=None, metavar="PATH",
@@ -192,8 +227,9 @@ def main() -> None:
     rows, wall = [], time.perf_counter()
     pool = ProcessPoolExecutor(args.jobs, initializer=register_tuned, initargs=(settings,)) if args.jobs > 1 else None
     try:
-        scenes = pool.map(scene_rows, seeds, [policies] * len(seeds), [args.share] * len(seeds)) if pool else (
-            scene_rows(seed, policies, args.share) for seed in seeds)
+        scenes = pool.map(scene_rows, seeds, [policies] * len(seeds), [args.share] * len(seeds),
+                          [args.stays] * len(seeds)) if pool else (
+            scene_rows(seed, policies, args.share, args.stays) for seed in seeds)
         for got in scenes:  # in seed order either way
             rows.extend(got)
             print(f"scene {got[0]['seed']} ({got[0]['family']}, {got[0]['cells']} cells): " + ", ".join(
