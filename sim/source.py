@@ -62,8 +62,9 @@ class SimSource:
             or a RealismProfile; None is ``ideal`` (the simulation exactly as without profiles). One source is one
             session (one pad equilibration, one clock synchronisation). Its finger pulp is in series with the
             press point's contact law; the validity table (``auto``) is about the mechanics alone.
-        laws: a dict of contact laws (and column FE energies) to share with other sources of the same fingertip,
-            e.g. every source of a run; each entry is keyed on its stack or press point and materials. A law
+        laws: a dict of contact laws (and what solving them keeps: column FE energies and meshes, walls' uniform
+            reference solves) to share with other sources of the same fingertip, e.g. every source of a run; each
+            entry is keyed on all it depends on (stack or press point, materials, geometry). A law
             solved deeper than a press needs serves it, so a source's numbers may depend on what the others
             pressed before, to within the law's tabulation.
     """
