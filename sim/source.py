@@ -62,11 +62,10 @@ class SimSource:
             or a RealismProfile; None is ``ideal`` (the simulation exactly as without profiles). One source is one
             session (one pad equilibration, one clock synchronisation). Its finger pulp is in series with the
             press point's contact law; the validity table (``auto``) is about the mechanics alone.
-        laws: a dict of contact laws (and what solving them keeps: column FE energies and meshes, walls' uniform
-            reference solves) to share with other sources of the same fingertip, e.g. every source of a run; each
-            entry is keyed on all it depends on (stack or press point, materials, geometry). A law
-            solved deeper than a press needs serves it, so a source's numbers may depend on what the others
-            pressed before, to within the law's tabulation.
+        laws: a dict of contact laws (and the FE energies, meshes and wall references they keep) to share with
+            other sources of the same fingertip, e.g. every source of a run; each entry keyed on all it depends
+            on. A law solved deeper than a press needs serves it, so a source's numbers may depend on what the
+            others pressed before, to within the law's tabulation.
     """
 
     #: modules every fidelity imports when it presses (checked by the run before any work starts)
