@@ -50,15 +50,12 @@ def main() -> None:
         tpl_list.write_text(json.dumps(_listed(doc, {"wall": tpl.wall[:, :n], "plain": tpl.plain})))
         same = (np.array_equal(_read_wall_table(wall_list).share, table.share)
                 and np.array_equal(read_templates(tpl_list).wall, tpl.wall))
-        rows = [("wall table", _cpu(_read_wall_table, wall, args.repeat), _cpu(_read_wall_table, wall_list,
-                                                                              args.repeat), wall, wall_list),
-                ("boundary templates", _cpu(read_templates, templates, args.repeat), _cpu(read_templates, tpl_list,
-                                                                                        args.repeat), templates,
-                 tpl_list)]
         print(f"{'table':<20} {'packed s':>9} {'list s':>8} {'ratio':>7} {'packed MB':>10} {'list MB':>8}")
-        for name, packed, listed, p, q in rows:
-            print(f"{name:<20} {packed:9.4f} {listed:8.4f} {packed / listed:7.3f} {p.stat().st_size / 1e6:10.2f} "
-                  f"{q.stat().st_size / 1e6:8.2f}")
+        for name, read, shipped, listed in (("wall table", _read_wall_table, wall, wall_list),
+                                            ("boundary templates", read_templates, templates, tpl_list)):
+            packed, plain = _cpu(read, shipped, args.repeat), _cpu(read, listed, args.repeat)
+            print(f"{name:<20} {packed:9.4f} {plain:8.4f} {packed / plain:7.3f} {shipped.stat().st_size / 1e6:10.2f} "
+                  f"{listed.stat().st_size / 1e6:8.2f}")
     print(f"same arrays bit for bit: {same}")
 
 
