@@ -44,7 +44,7 @@ from palpate.sim.analytic import local_material
 from palpate.sim.contact.law import ContactLaw
 from palpate.sim.contact.stack import object_law
 from palpate.sim.fingertip import cap_height, sensel_quadrature, sensel_sites
-from palpate.sim.rigid import Footprint, contact_geometry, equivalent_radius, footprint_rings, law_pressure
+from palpate.sim.footprint import Footprint, contact_geometry, equivalent_radius, footprint_rings, law_pressure
 from palpate.sim.scene import add_object, surface_heights
 from palpate.sim.sensors import ground_truth, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS

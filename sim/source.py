@@ -29,12 +29,13 @@ from palpate.sim.controller import ROBOT, PressProfile, Variability, press_profi
 from palpate.sim.flex.model import SOLVER_ITERATIONS
 from palpate.sim.flex.press import run_flex_press
 from palpate.sim.flex.tables import FlexTables, load_flex_tables
+from palpate.sim.footprint import rigid_depth_for_force
 from palpate.sim.limits import MAX_DEPTH_OVER_THICKNESS, depth_refusal, layer_refusal, poisson_refusal
 from palpate.sim.planned import PlannedPress
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import resolve_profile
 from palpate.sim.realism.stage import RealismSession
-from palpate.sim.rigid import rigid_depth_for_force, run_rigid_press
+from palpate.sim.rigid import run_rigid_press
 from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, check_iterations, law_depth
@@ -109,6 +110,7 @@ class SimSource:
         self._law_memo: dict = {}  # the last law of each press point's arguments, while the law cache is unchanged
         self._pads: dict = {}  # the pad's sensel footprints by fingertip and contact centre (analytic)
         self._rigid_models: dict = {}  # compiled rigid press models (palpate.sim.rigid.press_model)
+        self._force_tables: dict = {}  # rigid force against depth by law and footprint (rigid_depth_for_force)
         self._flex_models: dict = {}  # built flex windows (palpate.sim.flex.press.run_flex_press)
         self._flex_tables: FlexTables | None = None  # its calibration tables, read on the first flex press
         self._session = (None if self.realism.is_ideal else
@@ -173,15 +175,14 @@ class SimSource:
         depth = target.depth
         if target.force is not None:
             x, y = (target.x, target.y) if at is None else at
-            law = self._law(obj, x, y, surface_z,
-                            min(MAX_DEPTH_OVER_RADIUS * tip.radius, MAX_DEPTH_OVER_THICKNESS * surface_z))
+            deepest = min(MAX_DEPTH_OVER_RADIUS * tip.radius, MAX_DEPTH_OVER_THICKNESS * surface_z)
+            law = self._law(obj, x, y, surface_z, deepest)
             reach = law.depth_for_force(target.force) if target.force < law.force[-1] else law.max_depth
             depth = reach if depth is None else min(depth, reach)
         if self._images is None:
             self._images = load_image_table()
         return explain_fidelity(obj, target, tip.radius, tolerance=self.tolerance, table=self._table, depth=depth,
-                                images=self._images,
-                                surface_z=surface_z)
+                                images=self._images, surface_z=surface_z)
 
     def press(self, target: PressTarget) -> PressRecording:
         """One press-and-release at ``target``: taxel frames, pose samples and ground truth."""
@@ -280,7 +281,7 @@ class SimSource:
                     if fidelity == "rigid":
                         # the force rigid will feel on this geometry (edges, curved tops), not the flat law's
                         centre = np.array([point.x, point.y]) + tip.radius * normal[:2]
-                        return rigid_depth_for_force(obj, centre, tip, law, force, mesh)
+                        return rigid_depth_for_force(obj, centre, tip, law, force, mesh, self._force_tables)
                     return law.depth_for_force(force)
                 except ValidationError:
                     if target.depth is not None:
@@ -365,8 +366,7 @@ class SimSource:
             poses = sample_poses(trace, pose_spec, np.random.default_rng(plan.s_pose), latency=latency)
         meta = {
             "source": "sim", "fidelity": fidelity, "fidelity_reason": choice.reason, "object": obj.name,
-            "material": trace.material,
-            "seed": self.seed, "press_index": plan.index,
+            "material": trace.material, "seed": self.seed, "press_index": plan.index,
             "target": {"x": target.x, "y": target.y, "depth": target.depth, "force": target.force,
                        "speed": target.speed, "hold": target.hold, "label": target.label},
             "profile": {k: v for k, v in profile.meta.items() if k != "phases"}, "phases": profile.meta["phases"],

@@ -138,6 +138,34 @@ def test_the_source_keeps_one_blas_controller_across_presses():
 
 
 
+def test_force_depth_tables_are_kept_by_law_and_footprint_and_answer_as_a_fresh_table(law):
+    from dataclasses import replace
+
+    from palpate.sim.footprint import rigid_depth_for_force
+
+    tip = FingertipSpec(radius=R)
+    block = _block()
+    tables: dict = {}
+    for centre, force in (((0.0, 0.0), 0.5), ((0.01, -0.02), 0.8), ((0.0, 0.0), 0.3)):
+        kept = rigid_depth_for_force(block, np.array(centre), tip, law, force, tables=tables)
+        assert kept == rigid_depth_for_force(block, np.array(centre), tip, law, force)
+    assert len(tables) == 1  # three points of one flat top: one footprint, one table
+    (d, f), = tables.values()
+    assert not (d.flags.writeable or f.flags.writeable)
+    # the same law's arrays in another object (another press point's law) hit; any change of them misses
+    twin = replace(law, force=law.force.copy(), coeffs=law.coeffs.copy())
+    rigid_depth_for_force(block, np.zeros(2), tip, twin, 0.5, tables=tables)
+    assert len(tables) == 1
+    softer = replace(law, force=0.9 * law.force, coeffs=0.9 * law.coeffs)
+    deeper = rigid_depth_for_force(block, np.zeros(2), tip, softer, 0.5, tables=tables)
+    assert len(tables) == 2 and deeper > rigid_depth_for_force(block, np.zeros(2), tip, law, 0.5)
+    # a footprint over the block's edge is another table, and the force there needs a deeper press
+    edge = np.array([0.05 - 0.002, 0.0])
+    at_edge = rigid_depth_for_force(block, edge, tip, law, 0.5, tables=tables)
+    assert len(tables) == 3 and at_edge == rigid_depth_for_force(block, edge, tip, law, 0.5)
+    assert at_edge > rigid_depth_for_force(block, np.zeros(2), tip, law, 0.5)
+
+
 def test_a_kept_press_model_moved_to_the_next_start_presses_as_a_fresh_compile(law):
     import mujoco
 
