@@ -13,7 +13,9 @@ Three workloads, each at N = 1, 16, 64 and 256 presses:
 Every source's contact laws are solved before timing (a shared, warmed law cache), except in ``specs``, whose
 point is the law each fresh press solves. Rounds interleave loop and batch, so the machine's load hits both alike;
 each prints the median CPU time (``time.process_time``) per press and the throughput ratio loop / batch. The
-batch's results equal the loop's (tests/test_sim_batch.py); this script checks it again on the first round.
+batch's results equal the loop's (tests/test_sim_batch.py); this script checks it again on the first round. The
+floor is what a batch equal to the loop cannot vectorise away (:func:`floor_workload`: each press's seeds and noise
+generators, its frame, pose and recording objects), timed in the same rounds: loop / floor bounds the ratio.
 
 Run: .venv/bin/python benchmarks/speed_batch.py [--rounds 5] [--quick]
 """
@@ -83,6 +85,30 @@ def same(a, b) -> bool:
                for x, y in zip(a, b, strict=True))
 
 
+def floor_workload(recordings: list):
+    """What any batch whose recordings equal the loop's must still do per press, whatever it vectorises: draw the
+    press's seeds and make its noise generators (each press's own stream, as SimSource._plan and the sensors do),
+    and hand out its frames, poses, ground truth and recording (the objects a PressRecording is made of), from the
+    arrays of ``recordings`` (a batch's output). Its time bounds the ratio a batch can reach: loop / floor."""
+    from palpate.core.perception.streams import GroundTruth, PressRecording, pose_samples, taxel_frames
+
+    arrays = [(np.array([f.t for f in r.frames]), np.array([f.counts for f in r.frames]), r.frames[0].sensel_area,
+               np.array([p.t for p in r.poses]), np.array([p.position for p in r.poses]),
+               np.array([p.quaternion for p in r.poses]), r.truth) for r in recordings]
+
+    def floor():
+        out = []
+        for k, (tf, counts, area, tp, pos, quat, truth) in enumerate(arrays):
+            _, s_taxel, s_pose, _ = np.random.SeedSequence([5, k]).spawn(4)
+            np.random.default_rng(s_taxel), np.random.default_rng(s_pose)
+            out.append(PressRecording(frames=taxel_frames(tf, counts, area), poses=pose_samples(tp, pos, quat),
+                                      truth=GroundTruth(truth.t.copy(), truth.force.copy(),
+                                                        truth.indentation.copy(), truth.material), meta={}))
+        return out
+
+    return floor
+
+
 def cpu(fn):
     t0 = time.process_time()
     out = fn()
@@ -96,7 +122,8 @@ def main() -> None:
     args = ap.parse_args()
     sizes = (1, 16, 64) if args.quick else (1, 16, 64, 256)
     rounds = 3 if args.quick else args.rounds
-    print(f"{'workload':9s} {'N':>4s} {'loop ms/press':>14s} {'batch ms/press':>15s} {'ratio':>6s}  equal")
+    print(f"{'workload':9s} {'N':>4s} {'loop ms/press':>14s} {'batch ms/press':>15s} {'ratio':>6s}  equal  "
+          f"{'floor ms/press':>14s} {'loop / floor':>12s}")
     for name in ("robot", "human", "specs"):
         for n in sizes:
             if name == "specs":
@@ -104,16 +131,19 @@ def main() -> None:
             else:
                 loop, batch = source_workload("robot" if name == "robot" else "human",
                                               None if name == "robot" else "thesis_ch6", n, {})
-            tl, tb, equal = [], [], None
+            tl, tb, tf, equal, floor = [], [], [], None, None
             for r in range(rounds):
                 a, ra = cpu(loop)
                 b, rb = cpu(batch)
                 if r == 0:
                     equal = same(ra, rb)
+                    floor = floor_workload(rb)
                 tl.append(a)
                 tb.append(b)
-            ml, mb = float(np.median(tl)) / n, float(np.median(tb)) / n
-            print(f"{name:9s} {n:4d} {ml * 1e3:14.3f} {mb * 1e3:15.3f} {ml / mb:6.1f}  {equal}")
+                tf.append(cpu(floor)[0])
+            ml, mb, mf = (float(np.median(x)) / n for x in (tl, tb, tf))
+            print(f"{name:9s} {n:4d} {ml * 1e3:14.3f} {mb * 1e3:15.3f} {ml / mb:6.1f}  {equal!s:5s}  "
+                  f"{mf * 1e3:14.3f} {ml / mf:12.1f}")
 
 
 if __name__ == "__main__":
