@@ -179,12 +179,7 @@ def run_rigid_press(
     x_band = band + 1.0 if band > 0 else -1.0
     qpos, qvel, qfrc, dctrl = data.qpos, data.qvel, data.qfrc_applied, data.ctrl
     step = mujoco.mj_step
-    coast = _Coast(model, data, ctrl, f_tab, base, slope, top, x_band, s_cmd > g_ref)
-    skip = 0
     for k in range(n):
-        if skip:  # a step the last coast took
-            skip -= 1
-            continue
         qk = float(qpos[0])
         vk = float(qvel[0])
         x = base + qk * slope
@@ -205,11 +200,6 @@ def run_rigid_press(
         q[k] = qk
         v[k] = vk
         f[k] = fk
-        if fk == 0.0 and coast.ahead[k] >= MIN_COAST:
-            skip = coast.run(k, q, v, f)
-            if skip >= 0:
-                continue
-            skip = 0
         qfrc[0] = fk
         dctrl[0] = ctrl[k]
         step(model, data)
@@ -258,71 +248,6 @@ def run_rigid_press(
     )
     trace.check_finite()
     return trace
-
-
-#: Out of contact the force is 0 and a step is open-loop: a stretch of at least this many steps over which the
-#: setpoint stays clear of the top runs as one ``mujoco.rollout`` (C) instead of step by step from Python.
-MIN_COAST = 16
-#: Coasts a press tries at most (one on the way down and one on the way up are the usual).
-MAX_COASTS = 8
-
-
-class _Coast:
-    """The steps out of contact of a rigid press run as rollouts, giving the states the step loop gives bit for bit:
-    a rollout of the setpoint's clear stretch with no applied force, cut at its first state in contact (or with a
-    non-finite or too deep position), whose steps are then taken as the loop would have taken them."""
-
-    def __init__(self, model, data, ctrl: list, f_tab: np.ndarray, base: float, slope: float, top: float,
-                 x_band: float, clear: np.ndarray):
-        import mujoco
-
-        self.model, self.data, self.ctrl, self.f_tab = model, data, np.asarray(ctrl), f_tab
-        self.base, self.slope, self.top, self.x_band = base, slope, top, x_band
-        # steps from each step on over which the setpoint stays clear of the top (0 where it touches)
-        stop = np.where(~clear, np.arange(len(clear)), len(clear))
-        self.ahead = np.minimum.accumulate(stop[::-1])[::-1] - np.arange(len(clear))
-        self.left = MAX_COASTS
-        self.full = mujoco.mjtState.mjSTATE_FULLPHYSICS
-        self.spec = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED
-
-    def run(self, k: int, q: list, v: list, f: list) -> int:
-        """Steps k, k + 1, ... from ``data``'s state (step k's force is 0) as a rollout; fills ``q``, ``v``, ``f``
-        of the steps it takes, leaves ``data`` at the state the loop goes on from and returns how many of the
-        following steps the loop skips; -1 when nothing was taken (the loop then steps on as usual)."""
-        import mujoco
-        from mujoco import rollout
-
-        if self.left <= 0:
-            return -1
-        self.left -= 1
-        model, data, n = self.model, self.data, int(self.ahead[k])
-        state = np.empty(mujoco.mj_stateSize(model, self.full))
-        mujoco.mj_getState(model, data, state, self.full)
-        control = np.zeros((n, mujoco.mj_stateSize(model, self.spec)))
-        control[:, 0] = self.ctrl[k:k + n]
-        # the rollout runs on the press's own data (a second MjData costs more than the steps saved) and resets
-        # its warning counters: the loop's are kept and put back
-        warned = [(w.number, w.lastinfo) for w in data.warning]
-        states = rollout.rollout(model, data, state, control, control_spec=self.spec)[0][0]
-        fresh = any(w.number for w in data.warning)
-        for w, (number, info) in zip(data.warning, warned, strict=True):
-            w.number, w.lastinfo = number, info
-        if fresh:  # the loop's own steps meet the warning and report it
-            mujoco.mj_setState(model, data, state, self.full)
-            return -1
-        # the loop's force at each state, in its arithmetic (elementwise, so equal to its floats)
-        x = self.base + states[:, 1] * self.slope
-        finite = np.isfinite(x)
-        xc = np.clip(np.where(finite, x, 0.0), 0.0, self.top)
-        i = xc.astype(int)
-        fx = self.f_tab[i] + (self.f_tab[i + 1] - self.f_tab[i]) * (xc - i)
-        touch = np.flatnonzero(~finite | (fx != 0.0) | (xc < self.x_band))
-        cut = min(int(touch[0]) if touch.size else n, n - 1)
-        q[k + 1:k + 1 + cut] = states[:cut, 1].tolist()
-        v[k + 1:k + 1 + cut] = states[:cut, 1 + model.nq].tolist()
-        f[k + 1:k + 1 + cut] = [0.0] * cut
-        mujoco.mj_setState(model, self.data, states[cut], self.full)
-        return cut
 
 
 def press_model(scene: Scene, obj: ObjectSpec, start: np.ndarray, axis: np.ndarray, timestep: float,
