@@ -12,8 +12,11 @@ prints, over the report scenes:
   for the policy as measured and shifted by a constant share of presses (a policy that much better on every
   scene), and for a policy exchangeable with the baseline (each scene's pair swapped at random: no difference).
 
+``--reading stays`` judges the press from which the fine map stays at 95% to the end of the run instead of the first
+press that reaches it (rows of ``exploration_fine.py --stays``).
+
 Run: .venv/bin/python benchmarks/exploration_power.py ROWS.json [ROWS.json ...] [--policy boundary]
-     [--baseline max_entropy] [--draws 4000] [--seed 0]
+     [--baseline max_entropy] [--reading to_target|stays] [--split report|tuning] [--draws 4000] [--seed 0]
 (rows from `exploration_fine.py --first 100000 --scenes 24 --policies raster,max_entropy,info_gain,boundary
 --json ROWS.json`)
 """
@@ -30,12 +33,16 @@ from scipy.stats import wilcoxon
 SHIFTS = (0.0, -0.05, -0.1, -0.2)
 
 
-def shares(rows: list[dict], policy: str) -> dict[int, tuple[str, float]]:
-    """Report seed -> (family, presses to target over the raster's) for ``policy``."""
+def shares(rows: list[dict], policy: str, reading: str = "to_target",
+           split: str = "report") -> dict[int, tuple[str, float]]:
+    """Seed -> (family, presses to target over the raster's) for ``policy`` on the ``split``'s scenes; ``reading``:
+    ``to_target`` (the first press at the target) or ``stays`` (the press from which the map stays there)."""
     out = {}
     for r in rows:
-        if r["policy"] == policy and r["split"] == "report":
-            presses = r["to_target"] if r["to_target"] is not None else r["cells"] + 1
+        if r["policy"] == policy and r["split"] == split:
+            if reading not in r:
+                raise SystemExit(f"the rows have no {reading!r} reading (exploration_fine.py --stays writes it)")
+            presses = r[reading] if r[reading] is not None else r["cells"] + 1
             out[r["seed"]] = (r["family"], presses / r["cells"])
     return out
 
@@ -79,12 +86,16 @@ def main() -> None:
     parser.add_argument("--baseline", default="max_entropy")
     parser.add_argument("--draws", type=int, default=4000)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--reading", choices=("to_target", "stays"), default="to_target",
+                        help="the first press at 95%% (default) or the press from which the map stays at 95%%")
+    parser.add_argument("--split", choices=("report", "tuning"), default="report",
+                        help="the scenes judged (default report; tuning to see a protocol on the scenes it was set on)")
     args = parser.parse_args()
     rows = [r for path in args.rows for r in json.load(open(path))]
-    pol, base = shares(rows, args.policy), shares(rows, args.baseline)
+    pol, base = (shares(rows, p, args.reading, args.split) for p in (args.policy, args.baseline))
     seeds = sorted(set(pol) & set(base), key=lambda s: (pol[s][0], s))
     if len(seeds) < 4:
-        raise SystemExit(f"need at least 4 report scenes with both {args.policy} and {args.baseline}")
+        raise SystemExit(f"need at least 4 {args.split} scenes with both {args.policy} and {args.baseline}")
     families = [pol[s][0] for s in seeds]
     sizes = list(Counter(families).values())
     x = np.array([pol[s][1] for s in seeds])
@@ -93,8 +104,8 @@ def main() -> None:
     bounds = np.cumsum([0] + sizes)
     groups = [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
     worse = [families[g[0]] for g in groups if np.median(x[g]) > np.median(y[g]) + 1e-12]
-    print(f"{len(seeds)} report scenes, {len(sizes)} families of {min(sizes)}-{max(sizes)}; {args.policy} against "
-          f"{args.baseline} (presses to 95% over the raster's)")
+    print(f"{len(seeds)} {args.split} scenes, {len(sizes)} families of {min(sizes)}-{max(sizes)}; {args.policy} "
+          f"against {args.baseline} (presses to 95% over the raster's, {args.reading} reading)")
     print(f"measured: median {np.median(x):.3f}, p95 {np.percentile(x, 95):.3f}; paired difference median "
           f"{np.median(d):+.3f}, fewer presses on {int(np.sum(d < 0))}, more on {int(np.sum(d > 0))}; one-sided "
           f"Wilcoxon p {one_sided_wilcoxon(d):.4f}; families with a worse median: {', '.join(worse) or 'none'}")
