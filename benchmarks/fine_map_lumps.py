@@ -16,14 +16,19 @@ Run: .venv/bin/python benchmarks/fine_map_lumps.py [--first 100000] [--scenes 24
 
 from __future__ import annotations
 
-import argparse
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 
 import numpy as np
 from fine_map_families import trained_scene
-from lump_scenes import footprint_area_mm2, lump_footprint, lump_top_mm, make_lump_scene
+from lump_scenes import (
+    footprint_area_mm2,
+    lump_footprint,
+    lump_top_mm,
+    make_lump_scene,
+    scene_arguments,
+    scene_results,
+)
 from scene_families import REFERENCES, is_report_seed
 from scipy.ndimage import distance_transform_edt
 
@@ -123,26 +128,19 @@ def _harder(ref: str, block: str) -> bool:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--first", type=int, default=100000)
-    parser.add_argument("--scenes", type=int, default=24)
-    parser.add_argument("--jobs", type=int, default=1, help="scenes run in this many processes")
-    args = parser.parse_args()
-    seeds = list(range(args.first, args.first + args.scenes))
+    args = scene_arguments(__doc__)
     print(f"{'seed':>7} {'split':6} {'presses':>7} lumps (top mm, shape, harder|softer, felt: located L / named N and "
           "error mm, cell map | fine map)")
     rows = []
-    with ProcessPoolExecutor(args.jobs) as pool:
-        for r in pool.map(scene_row, seeds):
-            rows.append(r)
-            desc = "; ".join(f"{lu['top']:.1f} {lu['shape']} {'harder' if lu['harder'] else 'softer'}"
-                             f"{' felt' if lu['felt'] else ''}{' spotted' if lu['spotted'] else ''}: "
-                             + " | ".join(_mark(lu[m]) for m in ("cell", "fine")) for lu in r["lumps"])
-            away = "-" if r["away"] is None else f"{r['away']:.1%}"
-            print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} {desc}"
-                  f"; spurious {r['spurious']}, stray spots {r['stray_spots']}, area right away from lumps {away} "
-                  f"({r['cpu']:.0f} s CPU)",
-                  flush=True)
+    for r in scene_results(scene_row, args):
+        rows.append(r)
+        desc = "; ".join(f"{lu['top']:.1f} {lu['shape']} {'harder' if lu['harder'] else 'softer'}"
+                         f"{' felt' if lu['felt'] else ''}{' spotted' if lu['spotted'] else ''}: "
+                         + " | ".join(_mark(lu[m]) for m in ("cell", "fine")) for lu in r["lumps"])
+        away = "-" if r["away"] is None else f"{r['away']:.1%}"
+        print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} {desc}"
+              f"; spurious {r['spurious']}, stray spots {r['stray_spots']}, area right away from lumps {away} "
+              f"({r['cpu']:.0f} s CPU)", flush=True)
     lumps = [lu for r in rows for lu in r["lumps"]]
     print(f"\n{len(lumps)} lumps in {len(rows)} scenes. Per band of the top's depth: lumps | the median over lumps "
           "of the largest force change a press saw | felt by a press | located / named / median error mm, cell map "

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from scene_families import HEIGHT_MM, PX_MM, REFERENCES, FamilyScene, slot_materials
@@ -49,6 +50,22 @@ def footprint_area_mm2(lump: dict) -> float:
     if lump["shape"] == "sphere":
         return math.pi * lump["size_mm"][0] ** 2
     return lump["size_mm"][0] * lump["size_mm"][1]
+
+
+def scene_arguments(doc: str) -> argparse.Namespace:
+    """The command line of a benchmark over seeded lump scenes: --first (default the first report seed), --scenes,
+    --jobs (scenes run in that many processes)."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("--first", type=int, default=100000)
+    parser.add_argument("--scenes", type=int, default=24)
+    parser.add_argument("--jobs", type=int, default=1, help="scenes run in this many processes")
+    return parser.parse_args()
+
+
+def scene_results(scene_row, args: argparse.Namespace):
+    """``scene_row(seed)`` of each seed of ``args`` (:func:`scene_arguments`) in seed order, as they finish."""
+    with ProcessPoolExecutor(args.jobs) as pool:
+        yield from pool.map(scene_row, range(args.first, args.first + args.scenes))
 
 
 def make_lump_scene(seed: int) -> FamilyScene:

@@ -14,16 +14,14 @@ Run: .venv/bin/python benchmarks/voxel_lumps.py [--first 100000] [--scenes 24] [
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
-from concurrent.futures import ProcessPoolExecutor
 from functools import cache
 
 import numpy as np
 from exploration import make_source_for
 from exploration_voxels import CELL_MM, DEPTH_MM, FORCE_N, MATERIALS, NAMES
-from lump_scenes import lump_top_mm
+from lump_scenes import lump_top_mm, scene_arguments, scene_results
 from scene_families import HEIGHT_MM, is_report_seed
 
 from palpate.core.mapping.regions import map_region_report
@@ -126,22 +124,17 @@ def scene_row(seed: int) -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--first", type=int, default=100000)
-    parser.add_argument("--scenes", type=int, default=24)
-    parser.add_argument("--jobs", type=int, default=1, help="scenes run in this many processes")
-    args = parser.parse_args()
+    args = scene_arguments(__doc__)
     print(f"{'seed':>7} {'split':6} {'presses':>7} {'voxels right':>12}  lumps (top mm, shape: located L, named N, "
           "top's layer right T; distance to the nearest region of another material, mm)")
     rows = []
-    with ProcessPoolExecutor(args.jobs) as pool:
-        for r in pool.map(scene_row, range(args.first, args.first + args.scenes)):
-            rows.append(r)
-            desc = "; ".join(f"{lu['top']:.1f} {lu['shape']}: {'L' if lu['located'] else '-'}"
-                             f"{'N' if lu['named'] else '-'}{'T' if lu['top_right'] else '-'} "
-                             f"{'-' if lu['error'] is None else format(lu['error'], '.1f')}" for lu in r["lumps"])
-            print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} "
-                  f"{r['accuracy']:12.1%}  {desc} ({r['cpu']:.0f} s CPU)", flush=True)
+    for r in scene_results(scene_row, args):
+        rows.append(r)
+        desc = "; ".join(f"{lu['top']:.1f} {lu['shape']}: {'L' if lu['located'] else '-'}"
+                         f"{'N' if lu['named'] else '-'}{'T' if lu['top_right'] else '-'} "
+                         f"{'-' if lu['error'] is None else format(lu['error'], '.1f')}" for lu in r["lumps"])
+        print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} "
+              f"{r['accuracy']:12.1%}  {desc} ({r['cpu']:.0f} s CPU)", flush=True)
     lumps = [lu for r in rows for lu in r["lumps"]]
     print(f"\n{len(lumps)} lumps in {len(rows)} scenes; per band of the top's depth: lumps, located, named, top's "
           "layer right, median distance mm")
