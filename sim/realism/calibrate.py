@@ -118,6 +118,7 @@ FREE_PARAMETERS = {p.key: p for p in (
     FreeParameter("material.relaxation", 0.0, 0.6),
     FreeParameter("material.softening", 0.0, 0.3),
     FreeParameter("material.plateau_strain", 0.02, 0.2),
+    FreeParameter("material.densify_strain", 0.1, 0.4),
 )}
 #: What the command fits unless told otherwise: location (pulp stiffness, pad sensitivity) and spread.
 DEFAULT_FREE = ("finger.stiffness_n_per_mm", "finger.stiffening_per_mm", "finger.stiffness_cv", "press.depth_cv",

@@ -71,12 +71,14 @@ class SeriesLaw:
 
 
 def series_law(e_star: float, radius: float, pulp: FingerPulp, stiffness_scale: float,
-               reach: float, plateau: float = 0.0) -> SeriesLaw:
+               reach: float, plateau: float = 0.0, densify: float = 0.0) -> SeriesLaw:
     """Tabulate the series law of a Hertz object (E* Pa, tip radius m) and the pulp up to a bone travel ``reach`` m.
 
     The force range grows until the bone travel at its top exceeds ``reach`` (a press never needs more).
     ``plateau``: the indentation, m, past which the object's stress stays on a plateau (0: none): beyond it
     F = 4/3 E* sqrt(R) d^1.5 sqrt(plateau / d) (:func:`palpate.sim.realism.material.plateau_factor`).
+    ``densify``: the indentation, m (deeper than ``plateau``), past which that force grows by d / densify (0: none;
+    :func:`palpate.sim.realism.material.densify_factor`). Both inverted in closed form.
     """
     if not (np.isfinite(e_star) and e_star > 0):
         raise ValidationError(f"finger: the object's modulus must be > 0 Pa, got {e_star!r}")
@@ -87,6 +89,14 @@ def series_law(e_star: float, radius: float, pulp: FingerPulp, stiffness_scale: 
         depth = (force / k) ** (2.0 / 3.0)
         if plateau > 0:
             depth = np.where(depth > plateau, force / (k * np.sqrt(plateau)), depth)
+        if densify > 0:
+            # the force at the onset, then F = F(d) d / densify past it: k sqrt(plateau) d^2 / densify on a plateau,
+            # k d^2.5 / densify without one
+            if plateau > 0:
+                onset, deep = k * np.sqrt(plateau) * densify, np.sqrt(force * densify / (k * np.sqrt(plateau)))
+            else:
+                onset, deep = k * densify**1.5, (force * densify / k) ** 0.4
+            depth = np.where(force > onset, deep, depth)
         law = SeriesLaw(force, depth, pulp.compression(force, stiffness_scale))
         if law.bone_depth[-1] >= reach or f_max >= _MAX_TABLE_FORCE:
             return law

@@ -9,7 +9,10 @@ d; Hertz's mean pressure grows in proportion to it. Past the plateau strain eps_
 d_p = R (eps_p / 0.2)^2 (:func:`plateau_depth`), the mean pressure stays at the plateau's (a foam indented by a
 sphere has a hardness equal to its plateau stress: it crushes under the indenter, with no lateral spread), so the
 force grows as the contact area: F = F_el(d) sqrt(d_p / d) (:func:`plateau_factor`), as d instead of Hertz's
-d^1.5. The plateau applies to the elastic force the physics computed, before relaxation.
+d^1.5. The plateau applies to the elastic force the physics computed, before relaxation. Densification, which the
+mean strain under a fingertip does not reach, is felt where the strain under the tip's axis or across a thin sample
+is much larger than the mean: an optional onset eps_d (at d_d likewise) past which the force grows by d / d_d
+(:func:`densify_factor`), a phenomenological form for a sponge whose pushback keeps rising deep into a press.
 
 Relaxation is a standard linear solid (one Prony term) applied to the elastic force history the physics computed:
 
@@ -70,6 +73,63 @@ def plateau_depth_for_force(depth_for_force, force: float, depth: float, iterati
     return d
 
 
+def densify_factor(indentation: np.ndarray, depth: float) -> np.ndarray:
+    """The force past densification reached at indentation ``depth`` m, relative to the force before it.
+
+    1 up to ``depth`` (and everywhere when ``depth`` is 0: none), d / depth beyond: the collapsed cells under the
+    contact touch and the mean pressure rises with the indentation again.
+    """
+    d = np.asarray(indentation, dtype=float)
+    if depth <= 0:
+        return np.ones_like(d)
+    return np.maximum(d, depth) / depth
+
+
+def cellular_factor(indentation: np.ndarray, plateau: float, densify: float) -> np.ndarray:
+    """:func:`plateau_factor` times :func:`densify_factor` (either depth 0: that one off)."""
+    f = plateau_factor(indentation, plateau)
+    return f if densify <= 0 else f * densify_factor(indentation, densify)
+
+
+def cellular_depth_for_force(depth_for_force, force: float, plateau: float, densify: float,
+                             iterations: int = 60) -> float:
+    """The indentation, m, at which a material with a plateau from ``plateau`` m and densification from ``densify``
+    m pushes back with ``force`` N (``depth_for_force``: its elastic law); :func:`plateau_depth_for_force` when
+    nothing densifies.
+
+    The force F_el(d) g(d) grows with d, so d - depth_for_force(F / g(d)) does too: its root is found by regula
+    falsi (Illinois) between the depth where g = 1 would put it and one that doubles until it brackets it.
+    """
+    if densify <= 0:
+        return plateau_depth_for_force(depth_for_force, force, plateau, iterations)
+
+    def excess(d: float) -> float:
+        return d - float(depth_for_force(force / float(cellular_factor(np.array(d), plateau, densify))))
+
+    lo, hi = 0.0, float(depth_for_force(force))
+    if not np.isfinite(hi):
+        return hi
+    f_lo, f_hi = excess(lo), excess(hi)
+    while f_hi < 0:
+        lo, f_lo, hi = hi, f_hi, 2.0 * hi
+        f_hi = excess(hi)
+    side = 0
+    for _ in range(iterations):
+        d = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        f_d = excess(d)
+        if abs(f_d) <= 1e-12 + 1e-9 * d:
+            return d
+        if f_d < 0:
+            lo, f_lo = d, f_d
+            f_hi = f_hi / 2 if side == -1 else f_hi
+            side = -1
+        else:
+            hi, f_hi = d, f_d
+            f_lo = f_lo / 2 if side == 1 else f_lo
+            side = 1
+    return 0.5 * (lo + hi)
+
+
 def relax_force(t: np.ndarray, elastic: np.ndarray, relaxation: float, tau: float) -> np.ndarray:
     """The viscoelastic force, N, of an elastic force history ``elastic`` (N) sampled at times ``t`` (s).
 
@@ -93,9 +153,9 @@ def relax_force(t: np.ndarray, elastic: np.ndarray, relaxation: float, tau: floa
 
 
 def material_trace(trace: PhysicsTrace, material: MaterialRealism, softening: float,
-                   plateau: float = 0.0) -> PhysicsTrace:
-    """The trace with the material's plateau and softening (factors on the force) and relaxation applied to force
-    and pressure (the pressure in proportion, so the pad carries the force).
+                   plateau: float = 0.0, densify: float = 0.0) -> PhysicsTrace:
+    """The trace with the material's plateau, densification and softening (factors on the force) and relaxation
+    applied to force and pressure (the pressure in proportion, so the pad carries the force).
 
     Args:
         trace: the physics' (elastic) trace.
@@ -103,10 +163,13 @@ def material_trace(trace: PhysicsTrace, material: MaterialRealism, softening: fl
         softening: this press's stiffness factor (1 for a fresh spot).
         plateau: the indentation at which this press's material reaches its stress plateau, m (0: none;
             :func:`plateau_depth`).
+        densify: the indentation at which it starts to densify, m (0: none; :func:`plateau_depth` of its strain).
     """
     elastic = np.asarray(trace.force, dtype=float) * softening
     if plateau > 0:
         elastic = elastic * plateau_factor(np.maximum(trace.indentation, 0.0), plateau)
+    if densify > 0:
+        elastic = elastic * densify_factor(np.maximum(trace.indentation, 0.0), densify)
     force = relax_force(trace.t, elastic, material.relaxation, material.relaxation_time)
     base = np.asarray(trace.force, dtype=float)
     ratio = np.divide(force, base, out=np.zeros_like(force), where=base > 0)
@@ -114,5 +177,7 @@ def material_trace(trace: PhysicsTrace, material: MaterialRealism, softening: fl
               "relaxation_time_s": float(material.relaxation_time)}
     if plateau > 0:
         record["plateau_depth_m"] = float(plateau)
+    if densify > 0:
+        record["densify_depth_m"] = float(densify)
     meta = dict(trace.meta, material_realism=record)
     return replace(trace, force=force, sensel_pressure=trace.sensel_pressure * ratio[:, None, None], meta=meta)

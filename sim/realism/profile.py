@@ -179,6 +179,10 @@ class MaterialRealism:
             (:func:`palpate.sim.realism.material.plateau_factor`). 0: linear-elastic (off).
         plateau_materials: the names of the materials that have the plateau (cellular ones: a sponge, not a
             rubber); the others stay linear-elastic.
+        densify_strain: the mean contact strain at which those materials' collapsed cells start to touch and their
+            stress rises again (densification; Gibson & Ashby, ch. 5): past it the force grows by d / d_d, d_d
+            the indentation at which a sphere's contact reaches it (:func:`palpate.sim.realism.material.
+            densify_factor`), so a deep press on a sponge keeps stiffening. 0: none (off); above plateau_strain.
     """
 
     relaxation: float = 0.0
@@ -187,23 +191,32 @@ class MaterialRealism:
     softening_presses: float = 3.0
     plateau_strain: float = 0.0
     plateau_materials: tuple[str, ...] = ()
+    densify_strain: float = 0.0
 
     def __post_init__(self) -> None:
         _check("MaterialRealism", {"relaxation": (self.relaxation, 0.0, 0.95),
                                    "relaxation_time": (self.relaxation_time, 1e-3, 1e3),
                                    "softening": (self.softening, 0.0, 0.9),
                                    "softening_presses": (self.softening_presses, 0.1, 1e4),
-                                   "plateau_strain": (self.plateau_strain, 0.0, 0.5)})
+                                   "plateau_strain": (self.plateau_strain, 0.0, 0.5),
+                                   "densify_strain": (self.densify_strain, 0.0, 0.6)})
         if not all(isinstance(m, str) and m for m in self.plateau_materials):
             raise ValidationError(f"MaterialRealism.plateau_materials must be material names, "
                                   f"got {self.plateau_materials!r}")
-        if self.plateau_strain > 0 and not self.plateau_materials:
-            raise ValidationError("MaterialRealism.plateau_strain > 0 needs plateau_materials: the cellular materials "
-                                  "that have the plateau (a rubber has none)")
+        if (self.plateau_strain > 0 or self.densify_strain > 0) and not self.plateau_materials:
+            raise ValidationError("MaterialRealism.plateau_strain or densify_strain > 0 needs plateau_materials: the "
+                                  "cellular materials that have them (a rubber has none)")
+        if 0 < self.densify_strain <= self.plateau_strain:
+            raise ValidationError(f"MaterialRealism.densify_strain ({self.densify_strain}) must exceed plateau_strain "
+                                  f"({self.plateau_strain}): cells touch after they buckle")
 
     def plateau_of(self, material: str | None) -> float:
         """The plateau strain of ``material`` (0: it has none)."""
         return self.plateau_strain if material in self.plateau_materials else 0.0
+
+    def densify_of(self, material: str | None) -> float:
+        """The densification strain of ``material`` (0: it has none)."""
+        return self.densify_strain if material in self.plateau_materials else 0.0
 
     def softening_factor(self, earlier_presses: int) -> float:
         """Stiffness left after ``earlier_presses`` presses at the same spot (1 for none)."""
@@ -238,7 +251,7 @@ class RealismProfile:
         """True when the profile changes nothing the simulation did before profiles existed."""
         return (not self.finger.compliant and self.press == HUMAN and not self.taxels.active
                 and not self.pose.active and self.material.relaxation == 0 and self.material.softening == 0
-                and self.material.plateau_strain == 0)
+                and self.material.plateau_strain == 0 and self.material.densify_strain == 0)
 
 
 IDEAL = RealismProfile("ideal", "the simulation without profiles: default human-like press, rigid finger, ideal "

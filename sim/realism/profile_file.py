@@ -23,7 +23,7 @@ is an error naming the file and the key (``x.toml: press.tilt_deg: must be <= 29
                      # activation_kpa, activation_cv
     [pose]           # latency_ms, clock_offset_ms, clock_wander_ms
     [material]       # relaxation, relaxation_time_s, softening, softening_presses, plateau_strain,
-                     # plateau_materials (an array of material names)
+                     # plateau_materials (an array of material names), densify_strain
     [provenance]     # free record (strings, numbers, arrays, tables): references, or the calibration's fit
 
 ``palpate calibrate realism`` writes such files (:func:`profile_to_toml`).
@@ -146,7 +146,8 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
                                    softening_presses=ma.number("softening_presses", dm.softening_presses, lo=0.0,
                                                                lo_open=True),
                                    plateau_strain=_plateau_strain(ma),
-                                   plateau_materials=_names(ma, "plateau_materials"))
+                                   plateau_materials=_names(ma, "plateau_materials"),
+                                   densify_strain=_densify_strain(ma))
         ma.finish()
     except ValidationError as exc:
         msg = str(exc)
@@ -171,6 +172,18 @@ def _plateau_strain(ma: TableReader) -> float:
     if strain > 0 and not ma.table.get("plateau_materials"):
         raise ma.err("plateau_materials", "plateau_strain > 0 needs the names of the cellular materials that have "
                      "the plateau (a rubber has none)")
+    return strain
+
+
+def _densify_strain(ma: TableReader) -> float:
+    """``material.densify_strain``: 0 (off) or a strain above ``plateau_strain``, below 0.6, of the
+    ``plateau_materials``."""
+    strain = ma.number("densify_strain", 0.0, lo=0.0, hi=0.6)
+    if strain > 0 and not ma.table.get("plateau_materials"):
+        raise ma.err("plateau_materials", "densify_strain > 0 needs the names of the cellular materials that densify")
+    plateau = ma.table.get("plateau_strain", 0.0)
+    if 0 < strain <= plateau:
+        raise ma.err("densify_strain", f"must exceed plateau_strain ({plateau}): cells touch after they buckle")
     return strain
 
 
@@ -231,7 +244,7 @@ def profile_tables(profile: RealismProfile) -> dict:
                  "clock_wander_ms": o.clock_wander * 1e3},
         "material": {"relaxation": m.relaxation, "relaxation_time_s": m.relaxation_time, "softening": m.softening,
                      "softening_presses": m.softening_presses, "plateau_strain": m.plateau_strain,
-                     "plateau_materials": list(m.plateau_materials)},
+                     "plateau_materials": list(m.plateau_materials), "densify_strain": m.densify_strain},
     }
     if profile.provenance:
         tables["provenance"] = profile.provenance

@@ -26,7 +26,7 @@ import numpy as np
 from palpate.core.world.scene import FingertipSpec, PoseSensorSpec, TaxelSensorSpec
 from palpate.sim.controller import PressProfile
 from palpate.sim.realism.finger import SeriesLaw, finger_trace, object_profile, planning_modulus, series_law
-from palpate.sim.realism.material import material_trace, plateau_depth, plateau_depth_for_force
+from palpate.sim.realism.material import cellular_depth_for_force, material_trace, plateau_depth
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.taxels import TaxelResponse, activation_map, gain_map, lognormal
 from palpate.sim.trace import PhysicsTrace
@@ -50,6 +50,7 @@ class PressRealism:
         stiffness_scale: this press's factor on the pulp's stiffness.
         softening: this press's factor on the material's stiffness.
         plateau: the indentation, m, past which this press's material is on its stress plateau (0: none).
+        densify: the indentation, m, past which it densifies (0: none).
         taxel_response: the pad's response for this press (None when the pad is ideal).
         clock_offset: residual offset of the tracker's clock for this press, s.
         tip: the fingertip.
@@ -61,6 +62,7 @@ class PressRealism:
     stiffness_scale: float
     softening: float
     plateau: float
+    densify: float
     taxel_response: TaxelResponse | None
     clock_offset: float
     tip: FingertipSpec
@@ -68,7 +70,7 @@ class PressRealism:
     def bone_depth_for_force(self, force: float) -> float:
         """Bone travel past first contact, m, at which the contact force reaches ``force`` N."""
         if self.law is None:
-            return plateau_depth_for_force(self.depth_for_force, force, self.plateau)
+            return cellular_depth_for_force(self.depth_for_force, force, self.plateau, self.densify)
         return self.law.bone_depth_for_force(force)
 
     def object_profile(self, profile: PressProfile) -> PressProfile:
@@ -78,8 +80,8 @@ class PressRealism:
     def finish(self, trace: PhysicsTrace, profile: PressProfile) -> PhysicsTrace:
         """The physics' trace with the material, the finger and the slip applied (``profile``: the bone's press)."""
         m = self.profile.material
-        if m.relaxation > 0 or self.softening != 1.0 or self.plateau > 0:
-            trace = material_trace(trace, m, self.softening, self.plateau)
+        if m.relaxation > 0 or self.softening != 1.0 or self.plateau > 0 or self.densify > 0:
+            trace = material_trace(trace, m, self.softening, self.plateau, self.densify)
         tilt = profile.meta.get("tilt")
         if self.profile.finger.compliant or tilt is not None:
             trace = finger_trace(trace, profile, self.profile.finger, self.stiffness_scale, self.tip,
@@ -167,11 +169,12 @@ class RealismSession:
             return float(depth_for_force(force / softening))
 
         plateau = plateau_depth(p.material.plateau_of(material), self.tip.radius)
+        densify = plateau_depth(p.material.densify_of(material), self.tip.radius)
         law = None
         if p.finger.compliant:
             # the planning modulus is the elastic one: the series law adds the plateau itself
             e_star = planning_modulus(softened, self.tip.radius, PLANNING_FORCE)
-            law = series_law(e_star, self.tip.radius, p.finger, stiffness_scale, reach, plateau)
+            law = series_law(e_star, self.tip.radius, p.finger, stiffness_scale, reach, plateau, densify)
         response = (TaxelResponse(p.taxels, self.gains * self.drift, self.full_scale, self.activation)
                     if p.taxels.active else None)
-        return PressRealism(p, law, softened, stiffness_scale, softening, plateau, response, clock, self.tip)
+        return PressRealism(p, law, softened, stiffness_scale, softening, plateau, densify, response, clock, self.tip)
