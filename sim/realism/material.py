@@ -166,10 +166,8 @@ def material_trace(trace: PhysicsTrace, material: MaterialRealism, softening: fl
         densify: the indentation at which it starts to densify, m (0: none; :func:`plateau_depth` of its strain).
     """
     elastic = np.asarray(trace.force, dtype=float) * softening
-    if plateau > 0:
-        elastic = elastic * plateau_factor(np.maximum(trace.indentation, 0.0), plateau)
-    if densify > 0:
-        elastic = elastic * densify_factor(np.maximum(trace.indentation, 0.0), densify)
+    if plateau > 0 or densify > 0:
+        elastic = elastic * cellular_factor(np.maximum(trace.indentation, 0.0), plateau, densify)
     force = relax_force(trace.t, elastic, material.relaxation, material.relaxation_time)
     base = np.asarray(trace.force, dtype=float)
     ratio = np.divide(force, base, out=np.zeros_like(force), where=base > 0)
