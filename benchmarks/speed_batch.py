@@ -91,11 +91,17 @@ def floor_workload(recordings: list):
     press's seeds and make its noise generators (each press's own stream, as SimSource._plan and the sensors do),
     and hand out its frames, poses, ground truth and recording (the objects a PressRecording is made of), from the
     arrays of ``recordings`` (a batch's output). Its time bounds the ratio a batch can reach: loop / floor."""
-    from palpate.core.perception.streams import GroundTruth, PressRecording, pose_samples, taxel_frames
+    from palpate.core.perception.streams import (
+        GroundTruth,
+        PressRecording,
+        frames_to_arrays,
+        pose_samples,
+        pose_times_positions,
+        taxel_frames,
+    )
 
-    arrays = [(np.array([f.t for f in r.frames]), np.array([f.counts for f in r.frames]), r.frames[0].sensel_area,
-               np.array([p.t for p in r.poses]), np.array([p.position for p in r.poses]),
-               np.array([p.quaternion for p in r.poses]), r.truth) for r in recordings]
+    arrays = [(*frames_to_arrays(r.frames), *pose_times_positions(r.poses), np.array([p.quaternion for p in r.poses]),
+               r.truth) for r in recordings]
 
     def floor():
         out = []
