@@ -16,6 +16,7 @@ from palpate.sim.hertz import hertz_force
 from palpate.sim.realism.calibrate import free_parameters, with_values
 from palpate.sim.realism.finger import series_law
 from palpate.sim.realism.material import (
+    MAX_DOUBLINGS,
     cellular_depth_for_force,
     cellular_factor,
     densify_factor,
@@ -67,6 +68,21 @@ def test_the_planned_depth_inverts_the_cellular_law_and_the_series_law_agrees(pl
     assert (~below).sum() > 50
     for f, d in zip(dense.force[~below][::40], dense.object_depth[~below][::40], strict=True):
         assert d == pytest.approx(cellular_depth_for_force(_hertz_depth, float(f), dp, dd), rel=1e-6)
+
+
+def test_the_planned_depth_is_never_nan_at_the_ends_of_the_law():
+    dp, dd = plateau_depth(0.05, RADIUS), plateau_depth(0.15, RADIUS)
+    # no force needs no depth (a regula falsi step there would divide 0 by 0)
+    assert cellular_depth_for_force(_hertz_depth, 0.0, dp, dd) == 0.0
+    # a law that has no answer past the elastic depth: no depth reaches the force, and the search stops
+    calls = []
+
+    def runs_out(force: float) -> float:
+        calls.append(force)
+        return _hertz_depth(force) if len(calls) == 1 else float("nan")
+
+    assert cellular_depth_for_force(runs_out, 2.0, dp, dd) == float("inf")
+    assert len(calls) <= 3 + MAX_DOUBLINGS
 
 
 def _press(material: str, densify: float, depth: float = 0.005):

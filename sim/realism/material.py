@@ -91,6 +91,11 @@ def cellular_factor(indentation: np.ndarray, plateau: float, densify: float) -> 
     return f if densify <= 0 else f * densify_factor(indentation, densify)
 
 
+#: Doublings of the bracket :func:`cellular_depth_for_force` tries (2^60 times the elastic depth) before it answers
+#: that no depth reaches the force.
+MAX_DOUBLINGS = 60
+
+
 def cellular_depth_for_force(depth_for_force, force: float, plateau: float, densify: float,
                              iterations: int = 60) -> float:
     """The indentation, m, at which a material with a plateau from ``plateau`` m and densification from ``densify``
@@ -98,7 +103,8 @@ def cellular_depth_for_force(depth_for_force, force: float, plateau: float, dens
     nothing densifies.
 
     The force F_el(d) g(d) grows with d, so d - depth_for_force(F / g(d)) does too: its root is found by regula
-    falsi (Illinois) between the depth where g = 1 would put it and one that doubles until it brackets it.
+    falsi (Illinois) between the depth where g = 1 would put it and one that doubles until it brackets it; inf when
+    the law answers inf (or NaN) before that, as :func:`plateau_depth_for_force` answers.
     """
     if densify <= 0:
         return plateau_depth_for_force(depth_for_force, force, plateau, iterations)
@@ -107,12 +113,16 @@ def cellular_depth_for_force(depth_for_force, force: float, plateau: float, dens
         return d - float(depth_for_force(force / float(cellular_factor(np.array(d), plateau, densify))))
 
     lo, hi = 0.0, float(depth_for_force(force))
-    if not np.isfinite(hi):
-        return hi
+    if not (np.isfinite(hi) and hi > 0):
+        return hi  # no force needs no depth; a force beyond the law is beyond it here too
     f_lo, f_hi = excess(lo), excess(hi)
-    while f_hi < 0:
+    for _ in range(MAX_DOUBLINGS):
+        if f_hi >= 0:
+            break
         lo, f_lo, hi = hi, f_hi, 2.0 * hi
         f_hi = excess(hi)
+    if not f_hi >= 0:
+        return float("inf")  # the law runs out (or answers NaN) before the material pushes back with the force
     side = 0
     for _ in range(iterations):
         d = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
