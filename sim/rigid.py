@@ -78,7 +78,7 @@ def run_rigid_press(
     scene: Scene, obj: ObjectSpec, profile: PressProfile, *, timestep: float = 0.002,
     drive: FingerDrive | None = None, rings: int = 96, sectors: int = 24, order: int = 6,
     young: float | None = None, mesh=None, law: ContactLaw | None = None, max_steps: int = MAX_STEPS,
-    models: dict | None = None,
+    models: dict | None = None, pressure_rows=None,
 ) -> PhysicsTrace:
     """Press-and-release of the MuJoCo finger on ``obj`` under the contact law (see the module docstring).
 
@@ -96,6 +96,9 @@ def run_rigid_press(
         max_steps: step budget; a longer press is refused before it runs.
         models: a dict the caller keeps for ``scene`` alone (a SimSource does): compiled press models by timestep,
             drive, axis and mesh, moved to each press's start instead of compiled again.
+        pressure_rows: ``rows(t) -> mask``: of the trace's times t (s), the rows whose sensel pressure is wanted
+            (e.g. :func:`palpate.sim.trace.frame_rows`, what the pad's frames read; none when a later stage draws
+            the image anew); the others are left 0. None: every row.
 
     Raises:
         SimulationDiverged: MuJoCo warning, NaN, runaway penetration or speed, naming what to change.
@@ -225,6 +228,8 @@ def run_rigid_press(
     # force is: evaluating the law per step costs steps x sensels x order^2 basis terms (minutes for a slow press)
     pressure = np.zeros((n,) + qpts.shape[:2])
     touching = indentation > 0
+    if pressure_rows is not None:
+        touching &= np.asarray(pressure_rows(t), dtype=bool)
     if touching.any():
         x = np.clip((s_run[touching] - s_lo) * inv_ds, 0.0, top)
         i = x.astype(int)

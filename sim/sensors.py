@@ -17,7 +17,7 @@ import numpy as np
 from palpate.core.errors import SimulationDiverged
 from palpate.core.perception.streams import GroundTruth, PoseSample, TaxelFrame, pose_samples, taxel_frames
 from palpate.core.world.scene import FingertipSpec, PoseSensorSpec, TaxelSensorSpec
-from palpate.sim.trace import PhysicsTrace
+from palpate.sim.trace import PhysicsTrace, bracket, frame_times
 
 #: Orientation noise of the pose model, rad (Polhemus Liberty: ~0.0012 deg static accuracy; 0.15 deg is generous).
 ORIENTATION_NOISE = np.deg2rad(0.15)
@@ -26,9 +26,8 @@ ORIENTATION_NOISE = np.deg2rad(0.15)
 def _interp_rows(t_query: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Linear interpolation of (n, ...) values at t_query, vectorised over the trailing axes."""
     flat = values.reshape(len(t), -1)
-    idx = np.clip(np.searchsorted(t, t_query, side="right") - 1, 0, len(t) - 2)
-    span = t[idx + 1] - t[idx]
-    w = np.clip((t_query - t[idx]) / np.where(span > 0, span, 1.0), 0.0, 1.0)[:, None]
+    idx, w = bracket(t_query, t)
+    w = w[:, None]
     out = flat[idx] * (1.0 - w) + flat[idx + 1] * w
     return out.reshape((len(t_query),) + values.shape[1:])
 
@@ -56,7 +55,7 @@ def sample_taxels(
     true sensel pressures at the frame times (e.g. :class:`palpate.sim.realism.taxels.TaxelResponse`).
     """
     trace.check_finite()
-    t_sim = trace.t[0] + np.arange(int(np.floor((trace.t[-1] - trace.t[0]) * spec.rate + 1e-9)) + 1) / spec.rate
+    t_sim = frame_times(trace.t, spec.rate)
     pressure = _interp_rows(t_sim, trace.t, trace.sensel_pressure)
     if response is not None:
         pressure = response(t_sim, pressure)

@@ -39,7 +39,7 @@ from palpate.sim.rigid import run_rigid_press
 from palpate.sim.scene import load_mesh, surface_at
 from palpate.sim.sensors import ground_truth, sample_poses, sample_taxels
 from palpate.sim.stability import MAX_DEPTH_OVER_RADIUS, MAX_STEPS, check_iterations, law_depth
-from palpate.sim.trace import PhysicsTrace
+from palpate.sim.trace import PhysicsTrace, frame_rows
 from palpate.sim.validity.choice import DEFAULT_TOLERANCE, Choice, explain_fidelity, image_note
 from palpate.sim.validity.image_table import load_image_table
 from palpate.sim.validity.table import load_table
@@ -314,7 +314,9 @@ class SimSource:
                             s_pose, self._presses - 1)
 
     def _physics(self, plan: PlannedPress) -> PhysicsTrace:
-        """The press's physics at its fidelity (the one step a batch backend may take over for analytic presses)."""
+        """The press's physics at its fidelity (the one step a batch backend may take over for analytic presses); a
+        rigid press's sensel pressures only at the rows the pad's frames read (:func:`~palpate.sim.trace.frame_rows`),
+        0 elsewhere."""
         obj, physics_profile, law, timestep, mesh = (plan.obj, plan.physics_profile, plan.law, plan.timestep,
                                                       plan.mesh)
         fidelity, target, seed = plan.choice.fidelity, plan.target, plan.seed
@@ -329,10 +331,14 @@ class SimSource:
             with one_blas_thread(self._blas_controller()):
                 trace = run_bem_press(self.scene, obj, physics_profile, walls=self._walls, law_for=law_for)
         elif fidelity == "rigid":
+            # the sensel pressures of the rows the pad's frames read (none when the realism draws the image anew):
+            # the others would cost a table read per physics step and never reach a frame
+            rate, drawn = self.scene.taxels.rate, plan.real is not None and plan.real.draws_image(plan.profile)
+            rows = (lambda t: np.zeros(len(t), dtype=bool)) if drawn else (lambda t: frame_rows(t, rate))
             # its tables' BLAS products are small: other threads would only wait for a core and spin
             with one_blas_thread(self._blas_controller()):
                 trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
-                                        max_steps=self.max_steps, models=self._rigid_models)
+                                        max_steps=self.max_steps, models=self._rigid_models, pressure_rows=rows)
         else:
             # flex has its own default step (up to 10 ms, see palpate.sim.flex.press.default_timestep): the rigid
             # default of 2 ms would make it 5x slower for nothing (its elasticity is integrated implicitly)
@@ -345,11 +351,11 @@ class SimSource:
 
     def _sense(self, plan: PlannedPress, trace: PhysicsTrace):
         """The trace as the sensors see it: (trace, pose spec, tracker latency s, taxel response or None) after the
-        press's realism, when it has one."""
+        press's realism, when it has one (its pad image drawn at the rows the frames read)."""
         real, profile = plan.real, plan.profile
         pose_spec, latency, response = self.scene.pose, 0.0, None
         if real is not None:
-            trace = real.finish(trace, profile)
+            trace = real.finish(trace, profile, frame_rows(trace.t, self.scene.taxels.rate))
             pose_spec, latency, response = real.pose_spec(pose_spec), real.latency, real.taxel_response
         return trace, pose_spec, latency, response
 

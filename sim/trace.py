@@ -50,3 +50,26 @@ class PhysicsTrace:
                     f"non-finite {name} at t={self.t[first] if first < len(self.t) else float('nan'):.4f} s "
                     f"({self.meta.get('fidelity', '?')}); reduce the timestep or the press speed, or soften the contact"
                 )
+
+
+def frame_times(t: np.ndarray, rate: float) -> np.ndarray:
+    """The simulation times (s) at which a sensor sampling at ``rate`` Hz reads a trace over times ``t`` (s): from
+    its first sample, every 1 / rate, up to its last."""
+    return t[0] + np.arange(int(np.floor((t[-1] - t[0]) * rate + 1e-9)) + 1) / rate
+
+
+def bracket(t_query: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(i, w): for each time of ``t_query`` (s), the trace's row i before it and its share w in [0, 1] of the way to
+    row i + 1 (times ``t``, s, increasing; clamped at both ends): the linear interpolation the sensors read."""
+    idx = np.clip(np.searchsorted(t, t_query, side="right") - 1, 0, len(t) - 2)
+    span = t[idx + 1] - t[idx]
+    return idx, np.clip((t_query - t[idx]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
+
+
+def frame_rows(t: np.ndarray, rate: float) -> np.ndarray:
+    """Boolean mask (n,) of the rows of a trace over times ``t`` (s) that a sensor at ``rate`` Hz interpolates
+    between (:func:`frame_times`, :func:`bracket`): the only rows its readings depend on."""
+    rows = np.zeros(len(t), dtype=bool)
+    idx, _ = bracket(frame_times(t, rate), t)
+    rows[idx] = rows[idx + 1] = True
+    return rows

@@ -122,7 +122,7 @@ def pad_offset(radius: float, tilt: np.ndarray) -> np.ndarray:
 
 
 def finger_trace(trace: PhysicsTrace, profile: PressProfile, pulp: FingerPulp, stiffness_scale: float,
-                 tip: FingertipSpec, tilt: np.ndarray | None = None) -> PhysicsTrace:
+                 tip: FingertipSpec, tilt: np.ndarray | None = None, rows: np.ndarray | None = None) -> PhysicsTrace:
     """The physics' trace seen through the finger: the bone's pose and the pad's pressure over the real patch.
 
     Args:
@@ -132,6 +132,8 @@ def finger_trace(trace: PhysicsTrace, profile: PressProfile, pulp: FingerPulp, s
         stiffness_scale: this press's factor on the pulp's stiffness.
         tip: the fingertip (pad geometry).
         tilt: the finger's (pitch, roll) for this press, rad (None: untilted).
+        rows: mask (n,) of the rows whose pad pressure is wanted (:func:`palpate.sim.trace.frame_rows`: those the
+            pad's frames read); the others are 0. None: every row.
 
     Returns:
         a new trace: tip_position on the bone (moved by the compression along -normal), sensel_pressure spread
@@ -148,6 +150,8 @@ def finger_trace(trace: PhysicsTrace, profile: PressProfile, pulp: FingerPulp, s
     patch = np.maximum(trace.indentation, 0.0) + pulp.area_factor * delta
     pressure = np.zeros_like(trace.sensel_pressure)
     touching = (force > 0) & (patch > 0)
+    if rows is not None:
+        touching &= np.asarray(rows, dtype=bool)
     if touching.any():
         exponent = press_exponent(pulp.pressure_exponent, trace.indentation[touching], delta[touching])
         pressure[touching] = patch_sensel_pressure(patch[touching], force[touching], exponent, radius,

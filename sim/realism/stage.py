@@ -77,15 +77,21 @@ class PressRealism:
         """The trajectory the object sees (the bone's, less the pulp's compression)."""
         return profile if self.law is None else object_profile(profile, self.law)
 
-    def finish(self, trace: PhysicsTrace, profile: PressProfile) -> PhysicsTrace:
-        """The physics' trace with the material, the finger and the slip applied (``profile``: the bone's press)."""
+    def draws_image(self, profile: PressProfile) -> bool:
+        """Whether :meth:`finish` draws the pad's image anew (a compliant or tilted finger): then the physics'
+        own sensel pressures are never read."""
+        return self.profile.finger.compliant or profile.meta.get("tilt") is not None
+
+    def finish(self, trace: PhysicsTrace, profile: PressProfile, rows: np.ndarray | None = None) -> PhysicsTrace:
+        """The physics' trace with the material, the finger and the slip applied (``profile``: the bone's press;
+        ``rows``: the rows whose pad image is wanted, as :func:`~palpate.sim.realism.finger.finger_trace`'s)."""
         m = self.profile.material
         if m.relaxation > 0 or self.softening != 1.0 or self.plateau > 0 or self.densify > 0:
             trace = material_trace(trace, m, self.softening, self.plateau, self.densify)
-        tilt = profile.meta.get("tilt")
-        if self.profile.finger.compliant or tilt is not None:
+        if self.draws_image(profile):
+            tilt = profile.meta.get("tilt")
             trace = finger_trace(trace, profile, self.profile.finger, self.stiffness_scale, self.tip,
-                                 None if tilt is None else np.asarray(tilt))
+                                 None if tilt is None else np.asarray(tilt), rows)
         slip = profile.meta.get("slip")
         if slip is not None:
             # the bone slides sideways in proportion to how far it has travelled into the contact
