@@ -180,11 +180,12 @@ def run_rigid_press(
     dftab = df_tab.tolist()
     top = n_tab - 1.000001
     x_band = band + 1.0 if band > 0 else -1.0
-    qpos, qvel, qfrc, dctrl = data.qpos, data.qvel, data.qfrc_applied, data.ctrl
+    # memoryviews read and write plain floats, cheaper per step than numpy's scalar indexing
+    qpos, qvel, qfrc, dctrl = (memoryview(a) for a in (data.qpos, data.qvel, data.qfrc_applied, data.ctrl))
     step = mujoco.mj_step
     for k in range(n):
-        qk = float(qpos[0])
-        vk = float(qvel[0])
+        qk = qpos[0]
+        vk = qvel[0]
         x = base + qk * slope
         if not 0.0 <= x <= top:
             if x != x:  # NaN: stop and report below
