@@ -6,8 +6,11 @@ with 1-2 buried boxes or spheres of another (8-20 mm across, tops 0.5-8 mm down)
 the block. Per lump, from summary.json's ``material_regions`` of the post-processed voxel map: **located** when a
 region of another material than the block's has its centroid within 5 mm of the lump's centre laterally and at most
 twice the lump's volume within the map's depth (and two voxels); **named** when it is the lump's material;
-**top right** when that region's shallowest voxel holds the lump's top. Seeds below 100000 are tuning seeds, from
-100000 on report seeds. The layered judges are trained once, on tuning scene 0's references.
+**top right** when that region's shallowest voxel holds the lump's top. **Spotted** when a stiffness spot of the
+surface layer's fine map (a press reading harder or softer than the material the surface layer names) lies within
+5 mm of the lump's footprint, **its sign right** when the spot says harder for a harder lump, softer for a softer.
+Seeds below 100000 are tuning seeds, from 100000 on report seeds. The layered judges are trained once, on tuning
+scene 0's references.
 
 Run: .venv/bin/python benchmarks/voxel_lumps.py [--first 100000] [--scenes 24] [--jobs 2]
 """
@@ -26,6 +29,7 @@ from scene_families import HEIGHT_MM, is_report_seed
 
 from palpate.core.mapping.regions import map_region_report
 from palpate.core.perception.layered_memory import train_layered_memory
+from palpate.core.session.boundaries import boundary_reader, object_fine_map, training_moduli
 from palpate.core.session.explore import explore_object
 from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory
@@ -93,18 +97,39 @@ def _volume_in_map_mm3(lump: dict) -> float:
 @cache
 def _judges():
     base = parse_scenario(voxel_lump_scene(0)[0], "voxel_lumps")
-    training = train_memory(base, make_source_for(base), np.arange(3) + 1000, Progress(enabled=False))
-    return training.memory, train_layered_memory(training.memory, training.presses, CELL_MM * 1e-3,
-                                                 int(DEPTH_MM / CELL_MM))
+    reader, why = boundary_reader(base)
+    if reader is None:
+        raise SystemExit(f"no boundary readings: {why}")
+    training = train_memory(base, make_source_for(base), np.arange(3) + 1000, Progress(enabled=False),
+                            boundary_reader=reader)
+    return (training.memory, train_layered_memory(training.memory, training.presses, CELL_MM * 1e-3,
+                                                  int(DEPTH_MM / CELL_MM)), reader, training_moduli(training.readings))
+
+
+def _spotted(lump: dict, spots: list[dict], harder: bool) -> tuple[bool, bool]:
+    """(a spot within NEAR_MM of the lump's footprint, one of them with the lump's sign)."""
+    x0, y0 = lump["center_mm"][:2]
+    hx, hy = ((lump["size_mm"][0] / 2, lump["size_mm"][1] / 2) if lump["shape"] == "box"
+              else (lump["size_mm"][0],) * 2)
+    near = []
+    for a in spots:
+        x, y = np.array(a["centroid_m"]) * 1e3
+        gap = (math.hypot(max(abs(x - x0) - hx, 0.0), max(abs(y - y0) - hy, 0.0)) if lump["shape"] == "box"
+               else max(math.hypot(x - x0, y - y0) - hx, 0.0))
+        if gap <= NEAR_MM:
+            near.append(a["sign"] == ("harder" if harder else "softer"))
+    return bool(near), any(near)
 
 
 def scene_row(seed: int) -> dict:
     t0 = time.process_time()
-    memory, layers = _judges()
+    memory, layers, reader, moduli = _judges()
     raw, lumps = voxel_lump_scene(seed)
     sc = parse_scenario(raw, f"voxel_lumps{seed}")
     res = explore_object(sc, sc.objects[0], memory, make_source_for(sc), 9000 + seed, Progress(enabled=False),
-                         layers=layers)
+                         layers=layers, boundary_reader=reader)
+    spots = object_fine_map(res, sc.objects[0], sc, moduli).summary["stiffness_anomalies"] or []
+    block_young = next(m["young_kpa"] for m in MATERIALS if m["name"] == raw["objects"][0]["material"])
     regions = [r for r in map_region_report(res.geometry, res.post.probabilities)
                if r["material"] != raw["objects"][0]["material"]]
     rows = []
@@ -114,37 +139,43 @@ def scene_row(seed: int) -> dict:
         limit = 2 * _volume_in_map_mm3(lump) + 2 * CELL_MM**3
         fits = [r for r, d in zip(regions, dist, strict=True) if d <= NEAR_MM and r["volume_m3"] * 1e9 <= limit]
         top = lump_top_mm(lump)
-        rows.append({"top": top, "shape": lump["shape"], "located": bool(fits),
+        harder = next(m["young_kpa"] for m in MATERIALS if m["name"] == lump["material"]) > block_young
+        spotted, sign = _spotted(lump, spots, harder)
+        rows.append({"top": top, "shape": lump["shape"], "located": bool(fits), "spotted": spotted, "sign": sign,
                      "named": any(r["material"] == lump["material"] for r in fits),
                      "top_right": any(int(r["top_depth_m"] * 1e3 / CELL_MM + 0.5) == int(top // CELL_MM)
                                       for r in fits),
                      "error": min(dist) if dist else None})
+    stray = sum(not any(_spotted(lump, [a], True)[0] for lump in lumps) for a in spots)
     return {"seed": seed, "presses": len(res.steps), "lumps": rows, "cpu": time.process_time() - t0,
-            "accuracy": res.steps[-1].accuracy_postprocessed}
+            "accuracy": res.steps[-1].accuracy_postprocessed, "stray": stray}
 
 
 def main() -> None:
     args = scene_arguments(__doc__)
     print(f"{'seed':>7} {'split':6} {'presses':>7} {'voxels right':>12}  lumps (top mm, shape: located L, named N, "
-          "top's layer right T; distance to the nearest region of another material, mm)")
+          "top's layer right T, spotted S (s: with the wrong sign); distance to the nearest region of another "
+          "material, mm)")
     rows = []
     for r in scene_results(scene_row, args):
         rows.append(r)
         desc = "; ".join(f"{lu['top']:.1f} {lu['shape']}: {'L' if lu['located'] else '-'}"
-                         f"{'N' if lu['named'] else '-'}{'T' if lu['top_right'] else '-'} "
+                         f"{'N' if lu['named'] else '-'}{'T' if lu['top_right'] else '-'}"
+                         f"{('S' if lu['sign'] else 's') if lu['spotted'] else '-'} "
                          f"{'-' if lu['error'] is None else format(lu['error'], '.1f')}" for lu in r["lumps"])
         print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} "
-              f"{r['accuracy']:12.1%}  {desc} ({r['cpu']:.0f} s CPU)", flush=True)
+              f"{r['accuracy']:12.1%}  {desc}; stray spots {r['stray']} ({r['cpu']:.0f} s CPU)", flush=True)
     lumps = [lu for r in rows for lu in r["lumps"]]
-    print(f"\n{len(lumps)} lumps in {len(rows)} scenes; per band of the top's depth: lumps, located, named, top's "
-          "layer right, median distance mm")
+    print(f"\n{len(lumps)} lumps in {len(rows)} scenes ({sum(r['stray'] for r in rows)} stray spots); per band of the "
+          "top's depth: lumps, located, named, top's layer right, median distance mm, spotted, spotted with its sign")
     for lo, hi in BANDS:
         band = [lu for lu in lumps if lo <= lu["top"] < hi]
         if band:
             err = [lu["error"] for lu in band if lu["error"] is not None]
             print(f"{lo:.0f}-{hi:.0f} mm | {len(band)} | {sum(lu['located'] for lu in band)} | "
                   f"{sum(lu['named'] for lu in band)} | {sum(lu['top_right'] for lu in band)} | "
-                  f"{np.median(err) if err else float('nan'):.1f}")
+                  f"{np.median(err) if err else float('nan'):.1f} | {sum(lu['spotted'] for lu in band)} | "
+                  f"{sum(lu['sign'] for lu in band)}")
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ from palpate.core.boundary.moduli import MaterialModuli
 from palpate.core.boundary.reading import BoundaryReading
 from palpate.core.errors import ValidationError
 from palpate.core.mapping.anomalies import stiffness_anomalies
-from palpate.core.mapping.geometry import MapGeometry
+from palpate.core.mapping.geometry import MapGeometry, plane_probabilities
 
 MATERIALS = ("soft", "medium", "hard")
 MODULI = MaterialModuli(MATERIALS, np.array([0.0, 1.7, 3.1]), np.array([0.15, 0.15, 0.15]))
@@ -120,3 +120,29 @@ def test_spots_are_recorded_as_scene_entities_that_a_replay_reads_past(tmp_path)
     assert softer["cubes"][0]["color"]["b"] > softer["cubes"][0]["color"]["r"]  # blue
     assert softer["texts"][0]["text"] == "softer -4.7"
     assert read_recording(path).frames == []  # a view: the reader skips it
+
+
+def test_a_voxel_maps_spots_are_those_of_its_surface_layer_as_a_2d_map():
+    labels = np.ones((6, 8), dtype=int)
+    # a lump under the press at (45, 25) mm; the press at (35, 25) mm reads hard, as its surface voxel says
+    read = {(0.045, 0.025): 2.4, (0.035, 0.025): 3.1}
+    readings = _raster(lambda x, y: read.get((round(x, 3), round(y, 3)), 1.7))
+    voxels = MapGeometry("voxel", MATERIALS, (0.0, 0.0), 0.01, (8, 6, 3), z_top=0.04)
+    plane = voxels.plane()
+    assert plane == GEOMETRY and GEOMETRY.plane() is GEOMETRY
+    probs = np.zeros((8, 6, 3, 3))
+    probs[:, :, 0] = np.transpose(_map(labels), (1, 0, 2))  # [ix, iy, iz]: the surface layer names medium
+    probs[:, :, 1:] = _map(np.full((8, 6), 2))[:, :, None, :]  # deeper layers say hard: not the surface's
+    probs[3, 2, 0] = [0.1, 0.1, 0.8]  # one surface voxel (ix 3, iy 2) names hard
+    surface = plane_probabilities(probs)
+    assert surface.shape == (6, 8, 3) and np.argmax(surface[2, 3]) == 2 and np.argmax(surface[3, 2]) == 1
+    assert np.array_equal(plane_probabilities(surface), surface)  # a 2-D map is its own plane
+    two_d = _map(labels)
+    two_d[2, 3] = [0.1, 0.1, 0.8]
+    assert np.array_equal(surface, two_d)
+    spots = stiffness_anomalies(plane, surface, readings, MODULI)
+    assert spots == stiffness_anomalies(GEOMETRY, two_d, readings, MODULI)
+    # one spot, the lump's: a deeper layer or a transposed surface would make the hard press or every press one
+    assert [(s.sign, s.presses, s.centroid_m) for s in spots] == [("harder", 1, pytest.approx((0.045, 0.025)))]
+    with pytest.raises(ValidationError, match="2-D maps only"):
+        stiffness_anomalies(voxels, probs, readings, MODULI)

@@ -61,9 +61,14 @@ def test_replay_rebuilds_the_voxel_map_exactly(voxel_run, tmp_path):
     a = VoxelGrid.load(out / "maps" / "Object_1.npz")
     b = VoxelGrid.load(tmp_path / "maps" / "Object_1.npz")
     np.testing.assert_array_equal(a.probabilities, b.probabilities)
-    run, replayed = (json.loads((d / "summary.json").read_text())["objects"][0]["material_regions"]
-                     for d in (out, tmp_path))
-    assert replayed == run and run
+    run, replayed = (json.loads((d / "summary.json").read_text())["objects"][0] for d in (out, tmp_path))
+    assert replayed["material_regions"] == run["material_regions"] and run["material_regions"]
+    # the surface layer's fine map and its stiffness spots, replayed from the recorded presses' images
+    assert run["fine_map"]["presses_read"] == replayed["fine_map"]["presses_read"] == 24
+    assert replayed["fine_map"]["stiffness_anomalies"] == run["fine_map"]["stiffness_anomalies"]
+    with np.load(out / "maps" / "Object_1_fine.npz") as ran, np.load(tmp_path / "maps" / "Object_1_fine.npz") as again:
+        np.testing.assert_array_equal(again["probabilities"], ran["probabilities"])
+        assert ran["probabilities"].shape[:2] == (16, 16)  # 20 mm at the fine raster's 1.25 mm (of 2.5 mm voxels)
 
 
 def test_layer_fits_cut_the_press_at_each_layer():

@@ -135,6 +135,13 @@ class MapGeometry:
         """(nx, ny) of the columns a press chooses among."""
         return int(self.shape[0]), int(self.shape[1])
 
+    def plane(self) -> MapGeometry:
+        """The 2-D map of the plane's cells: a voxel map's surface layer (a 2-D map is its own plane)."""
+        if not self.voxel:
+            return self
+        return MapGeometry("grid2d", self.materials, self.origin, self.cell_size, self.plane_shape,
+                           self.entropy_base)
+
     def cell_centres(self) -> np.ndarray:
         """Centres of the plane's cells, (ny, nx, 2) holding (x, y), m."""
         nx, ny = self.plane_shape
@@ -170,3 +177,10 @@ class MapGeometry:
                        entropy_base=doc.get("entropy_base", 10.0), z_top=doc.get("z_top_m"))
         except (TypeError, ValueError) as exc:
             raise ValidationError(f"{source}: malformed map geometry: {exc}") from None
+
+
+def plane_probabilities(probabilities: np.ndarray) -> np.ndarray:
+    """A map's probabilities on its plane, (ny, nx, M) indexed [iy, ix] as a 2-D map's: a voxel map's
+    (nx, ny, nz, M) surface layer (iz = 0), a 2-D map's as they are."""
+    p = np.asarray(probabilities)
+    return np.transpose(p[:, :, 0], (1, 0, 2)) if p.ndim == 4 else p

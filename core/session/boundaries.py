@@ -1,9 +1,11 @@
 """Boundaries in a run: each press's boundary reading (:mod:`palpate.core.boundary`), the reference materials'
-moduli from their training presses, and per 2-D object a fine material map (:mod:`palpate.core.mapping.fine`)
-written beside the cell map and scored on a 1 mm raster where the truth is known.
+moduli from their training presses, and per object a fine material map (:mod:`palpate.core.mapping.fine`) of its
+map's plane (a voxel map's surface layer) written beside the map and scored on a 1 mm raster where the truth is
+known; its stiffness spots are what reads harder or softer than the plane's material (on a voxel map, a lump
+beneath).
 
-Readings need boundary templates made for the scenario's pad; without them (another pad, a finger without one,
-a voxel map) a run has no fine map and says why in its summary.
+Readings need boundary templates made for the scenario's pad; without them (another pad, a finger without one) a
+run has no fine map and says why in its summary.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from palpate.core.files import writing
 from palpate.core.mapping.anomalies import anomaly_report
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
 from palpate.core.mapping.fine import FineMap, boundary_error, edges, fine_map
+from palpate.core.mapping.geometry import MapGeometry, plane_probabilities
 from palpate.core.mapping.regions import region_report
 from palpate.core.perception.streams import SATURATED
 from palpate.core.world.haptic_material import HapticMaterialMap
@@ -53,8 +56,6 @@ def pad_matches(templates: BoundaryTemplates, tip: FingertipSpec) -> bool:
 
 def boundary_reader(scenario: Scenario):
     """``(read(recording, result), reason)``: the scenario's per-press boundary reader, or None and why not."""
-    if scenario.exploration.map != "grid2d":
-        return None, "boundary readings make fine maps of 2-D maps only"
     try:
         templates = shipped_templates()
     except ValidationError as exc:
@@ -139,23 +140,30 @@ def fine_map_findings(fine: FineMap, geometry, probabilities: np.ndarray, readin
             "stiffness_anomalies": anomaly_report(geometry, probabilities, readings, moduli)}
 
 
-def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: MaterialModuli | None) -> FineResult | None:
-    """The fine map of an explored 2-D object from its post-processed cell map and its presses' readings (None for
-    voxel maps), with its summary: walls read, and with ground truth the share of the area each map labels right on
-    the fine raster and how far their boundaries lie from the true ones."""
-    if obj.geometry.voxel:
-        return None
+def plane_fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings, moduli: MaterialModuli | None
+                   ) -> tuple[FineMap, dict]:
+    """The fine map of a map's plane (a voxel map's surface layer) from its post-processed ``probabilities`` and
+    its presses' ``readings`` ((location, reading) pairs), and its findings (:func:`fine_map_findings`): a run's and
+    a replay's alike."""
+    plane, cells = geometry.plane(), plane_probabilities(probabilities)
+    fine = fine_map(plane, cells, readings, moduli=moduli)
+    return fine, fine_map_findings(fine, plane, cells, readings, moduli)
+
+
+def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: MaterialModuli | None) -> FineResult:
+    """The fine map of an explored object's plane from its post-processed map and its presses' readings, with its
+    summary: walls read, and with ground truth the share of the area each map labels right on the fine raster and
+    how far their boundaries lie from the true ones."""
     readings = [(s.result.location, s.boundary) for s in obj.steps if s.boundary is not None]
-    fine = fine_map(obj.geometry, obj.post.probabilities, readings, moduli=moduli)
+    fine, findings = plane_fine_map(obj.geometry, obj.post.probabilities, readings, moduli)
     summary = {"resolution_m": fine.resolution, "presses_read": len(readings),
                "walls_read": sum(1 for _, r in readings if r.p_boundary > 0.5),
-               "sides_named_by": "modulus" if moduli is not None else "neighbour cells"}
-    summary |= fine_map_findings(fine, obj.geometry, obj.post.probabilities, readings, moduli)
+               "sides_named_by": "modulus" if moduli is not None else "neighbour cells"} | findings
     truth = fine_truth(entry, scenario, fine)
     known = truth >= 0
     if not known.any():
         return FineResult(fine, summary)
-    cells = fine.cells_on_raster(np.argmax(obj.post.probabilities, axis=-1))
+    cells = fine.cells_on_raster(np.argmax(plane_probabilities(obj.post.probabilities), axis=-1))
     labels = fine.labels()
     cell_err, fine_err = (boundary_error(lab, truth, known, fine.resolution) for lab in (cells, labels))
     summary["area_accuracy"] = {"cell_map": float(np.mean(cells[known] == truth[known])),

@@ -22,6 +22,7 @@ import numpy as np
 
 from palpate.core.io import figure_worker, fine_figures
 from palpate.core.io import figures as fig
+from palpate.core.mapping.geometry import plane_probabilities
 from palpate.core.names import file_stem, inside
 from palpate.core.perception.press import PressResult
 from palpate.core.session.explore import ObjectResult
@@ -151,7 +152,7 @@ class FigureDrawer:
 def fine_map_job(obj: ObjectResult, fine, truth: np.ndarray | None, anomalies: list[dict] | None = None) -> FigureJob:
     """An object's fine map beside its cell map and the truth (:mod:`palpate.core.io.fine_figures`), with its
     stiffness spots (``anomalies``: summary.json's ``stiffness_anomalies``)."""
-    cells = fine.cells_on_raster(obj.post.probabilities)
+    cells = fine.cells_on_raster(plane_probabilities(obj.post.probabilities))
     walls = [(tuple(np.asarray(s.result.location) + s.boundary.foot), tuple(s.boundary.normal)) for s in obj.steps
              if s.boundary is not None and s.boundary.p_boundary > 0.5]
     spots = [(tuple(a["centroid_m"]), a["sign"]) for a in anomalies or ()]

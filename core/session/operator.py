@@ -21,6 +21,7 @@ from palpate.core import files
 from palpate.core.errors import PalpateError, RecordingError, ValidationError
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.recording import recording_to_press_recording
+from palpate.core.mapping.geometry import plane_probabilities
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget
 
@@ -127,9 +128,7 @@ class HumanOperator:
     def show_map(self, grid, post=None) -> None:
         """Remember the map's current estimate (most probable material, -1 where undecided) for the next prompt."""
         m = post if post is not None else grid
-        p = np.asarray(m.probabilities)
-        if p.ndim == 4:  # voxel map: the surface layer, in the 2-D grid's [iy, ix] order
-            p = np.transpose(p[:, :, 0], (1, 0, 2))
+        p = plane_probabilities(m.probabilities)  # a voxel map's surface layer
         top2 = np.sort(p, axis=-1)[..., -2:]
         est = p.argmax(axis=-1)
         est[(top2[..., 1] - top2[..., 0]) <= 1e-9] = -1

@@ -28,7 +28,6 @@ from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.io.recording import Annotation, recording_to_press_recording
 from palpate.core.mapping.calibration import MapCalibration
-from palpate.core.mapping.fine import fine_map
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import new_map
 from palpate.core.mapping.regions import map_region_report
@@ -41,7 +40,7 @@ from palpate.core.perception.memory_loading import check_replayable, memory_algo
 from palpate.core.perception.pipeline import presses_from_recording
 from palpate.core.perception.press import PressResult, perceive_press, press_result
 from palpate.core.perception.streams import GroundTruth, PressRecording
-from palpate.core.session.boundaries import fine_map_findings, replay_reader, save_fine_map, training_moduli
+from palpate.core.session.boundaries import plane_fine_map, replay_reader, save_fine_map, training_moduli
 from palpate.core.session.explore import MapPostprocessing, apply_press
 from palpate.core.session.output_guard import prepare_output_folder
 from palpate.core.session.progress import Progress
@@ -265,7 +264,7 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
                 raise ValidationError(f"{path}: press annotation {windows[presses_all.index(w)][0]} "
                                       f"({brief(w.object)}, {w.t_start:g}..{w.t_end:g} s): {exc}"
                                       f"{timeline.span()}") from None
-            if reader is not None and not state.geometry.voxel:
+            if reader is not None:
                 state.readings.append((res.location, reader(sub, res)))
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
                                     fallback_xy=w.target, calibration=calibration)
@@ -319,12 +318,11 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
         })
         if state.readings:
             read = [(xy, r) for xy, r in state.readings if r is not None]
-            fine = fine_map(g, post.probabilities, read, moduli=moduli)
+            fine, findings = plane_fine_map(g, post.probabilities, read, moduli)
             save_fine_map(inside(out, out / "maps" / f"{stems[name]}_fine.npz"), fine)
             summary_objects[-1]["fine_map"] = {
                 "resolution_m": fine.resolution, "presses_read": len(state.readings),
-                "sides_named_by": "modulus" if moduli else "neighbour cells"} | fine_map_findings(
-                fine, g, post.probabilities, read, moduli)
+                "sides_named_by": "modulus" if moduli else "neighbour cells"} | findings
         if figures and not g.voxel:
             (out / "figures").mkdir(exist_ok=True)
             fig.plot_map_snapshots(inside(out, out / "figures" / f"{stems[name]}_map.png"), name,
