@@ -79,6 +79,8 @@ def test_a_wall_the_map_shows_makes_no_spot_and_nor_does_a_material_read_as_itse
     ({"z_min": 0.0}, "z_min"),
     ({"probabilities": np.full((6, 8, 3), np.nan)}, "finite"),
     ({"geometry": MapGeometry("voxel", MATERIALS, (0.0, 0.0), 0.01, (8, 6, 2), z_top=0.03)}, "2-D"),
+    ({"edge_reach": -1e-3}, "edge_reach"),
+    ({"edge_reach": float("inf")}, "edge_reach"),
 ])
 def test_bad_input_is_refused_by_name(kwargs, match):
     args = {"geometry": GEOMETRY, "probabilities": _map(np.ones((6, 8), dtype=int)), "readings": [],
@@ -146,3 +148,27 @@ def test_a_voxel_maps_spots_are_those_of_its_surface_layer_as_a_2d_map():
     assert [(s.sign, s.presses, s.centroid_m) for s in spots] == [("harder", 1, pytest.approx((0.045, 0.025)))]
     with pytest.raises(ValidationError, match="2-D maps only"):
         stiffness_anomalies(voxels, probs, readings, MODULI)
+
+
+def test_a_softer_press_within_a_contact_radius_of_the_maps_edge_is_the_objects_edge():
+    labels = np.ones((6, 8), dtype=int)
+    # one cell in from the rim (its centre 15 mm from the left edge) and one in the middle read softer
+    read = {(0.015, 0.025): 1.0, (0.045, 0.035): 1.0, (0.045, 0.015): 2.4}
+    readings = _raster(lambda x, y: read.get((round(x, 3), round(y, 3)), 1.7))
+    signs = lambda **kw: sorted((s.sign, tuple(np.round(s.centroid_m, 6))) for s in stiffness_anomalies(  # noqa: E731
+        GEOMETRY, _map(labels), readings, MODULI, **kw))
+    assert signs() == signs(edge_reach=0.0149) == [("harder", (0.045, 0.015)), ("softer", (0.015, 0.025)),
+                                                  ("softer", (0.045, 0.035))]
+    # a press as deep as to reach 15 mm feels the edge: its softness is the edge's, not a lump's; harder still counts
+    assert signs(edge_reach=0.0151) == [("harder", (0.045, 0.015)), ("softer", (0.045, 0.035))]
+    assert signs(edge_reach=0.0351) == [("harder", (0.045, 0.015))]
+
+
+@pytest.mark.parametrize("value", ["5 mm", -0.001, float("nan"), True, [0.01]])
+def test_a_recordings_edge_reach_is_read_or_refused_by_name(value):
+    from palpate.core.session.boundaries import EDGE_KEY, replay_edge_reach
+
+    assert replay_edge_reach({}, "rec.mcap") == 0.0  # recorded before it was kept: the rim cells alone
+    assert replay_edge_reach({EDGE_KEY: 0.0089}, "rec.mcap") == 0.0089
+    with pytest.raises(ValidationError, match=f"rec.mcap: metadata {EDGE_KEY}"):
+        replay_edge_reach({EDGE_KEY: value}, "rec.mcap")

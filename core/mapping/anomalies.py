@@ -7,8 +7,8 @@ reference materials' training presses give each material's mean and spread of it
 (:class:`palpate.core.boundary.moduli.MaterialModuli`). A press whose modulus lies ``z`` spreads or more from that
 of the material the map names at its cell is anomalous, unless a wall at the surface explains it: its image then
 reads as a wall (``p_plain`` below :data:`P_PLAIN_MIN`) and the map names another material within one cell. On the
-map's rim only harder presses count (an object's free edge within reach reads softer). Nearby anomalous presses of
-one sign (harder or softer) make one spot.
+map's rim, and within a press's contact radius of the map's edge, only harder presses count (an object's free edge
+within reach reads softer). Nearby anomalous presses of one sign (harder or softer) make one spot.
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def _named_z(geometry: MapGeometry, labels: np.ndarray, readings, moduli: Materi
 def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
                         readings: list[tuple[tuple[float, float], BoundaryReading]], moduli: MaterialModuli, *,
                         z_min: float = Z_MIN, p_plain_min: float = P_PLAIN_MIN,
-                        link_cells: float = LINK_CELLS) -> list[StiffnessAnomaly]:
+                        link_cells: float = LINK_CELLS, edge_reach: float = 0.0) -> list[StiffnessAnomaly]:
     """The spots of a 2-D map (``probabilities`` (ny, nx, M), e.g. post-processed) where presses read harder or
     softer than it says (see the module docstring), strongest first.
 
@@ -93,10 +93,12 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
         readings: per press, its measured (x, y) location, m, and its boundary reading.
         moduli: the reference materials' read moduli.
         z_min, p_plain_min, link_cells: see :data:`Z_MIN`, :data:`P_PLAIN_MIN`, :data:`LINK_CELLS`.
+        edge_reach: m; a softer press this close to the map's edge is taken for the object's free edge, as one in a
+            rim cell is (the contact radius at the press's depth: a deep press feels an edge two cells away).
 
     Raises:
         ValidationError: a voxel map, probabilities of another shape or not finite, or settings that are not
-            positive.
+            positive (edge_reach: not finite or negative).
     """
     if geometry.voxel:
         raise ValidationError("stiffness_anomalies: 2-D maps only")
@@ -105,18 +107,21 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
     if probs.shape != (ny, nx, len(geometry.materials)) or not np.all(np.isfinite(probs)):
         raise ValidationError(f"stiffness_anomalies: probabilities must be finite, ({ny}, {nx}, "
                               f"{len(geometry.materials)}), got {probs.shape}")
-    if not (z_min > 0 and 0 <= p_plain_min <= 1 and link_cells > 0):
-        raise ValidationError("stiffness_anomalies: z_min and link_cells must be > 0, p_plain_min in [0, 1]")
+    if not (z_min > 0 and 0 <= p_plain_min <= 1 and link_cells > 0 and 0 <= edge_reach < np.inf):
+        raise ValidationError("stiffness_anomalies: z_min and link_cells must be > 0, p_plain_min in [0, 1], "
+                              f"edge_reach a finite distance >= 0 m (got {edge_reach!r})")
     if not readings:
         return []
     labels = np.argmax(probs, axis=-1)
     cx, cy, z = _named_z(geometry, labels, readings, moduli)
+    (x0, y0), span = geometry.origin, np.array([nx, ny]) * geometry.cell_size
     keep = []
-    for i, (_, r) in enumerate(readings):
+    for i, (loc, r) in enumerate(readings):
         if not (np.isfinite(z[i]) and abs(z[i]) >= z_min):
             continue
         ix, iy = cx[i], cy[i]
-        if z[i] < 0 and (ix in (0, nx - 1) or iy in (0, ny - 1)):
+        edge = min(loc[0] - x0, x0 + span[0] - loc[0], loc[1] - y0, y0 + span[1] - loc[1])
+        if z[i] < 0 and (ix in (0, nx - 1) or iy in (0, ny - 1) or edge < edge_reach):
             continue  # the object's free edge may lie within reach of the map's rim: it reads softer
         around = labels[max(iy - 1, 0):iy + 2, max(ix - 1, 0):ix + 2]
         # a wall at the surface reads as a wall and shows in the map; a lump under one material does neither
@@ -146,8 +151,9 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
 
 def anomaly_report(geometry: MapGeometry, probabilities: np.ndarray,
                    readings: list[tuple[tuple[float, float], BoundaryReading]],
-                   moduli: MaterialModuli | None) -> list[dict] | None:
+                   moduli: MaterialModuli | None, edge_reach: float = 0.0) -> list[dict] | None:
     """summary.json's ``stiffness_anomalies`` of a 2-D map (None without the reference materials' moduli)."""
     if moduli is None:
         return None
-    return [a.to_dict() for a in stiffness_anomalies(geometry, probabilities, readings, moduli)]
+    return [a.to_dict() for a in stiffness_anomalies(geometry, probabilities, readings, moduli,
+                                                     edge_reach=edge_reach)]

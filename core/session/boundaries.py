@@ -35,7 +35,7 @@ from palpate.core.world.haptic_material import HapticMaterialMap
 from palpate.core.world.resources import models_dir
 from palpate.core.world.scenario import ObjectEntry, Scenario
 from palpate.core.world.scene import FingertipSpec, TaxelSensorSpec
-from palpate.core.world.workspace import ground_truth_cells
+from palpate.core.world.workspace import contact_radius, ground_truth_cells
 
 
 def shipped_templates() -> BoundaryTemplates:
@@ -71,6 +71,21 @@ NEAR_BOUNDARY = 5e-3
 
 #: Recording metadata key holding the reading's noise model, so that a replay reads every press as the run did.
 NOISE_KEY = "boundary_noise"
+
+
+#: Recording metadata key holding the distance (m) from a map's edge within which a softer press is taken for the
+#: object's edge (the contact radius at the planned depth, ``edge_reach`` of
+#: :func:`~palpate.core.mapping.anomalies.stiffness_anomalies`), so that a replay finds the run's spots.
+EDGE_KEY = "spot_edge_reach_m"
+
+
+def replay_edge_reach(metadata: dict, where: str) -> float:
+    """The edge reach a run recorded (:data:`EDGE_KEY`; 0 for a recording without one: its map's rim cells alone);
+    ValidationError naming ``where`` for anything but a finite distance >= 0."""
+    value = metadata.get(EDGE_KEY, 0.0)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < math.inf:
+        raise ValidationError(f"{where}: metadata {EDGE_KEY} must be a finite distance >= 0 m, got {value!r}")
+    return float(value)
 
 
 def noise_metadata(scenario: Scenario) -> dict:
@@ -130,24 +145,24 @@ def fine_truth(entry: ObjectEntry, scenario: Scenario, fine: FineMap) -> np.ndar
     return ground_truth_cells(entry, scenario, pts.reshape(-1, 2), z).reshape(pts.shape[:2])
 
 
-def fine_map_findings(fine: FineMap, geometry, probabilities: np.ndarray, readings, moduli: MaterialModuli | None
-                      ) -> dict:
+def fine_map_findings(fine: FineMap, geometry, probabilities: np.ndarray, readings, moduli: MaterialModuli | None,
+                      edge_reach: float = 0.0) -> dict:
     """What a fine map's summary says it found, for a run and a replay alike: where each material lies at its
     resolution (a buried lump is one region) and the spots that read harder or softer than the cell map
-    (``probabilities``, post-processed) names."""
+    (``probabilities``, post-processed) names (``edge_reach``, m: see :data:`EDGE_KEY`)."""
     return {"material_regions": region_report(fine.probabilities, fine.origin, fine.resolution, fine.materials,
                                               cell=geometry.cell_size),
-            "stiffness_anomalies": anomaly_report(geometry, probabilities, readings, moduli)}
+            "stiffness_anomalies": anomaly_report(geometry, probabilities, readings, moduli, edge_reach)}
 
 
-def plane_fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings, moduli: MaterialModuli | None
-                   ) -> tuple[FineMap, dict]:
+def plane_fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings, moduli: MaterialModuli | None,
+                   edge_reach: float = 0.0) -> tuple[FineMap, dict]:
     """The fine map of a map's plane (a voxel map's surface layer) from its post-processed ``probabilities`` and
     its presses' ``readings`` ((location, reading) pairs), and its findings (:func:`fine_map_findings`): a run's and
     a replay's alike."""
     plane, cells = geometry.plane(), plane_probabilities(probabilities)
     fine = fine_map(plane, cells, readings, moduli=moduli)
-    return fine, fine_map_findings(fine, plane, cells, readings, moduli)
+    return fine, fine_map_findings(fine, plane, cells, readings, moduli, edge_reach)
 
 
 def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: MaterialModuli | None) -> FineResult:
@@ -155,7 +170,7 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
     summary: walls read, and with ground truth the share of the area each map labels right on the fine raster and
     how far their boundaries lie from the true ones."""
     readings = [(s.result.location, s.boundary) for s in obj.steps if s.boundary is not None]
-    fine, findings = plane_fine_map(obj.geometry, obj.post.probabilities, readings, moduli)
+    fine, findings = plane_fine_map(obj.geometry, obj.post.probabilities, readings, moduli, contact_radius(scenario))
     summary = {"resolution_m": fine.resolution, "presses_read": len(readings),
                "walls_read": sum(1 for _, r in readings if r.p_boundary > 0.5),
                "sides_named_by": "modulus" if moduli is not None else "neighbour cells"} | findings

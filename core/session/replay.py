@@ -40,7 +40,13 @@ from palpate.core.perception.memory_loading import check_replayable, memory_algo
 from palpate.core.perception.pipeline import presses_from_recording
 from palpate.core.perception.press import PressResult, perceive_press, press_result
 from palpate.core.perception.streams import GroundTruth, PressRecording
-from palpate.core.session.boundaries import plane_fine_map, replay_reader, save_fine_map, training_moduli
+from palpate.core.session.boundaries import (
+    plane_fine_map,
+    replay_edge_reach,
+    replay_reader,
+    save_fine_map,
+    training_moduli,
+)
 from palpate.core.session.explore import MapPostprocessing, apply_press
 from palpate.core.session.output_guard import prepare_output_folder
 from palpate.core.session.progress import Progress
@@ -244,6 +250,7 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
     timeline = _Timeline.of(stream)
     annotations = {id(w): rec.annotations[i] for (i, _), w in zip(windows, presses_all, strict=True)}
     reader = replay_reader(rec.metadata, str(path))
+    edge_reach = replay_edge_reach(rec.metadata, str(path))
     moduli = None
     if windows and reader is not None:  # the references' moduli from their training presses, as the run read them
         moduli = training_moduli(_training_readings(presses, annotations, timeline, reader))
@@ -318,7 +325,7 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
         })
         if state.readings:
             read = [(xy, r) for xy, r in state.readings if r is not None]
-            fine, findings = plane_fine_map(g, post.probabilities, read, moduli)
+            fine, findings = plane_fine_map(g, post.probabilities, read, moduli, edge_reach)
             save_fine_map(inside(out, out / "maps" / f"{stems[name]}_fine.npz"), fine)
             summary_objects[-1]["fine_map"] = {
                 "resolution_m": fine.resolution, "presses_read": len(state.readings),

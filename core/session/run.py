@@ -37,6 +37,7 @@ from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.param_stats import table_from_csv, table_from_fits
 from palpate.core.session.actuators import open_actuators
 from palpate.core.session.boundaries import (
+    EDGE_KEY,
     NOISE_KEY,
     boundary_reader,
     export_fine_map,
@@ -77,7 +78,7 @@ from palpate.core.session.sim_to_real import sim_to_real_summary
 from palpate.core.session.sources import PressTarget, scenario_source_maker
 from palpate.core.session.training import TrainingResult, dropped_message, run_seeds, train_memory
 from palpate.core.world.scenario import ObjectEntry, Scenario
-from palpate.core.world.workspace import map_geometries
+from palpate.core.world.workspace import contact_radius, map_geometries
 
 
 def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress | None = None,
@@ -127,7 +128,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path, *, progress: Progress 
                         "maps": {name: g.to_dict() for name, g in geometries.items()},
                         "map_calibration": scenario.exploration.calibration.to_dict(),
                         "map_postprocessing": MapPostprocessing.of(scenario.exploration).to_dict(),
-                        NOISE_KEY: noise_metadata(scenario)}, live=live,
+                        NOISE_KEY: noise_metadata(scenario), EDGE_KEY: contact_radius(scenario)}, live=live,
                        # the tracked point is the fingertip sphere's centre; the pad lies at its bottom
                        pad_offset=(0.0, 0.0, -scenario.fingertip.radius))
         try:
