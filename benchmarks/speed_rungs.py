@@ -124,9 +124,10 @@ def main() -> None:
     points, weights = sensel_quadrature(tip, 6)
     young_eff = obj.material.effective_modulus
 
-    # the rigid rung's model and setpoints, for the reference
+    # the rigid rung's model (the finger alone) and setpoints, for the reference
     centres = profile.centres()
-    model, data = build_press_model(scene, centres[0], np.array([0.0, 0.0, 1.0]), timestep=TIMESTEP)
+    model, data = build_press_model(scene, centres[0], np.array([0.0, 0.0, 1.0]), timestep=TIMESTEP,
+                                    finger_only=True)
     model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     n = int(np.ceil(profile.duration / TIMESTEP)) + 1
     t = profile.t[0] + TIMESTEP * np.arange(n)

@@ -95,7 +95,7 @@ def run_rigid_press(
         law: the press point's contact law (computed here when not given; a SimSource caches it).
         max_steps: step budget; a longer press is refused before it runs.
         models: a dict the caller keeps for ``scene`` alone (a SimSource does): compiled press models by timestep,
-            drive, axis and mesh, moved to each press's start instead of compiled again.
+            drive and axis, moved to each press's start instead of compiled again.
         pressure_rows: ``rows(t) -> mask``: of the trace's times t (s), the rows whose sensel pressure is wanted
             (e.g. :func:`palpate.sim.trace.frame_rows`, what the pad's frames read; none when a later stage draws
             the image anew); the others are left 0. None: every row.
@@ -133,7 +133,7 @@ def run_rigid_press(
     centres = profile.centres()
     start = centres[0]
     q_set = profile.z - profile.z[0]  # the centre is start + q * axis (see PressProfile.centres)
-    model, data = press_model(scene, obj, start, axis, timestep, drive, mesh, models)
+    model, data = press_model(scene, start, axis, timestep, drive, models)
 
     # surface sampled under the deepest tip position (the tip moves on one axis)
     deepest = centres[int(np.argmin(profile.z))]
@@ -256,18 +256,18 @@ def run_rigid_press(
     return trace
 
 
-def press_model(scene: Scene, obj: ObjectSpec, start: np.ndarray, axis: np.ndarray, timestep: float,
-                drive: FingerDrive, mesh=None, models: dict | None = None):
-    """(model, data) of :func:`palpate.sim.scene.build_press_model` with MuJoCo's contacts off (the law is ours),
-    the tip's body at ``start`` (m) and the data fresh. ``models``: compiled models of ``scene`` kept by the caller;
-    a kept one is moved to ``start`` and reset, which is what compiling it there gives."""
+def press_model(scene: Scene, start: np.ndarray, axis: np.ndarray, timestep: float, drive: FingerDrive,
+                models: dict | None = None):
+    """(model, data) of :func:`palpate.sim.scene.build_press_model`'s finger alone with MuJoCo's contacts off (the
+    law is ours), the tip's body at ``start`` (m) and the data fresh. ``models``: compiled models of ``scene`` kept
+    by the caller; a kept one is moved to ``start`` and reset, which is what compiling it there gives."""
     import mujoco
 
-    key = (float(timestep), drive, tuple(float(c) for c in axis), obj.name if mesh is not None else None)
+    key = (float(timestep), drive, tuple(float(c) for c in axis))
     kept = None if models is None else models.get(key)
     if kept is None:
-        model, data = build_press_model(scene, start, axis, timestep=timestep, drive=drive,
-                                        meshes={obj.name: mesh} if mesh is not None else None)
+        # the finger alone: the law is the contact, and the objects' geoms and the sites would only cost steps
+        model, data = build_press_model(scene, start, axis, timestep=timestep, drive=drive, finger_only=True)
         model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         if models is not None:
             models[key] = (model, data)

@@ -152,7 +152,7 @@ def add_object(spec, obj: ObjectSpec, mesh=None) -> None:
 
 def build_press_model(
     scene: Scene, start: np.ndarray, axis: np.ndarray, *, timestep: float, drive: FingerDrive | None = None,
-    travel: float = 0.05, meshes: dict | None = None,
+    travel: float = 0.05, meshes: dict | None = None, finger_only: bool = False,
 ):
     """Compile the press scene.
 
@@ -165,10 +165,12 @@ def build_press_model(
         drive: finger servo parameters.
         travel: joint range either side of the start, m.
         meshes: pre-loaded trimesh meshes by object name (avoids reading files twice).
+        finger_only: the finger's body, joint and drive alone (no table, objects or sites): its dynamics are the
+            same when a fidelity applies its own contact law, and each step costs less.
 
     Returns:
-        (model, data) with joint "press", actuator "press", site "pose" and sites "sensel_i_j". The tip sphere
-        does not collide (contype 0): each fidelity applies its own contact law.
+        (model, data) with joint "press", actuator "press", site "pose" and sites "sensel_i_j" (not with
+        ``finger_only``). The tip sphere does not collide (contype 0): each fidelity applies its own contact law.
     """
     import mujoco
 
@@ -180,20 +182,22 @@ def build_press_model(
     spec.option.timestep = float(timestep)
     spec.option.gravity = [0.0, 0.0, 0.0]  # the arm carries the finger; its weight is not part of the press
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.worldbody.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.5, 0.5, 0.01])
-    for obj in scene.objects:
-        add_object(spec, obj, (meshes or {}).get(obj.name))
+    if not finger_only:
+        spec.worldbody.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.5, 0.5, 0.01])
+        for obj in scene.objects:
+            add_object(spec, obj, (meshes or {}).get(obj.name))
     tip = scene.fingertip
     finger = spec.worldbody.add_body(name="fingertip", pos=[float(c) for c in start])
     finger.add_joint(name="press", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[float(c) for c in axis],
                      armature=drive.armature, range=[-travel, travel], limited=True)
     finger.add_geom(name="tip", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[tip.radius, 0, 0], mass=drive.mass,
                     contype=0, conaffinity=0)
-    finger.add_site(name="pose", pos=[0.0, 0.0, 0.0])
-    sites = sensel_sites(tip)
-    for i, j in np.ndindex(sites.shape[:2]):
-        finger.add_site(name=f"sensel_{i}_{j}", pos=[float(c) for c in sites[i, j]],
-                        size=[tip.sensel_size / 2, tip.sensel_size / 2, 1e-4], type=mujoco.mjtGeom.mjGEOM_BOX)
+    if not finger_only:
+        finger.add_site(name="pose", pos=[0.0, 0.0, 0.0])
+        sites = sensel_sites(tip)
+        for i, j in np.ndindex(sites.shape[:2]):
+            finger.add_site(name=f"sensel_{i}_{j}", pos=[float(c) for c in sites[i, j]],
+                            size=[tip.sensel_size / 2, tip.sensel_size / 2, 1e-4], type=mujoco.mjtGeom.mjGEOM_BOX)
     act = spec.add_actuator(name="press", target="press", trntype=mujoco.mjtTrn.mjTRN_JOINT)
     act.set_to_position(kp=drive.kp, kv=drive.kv)
     act.ctrllimited = True

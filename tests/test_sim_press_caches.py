@@ -188,6 +188,25 @@ def test_a_kept_press_model_moved_to_the_next_start_presses_as_a_fresh_compile(l
     assert len(models) == 2
 
 
+def test_the_rigid_rung_steps_the_finger_alone_as_it_would_in_the_whole_scene(monkeypatch, law):
+    scene = Scene(objects=(_block(), ObjectSpec("post", "cylinder", (0.01, 0.02), (0.08, 0.0), Material("m", 1e5, 0.3))),
+                  fingertip=FingertipSpec(radius=R))
+    obj = scene.objects[0]
+    profile = press_profile(PressTarget(0.002, 0.001, depth=0.003, speed=0.01), obj.height, radius=R, timestep=0.002)
+    models: dict = {}
+    alone = rigid.run_rigid_press(scene, obj, profile, law=law, models=models)
+    (model, _), = models.values()
+    assert (model.nbody, model.ngeom, model.nsite) == (2, 1, 0)
+    build = rigid.build_press_model
+    monkeypatch.setattr(rigid, "build_press_model", lambda *a, finger_only, **k: build(*a, **k))  # the whole scene
+    models = {}
+    whole = rigid.run_rigid_press(scene, obj, profile, law=law, models=models)
+    (model, _), = models.values()
+    assert model.nbody == 4 and model.nsite == 17
+    for name in ("force", "indentation", "sensel_pressure", "tip_position", "t"):
+        assert np.array_equal(getattr(alone, name), getattr(whole, name)), name
+
+
 def test_column_energies_are_shared_by_stacks_alike_up_to_one_modulus_factor(monkeypatch):
     from palpate.sim.contact import stack as st
     from palpate.sim.contact.axisymmetric import column_energy
