@@ -189,8 +189,8 @@ def test_a_kept_press_model_moved_to_the_next_start_presses_as_a_fresh_compile(l
 
 
 def test_the_rigid_rung_steps_the_finger_alone_as_it_would_in_the_whole_scene(monkeypatch, law):
-    scene = Scene(objects=(_block(), ObjectSpec("post", "cylinder", (0.01, 0.02), (0.08, 0.0), Material("m", 1e5, 0.3))),
-                  fingertip=FingertipSpec(radius=R))
+    post = ObjectSpec("post", "cylinder", (0.01, 0.02), (0.08, 0.0), Material("m", 1e5, 0.3))
+    scene = Scene(objects=(_block(), post), fingertip=FingertipSpec(radius=R))
     obj = scene.objects[0]
     profile = press_profile(PressTarget(0.002, 0.001, depth=0.003, speed=0.01), obj.height, radius=R, timestep=0.002)
     models: dict = {}
