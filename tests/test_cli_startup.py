@@ -81,3 +81,19 @@ def test_unknown_command_still_lists_every_command(capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "invalid choice: 'spiral'" in err and "'memory'" in err and "'bench'" in err
+
+
+@pytest.mark.parametrize(("preset", "expected"), [(None, "disable"), ("egl", "egl")])
+def test_the_console_script_loads_no_opengl_context_unless_asked(preset, expected):
+    import os
+
+    # the installed console script is the entry point pyproject names; its process imports MuJoCo without GLFW
+    (script,) = [ep for ep in entry_points(group="console_scripts") if ep.name == "palpate"]
+    assert script.value == "palpate.core.cli:console"
+    probe = ("import json, os, sys\nfrom palpate.core.cli import console\nsys.argv = ['palpate', '--version']\n"
+             "try:\n    console()\nexcept SystemExit:\n    pass\nimport mujoco\n"
+             "print(json.dumps([os.environ['MUJOCO_GL'], 'glfw' in sys.modules]), file=sys.stderr)")
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"} | ({} if preset is None else {"MUJOCO_GL": preset})
+    proc = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, env=env)
+    gl, glfw = json.loads(proc.stderr.strip().splitlines()[-1])
+    assert gl == expected and not glfw

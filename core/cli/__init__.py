@@ -102,8 +102,17 @@ def _unavailable(name: str, exc: ImportError):
     return handler
 
 
+def console() -> int:
+    """The ``palpate`` console script: :func:`main` in a process of its own, in which MuJoCo, imported for the
+    physics, does not load its OpenGL context (palpate never renders with it; MUJOCO_GL=disable halves
+    ``import mujoco``) unless the environment asks for one."""
+    os.environ.setdefault("MUJOCO_GL", "disable")
+    return main()
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``palpate`` console script. Returns the process exit code."""
+    """The ``palpate`` command line (what the console script runs; see :func:`console`). Returns the process exit
+    code."""
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser(argv).parse_args(argv)
     debug = args.debug or os.environ.get("PALPATE_DEBUG", "") not in ("", "0")
