@@ -132,9 +132,8 @@ class SimSource:
     def _law(self, obj: ObjectSpec, x: float, y: float, surface_z: float, max_depth: float):
         """The contact law at (x, y) (m), cached per press point; its FE solves (an inclusion, an edge within
         reach) run with BLAS on one thread."""
-        # the law a point gets is a function of its arguments and of what the cache holds: while the cache holds
-        # the same laws (no solve since, here or in a source sharing it), the last answer for these arguments stands
-        # (saves the lookup's material probe of every repeated press point)
+        # while the cache holds the same laws (no solve since, here or in a source sharing it), the last answer for
+        # these arguments stands (saves the lookup's material probe of every repeated press point)
         key = (obj, x, y, surface_z, max_depth)
         try:
             hash(key)
@@ -306,8 +305,8 @@ class SimSource:
                 "over the rigid base): use a lower force target or a thicker sample")
         physics_profile = profile
         if real is not None:
-            # the pulp's share taken out of the bone's press; the force the person stops at is felt through the
-            # pulp and the softened material, applied after the physics: the physics is held to the depth alone
+            # the pulp's share taken out of the bone's press; the force the person stops at is applied after the
+            # physics (through the pulp and the softened material): the physics is held to the depth alone
             physics_profile = real.object_profile(profile)
             physics_profile = replace(physics_profile, meta=dict(physics_profile.meta, force_target=None))
         return PlannedPress(target, obj, choice, mesh, profile, physics_profile, law, real, timestep, seed, s_taxel,
@@ -315,10 +314,8 @@ class SimSource:
 
     def _physics(self, plan: PlannedPress) -> PhysicsTrace:
         """The press's physics at its fidelity (the one step a batch backend may take over for analytic presses); a
-        rigid press's sensel pressures only at the rows the pad's frames read (:func:`~palpate.sim.trace.frame_rows`),
-        0 elsewhere."""
-        obj, physics_profile, law, timestep, mesh = (plan.obj, plan.physics_profile, plan.law, plan.timestep,
-                                                      plan.mesh)
+        rigid press's sensel pressures only at the rows its frames read (:func:`~palpate.sim.trace.frame_rows`)."""
+        obj, physics_profile, law, timestep, mesh = plan.obj, plan.physics_profile, plan.law, plan.timestep, plan.mesh
         fidelity, target, seed = plan.choice.fidelity, plan.target, plan.seed
         if fidelity == "analytic":
             trace = run_analytic_press(self.scene, obj, physics_profile, law=law, pads=self._pads)
@@ -331,8 +328,7 @@ class SimSource:
             with one_blas_thread(self._blas_controller()):
                 trace = run_bem_press(self.scene, obj, physics_profile, walls=self._walls, law_for=law_for)
         elif fidelity == "rigid":
-            # the sensel pressures of the rows the pad's frames read (none when the realism draws the image anew):
-            # the others would cost a table read per physics step and never reach a frame
+            # rows no frame reads (all when the realism draws the image anew) would cost a table read a step for nothing
             rate, drawn = self.scene.taxels.rate, plan.real is not None and plan.real.draws_image(plan.profile)
             rows = (lambda t: np.zeros(len(t), dtype=bool)) if drawn else (lambda t: frame_rows(t, rate))
             # its tables' BLAS products are small: other threads would only wait for a core and spin
@@ -340,8 +336,7 @@ class SimSource:
                 trace = run_rigid_press(self.scene, obj, physics_profile, timestep=timestep, mesh=mesh, law=law,
                                         max_steps=self.max_steps, models=self._rigid_models, pressure_rows=rows)
         else:
-            # flex has its own default step (up to 10 ms, see palpate.sim.flex.press.default_timestep): the rigid
-            # default of 2 ms would make it 5x slower for nothing (its elasticity is integrated implicitly)
+            # flex has its own default step (up to 10 ms, palpate.sim.flex.press.default_timestep; implicit elasticity)
             if self._flex_tables is None:
                 self._flex_tables = load_flex_tables()
             trace = run_flex_press(self.scene, obj, target, physics_profile, timestep=self.timestep, seed=seed,
@@ -395,8 +390,7 @@ class SimSource:
                 d = float("inf")
             if np.isfinite(d):
                 return d
-            # past the deepest press allowed: Hertz's shape from the law's deepest point, only to tabulate the
-            # finger's series law (no press goes there)
+            # past the deepest press allowed: Hertz's shape from the law's end, only to tabulate the series law
             return law.max_depth * (force / law.force[-1]) ** (2.0 / 3.0)
 
         planned = target.depth if target.depth is not None else planning_depth(target.force)
