@@ -45,6 +45,15 @@ def lump_footprint(lump: dict, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return (np.abs(x - cx) <= sx / 2) & (np.abs(y - cy) <= sy / 2)
 
 
+def footprint_gap_mm(lump: dict, x: float, y: float) -> float:
+    """Distance (mm) from the point (x, y mm) to the lump's widest horizontal section (0 over it)."""
+    cx, cy, _ = lump["center_mm"]
+    if lump["shape"] == "sphere":
+        return max(math.hypot(x - cx, y - cy) - lump["size_mm"][0], 0.0)
+    sx, sy, _ = lump["size_mm"]
+    return math.hypot(max(abs(x - cx) - sx / 2, 0.0), max(abs(y - cy) - sy / 2, 0.0))
+
+
 def footprint_area_mm2(lump: dict) -> float:
     """Area of the lump's widest horizontal section, mm^2."""
     if lump["shape"] == "sphere":

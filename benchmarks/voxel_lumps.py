@@ -24,7 +24,7 @@ from functools import cache
 import numpy as np
 from exploration import make_source_for
 from exploration_voxels import CELL_MM, DEPTH_MM, FORCE_N, MATERIALS, NAMES
-from lump_scenes import lump_top_mm, scene_arguments, scene_results
+from lump_scenes import footprint_gap_mm, lump_top_mm, scene_arguments, scene_results
 from scene_families import HEIGHT_MM, is_report_seed
 
 from palpate.core.mapping.regions import map_region_report
@@ -106,19 +106,9 @@ def _judges():
                                                   int(DEPTH_MM / CELL_MM)), reader, training_moduli(training.readings))
 
 
-def _spotted(lump: dict, spots: list[dict], harder: bool) -> tuple[bool, bool]:
-    """(a spot within NEAR_MM of the lump's footprint, one of them with the lump's sign)."""
-    x0, y0 = lump["center_mm"][:2]
-    hx, hy = ((lump["size_mm"][0] / 2, lump["size_mm"][1] / 2) if lump["shape"] == "box"
-              else (lump["size_mm"][0],) * 2)
-    near = []
-    for a in spots:
-        x, y = np.array(a["centroid_m"]) * 1e3
-        gap = (math.hypot(max(abs(x - x0) - hx, 0.0), max(abs(y - y0) - hy, 0.0)) if lump["shape"] == "box"
-               else max(math.hypot(x - x0, y - y0) - hx, 0.0))
-        if gap <= NEAR_MM:
-            near.append(a["sign"] == ("harder" if harder else "softer"))
-    return bool(near), any(near)
+def _near(lump: dict, spot: dict) -> bool:
+    """Whether ``spot`` (summary.json's stiffness_anomalies entry) lies within NEAR_MM of the lump's footprint."""
+    return footprint_gap_mm(lump, *(np.array(spot["centroid_m"]) * 1e3)) <= NEAR_MM
 
 
 def scene_row(seed: int) -> dict:
@@ -129,7 +119,7 @@ def scene_row(seed: int) -> dict:
     res = explore_object(sc, sc.objects[0], memory, make_source_for(sc), 9000 + seed, Progress(enabled=False),
                          layers=layers, boundary_reader=reader)
     spots = object_fine_map(res, sc.objects[0], sc, moduli).summary["stiffness_anomalies"] or []
-    block_young = next(m["young_kpa"] for m in MATERIALS if m["name"] == raw["objects"][0]["material"])
+    young = {m["name"]: m["young_kpa"] for m in MATERIALS}
     regions = [r for r in map_region_report(res.geometry, res.post.probabilities)
                if r["material"] != raw["objects"][0]["material"]]
     rows = []
@@ -139,14 +129,15 @@ def scene_row(seed: int) -> dict:
         limit = 2 * _volume_in_map_mm3(lump) + 2 * CELL_MM**3
         fits = [r for r, d in zip(regions, dist, strict=True) if d <= NEAR_MM and r["volume_m3"] * 1e9 <= limit]
         top = lump_top_mm(lump)
-        harder = next(m["young_kpa"] for m in MATERIALS if m["name"] == lump["material"]) > block_young
-        spotted, sign = _spotted(lump, spots, harder)
-        rows.append({"top": top, "shape": lump["shape"], "located": bool(fits), "spotted": spotted, "sign": sign,
+        sign = "harder" if young[lump["material"]] > young[raw["objects"][0]["material"]] else "softer"
+        near = [a for a in spots if _near(lump, a)]
+        rows.append({"top": top, "shape": lump["shape"], "located": bool(fits), "spotted": bool(near),
+                     "sign": any(a["sign"] == sign for a in near),
                      "named": any(r["material"] == lump["material"] for r in fits),
                      "top_right": any(int(r["top_depth_m"] * 1e3 / CELL_MM + 0.5) == int(top // CELL_MM)
                                       for r in fits),
                      "error": min(dist) if dist else None})
-    stray = sum(not any(_spotted(lump, [a], True)[0] for lump in lumps) for a in spots)
+    stray = sum(not any(_near(lump, a) for lump in lumps) for a in spots)
     return {"seed": seed, "presses": len(res.steps), "lumps": rows, "cpu": time.process_time() - t0,
             "accuracy": res.steps[-1].accuracy_postprocessed, "stray": stray}
 
