@@ -191,7 +191,8 @@ def _solve_field(mesh: FEMesh, sample: AxisymmetricSample, materials, d: np.ndar
     mu = young / (2 * (1 + poisson))
     r_top = mesh.r_top
     # minimum degree on A^T + A: the matrix is symmetric, and this ordering halves the factor's fill (COLAMD's)
-    stiffness, recovery = mesh.stiffness(lam, mu)
+    local = mesh.local_stiffness(lam, mu)
+    stiffness, recovery = mesh.stiffness(lam, mu, local)
     lu = splu(stiffness, permc_spec="MMD_AT_PLUS_A")
     settle = lu.solve(mesh.loads)  # (free, hats) displacement per unit hat pressure
     compliance = -settle[mesh.vertex]  # downward settlement of each top vertex per unit hat pressure
@@ -208,7 +209,7 @@ def _solve_field(mesh: FEMesh, sample: AxisymmetricSample, materials, d: np.ndar
     for p in pressures if energy else ():
         u = np.zeros(n)
         u[mesh.free] = settle @ p
-        share = np.maximum(mesh.element_energy(lam, mu, u, recovery), 0.0)
+        share = np.maximum(mesh.element_energy(local, u, recovery), 0.0)
         shares.append(share / max(float(share.sum()), 1e-300))
     return FEPress(depth=d, force=np.array(forces), contact_radius=np.array(radii), r=r_top,
                    pressure=np.array(pressures), dofs=int(n), h0=float(h0), element_r=mesh.centroid_r,

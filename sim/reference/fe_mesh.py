@@ -50,27 +50,32 @@ class FEMesh:
     loads: np.ndarray
     vertex: np.ndarray
 
-    def stiffness(self, lam: np.ndarray, mu: np.ndarray):
-        """The free dofs' condensed stiffness (CSC) for per-element Lame constants ``lam``, ``mu`` (Pa, (E,)), and
-        the bubbles' recovery (E, 2, 16): bubble dofs = -recovery @ the element's other dofs."""
-        from scipy.sparse import csc_matrix
-
+    def local_stiffness(self, lam: np.ndarray, mu: np.ndarray) -> np.ndarray:
+        """Each element's stiffness (E, 18, 18) for per-element Lame constants ``lam``, ``mu`` (Pa, (E,))."""
         local = self.lam_part * lam[:, None, None]
         local += self.mu_part * mu[:, None, None]
+        return local
+
+    def stiffness(self, lam: np.ndarray, mu: np.ndarray, local: np.ndarray | None = None):
+        """The free dofs' condensed stiffness (CSC) for per-element Lame constants ``lam``, ``mu`` (Pa, (E,)), and
+        the bubbles' recovery (E, 2, 16): bubble dofs = -recovery @ the element's other dofs. ``local``: their
+        :meth:`local_stiffness` if the caller has it."""
+        from scipy.sparse import csc_matrix
+
+        local = self.local_stiffness(lam, mu) if local is None else local
         recovery = np.linalg.solve(local[:, 16:, 16:], local[:, 16:, :16])
         condensed = local[:, :16, :16] - np.matmul(local[:, :16, 16:], recovery)
         data = np.bincount(self.slot, weights=condensed.ravel()[self.kept], minlength=len(self.indices))
         n = len(self.free)
         return csc_matrix((data, self.indices, self.indptr), shape=(n, n)), recovery
 
-    def element_energy(self, lam: np.ndarray, mu: np.ndarray, u: np.ndarray, recovery: np.ndarray) -> np.ndarray:
+    def element_energy(self, local: np.ndarray, u: np.ndarray, recovery: np.ndarray) -> np.ndarray:
         """Twice the strain energy in each element (only shares are used) of displacement ``u`` (all dofs; the
-        bubbles' are recovered with ``recovery`` from :meth:`stiffness`)."""
+        bubbles' are recovered with ``recovery`` from :meth:`stiffness`), ``local`` the elements'
+        :meth:`local_stiffness`."""
         ue = u[self.element_dofs]
         ue[:, 16:] = -np.einsum("ebj,ej->eb", recovery, ue[:, :16])
-        return (lam * np.einsum("ei,eij,ej->e", ue, self.lam_part, ue)
-                + mu * np.einsum("ei,eij,ej->e", ue, self.mu_part, ue))
-
+        return np.einsum("ei,eij,ej->e", ue, local, ue)
 
 
 def stiffness_parts(basis) -> tuple[np.ndarray, np.ndarray]:
