@@ -8,9 +8,9 @@ after a point's first one pays):
   sample) against a vectorised numpy press of the same samples: Hertz's force and Hertz's pressure averaged over
   each sensel by a 6x6 Gauss-Legendre rule (the plain reference: what the rung computes, on a half-space; the rung
   integrates each footprint in closed form);
-- rigid: :func:`palpate.sim.rigid.run_rigid_press` (MuJoCo finger under the law, force table, sensel image)
-  against bare MuJoCo stepping of the same compiled model, the servo driven along the same setpoints with a
-  constant applied force (the plain reference: the stepping alone);
+- rigid: :func:`palpate.sim.rigid.run_rigid_press` (the MuJoCo finger under the law, stepped by MuJoCo's step
+  read as an affine map; force table, sensel image) against bare MuJoCo stepping of the same compiled model, the
+  servo driven along the same setpoints with a constant applied force (the plain reference: the stepping alone);
 - flex: :func:`palpate.sim.flex.press.run_flex_press` (the deformable block's window, built once and kept as a
   SimSource keeps it; contact forces, mesh correction and sensel image every step) against bare MuJoCo stepping of
   the same compiled window along the very controls the rung gave its drive;

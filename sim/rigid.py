@@ -1,8 +1,10 @@
 """``rigid`` fidelity: a MuJoCo-driven finger against the object's contact law mapped onto its real geometry.
 
-MuJoCo integrates the finger: a sphere on a slide joint along the surface normal, driven by a position servo
-(lag, overshoot, compliance of the drive). Contacts are disabled in MuJoCo; the contact force is applied to the
-joint each step from a table over the tip's height, built once per press:
+MuJoCo models the finger: a sphere on a slide joint along the surface normal, driven by a position servo (lag,
+overshoot, compliance of the drive). Contacts are disabled in MuJoCo; the contact force is applied to the joint each
+step from a table over the tip's height, built once per press. MuJoCo's step of this finger is affine in its state,
+setpoint and applied force, so it is read from MuJoCo once per model (:func:`finger_step`) and taken in plain floats
+(the states MuJoCo's to rounding, a fraction of a MuJoCo call); MuJoCo steps where that does not hold. The table:
 
 - the press point's :class:`~palpate.sim.contact.law.ContactLaw` (finite thickness, layers, inclusions; exact
   sphere) gives the pressure p(r; d) of a press d deep on a flat top;
@@ -133,7 +135,7 @@ def run_rigid_press(
     centres = profile.centres()
     start = centres[0]
     q_set = profile.z - profile.z[0]  # the centre is start + q * axis (see PressProfile.centres)
-    model, data = press_model(scene, start, axis, timestep, drive, models)
+    model, data, finger = press_model(scene, start, axis, timestep, drive, models)
 
     # surface sampled under the deepest tip position (the tip moves on one axis)
     deepest = centres[int(np.argmin(profile.z))]
@@ -180,12 +182,16 @@ def run_rigid_press(
     dftab = df_tab.tolist()
     top = n_tab - 1.000001
     x_band = band + 1.0 if band > 0 else -1.0
+    # the finger is a servo-driven slide: MuJoCo's step of it is affine in the state, the setpoint and the applied
+    # force, read once per model (finger_step) and taken here in plain floats, a fraction of a MuJoCo call; MuJoCo
+    # itself steps where that map does not hold (a joint or setpoint limit within reach)
+    a00, a01, b0, e0, c0, a10, a11, b1, e1, c1, lim = finger
     # memoryviews read and write plain floats, cheaper per step than numpy's scalar indexing
     qpos, qvel, qfrc, dctrl = (memoryview(a) for a in (data.qpos, data.qvel, data.qfrc_applied, data.ctrl))
     step = mujoco.mj_step
+    qk = qpos[0]
+    vk = qvel[0]
     for k in range(n):
-        qk = qpos[0]
-        vk = qvel[0]
         x = base + qk * slope
         if not 0.0 <= x <= top:
             if x != x:  # NaN: stop and report below
@@ -204,9 +210,17 @@ def run_rigid_press(
         q[k] = qk
         v[k] = vk
         f[k] = fk
-        qfrc[0] = fk
-        dctrl[0] = ctrl[k]
-        step(model, data)
+        u = ctrl[k]
+        if -lim < qk < lim and -lim < u < lim:
+            qk, vk = (a00 * qk + a01 * vk + b0 * u + e0 * fk + c0, a10 * qk + a11 * vk + b1 * u + e1 * fk + c1)
+        else:
+            qpos[0] = qk
+            qvel[0] = vk
+            qfrc[0] = fk
+            dctrl[0] = u
+            step(model, data)
+            qk = qpos[0]
+            vk = qvel[0]
     q = np.array(q)
     v = np.array(v)
     f = np.array(f)
@@ -256,11 +270,45 @@ def run_rigid_press(
     return trace
 
 
+def finger_step(model) -> tuple[float, ...]:
+    """MuJoCo's step of the press model's finger as plain floats: (a00, a01, b0, e0, c0, a10, a11, b1, e1, c1, lim)
+    with q' = a00 q + a01 v + b0 u + e0 f + c0 and v' = a10 q + a11 v + b1 u + e1 f + c1 for the joint's position q
+    (m), velocity v (m/s), the servo's setpoint u (m) and the applied force f (N), valid while |q|, |u| < lim (m;
+    the joint's and the setpoint's limits lie beyond). Read from MuJoCo's own steps of ``model``, which are affine
+    there (one slide joint, a linear servo, no gravity, contacts off): the states agree with MuJoCo's to rounding.
+    A model whose step is not affine (a check step off the map by over 1e-9 of its scale) gets lim 0: MuJoCo
+    steps it."""
+    import mujoco
+
+    lim = 0.5 * min(float(model.jnt_range[0, 1]), -float(model.jnt_range[0, 0]),
+                    float(model.actuator_ctrlrange[0, 1]), -float(model.actuator_ctrlrange[0, 0]))
+    probe = mujoco.MjData(model)
+    h = 0.5 * lim
+    scales = np.array([h, h, h, 1.0])  # q m, v m/s, u m, f N
+
+    def stepped(x: np.ndarray) -> np.ndarray:
+        mujoco.mj_resetData(model, probe)
+        probe.qpos[0], probe.qvel[0], probe.ctrl[0], probe.qfrc_applied[0] = (float(c) for c in x)
+        mujoco.mj_step(model, probe)
+        return np.array([probe.qpos[0], probe.qvel[0]])
+
+    c = stepped(np.zeros(4))
+    cols = np.stack([(stepped(s * e) - c) / s for s, e in zip(scales, np.eye(4), strict=True)], axis=1)  # (2, 4)
+    check = np.array([0.3, -0.7, 0.45, -0.25]) * scales
+    scale = np.abs(cols) @ np.abs(check) + np.abs(c)
+    # what the probes cannot see is ruled out by the model's form: one degree of freedom, one actuator without an
+    # activation state, no dry friction
+    affine = (model.nq == model.nv == model.nu == 1 and model.na == 0 and float(model.dof_frictionloss[0]) == 0.0
+              and bool(np.all(np.abs(stepped(check) - (cols @ check + c)) <= 1e-9 * scale)))
+    return (*(float(x) for x in (*cols[0], c[0], *cols[1], c[1])), lim if affine else 0.0)
+
+
 def press_model(scene: Scene, start: np.ndarray, axis: np.ndarray, timestep: float, drive: FingerDrive,
                 models: dict | None = None):
-    """(model, data) of :func:`palpate.sim.scene.build_press_model`'s finger alone with MuJoCo's contacts off (the
-    law is ours), the tip's body at ``start`` (m) and the data fresh. ``models``: compiled models of ``scene`` kept
-    by the caller; a kept one is moved to ``start`` and reset, which is what compiling it there gives."""
+    """(model, data, step) of :func:`palpate.sim.scene.build_press_model`'s finger alone with MuJoCo's contacts off
+    (the law is ours), the tip's body at ``start`` (m), the data fresh, and the model's :func:`finger_step`.
+    ``models``: compiled models of ``scene`` kept by the caller; a kept one is moved to ``start`` and reset, which
+    is what compiling it there gives (where the finger starts does not change its step)."""
     import mujoco
 
     key = (float(timestep), drive, tuple(float(c) for c in axis))
@@ -269,10 +317,11 @@ def press_model(scene: Scene, start: np.ndarray, axis: np.ndarray, timestep: flo
         # the finger alone: the law is the contact, and the objects' geoms and the sites would only cost steps
         model, data = build_press_model(scene, start, axis, timestep=timestep, drive=drive, finger_only=True)
         model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        step = finger_step(model)
         if models is not None:
-            models[key] = (model, data)
-        return model, data
-    model, data = kept
+            models[key] = (model, data, step)
+        return model, data, step
+    model, data, step = kept
     model.body("fingertip").pos[:] = [float(c) for c in start]
     mujoco.mj_resetData(model, data)
-    return model, data
+    return model, data, step

@@ -179,7 +179,7 @@ def test_a_kept_press_model_moved_to_the_next_start_presses_as_a_fresh_compile(l
         for name in ("force", "indentation", "sensel_pressure", "tip_position", "t"):
             assert np.array_equal(getattr(kept, name), getattr(fresh, name)), name
     assert len(models) == 1
-    (model, data), = models.values()
+    (model, data, _), = models.values()
     # a warning of one press does not carry into the next (it would fail the press): the data are reset
     data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 3
     rigid.run_rigid_press(scene, obj, profile, law=law, models=models)
@@ -195,13 +195,13 @@ def test_the_rigid_rung_steps_the_finger_alone_as_it_would_in_the_whole_scene(mo
     profile = press_profile(PressTarget(0.002, 0.001, depth=0.003, speed=0.01), obj.height, radius=R, timestep=0.002)
     models: dict = {}
     alone = rigid.run_rigid_press(scene, obj, profile, law=law, models=models)
-    (model, _), = models.values()
+    (model, _, _), = models.values()
     assert (model.nbody, model.ngeom, model.nsite) == (2, 1, 0)
     build = rigid.build_press_model
     monkeypatch.setattr(rigid, "build_press_model", lambda *a, finger_only, **k: build(*a, **k))  # the whole scene
     models = {}
     whole = rigid.run_rigid_press(scene, obj, profile, law=law, models=models)
-    (model, _), = models.values()
+    (model, _, _), = models.values()
     assert model.nbody == 4 and model.nsite == 17
     for name in ("force", "indentation", "sensel_pressure", "tip_position", "t"):
         assert np.array_equal(getattr(alone, name), getattr(whole, name)), name
