@@ -89,8 +89,7 @@ def surface_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fing
     radius = tip.radius
     reach = surface_reach(radius, max_depth)
     depths = max_depth * FRACTIONS
-    # the column the column law has: the one on the axis itself (a cell beside it may lie across a wall)
-    _, axis, _ = column_stacks(obj, x, y, surface_z, np.zeros((1, 2)))
+    axis = None
     while True:
         if columns is None:
             columns = surface_columns(obj, x, y, surface_z, reach)
@@ -101,6 +100,9 @@ def surface_law(obj: ObjectSpec, x: float, y: float, surface_z: float, tip: Fing
             if surface.buried:
                 return None
             real = solve_fields(surface, radius, depths).sum(axis=1)
+            if axis is None:
+                # the column the column law has: the one on the axis itself (a cell beside it may lie across a wall)
+                _, axis, _ = column_stacks(obj, x, y, surface_z, np.zeros((1, 2)))
             own = uniform_forces(surface, axis[0], reach, radius, depths, cache)
             break
         except ContactOutgrown:
