@@ -154,9 +154,10 @@ def run_rigid_press(
     s_tab = np.linspace(s_lo, s_hi, n_tab)
     d_tab = np.maximum(g_ref - s_tab, 0.0)
     inv_ds = (n_tab - 1) / (s_hi - s_lo)
-    # the table's deep half is there for a runaway: evaluated first only over the heights a tracking press
-    # reaches (the setpoint's deepest, with a margin), the rest if the tip ever goes lower (same values either way)
-    band = max(int((float(np.min(profile.z)) - radius - 0.5 * depth_cmd - 5e-4 - s_lo) * inv_ds) - 2, 0)
+    # the table's deep part is there for a runaway: evaluated first only over the heights a press that passes its
+    # reach check can reach (the setpoint's deepest, past it by more than the check's 2% or 1 um), the rest if the
+    # tip ever goes lower (same values either way)
+    band = max(int((float(np.min(profile.z)) - radius - 0.05 * depth_cmd - 5e-6 - s_lo) * inv_ds) - 2, 0)
     rows = np.arange(n_tab) >= band
     f_tab = law_pressure(law, d_tab, r_cells, rows) @ areas
     df_tab = np.gradient(f_tab, s_tab)  # exact from row band + 1 on
