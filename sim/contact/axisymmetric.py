@@ -78,12 +78,12 @@ def matrix_moduli(lookup, depths: np.ndarray, reach: float) -> np.ndarray:
     e, _, inside = lookup(np.tile(offsets, (len(depths), 1)), np.repeat(depths, len(offsets)))
     e = e.reshape(len(depths), -1)
     weight = np.where(inside.reshape(len(depths), -1), np.repeat(radii, AZIMUTHS)[None, :], 0.0)
-    out = np.empty(len(depths))
-    for k in range(len(depths)):  # a few dozen depth rows per FE mesh
-        values, index = np.unique(e[k], return_inverse=True)
-        share = np.bincount(index, weights=weight[k], minlength=len(values))
-        out[k] = values[int(np.argmax(share))] if share.max() > 0 else float(np.max(e[k]))
-    return out
+    # each depth's area per modulus, all depths in one count; ties go to the softer, as a count per depth gives
+    values, index = np.unique(e, return_inverse=True)
+    rows = np.repeat(np.arange(len(depths)), e.shape[1])
+    share = np.bincount(rows * len(values) + index.ravel(), weights=weight.ravel(),
+                        minlength=len(depths) * len(values)).reshape(len(depths), len(values))
+    return np.where(share.max(axis=1) > 0, values[np.argmax(share, axis=1)], e.max(axis=1))
 
 
 def azimuthal_materials(lookup, power: float = RING_POWER, soft_power: float = SOFT_RING_POWER):
