@@ -62,7 +62,7 @@ from palpate.sim.realism.calibrate import (
     real_moments,
     sim_moments,
     simulate_seed,
-    with_moduli,
+    with_scenario,
     with_values,
 )
 from palpate.sim.realism.profile import RealismProfile
@@ -98,7 +98,7 @@ class Setup:
 def session(setup: Setup, values, seed: int, smooth: bool, scenario: Scenario | None = None) -> np.ndarray:
     """The moments of one simulated training session (flattened, materials x :data:`MOMENTS`) with the free
     parameters at ``values`` (file units; moduli as factors on ``scenario``'s, default the shipped scenario's)."""
-    sc = with_moduli(scenario or setup.scenario, setup.free, values)
+    sc = with_scenario(scenario or setup.scenario, setup.free, values)
     run = simulate_seed(sc, with_values(setup.profile, setup.free, values), seed, setup.fidelity)
     return sim_moments([run], setup.materials, setup.scenario.references, smooth).ravel()
 
@@ -293,7 +293,7 @@ def recovery(setup: Setup, generator: int, args, log) -> dict:
     v0 = np.array([p.value(u) for p, u in zip(setup.free, u0, strict=True)])
     moduli = np.array([p.key.startswith("young.") for p in setup.free])
     # the start's moduli go through the scenario (a profile carries none); the fit's factors are on that scenario
-    start_scenario = with_moduli(setup.scenario, setup.free, v0)
+    start_scenario = with_scenario(setup.scenario, setup.free, v0)
     start = with_values(setup.profile, setup.free, v0, name="start")
     real = real_moments(table, setup.materials)
 

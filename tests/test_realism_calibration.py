@@ -23,6 +23,7 @@ from palpate.sim.realism.calibrate import (
     real_moments,
     simulate_seed,
     table_moments,
+    with_scenario,
     with_values,
 )
 from palpate.sim.realism.profile import LAB
@@ -84,6 +85,32 @@ def test_free_parameters_are_set_in_file_units_and_validated():
         free_parameters(["finger.stiffnes"])
     with pytest.raises(ValidationError, match="repeat"):
         free_parameters(["press.tilt_deg", "press.tilt_deg"])
+
+
+def test_the_pad_is_fitted_on_the_scenario_not_the_profile():
+    scenario = load_scenario(SCENARIO)
+    shipped = load_profile(REPO / "models" / "realism" / "thesis_ch6.toml")
+    free = free_parameters(["pad.pitch_mm", "pad.fill", "taxels.sensitivity", "young.Material_1"],
+                           scenario.references)
+    tip = scenario.fingertip
+    assert current_values(shipped, free, scenario) == pytest.approx(
+        [tip.pitch * 1e3, tip.sensel_size / tip.pitch, shipped.taxels.sensitivity, 1.0])
+    values = [2.0, 0.9, 7.0, 1.5]
+    sc, prof = with_scenario(scenario, free, values), with_values(shipped, free, values)
+    assert (sc.fingertip.pitch, sc.fingertip.sensel_size) == pytest.approx((0.002, 0.0018))
+    assert sc.fingertip.radius == tip.radius and (sc.fingertip.rows, sc.fingertip.cols) == (tip.rows, tip.cols)
+    old, new = scenario.materials["Material_1"].material, sc.materials["Material_1"].material
+    assert new.young == pytest.approx(1.5 * old.young)
+    assert prof.taxels.sensitivity == pytest.approx(7.0) and prof.finger == shipped.finger
+    # the profile alone cannot say where the pad is; the scenario without pad values keeps its pad
+    with pytest.raises(ValidationError, match="pad.pitch_mm.*scenario"):
+        current_values(shipped, free)
+    assert with_scenario(scenario, free[2:], values[2:]).fingertip == tip
+    # every box end is a pad the scenario's fingertip accepts (a sensel no wider than the pitch)
+    for key in ("pad.pitch_mm", "pad.fill"):
+        box = free_parameters([key])[0]
+        for v in (box.lo, box.hi):
+            assert current_values(shipped, [box], with_scenario(scenario, [box], [v])) == pytest.approx([v])
 
 
 def test_every_search_box_end_is_a_profile_the_file_accepts():

@@ -132,11 +132,17 @@ DEFAULT_FREE = ("finger.stiffness_n_per_mm", "finger.stiffening_per_mm", "finger
 MODULUS_FACTOR_BOX = (1.0 / 3.0, 3.0)
 
 
+#: The pad's geometry, which seed 000 does not give: its sensel pitch (mm; Tekscan pads of 4x4 sensels on a
+#: fingertip space them ~1.8-3.2 mm apart) and the share of it a sensel's side covers (the rest is the gap between
+#: sensels). The scenario's [fingertip] pitch_mm and sensel_mm, not the profile's.
+PAD_PARAMETERS = {p.key: p for p in (FreeParameter("pad.pitch_mm", 1.8, 3.2), FreeParameter("pad.fill", 0.5, 1.0))}
+
+
 def free_parameters(keys: Sequence[str], references: Sequence[str] = ()) -> tuple[FreeParameter, ...]:
-    """The free parameters named by ``keys`` (``young.<material>`` for one of ``references``); ValidationError
-    naming the unknown ones and the known."""
+    """The free parameters named by ``keys`` (``young.<material>`` for one of ``references``, ``pad.*`` of
+    :data:`PAD_PARAMETERS`); ValidationError naming the unknown ones and the known."""
     moduli = {f"young.{m}": FreeParameter(f"young.{m}", *MODULUS_FACTOR_BOX, log=True) for m in references}
-    known = {**FREE_PARAMETERS, **moduli}
+    known = {**FREE_PARAMETERS, **PAD_PARAMETERS, **moduli}
     unknown = [k for k in keys if k not in known]
     if unknown or not keys:
         raise ValidationError(f"unknown free parameter(s) {unknown or '(none given)'}; known: {', '.join(known)}")
@@ -145,14 +151,28 @@ def free_parameters(keys: Sequence[str], references: Sequence[str] = ()) -> tupl
     return tuple(known[k] for k in keys)
 
 
-def with_moduli(scenario: Scenario, free: Sequence[FreeParameter], values: Sequence[float]) -> Scenario:
-    """The scenario with each ``young.<material>`` factor applied to that material's modulus."""
+def _scenario_key(key: str) -> bool:
+    """Whether a free parameter is the scenario's (a modulus factor, the pad) rather than the profile's."""
+    return key.startswith(("young.", "pad."))
+
+
+def with_scenario(scenario: Scenario, free: Sequence[FreeParameter], values: Sequence[float]) -> Scenario:
+    """The scenario with each ``young.<material>`` factor applied to that material's modulus and the pad's
+    ``pad.pitch_mm`` and ``pad.fill`` (sensel side over pitch) set."""
     materials = dict(scenario.materials)
+    tip = scenario.fingertip
+    pitch, fill = tip.pitch * 1e3, tip.sensel_size / tip.pitch
     for p, v in zip(free, values, strict=True):
         if p.key.startswith("young."):
             entry = materials[p.key[6:]]
             materials[p.key[6:]] = replace(entry, material=replace(entry.material, young=entry.material.young * v))
-    return replace(scenario, materials=materials)
+        elif p.key == "pad.pitch_mm":
+            pitch = float(v)
+        elif p.key == "pad.fill":
+            fill = float(v)
+    if any(p.key.startswith("pad.") for p in free):
+        tip = replace(tip, pitch=pitch * 1e-3, sensel_size=fill * pitch * 1e-3)
+    return replace(scenario, materials=materials, fingertip=tip)
 
 
 def with_values(profile: RealismProfile, free: Sequence[FreeParameter], values: Sequence[float],
@@ -161,8 +181,8 @@ def with_values(profile: RealismProfile, free: Sequence[FreeParameter], values: 
     tables = copy.deepcopy(profile_tables(profile))
     for p, v in zip(free, values, strict=True):
         section, key = p.key.split(".", 1)
-        if section == "young":
-            continue  # the scenario's, not the profile's (with_moduli)
+        if _scenario_key(p.key):
+            continue  # the scenario's, not the profile's (with_scenario)
         tables.setdefault(section, {})[key] = float(v)
     if name is not None:
         tables["profile"]["name"] = name
@@ -170,11 +190,23 @@ def with_values(profile: RealismProfile, free: Sequence[FreeParameter], values: 
     return parse_profile(tables, "<calibration>", profile.name)
 
 
-def current_values(profile: RealismProfile, free: Sequence[FreeParameter]) -> list[float]:
-    """The free parameters' values in ``profile`` (file units)."""
+def current_values(profile: RealismProfile, free: Sequence[FreeParameter],
+                   scenario: Scenario | None = None) -> list[float]:
+    """The free parameters' values in ``profile`` (file units): a modulus factor is 1, the pad's are
+    ``scenario``'s (ValidationError without it)."""
     tables = profile_tables(profile)
-    return [1.0 if p.key.startswith("young.") else float(tables[p.key.split(".")[0]][p.key.split(".")[1]])
-            for p in free]
+    out = []
+    for p in free:
+        if p.key.startswith("young."):
+            out.append(1.0)
+        elif p.key.startswith("pad."):
+            if scenario is None:
+                raise ValidationError(f"{p.key} is the scenario's pad: its value needs the scenario")
+            tip = scenario.fingertip
+            out.append(tip.pitch * 1e3 if p.key == "pad.pitch_mm" else tip.sensel_size / tip.pitch)
+        else:
+            out.append(float(tables[p.key.split(".")[0]][p.key.split(".")[1]]))
+    return out
 
 
 @dataclass(frozen=True)
@@ -226,7 +258,7 @@ def match_moduli(table: PressTable, scenario: Scenario, start: RealismProfile, f
     previous: dict[int, tuple[float, float]] = {}
     for _ in range(steps):
         try:
-            run = simulate_seed(with_moduli(scenario, free, values), with_values(start, free, values), seed, fidelity)
+            run = simulate_seed(with_scenario(scenario, free, values), with_values(start, free, values), seed, fidelity)
         except (PalpateError, ValidationError) as exc:
             log(f"  matching moduli stopped: {exc}")
             break
@@ -309,7 +341,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
             raise BudgetSpent
         values = [p.value(x) for p, x in zip(free, u, strict=True)]
         try:
-            prof, sc = with_values(start, free, values), with_moduli(scenario, free, values)
+            prof, sc = with_values(start, free, values), with_scenario(scenario, free, values)
             runs = [simulate_seed(sc, prof, s, fidelity) for s in tune_seeds]
             sim = sim_moments(runs, materials, scenario.references, smooth=True)
             r = ((sim - real) / scales[None, :])[:, fitted_cols].ravel()
@@ -325,7 +357,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
         return r
 
     d = len(free)
-    start_values = current_values(start, free)
+    start_values = current_values(start, free, scenario)
     moduli = [i for i, p in enumerate(free) if p.key.startswith("young.")]
     if moduli:
         start_values = match_moduli(table, scenario, start, free, start_values, moduli, tune_seeds[0], fidelity, log)
@@ -337,7 +369,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
     run_search(search, residuals, min(history, key=lambda h: h[0])[1], budget - len(history), seed=search_seed)
     j_best, u_best = min(history, key=lambda h: h[0])
     values = [p.value(x) for p, x in zip(free, u_best, strict=True)]
-    fitted, fitted_scenario = with_values(start, free, values, name=name), with_moduli(scenario, free, values)
+    fitted, fitted_scenario = with_values(start, free, values, name=name), with_scenario(scenario, free, values)
     tune_runs = [simulate_seed(fitted_scenario, fitted, s, fidelity) for s in tune_seeds]
     report_runs, report_failed = [], {}
     for s in report_seeds:  # a session that fails on a report seed is reported, it does not discard the fit
@@ -352,6 +384,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
     report_runs = tuple(report_runs)
     tuned = sim_moments(tune_runs, materials, scenario.references, smooth=False)
     report = sim_moments(report_runs, materials, scenario.references, smooth=False)
+    tip = fitted_scenario.fingertip
     provenance = {
         "method": "method of simulated moments (sim/realism/calibrate.py): per material log mean n1 and a1, log CV "
                   "of n1 and a1, share of n2 < 0, leave-one-out self posterior, "
@@ -366,6 +399,7 @@ def calibrate(table: PressTable, scenario: Scenario, start: RealismProfile, free
         "evaluations": len(history), "design": n_design, "objective": j_best, "search_seed": int(search_seed),
         "free": {p.key: v for p, v in zip(free, values, strict=True)},
         "moduli_kpa": {m: fitted_scenario.materials[m].material.young * 1e-3 for m in scenario.references},
+        "pad_mm": {"pitch": tip.pitch * 1e3, "sensel": tip.sensel_size * 1e3},
         "moments": {"names": list(MOMENTS), "materials": list(materials),
                     **{f"real_{m}": real[i].tolist() for i, m in enumerate(materials)},
                     **{f"tuned_{m}": tuned[i].tolist() for i, m in enumerate(materials)},

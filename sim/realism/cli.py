@@ -44,7 +44,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "preset, a shipped profile's name or a .toml file (default: lab)")
     r.add_argument("--free", default=None, help="comma-separated parameters to fit, as section.key of the profile "
                    "file (default: the pulp's stiffness, stiffening and stiffness CV, the press's depth CV, the pad's "
-                   "sensitivity, non-linearity and gain drift, the tracker's clock wander, the material's relaxation)")
+                   "sensitivity, non-linearity and gain drift, the tracker's clock wander, the material's relaxation); "
+                   "pad.pitch_mm and pad.fill (sensel side over pitch) fit the scenario's pad, printed for its "
+                   "[fingertip]")
     r.add_argument("--fit-moduli", default="", metavar="MATERIALS",
                    help="comma-separated reference materials whose Young's modulus is fitted too (a factor on the "
                    "scenario's); the fitted moduli are printed and recorded in the profile's provenance, for the "
@@ -146,6 +148,9 @@ def format_calibration(result) -> str:
     if any(k.startswith("young.") for k in prov["free"]):
         lines.append("moduli for the scenario's young_kpa: " + ", ".join(
             f"{m} {v:.4g}" for m, v in prov["moduli_kpa"].items()))
+    if any(k.startswith("pad.") for k in prov["free"]):
+        lines.append(f"pad for the scenario's [fingertip]: pitch_mm {prov['pad_mm']['pitch']:.4g}, "
+                     f"sensel_mm {prov['pad_mm']['sensel']:.4g}")
     lines.append(f"{'material':<14}{'statistic':<14}{'real':>10}{'tuned':>10}{'report':>10}")
     for i, m in enumerate(result.materials):
         for k, name in enumerate(MOMENTS):
