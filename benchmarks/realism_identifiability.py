@@ -6,7 +6,7 @@ through the calibration's own statistics (:data:`~palpate.sim.realism.calibrate.
 :data:`~palpate.sim.realism.calibrate.SCALES_WITH_A2_SIGN`), how well such a table pins each of them down:
 
 1. *Local identifiability* at the shipped values. Each parameter is moved by +-``--step`` in its box position u
-   (:class:`~palpate.sim.realism.calibrate.FreeParameter`, clipped to [0, 1]) and the moments' Jacobian J (per
+   (:class:`~palpate.sim.realism.parameters.FreeParameter`, clipped to [0, 1]) and the moments' Jacobian J (per
    unit of u, i.e. per box width) is the central difference averaged over ``--jacobian-seeds`` simulated sessions
    with common random numbers (the same seeds for + and -). The negative shares enter J smoothed, as the
    calibration's objective has them. Sigma is the covariance of ONE session's moment vector over ``--sessions``
@@ -54,17 +54,13 @@ from palpate.core.world.scenario_file import load_scenario
 from palpate.sim.realism.calibrate import (
     MOMENTS,
     SCALES_WITH_A2_SIGN,
-    FreeParameter,
     calibrate,
-    current_values,
-    free_parameters,
     objective,
     real_moments,
     sim_moments,
     simulate_seed,
-    with_scenario,
-    with_values,
 )
+from palpate.sim.realism.parameters import FreeParameter, current_values, free_parameters, with_scenario, with_values
 from palpate.sim.realism.profile import RealismProfile
 from palpate.sim.realism.profile_file import resolve_profile
 from palpate.sim.realism.search import FAILED, SEARCHES

@@ -24,7 +24,8 @@ import numpy as np
 from palpate.core.errors import PalpateError
 from palpate.core.perception.param_stats import table_from_csv
 from palpate.core.world.scenario_file import load_scenario
-from palpate.sim.realism.calibrate import FREE_PARAMETERS, free_parameters, simulate_seed, with_values
+from palpate.sim.realism.calibrate import simulate_seed
+from palpate.sim.realism.parameters import FREE_PARAMETERS, free_parameters, with_values
 from palpate.sim.realism.profile_file import resolve_profile
 
 REPO = Path(__file__).resolve().parents[1]

@@ -25,7 +25,8 @@ import numpy as np
 from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory, training_seeds
 from palpate.core.world.scenario_file import load_scenario
-from palpate.sim.realism.calibrate import free_parameters, realism_source_maker, with_values
+from palpate.sim.realism.calibrate import realism_source_maker
+from palpate.sim.realism.parameters import free_parameters, with_values
 from palpate.sim.realism.profile_file import resolve_profile
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -35,7 +35,8 @@ from palpate.core.perception.param_stats import STAT_COLUMNS, table_from_csv
 from palpate.core.perception.realism_targets import TARGETS, check_targets
 from palpate.core.world.scenario import Scenario
 from palpate.core.world.scenario_file import load_scenario
-from palpate.sim.realism.calibrate import free_parameters, simulate_seed, with_values
+from palpate.sim.realism.calibrate import simulate_seed
+from palpate.sim.realism.parameters import free_parameters, with_values
 from palpate.sim.realism.profile_file import resolve_profile
 
 REPO = Path(__file__).resolve().parent.parent

@@ -12,17 +12,19 @@ from palpate.core.errors import ValidationError
 from palpate.core.perception.param_stats import PressTable, table_from_csv
 from palpate.core.world.scenario_file import load_scenario
 from palpate.sim.realism.calibrate import (
-    FREE_PARAMETERS,
     MOMENTS,
     SCALES,
     SCALES_WITH_A2_SIGN,
     calibrate,
-    current_values,
-    free_parameters,
     objective,
     real_moments,
     simulate_seed,
     table_moments,
+)
+from palpate.sim.realism.parameters import (
+    FREE_PARAMETERS,
+    current_values,
+    free_parameters,
     with_scenario,
     with_values,
 )

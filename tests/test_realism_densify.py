@@ -13,7 +13,6 @@ from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import Material, ObjectSpec, Scene
 from palpate.sim.hertz import hertz_force
-from palpate.sim.realism.calibrate import free_parameters, with_values
 from palpate.sim.realism.finger import series_law
 from palpate.sim.realism.material import (
     MAX_DOUBLINGS,
@@ -24,6 +23,7 @@ from palpate.sim.realism.material import (
     plateau_depth_for_force,
     plateau_factor,
 )
+from palpate.sim.realism.parameters import free_parameters, with_values
 from palpate.sim.realism.profile import IDEAL, FingerPulp, MaterialRealism
 from palpate.sim.realism.profile_file import parse_profile, profile_to_toml
 from palpate.sim.source import SimSource

@@ -9,7 +9,8 @@ import palpate.sim.realism.calibrate as calibration
 from palpate.core.errors import PalpateError, PressShortfall, ValidationError
 from palpate.core.perception.param_stats import PressTable
 from palpate.core.world.scenario_file import load_scenario
-from palpate.sim.realism.calibrate import SeedRun, calibrate, free_parameters
+from palpate.sim.realism.calibrate import SeedRun, calibrate
+from palpate.sim.realism.parameters import free_parameters
 from palpate.sim.realism.profile import LAB
 from palpate.sim.realism.search import BudgetSpent, run_search
 

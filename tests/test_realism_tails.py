@@ -13,7 +13,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget
 from palpate.core.world.scene import FingertipSpec, TaxelSensorSpec
 from palpate.sim.controller import HUMAN, TAIL_SCALE_MAX, press_profile, tail_scale
-from palpate.sim.realism.calibrate import free_parameters
+from palpate.sim.realism.parameters import free_parameters
 from palpate.sim.realism.profile import LAB
 from palpate.sim.realism.profile_file import parse_profile, profile_to_toml
 from palpate.sim.realism.stage import RealismSession

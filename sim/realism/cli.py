@@ -106,7 +106,8 @@ def run_calibrate_realism(args: argparse.Namespace) -> int:
         os.environ.setdefault(var, "1")
     from palpate.core.perception.param_stats import table_from_csv
     from palpate.core.world.scenario_file import load_scenario
-    from palpate.sim.realism.calibrate import DEFAULT_FREE, calibrate, free_parameters
+    from palpate.sim.realism.calibrate import calibrate
+    from palpate.sim.realism.parameters import DEFAULT_FREE, free_parameters
     from palpate.sim.realism.profile_file import profile_to_toml, resolve_profile
 
     if args.out.exists() and not args.force:

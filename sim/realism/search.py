@@ -1,6 +1,6 @@
 """The searches of ``palpate calibrate realism``: where a fit goes after its start and Latin-hypercube design.
 
-Both work in box positions u in [0, 1]^d (:class:`~palpate.sim.realism.calibrate.FreeParameter`) on a candidate
+Both work in box positions u in [0, 1]^d (:class:`~palpate.sim.realism.parameters.FreeParameter`) on a candidate
 evaluation that simulates the tuning seeds with common random numbers, so the objective is a deterministic but
 rough function of u: a press whose fit changes moves a CV or a negative share by a step, and a parameter can have
 no effect at all over part of its box (a foam's plateau strain above the strains the presses reach). Each
