@@ -183,9 +183,7 @@ def run_rigid_press(
     dftab = df_tab.tolist()
     top = n_tab - 1.000001
     x_band = band + 1.0 if band > 0 else -1.0
-    # the finger is a servo-driven slide: MuJoCo's step of it is affine in the state, the setpoint and the applied
-    # force, read once per model (finger_step) and taken here in plain floats, a fraction of a MuJoCo call; MuJoCo
-    # itself steps where that map does not hold (a joint or setpoint limit within reach)
+    # MuJoCo's step as an affine map (finger_step; module docstring), MuJoCo itself near a joint or setpoint limit
     a00, a01, b0, e0, c0, a10, a11, b1, e1, c1, lim = finger
     # memoryviews read and write plain floats, cheaper per step than numpy's scalar indexing
     qpos, qvel, qfrc, dctrl = (memoryview(a) for a in (data.qpos, data.qvel, data.qfrc_applied, data.ctrl))

@@ -190,9 +190,9 @@ def _solve_field(mesh: FEMesh, sample: AxisymmetricSample, materials, d: np.ndar
     lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
     mu = young / (2 * (1 + poisson))
     r_top = mesh.r_top
-    # minimum degree on A^T + A: the matrix is symmetric, and this ordering halves the factor's fill (COLAMD's)
-    local = mesh.local_stiffness(lam, mu)
+    local = mesh.local_stiffness(lam, mu)  # the stiffness's and the energies'
     stiffness, recovery = mesh.stiffness(lam, mu, local)
+    # minimum degree on A^T + A: the matrix is symmetric, and this ordering halves the factor's fill (COLAMD's)
     lu = splu(stiffness, permc_spec="MMD_AT_PLUS_A")
     settle = lu.solve(mesh.loads)  # (free, hats) displacement per unit hat pressure
     compliance = -settle[mesh.vertex]  # downward settlement of each top vertex per unit hat pressure
