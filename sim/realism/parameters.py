@@ -118,22 +118,26 @@ def _scenario_key(key: str) -> bool:
     return key.startswith(("young.", "pad."))
 
 
+def _pad_values(tip) -> dict[str, float]:
+    """A fingertip's pad as :data:`PAD_PARAMETERS` values: its pitch (mm) and its sensel side over the pitch."""
+    return {"pad.pitch_mm": tip.pitch * 1e3, "pad.fill": tip.sensel_size / tip.pitch}
+
+
 def with_scenario(scenario: Scenario, free: Sequence[FreeParameter], values: Sequence[float]) -> Scenario:
     """The scenario with each ``young.<material>`` factor applied to that material's modulus and the pad's
     ``pad.pitch_mm`` and ``pad.fill`` (sensel side over pitch) set."""
     materials = dict(scenario.materials)
     tip = scenario.fingertip
-    pitch, fill = tip.pitch * 1e3, tip.sensel_size / tip.pitch
+    pad = _pad_values(tip)
     for p, v in zip(free, values, strict=True):
         if p.key.startswith("young."):
             entry = materials[p.key[6:]]
             materials[p.key[6:]] = replace(entry, material=replace(entry.material, young=entry.material.young * v))
-        elif p.key == "pad.pitch_mm":
-            pitch = float(v)
-        elif p.key == "pad.fill":
-            fill = float(v)
-    if any(p.key.startswith("pad.") for p in free):
-        tip = replace(tip, pitch=pitch * 1e-3, sensel_size=fill * pitch * 1e-3)
+        elif p.key in pad:
+            pad[p.key] = float(v)
+    if any(p.key in pad for p in free):
+        pitch = pad["pad.pitch_mm"] * 1e-3
+        tip = replace(tip, pitch=pitch, sensel_size=pad["pad.fill"] * pitch)
     return replace(scenario, materials=materials, fingertip=tip)
 
 
@@ -164,8 +168,7 @@ def current_values(profile: RealismProfile, free: Sequence[FreeParameter],
         elif p.key.startswith("pad."):
             if scenario is None:
                 raise ValidationError(f"{p.key} is the scenario's pad: its value needs the scenario")
-            tip = scenario.fingertip
-            out.append(tip.pitch * 1e3 if p.key == "pad.pitch_mm" else tip.sensel_size / tip.pitch)
+            out.append(_pad_values(scenario.fingertip)[p.key])
         else:
             out.append(float(tables[p.key.split(".")[0]][p.key.split(".")[1]]))
     return out
