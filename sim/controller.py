@@ -368,5 +368,12 @@ def _inverse_ramp(fraction: float, smooth: bool) -> float:
     """Normalised time at which the ramp reaches ``fraction`` of its travel."""
     if not smooth:
         return fraction
-    s = np.linspace(0.0, 1.0, 2001)
-    return float(np.interp(fraction, _ramp(2001, True), s))
+    return float(np.interp(fraction, _SMOOTH_RAMP, _SMOOTH_TIME))
+
+
+#: The minimum-jerk ramp sampled once (2001 points, read-only) for :func:`_inverse_ramp`: two lookups a human
+#: press would otherwise build it for cost as much as the rest of its profile.
+_SMOOTH_TIME = np.linspace(0.0, 1.0, 2001)
+_SMOOTH_RAMP = _ramp(2001, True)
+_SMOOTH_TIME.flags.writeable = False
+_SMOOTH_RAMP.flags.writeable = False

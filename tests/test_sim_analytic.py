@@ -168,6 +168,10 @@ def test_robot_profile_is_exact_and_human_profile_is_seeded():
     assert (h1.x, h1.y) == (h2.x, h2.y)
     assert h1.meta["depth"] != h3.meta["depth"] and (h1.x, h1.y) != (h3.x, h3.y)
     assert abs(h1.x - 0.01) < 0.002 and abs(h1.meta["depth"] - 0.004) < 0.002
+    # a human press's contact and lift times are where its minimum-jerk path meets the surface (to 10 nm)
+    for h in (h1, h3):
+        for when in (h.meta["phases"]["press"][0], h.meta["phases"]["release"][1]):
+            assert abs(0.03 + R - float(h.at(np.array([when]))[0])) < 1e-8
 
 
 def test_force_target_uses_the_inverse_law_and_needs_it():
