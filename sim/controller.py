@@ -222,6 +222,14 @@ def _ramp(n: int, smooth: bool) -> np.ndarray:
     return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
 
 
+#: The minimum-jerk ramp sampled once (2001 points, read-only) for :func:`_inverse_ramp`: sampled anew for each of
+#: a human profile's two lookups, it took a quarter of the profile's time.
+_SMOOTH_TIME = np.linspace(0.0, 1.0, 2001)
+_SMOOTH_RAMP = _ramp(2001, True)
+_SMOOTH_TIME.flags.writeable = False
+_SMOOTH_RAMP.flags.writeable = False
+
+
 def press_profile(
     target: PressTarget,
     surface_z: float,
@@ -370,10 +378,3 @@ def _inverse_ramp(fraction: float, smooth: bool) -> float:
         return fraction
     return float(np.interp(fraction, _SMOOTH_RAMP, _SMOOTH_TIME))
 
-
-#: The minimum-jerk ramp sampled once (2001 points, read-only) for :func:`_inverse_ramp`: two lookups a human
-#: press would otherwise build it for cost as much as the rest of its profile.
-_SMOOTH_TIME = np.linspace(0.0, 1.0, 2001)
-_SMOOTH_RAMP = _ramp(2001, True)
-_SMOOTH_TIME.flags.writeable = False
-_SMOOTH_RAMP.flags.writeable = False
