@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from numbers import Real
+
 from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import PressRecording
-from palpate.core.session.sources import PressTarget
+from palpate.core.session.sources import PressTarget, check_seed
 from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, PoseSensorSpec, Scene, TaxelSensorSpec
 from palpate.sim.source import SimSource
 
@@ -46,11 +48,21 @@ def simulate_press(
     return source.press(target)
 
 
+def check_press_arguments(young, poisson, depth, speed, seed, where: str) -> None:
+    """ValidationError naming ``where`` unless young, poisson, speed and depth (or None) are numbers and the seed a
+    whole number >= 0 (their ranges are the material's and the target's to check)."""
+    for name, value in (("young", young), ("poisson", poisson), ("speed", speed), ("depth", depth)):
+        if (value is not None or name != "depth") and (isinstance(value, bool) or not isinstance(value, Real)):
+            raise ValidationError(f"{where}: {name} must be a number (SI units), got {value!r}")
+    check_seed(seed, f"{where}: seed")
+
+
 def press_setup(young: float, poisson: float = 0.3, fidelity: str = "rigid", depth: float | None = 0.004,
                 speed: float = 0.01, seed: int = 0, *, laws: dict | None = None,
                 **scene_options) -> tuple[SimSource, PressTarget]:
     """The fresh source and the target :func:`simulate_press` presses (same arguments; ``laws``: a contact-law
     cache to give the source, see :class:`SimSource`)."""
+    check_press_arguments(young, poisson, depth, speed, seed, "simulate_press")
     unknown = sorted(set(scene_options) - set(_OPTIONS))
     if unknown:
         raise ValidationError(f"simulate_press: unknown scene option(s) {unknown}; known: {list(_OPTIONS)}")

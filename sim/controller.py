@@ -159,6 +159,8 @@ class Variability:
             raise ValidationError("Variability.tilt_std must stay below 30 deg (the pad would leave the contact)")
 
 
+#: Most samples a press's trajectory may take (10 million: 5.5 hours at 2 ms), refused before it is built.
+MAX_SAMPLES = 10_000_000
 #: Frequency band of physiological finger tremor, Hz (Elble & Koller 1990: 8-12 Hz).
 TREMOR_BAND_HZ = (8.0, 12.0)
 
@@ -318,6 +320,11 @@ def press_profile(
     travel = approach_gap + depth
     t_in = peak * travel / speed_in
     t_out = peak * travel / speed_out
+    duration = t_in + hold + t_out
+    if not duration / timestep <= MAX_SAMPLES:  # NaN too: a speed of 1e-300 m/s would ask for 1e300 samples
+        raise ValidationError(f"press_profile: a press of {duration:.3g} s sampled every {timestep:g} s needs over "
+                              f"{MAX_SAMPLES:g} samples: raise the speed (now {target.speed:g} m/s) or shorten the "
+                              "hold")
     n_in = max(int(np.ceil(t_in / timestep)), 2) + 1
     n_hold = int(np.ceil(hold / timestep)) if hold > 0 else 0
     n_out = max(int(np.ceil(t_out / timestep)), 2) + 1

@@ -18,7 +18,7 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import PressRecording
-from palpate.core.session.sources import PressTarget
+from palpate.core.session.sources import PressTarget, check_seed
 from palpate.core.world.scene import ObjectSpec, Scene
 from palpate.sim.analytic import material_under, run_analytic_press
 from palpate.sim.bem.law import press_law
@@ -100,7 +100,7 @@ class SimSource:
         self._blas = None  # the BLAS libraries' thread controller, found on the first contact law
         self.scene = scene
         self.fidelity = fidelity
-        self.seed = int(seed)
+        self.seed = check_seed(seed, "SimSource: seed")
         self.variability = variability
         self.timestep = timestep
         self._presses = 0

@@ -92,9 +92,9 @@ def test_bad_input_is_named():
         simulate_presses([PressSpec(5e4, fidelity="analytic")], backend="gpu")
     with pytest.raises(ValidationError, match="spec 1 must be a PressSpec"):
         simulate_presses([PressSpec(5e4, fidelity="analytic"), {"young": 5e4}])
-    with pytest.raises(ValidationError, match="PressSpec.young must be a number"):
+    with pytest.raises(ValidationError, match="PressSpec: young must be a number"):
         PressSpec("soft", fidelity="analytic")
-    with pytest.raises(ValidationError, match="PressSpec.seed must be an integer"):
+    with pytest.raises(ValidationError, match="PressSpec: seed must be a whole number >= 0"):
         PressSpec(5e4, fidelity="analytic", seed=1.5)
     with pytest.raises(ValidationError, match="unknown scene option"):
         simulate_presses([PressSpec(5e4, fidelity="analytic", options={"colour": "red"})])

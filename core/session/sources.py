@@ -8,9 +8,11 @@ core never imports MuJoCo or a serial library.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from inspect import signature
+from numbers import Real
 from typing import Protocol, runtime_checkable
 
 from palpate.core.errors import ValidationError
@@ -45,6 +47,12 @@ class PressTarget:
     label: str = ""
 
     def __post_init__(self) -> None:
+        for name in ("x", "y", "depth", "force", "speed", "hold"):
+            value = getattr(self, name)
+            if value is None and name in ("depth", "force"):
+                continue
+            if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+                raise ValidationError(f"PressTarget.{name} must be a finite number (SI units), got {value!r}")
         if self.depth is None and self.force is None:
             raise ValidationError("PressTarget needs a depth (m), a force (N), or both (whichever comes first)")
         if self.depth is not None and not self.depth > 0:
@@ -53,6 +61,17 @@ class PressTarget:
             raise ValidationError(f"PressTarget.force must be > 0 N, got {self.force}")
         if not self.speed > 0:
             raise ValidationError(f"PressTarget.speed must be > 0 m/s, got {self.speed}")
+        if self.hold < 0:
+            raise ValidationError(f"PressTarget.hold must be >= 0 s, got {self.hold}")
+
+
+def check_seed(value, where: str) -> int:
+    """``value`` as a seed: a whole number >= 0 (a float that is one is taken as it; a press draws from
+    ``numpy.random.SeedSequence([seed, n])``, which takes no other); ValidationError naming ``where`` otherwise."""
+    if isinstance(value, bool) or not isinstance(value, Real) or not (math.isfinite(value) and value >= 0
+                                                                      and value == int(value)):
+        raise ValidationError(f"{where} must be a whole number >= 0, got {value!r}")
+    return int(value)
 
 
 @runtime_checkable

@@ -9,7 +9,7 @@ import numpy as np
 
 from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import PressRecording
-from palpate.sim.api import press_setup
+from palpate.sim.api import check_press_arguments, press_setup
 from palpate.sim.batch.backends import DEFAULT_BACKEND, resolve_backend
 from palpate.sim.batch.press import run_planned
 
@@ -35,12 +35,7 @@ class PressSpec:
     options: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        for name in ("young", "poisson", "speed") + (("depth",) if self.depth is not None else ()):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-                raise ValidationError(f"PressSpec.{name} must be a number (SI units), got {value!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
-            raise ValidationError(f"PressSpec.seed must be an integer, got {self.seed!r}")
+        check_press_arguments(self.young, self.poisson, self.depth, self.speed, self.seed, "PressSpec")
         if not isinstance(self.options, dict):
             raise ValidationError(f"PressSpec.options must be a dict of simulate_press's scene options, got "
                                   f"{type(self.options).__name__}")
