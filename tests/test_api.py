@@ -73,6 +73,20 @@ def test_press_rejects_bad_targets():
         palpate.press(scenario, "Block", cell=(4, 1))
     with pytest.raises(ValidationError, match="no object 'Lump'; its objects: Block"):
         palpate.press(scenario, "Lump", cell=(1, 1))
+    for cell in ((1.5, 1), ("1", 1), (True, 1), (np.nan, 1), (1, 1, 1)):
+        with pytest.raises(ValidationError, match="cell must be two whole numbers"):
+            palpate.press(scenario, "Block", cell=cell)
+    for xy in ((0.01,), "ab", ((0.1, 0.2), (0.3, 0.4))):
+        with pytest.raises(ValidationError, match=r"xy must be \(x, y\) in m"):
+            palpate.press(scenario, "Block", xy=xy)
+    with pytest.raises(ValidationError, match="press: x must be a finite number"):
+        palpate.press(scenario, "Block", xy=("0.01", 0.01))
+    with pytest.raises(ValidationError, match="press: seed must be a whole number >= 0"):
+        palpate.press(scenario, "Block", cell=(1, 1), seed=-3)
+    # numpy's numbers and arrays are numbers too
+    assert palpate.press(scenario, "Block", xy=np.array([0.015, 0.01]), seed=np.int64(2)).target == (0.015, 0.01)
+    by_numpy = palpate.press(scenario, "Block", cell=(np.int64(1), 1))
+    assert by_numpy.target == palpate.press(scenario, "Block", cell=(1, 1)).target
 
 
 def test_train_memory_is_the_memory_a_run_writes(tmp_path):

@@ -1,5 +1,6 @@
-"""Press arguments from a careless or hostile caller: each refused with a ValidationError naming it, before any
-work (no TypeError from deep inside, no array of 1e300 samples)."""
+"""Arguments of a press and of the scene it presses, from a careless or hostile caller: each refused with a
+ValidationError naming it, before any work (no TypeError from deep inside, no array of 1e300 samples, no NaN let
+through a range check)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import pytest
 
 from palpate.core.errors import ValidationError
 from palpate.core.session.sources import PressTarget, check_seed
-from palpate.core.world.scene import Material, ObjectSpec, Scene
+from palpate.core.world.scene import FingertipSpec, Material, ObjectSpec, PoseSensorSpec, Scene, TaxelSensorSpec
 from palpate.sim.api import simulate_press
 from palpate.sim.controller import press_profile
 from palpate.sim.source import SimSource
@@ -19,7 +20,7 @@ SCENE = Scene((ObjectSpec("b", "box", (0.1, 0.1, 0.03), (0.0, 0.0), Material("m"
 @pytest.mark.parametrize("field, value", [("x", "0"), ("y", np.nan), ("depth", np.inf), ("force", True),
                                           ("speed", None), ("hold", np.inf)])
 def test_a_press_target_refuses_what_is_not_a_finite_number(field, value):
-    with pytest.raises(ValidationError, match=f"PressTarget.{field} must be a finite number"):
+    with pytest.raises(ValidationError, match=f"PressTarget: {field} must be a finite number"):
         PressTarget(**({"x": 0.0, "y": 0.0, "depth": 0.002} | {field: value}))
 
 
@@ -64,3 +65,30 @@ def test_a_press_too_slow_to_sample_is_refused_before_its_trajectory_is_built():
         simulate_press(5e4, 0.4, "analytic", 0.002, 1e-300)
     slow = press_profile(PressTarget(0.0, 0.0, depth=0.002, speed=1e-4), 0.03, radius=0.008, timestep=0.002)
     assert slow.duration == pytest.approx(2 * 0.004 / 1e-4, rel=1e-9)  # a minute-long press is still pressed
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda v: Material("m", v), "young"), (lambda v: Material("m", 5e4, v), "poisson"),
+    (lambda v: Material("m", 5e4, 0.3, v), "damping"), (lambda v: FingertipSpec(radius=v), "radius"),
+    (lambda v: FingertipSpec(pitch=v), "pitch"), (lambda v: TaxelSensorSpec(rate=v), "rate"),
+    (lambda v: TaxelSensorSpec(noise_std=v), "noise_std"), (lambda v: TaxelSensorSpec(clock_offset=v), "clock_offset"),
+    (lambda v: PoseSensorSpec(noise_std=v), "noise_std"), (lambda v: PoseSensorSpec(jitter=v), "jitter"),
+])
+@pytest.mark.parametrize("value", [np.nan, np.inf, "1", None, [1.0], True])
+def test_scene_parts_refuse_what_is_not_a_finite_number(make, field, value):
+    # NaN passes the range checks (every comparison is False): a NaN noise would put NaN into every frame
+    with pytest.raises(ValidationError, match=f"{field} must be a finite number"):
+        make(value)
+
+
+@pytest.mark.parametrize("size, position", [((0.1, np.nan, 0.03), (0.0, 0.0)), (0.1, (0.0, 0.0)),
+                                            ((0.1, 0.1, 0.03), (0.0, "0")), ((0.1, 0.1, 0.03), None)])
+def test_an_object_refuses_sizes_and_positions_that_are_not_finite_numbers(size, position):
+    with pytest.raises(ValidationError, match="object 'b': (size|position) must be a tuple of finite numbers"):
+        ObjectSpec("b", "box", size, position, Material("m", 5e4))
+
+
+def test_a_pad_has_a_whole_number_of_rows_and_columns():
+    with pytest.raises(ValidationError, match="FingertipSpec: rows and cols must be whole numbers"):
+        FingertipSpec(rows=4.0)
+    assert FingertipSpec(rows=np.int64(3)).sensel_centres().shape == (3, 4, 2)

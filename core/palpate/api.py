@@ -9,6 +9,7 @@ simulator itself. SI units throughout: lengths m, forces N, speeds m/s, moduli P
 from __future__ import annotations
 
 from dataclasses import dataclass
+from numbers import Integral
 from pathlib import Path
 
 import numpy as np
@@ -20,12 +21,13 @@ from palpate.core.perception.memory import HapticMemory
 from palpate.core.perception.press import PressResult, perceive_press
 from palpate.core.perception.streams import GroundTruth, PoseSample, PressRecording, TaxelFrame
 from palpate.core.session.progress import Progress
-from palpate.core.session.sources import PressTarget, scenario_source_maker
+from palpate.core.session.sources import PressTarget, check_seed, scenario_source_maker
 from palpate.core.session.training import TrainingResult, training_seeds
 from palpate.core.session.training import train_memory as _train_memory
 from palpate.core.world.resources import find_scenario
 from palpate.core.world.scenario import ObjectEntry, Scenario
 from palpate.core.world.scenario_file import load_scenario as _load_file
+from palpate.core.world.scene import check_finite
 from palpate.core.world.workspace import object_geometry
 
 
@@ -113,6 +115,9 @@ def press(scenario: Scenario, obj: str | None = None, xy: tuple[float, float] | 
     if (xy is None) == (cell is None):
         raise ValidationError("press: give either xy (m) or cell (1-based column, row), not both or neither")
     if cell is not None:
+        if not (isinstance(cell, (tuple, list)) and len(cell) == 2
+                and all(isinstance(v, Integral) and not isinstance(v, bool) for v in cell)):
+            raise ValidationError(f"press: cell must be two whole numbers (column, row), 1-based, got {cell!r}")
         centres = object_geometry(scenario, entry).cell_centres()  # (ny, nx, 2)
         ny, nx = centres.shape[:2]
         col, row = (int(v) for v in cell)
@@ -120,13 +125,16 @@ def press(scenario: Scenario, obj: str | None = None, xy: tuple[float, float] | 
             raise ValidationError(f"press: cell {cell} is outside the {nx} x {ny} map of {entry.spec.name!r} "
                                   "(1-based column, row)")
         xy = tuple(float(v) for v in centres[row - 1, col - 1])
+    if isinstance(xy, (str, bytes)) or np.shape(xy) != (2,):
+        raise ValidationError(f"press: xy must be (x, y) in m, got {xy!r}")
+    check_finite("press", x=xy[0], y=xy[1])
     x, y = (float(v) for v in xy)
     ex = scenario.exploration
     make = scenario_source_maker(scenario, source or scenario.training.source)
     target = PressTarget(x, y, depth=ex.depth if depth is None else depth,
                          force=ex.max_force if force is None else force, speed=ex.speed if speed is None else speed,
                          label=f"{entry.spec.name} at ({x * 1e3:.1f}, {y * 1e3:.1f}) mm")
-    recording = make((entry.spec,), int(seed), variability).press(target)
+    recording = make((entry.spec,), check_seed(seed, "press: seed"), variability).press(target)
     return PressOutcome(recording, perceive_press(recording).at_target((x, y)), (x, y))
 
 

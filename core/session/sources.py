@@ -19,7 +19,7 @@ from palpate.core.errors import ValidationError
 from palpate.core.extras import missing_extra, require_extra
 from palpate.core.perception.streams import PressRecording
 from palpate.core.world.scenario import Scenario
-from palpate.core.world.scene import ObjectSpec, Scene
+from palpate.core.world.scene import ObjectSpec, Scene, check_finite
 
 ENTRY_POINT_GROUP = "palpate.sources"
 
@@ -47,12 +47,8 @@ class PressTarget:
     label: str = ""
 
     def __post_init__(self) -> None:
-        for name in ("x", "y", "depth", "force", "speed", "hold"):
-            value = getattr(self, name)
-            if value is None and name in ("depth", "force"):
-                continue
-            if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
-                raise ValidationError(f"PressTarget.{name} must be a finite number (SI units), got {value!r}")
+        optional = {name: value for name, value in (("depth", self.depth), ("force", self.force)) if value is not None}
+        check_finite("PressTarget", x=self.x, y=self.y, speed=self.speed, hold=self.hold, **optional)
         if self.depth is None and self.force is None:
             raise ValidationError("PressTarget needs a depth (m), a force (N), or both (whichever comes first)")
         if self.depth is not None and not self.depth > 0:

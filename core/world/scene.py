@@ -8,11 +8,31 @@ object's top surface is at z = its height.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from numbers import Integral, Real
 
 import numpy as np
 
 from palpate.core.errors import ValidationError
+
+
+def _finite(value) -> bool:
+    return isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def check_finite(owner: str, **fields) -> None:
+    """ValidationError naming ``owner`` and the field unless each field is a finite real number (not a bool): the
+    range checks after it compare values, which NaN and a string escape."""
+    for name, value in fields.items():
+        if not _finite(value):
+            raise ValidationError(f"{owner}: {name} must be a finite number (SI units), got {value!r}")
+
+
+def _sequence(owner: str, name: str, value) -> None:
+    """ValidationError unless ``value`` is a tuple or list of finite numbers."""
+    if not (isinstance(value, (tuple, list)) and all(_finite(v) for v in value)):
+        raise ValidationError(f"{owner}: {name} must be a tuple of finite numbers (SI units), got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -34,6 +54,7 @@ class Material:
     def __post_init__(self) -> None:
         if not self.name:
             raise ValidationError("Material.name must not be empty")
+        check_finite(f"Material {self.name!r}", young=self.young, poisson=self.poisson, damping=self.damping)
         if not (np.isfinite(self.young) and self.young > 0):
             raise ValidationError(f"Material {self.name!r}: young must be a positive modulus in Pa, got {self.young}")
         if not (0.0 <= self.poisson < 0.5):
@@ -55,6 +76,7 @@ class Layer:
     thickness: float
 
     def __post_init__(self) -> None:
+        check_finite("Layer", thickness=self.thickness)
         if not self.thickness > 0:
             raise ValidationError(f"Layer thickness must be > 0 m, got {self.thickness}")
 
@@ -80,6 +102,8 @@ class Inclusion:
         expected = {"sphere": 1, "box": 3, "column": 2}
         if self.shape not in expected:
             raise ValidationError(f"Inclusion.shape must be one of {sorted(expected)}, got {self.shape!r}")
+        _sequence("Inclusion", "size", self.size)
+        _sequence("Inclusion", "center", self.center)
         if len(self.size) != expected[self.shape]:
             raise ValidationError(
                 f"Inclusion of shape {self.shape!r} needs {expected[self.shape]} size values, got {len(self.size)}"
@@ -135,6 +159,8 @@ class ObjectSpec:
         expected = {"box": 3, "cylinder": 2, "mesh": 3}
         if self.shape not in expected:
             raise ValidationError(f"object {self.name!r}: shape must be one of {sorted(expected)}, got {self.shape!r}")
+        _sequence(f"object {self.name!r}", "size", self.size)
+        _sequence(f"object {self.name!r}", "position", self.position)
         if len(self.size) != expected[self.shape]:
             raise ValidationError(
                 f"object {self.name!r}: shape {self.shape!r} needs {expected[self.shape]} size values, "
@@ -243,8 +269,11 @@ class FingertipSpec:
     sensel_size: float = 0.0022
 
     def __post_init__(self) -> None:
+        check_finite("FingertipSpec", radius=self.radius, pitch=self.pitch, sensel_size=self.sensel_size)
         if not self.radius > 0:
             raise ValidationError(f"FingertipSpec.radius must be > 0 m, got {self.radius}")
+        if not all(isinstance(n, Integral) and not isinstance(n, bool) for n in (self.rows, self.cols)):
+            raise ValidationError(f"FingertipSpec: rows and cols must be whole numbers, got {self.rows}x{self.cols}")
         if self.rows < 1 or self.cols < 1:
             raise ValidationError(f"FingertipSpec needs at least one sensel, got {self.rows}x{self.cols}")
         if not (0 < self.sensel_size <= self.pitch):
@@ -284,6 +313,8 @@ class TaxelSensorSpec:
     clock_offset: float = 0.0
 
     def __post_init__(self) -> None:
+        check_finite("TaxelSensorSpec", rate=self.rate, gain=self.gain, noise_std=self.noise_std,
+                     threshold=self.threshold, clock_offset=self.clock_offset)
         if not self.rate > 0:
             raise ValidationError(f"TaxelSensorSpec.rate must be > 0 Hz, got {self.rate}")
         if not self.gain > 0:
@@ -309,6 +340,8 @@ class PoseSensorSpec:
     jitter: float = 1.0e-3
 
     def __post_init__(self) -> None:
+        check_finite("PoseSensorSpec", rate=self.rate, noise_std=self.noise_std, clock_offset=self.clock_offset,
+                     jitter=self.jitter)
         if not self.rate > 0:
             raise ValidationError(f"PoseSensorSpec.rate must be > 0 Hz, got {self.rate}")
         if self.noise_std < 0 or self.jitter < 0:
