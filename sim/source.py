@@ -19,7 +19,7 @@ import numpy as np
 from palpate.core.errors import ValidationError
 from palpate.core.perception.streams import PressRecording
 from palpate.core.session.sources import PressTarget, check_seed
-from palpate.core.world.scene import ObjectSpec, Scene
+from palpate.core.world.scene import ObjectSpec, Scene, check_finite
 from palpate.sim.analytic import material_under, run_analytic_press
 from palpate.sim.bem.law import press_law
 from palpate.sim.bem.press import run_bem_press
@@ -77,17 +77,23 @@ class SimSource:
                  tolerance: float = DEFAULT_TOLERANCE, max_steps: int = MAX_STEPS,
                  realism: str | Path | RealismProfile | None = None, flex_iterations: int = SOLVER_ITERATIONS,
                  laws: dict | None = None):
+        if not isinstance(scene, Scene):
+            raise ValidationError(f"SimSource: scene must be a Scene, got {type(scene).__name__}")
         if fidelity not in FIDELITIES:
             raise ValidationError(f"SimSource: fidelity must be one of {FIDELITIES}, got {fidelity!r}")
-        if isinstance(variability, str) and variability not in ("robot", "human"):
+        if not (variability in ("robot", "human") if isinstance(variability, str) else
+                isinstance(variability, Variability)):
             raise ValidationError(f"SimSource: variability must be 'robot', 'human' or a Variability, "
                                   f"got {variability!r}")
+        if laws is not None and not isinstance(laws, dict):
+            raise ValidationError(f"SimSource: laws must be a dict (a shared law cache) or None, got {laws!r}")
         self.realism = resolve_profile(realism)
         if isinstance(variability, str):
             variability = ROBOT if variability == "robot" else self.realism.press
-        if timestep is not None and not (np.isfinite(timestep) and timestep > 0):
+        check_finite("SimSource", tolerance=tolerance, **({} if timestep is None else {"timestep": timestep}))
+        if timestep is not None and not timestep > 0:
             raise ValidationError(f"SimSource: timestep must be > 0 s, got {timestep!r}")
-        if not (np.isfinite(tolerance) and 0 < tolerance < 1):
+        if not 0 < tolerance < 1:
             raise ValidationError(f"SimSource: tolerance must be a fraction in (0, 1), got {tolerance!r}")
         self.tolerance = float(tolerance)
         if not (isinstance(max_steps, int) and max_steps > 0):
@@ -117,11 +123,9 @@ class SimSource:
                          RealismSession(self.realism, scene.fingertip, scene.taxels, self.seed))
 
     def _mesh(self, obj: ObjectSpec):
-        if obj.shape != "mesh":
-            return None
-        if obj.name not in self._meshes:
+        if obj.shape == "mesh" and obj.name not in self._meshes:
             self._meshes[obj.name] = load_mesh(obj)
-        return self._meshes[obj.name]
+        return self._meshes[obj.name] if obj.shape == "mesh" else None
 
     def _blas_controller(self):
         """The BLAS libraries' thread controller, found once (palpate.sim.blas)."""
@@ -192,7 +196,6 @@ class SimSource:
         """``[self.press(t) for t in targets]``, the analytic presses' physics batched on ``backend``
         (:func:`palpate.sim.batch.press_batch`)."""
         from palpate.sim.batch.press import press_batch  # the batch module builds on this one
-
         return press_batch(self, targets, backend)
 
     @staticmethod
@@ -200,12 +203,13 @@ class SimSource:
         """``[source.press(target) for source, target in pairs]`` for several simulated sources (the environments of
         a vector) in one batch (:func:`palpate.sim.batch.press_across`)."""
         from palpate.sim.batch.press import press_across
-
         return press_across(pairs, backend)
 
     def _plan(self, target: PressTarget) -> PlannedPress:
         """Everything of a press before its physics, in press order (it draws the press's seeds and advances the
         source's press count): :func:`palpate.sim.batch.simulate_presses` plans a batch with it."""
+        if not isinstance(target, PressTarget):
+            raise ValidationError(f"SimSource: a press target must be a PressTarget, got {type(target).__name__}")
         obj = self.scene.object_under(target.x, target.y)
         if obj is None:
             raise ValidationError(f"no object under the press target ({target.x:.4f}, {target.y:.4f}) m")

@@ -92,3 +92,23 @@ def test_a_pad_has_a_whole_number_of_rows_and_columns():
     with pytest.raises(ValidationError, match="FingertipSpec: rows and cols must be whole numbers"):
         FingertipSpec(rows=4.0)
     assert FingertipSpec(rows=np.int64(3)).sensel_centres().shape == (3, 4, 2)
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"variability": 0.5}, "variability must be 'robot', 'human' or a Variability"),
+    ({"variability": "careful"}, "variability must be 'robot', 'human' or a Variability"),
+    ({"laws": [1]}, "laws must be a dict"),
+    ({"timestep": "1 ms"}, "timestep must be a finite number"),
+    ({"tolerance": None}, "tolerance must be a finite number"),
+    ({"timestep": -0.001}, "timestep must be > 0 s"),
+])
+def test_a_simulated_source_names_a_bad_option(options, message):
+    with pytest.raises(ValidationError, match=f"SimSource: {message}"):
+        SimSource(SCENE, fidelity="analytic", **options)
+
+
+def test_a_simulated_source_needs_a_scene_and_press_targets():
+    with pytest.raises(ValidationError, match="SimSource: scene must be a Scene, got str"):
+        SimSource("scene.toml")
+    with pytest.raises(ValidationError, match="a press target must be a PressTarget, got tuple"):
+        SimSource(SCENE, fidelity="analytic").press((0.0, 0.0))
