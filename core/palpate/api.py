@@ -9,7 +9,6 @@ simulator itself. SI units throughout: lengths m, forces N, speeds m/s, moduli P
 from __future__ import annotations
 
 from dataclasses import dataclass
-from numbers import Integral
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +26,7 @@ from palpate.core.session.training import train_memory as _train_memory
 from palpate.core.world.resources import find_scenario
 from palpate.core.world.scenario import ObjectEntry, Scenario
 from palpate.core.world.scenario_file import load_scenario as _load_file
-from palpate.core.world.scene import check_finite
+from palpate.core.world.scene import check_finite, integer
 from palpate.core.world.workspace import object_geometry
 
 
@@ -116,7 +115,7 @@ def press(scenario: Scenario, obj: str | None = None, xy: tuple[float, float] | 
         raise ValidationError("press: give either xy (m) or cell (1-based column, row), not both or neither")
     if cell is not None:
         if not (isinstance(cell, (tuple, list)) and len(cell) == 2
-                and all(isinstance(v, Integral) and not isinstance(v, bool) for v in cell)):
+                and all(integer(v) for v in cell)):
             raise ValidationError(f"press: cell must be two whole numbers (column, row), 1-based, got {cell!r}")
         centres = object_geometry(scenario, entry).cell_centres()  # (ny, nx, 2)
         ny, nx = centres.shape[:2]

@@ -18,6 +18,7 @@ import numpy as np
 from palpate.core import files, limits
 from palpate.core.errors import ValidationError
 from palpate.core.names import unique_stems
+from palpate.core.world.scene import finite_number
 
 PROBABILITY_PREFIX = "material_probability_"
 
@@ -32,11 +33,6 @@ class Manifest:
     materials: list[str]
     maps: dict
     meta: dict
-
-
-def finite_number(v) -> bool:
-    """A JSON number (not a boolean) that is finite."""
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def check_manifest(manifest, mpath: Path, format_name: str, version: int, probability_name) -> Manifest:

@@ -17,21 +17,27 @@ import numpy as np
 from palpate.core.errors import ValidationError
 
 
-def _finite(value) -> bool:
+def finite_number(value) -> bool:
+    """A real number that is finite and not a bool (Python's, numpy's, a JSON document's)."""
     return isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def integer(value) -> bool:
+    """An integer of Python's or numpy's that is not a bool."""
+    return isinstance(value, Integral) and not isinstance(value, bool)
 
 
 def check_finite(owner: str, **fields) -> None:
     """ValidationError naming ``owner`` and the field unless each field is a finite real number (not a bool): the
     range checks after it compare values, which NaN and a string escape."""
     for name, value in fields.items():
-        if not _finite(value):
+        if not finite_number(value):
             raise ValidationError(f"{owner}: {name} must be a finite number (SI units), got {value!r}")
 
 
 def _sequence(owner: str, name: str, value) -> None:
     """ValidationError unless ``value`` is a tuple or list of finite numbers."""
-    if not (isinstance(value, (tuple, list)) and all(_finite(v) for v in value)):
+    if not (isinstance(value, (tuple, list)) and all(finite_number(v) for v in value)):
         raise ValidationError(f"{owner}: {name} must be a tuple of finite numbers (SI units), got {value!r}")
 
 
@@ -55,11 +61,11 @@ class Material:
         if not self.name:
             raise ValidationError("Material.name must not be empty")
         check_finite(f"Material {self.name!r}", young=self.young, poisson=self.poisson, damping=self.damping)
-        if not (np.isfinite(self.young) and self.young > 0):
+        if not self.young > 0:
             raise ValidationError(f"Material {self.name!r}: young must be a positive modulus in Pa, got {self.young}")
         if not (0.0 <= self.poisson < 0.5):
             raise ValidationError(f"Material {self.name!r}: poisson must be in [0, 0.5), got {self.poisson}")
-        if not (np.isfinite(self.damping) and self.damping >= 0):
+        if not self.damping >= 0:
             raise ValidationError(f"Material {self.name!r}: damping must be >= 0 s, got {self.damping}")
 
     @property
@@ -272,7 +278,7 @@ class FingertipSpec:
         check_finite("FingertipSpec", radius=self.radius, pitch=self.pitch, sensel_size=self.sensel_size)
         if not self.radius > 0:
             raise ValidationError(f"FingertipSpec.radius must be > 0 m, got {self.radius}")
-        if not all(isinstance(n, Integral) and not isinstance(n, bool) for n in (self.rows, self.cols)):
+        if not (integer(self.rows) and integer(self.cols)):
             raise ValidationError(f"FingertipSpec: rows and cols must be whole numbers, got {self.rows}x{self.cols}")
         if self.rows < 1 or self.cols < 1:
             raise ValidationError(f"FingertipSpec needs at least one sensel, got {self.rows}x{self.cols}")
