@@ -8,8 +8,11 @@ cell map gets wrong after the full raster (the symmetric difference of the label
 policy explores the same scene with the same trained memory; a policy's run is as long as the raster's.
 
 Seeds below 100000 are tuning seeds, from 100000 on report seeds (never tuned on); the tables print them apart,
-per family. --clairvoyant adds the boundary policy told where its fine map is wrong (its expected errors are the
-true ones): what a planner that knew where the map is wrong would score with the same presses and readings.
+per family, and each policy against max_entropy scene by scene (fewer / more presses, a one-sided Wilcoxon
+signed-rank p, and per family the median of the paired differences: with ten scenes a family, two family medians
+compared apart swap on noise). --clairvoyant adds the boundary policy told where its fine map is wrong (its
+expected errors are the true ones): what a planner that knew where the map is wrong would score with the same
+presses and readings.
 --share S ends every run after S of the raster's presses (quicker tuning runs; a run that has not reached the
 target by then counts as cells + 1). --stays also scores the press after which the fine map stays at the target to
 the end of the run (the first press there can be a lucky guess a later press undoes; the fine map is then rebuilt
@@ -154,21 +157,51 @@ def ratio(r: dict, key: str = "to_target") -> float:
     return (r[key] if r[key] is not None else r["cells"] + 1) / r["cells"]
 
 
-def report_stays(part: list[dict], policies: tuple[str, ...]) -> None:
-    """The --stays reading of one split: per policy, and each policy against max_entropy scene by scene."""
+def paired(part: list[dict], policy: str, key: str = "to_target") -> tuple[np.ndarray, list[str]]:
+    """Per scene of ``part`` run by both, ``policy``'s ratio less max_entropy's, and the scenes' families."""
+    mine = {r["seed"]: r for r in part if r["policy"] == policy}
+    base = {r["seed"]: r for r in part if r["policy"] == "max_entropy"}
+    seeds = sorted(set(mine) & set(base))
+    return (np.array([ratio(mine[s], key) - ratio(base[s], key) for s in seeds]),
+            [mine[s]["family"] for s in seeds])
+
+
+def paired_text(d: np.ndarray) -> str:
+    """'fewer / more, p': scenes with fewer and more presses than max_entropy, one-sided Wilcoxon signed-rank p."""
     from scipy.stats import wilcoxon
 
-    by = {p: {r["seed"]: ratio(r, "stays") for r in part if r["policy"] == p} for p in policies}
+    pval = wilcoxon(d, alternative="less").pvalue if np.any(d != 0) else 1.0
+    return f"{int(np.sum(d < 0))} / {int(np.sum(d > 0))}, p {pval:.3f}"
+
+
+def report_stays(part: list[dict], policies: tuple[str, ...]) -> None:
+    """The --stays reading of one split: per policy, and each policy against max_entropy scene by scene."""
+    by = {p: [ratio(r, "stays") for r in part if r["policy"] == p] for p in policies}
     print(f"presses after which the fine map stays at {TARGET:.0%} / raster's: policy, median, p95, against "
           "max_entropy (fewer / more presses, one-sided Wilcoxon p)")
     for p in policies:
-        rs = np.array(list(by[p].values()))
-        line = f"  {p:12} {np.median(rs):7.2f} {np.percentile(rs, 95):6.2f}"
+        line = f"  {p:12} {np.median(by[p]):7.2f} {np.percentile(by[p], 95):6.2f}"
         if p != "max_entropy" and by.get("max_entropy"):
-            d = np.array([by[p][s] - by["max_entropy"][s] for s in by[p] if s in by["max_entropy"]])
-            pval = wilcoxon(d, alternative="less").pvalue if np.any(d != 0) else 1.0
-            line += f"   {int(np.sum(d < 0))} / {int(np.sum(d > 0))}, p {pval:.3f}"
+            line += "   " + paired_text(paired(part, p, "stays")[0])
         print(line)
+
+
+def report_paired(part: list[dict], policies: tuple[str, ...]) -> None:
+    """Each policy against max_entropy scene by scene: over the split, and per family the median of the paired
+    differences with its scenes fewer / more (a family's two medians compared apart mislead on a few scenes)."""
+    others = [p for p in policies if p != "max_entropy"]
+    if "max_entropy" not in policies or not others:
+        return
+    print("against max_entropy, scene by scene (ratio difference; fewer / more presses, one-sided Wilcoxon p):")
+    for p in others:
+        d, fams = paired(part, p)
+        print(f"  {p:12} median {np.median(d):+.3f}   {paired_text(d)}")
+        for f in sorted(set(fams)):
+            df = d[[k for k, g in enumerate(fams) if g == f]]
+            print(f"  {'':12} {f:10} {np.median(df):+.3f}   {int(np.sum(df < 0))} / {int(np.sum(df > 0))}")
+    near = [r for r in part if r["policy"] == "max_entropy"]
+    print(f"scenes whose fine map ends below 96% of the area right with max_entropy's presses (the target then "
+          f"falls near the run's end): {sum(r['fine_final'] < 0.96 for r in near)} of {len(near)}")
 
 
 def report(rows: list[dict], policies: tuple[str, ...]) -> None:
@@ -190,6 +223,7 @@ def report(rows: list[dict], policies: tuple[str, ...]) -> None:
             print(f"{p:12} {np.median(rs):7.2f} {np.percentile(rs, 95):6.2f} {rs.max():6.2f} "
                   f"{sum(r['to_target'] is not None for r in mine):4d}/{len(mine):<3d} "
                   f"{np.median([r['fine_final'] for r in mine]):9.1%} {ok}")
+        report_paired(part, policies)
         if all("stays" in r for r in part):
             report_stays(part, policies)
         fams = sorted({r["family"] for r in part})
