@@ -8,18 +8,16 @@ core never imports MuJoCo or a serial library.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from inspect import signature
-from numbers import Real
 from typing import Protocol, runtime_checkable
 
 from palpate.core.errors import ValidationError
 from palpate.core.extras import missing_extra, require_extra
 from palpate.core.perception.streams import PressRecording
 from palpate.core.world.scenario import Scenario
-from palpate.core.world.scene import ObjectSpec, Scene, check_finite
+from palpate.core.world.scene import ObjectSpec, Scene, check_finite, finite_number
 
 ENTRY_POINT_GROUP = "palpate.sources"
 
@@ -64,8 +62,7 @@ class PressTarget:
 def check_seed(value, where: str) -> int:
     """``value`` as a seed: a whole number >= 0 (a float that is one is taken as it; a press draws from
     ``numpy.random.SeedSequence([seed, n])``, which takes no other); ValidationError naming ``where`` otherwise."""
-    if isinstance(value, bool) or not isinstance(value, Real) or not (math.isfinite(value) and value >= 0
-                                                                      and value == int(value)):
+    if not (finite_number(value) and value >= 0 and value == int(value)):
         raise ValidationError(f"{where} must be a whole number >= 0, got {value!r}")
     return int(value)
 
