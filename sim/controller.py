@@ -243,6 +243,7 @@ def press_profile(
     depth_for_force=None,
     approach_gap: float = 0.002,
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0),
+    max_depth: float | None = None,
 ) -> PressProfile:
     """Setpoint trajectory of one press-and-release at ``target``.
 
@@ -257,6 +258,9 @@ def press_profile(
             estimate for the local material); required when ``target.force`` is set.
         approach_gap: gap between tip and surface at the start and end, m.
         normal: unit surface normal at the press point (pressing runs along it).
+        max_depth: the deepest a press to a depth goes, m (None: no limit): a press drawn deeper (its depth's
+            variation, a push past it, a force limit beyond it) stops there, its force target unreached; the press's
+            draws are the same, and its meta keeps the depth it was drawn to as ``depth_limited_from``.
 
     Returns:
         a :class:`PressProfile` sampled every ``timestep`` s.
@@ -279,6 +283,9 @@ def press_profile(
         # a careless press's deviations are w times a careful one's (w is exactly 1 when off: the same draws)
         return w * rng.standard_normal(size)
 
+    if max_depth is not None and not (np.isfinite(max_depth) and max_depth > 0):
+        raise ValidationError(f"press_profile: max_depth must be > 0 m, got {max_depth!r}")
+    limited_from = None
     if target.depth is not None:
         depth = target.depth * max(1.0 + v.depth_cv * normal(), 0.2)
         force_target = None
@@ -295,6 +302,9 @@ def press_profile(
             depth_at_limit = float(depth_for_force(force_limit))
             if np.isfinite(depth_at_limit) and 0 < depth_at_limit < depth:
                 depth, force_target = depth_at_limit, force_limit
+        if max_depth is not None and depth > max_depth:
+            # no finger presses past what it can: it stops there, short of a force limit further on
+            limited_from, depth, force_target = depth, float(max_depth), None
     else:
         if depth_for_force is None:
             raise ValidationError("press_profile: a force target needs depth_for_force (force N -> depth m)")
@@ -367,6 +377,8 @@ def press_profile(
             "retract": [float(t_lift), float(t[-1])],
         },
     }
+    if limited_from is not None:
+        meta["depth_limited_from"] = float(limited_from)
     if v.tail_dof > 0:
         meta["tail_scale"] = w
     if tilt is not None:

@@ -229,19 +229,12 @@ class SimSource:
             target, capped = replace(target, depth=deepest), deepest < by_radius
 
         def profile_for(depth_for_force) -> PressProfile:
-            prof = press_profile(target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002),
+            # a person's press varies in depth (and a force limit may lie past the depth limit), but no finger
+            # presses past what it can: the same draws, stopped at the deepest press allowed
+            return press_profile(target, surface_z, radius=tip.radius, timestep=min(timestep, 0.002),
                                  variability=self.variability, seed=seed, normal=tuple(normal),
-                                 depth_for_force=depth_for_force)
-            planned = prof.meta["depth"]
-            if target.depth is not None and planned > deepest and prof.meta.get("force_target") is None:
-                # a person's press varies in depth, but no finger presses past what it can: the same draws,
-                # scaled to stop at the deepest press allowed
-                shorter = replace(target, depth=target.depth * deepest / planned)
-                prof = press_profile(shorter, surface_z, radius=tip.radius, timestep=min(timestep, 0.002),
-                                     variability=self.variability, seed=seed, normal=tuple(normal),
-                                     depth_for_force=depth_for_force)
-                prof.meta["depth_limited_from"] = float(planned)
-            return prof
+                                 depth_for_force=depth_for_force,
+                                 max_depth=deepest if target.depth is not None else None)
 
         point = None
         if self.fidelity == "auto" and target.force is not None:

@@ -68,6 +68,22 @@ def test_a_force_target_the_depth_limit_stops_short_of_is_refused_not_silently_m
     assert _press(stiff, "analytic", 0.009, force=10.0, speed=0.001).truth.force.max() == pytest.approx(10.0, rel=0.02)
 
 
+@pytest.mark.parametrize("fidelity", ["analytic", "auto"])
+def test_a_human_press_whose_force_limit_lies_past_the_tip_limit_stops_there_instead_of_failing(fidelity):
+    """A person's press to 5.5 mm or 10 N on a block that needs just over 6 mm (0.75 tip radii) for the force: some
+    draws go deeper than the tip allows before the force is felt. They were refused (a raster of heterogeneous.toml
+    stopped at one such press); they stop at the limit, short of the force, as a finger would."""
+    obj = ObjectSpec("soft", "box", (0.1, 0.1, 0.04), (0.0, 0.0), Material("m", 1.4e5, 0.45))
+    src = SimSource(Scene((obj,)), fidelity=fidelity, seed=3, variability="human")
+    recs = [src.press(PressTarget(0.0, 0.0, depth=0.0055, force=10.0, speed=0.01)) for _ in range(4)]
+    deepest = [float(r.truth.indentation.max()) for r in recs]
+    assert max(deepest) <= 0.75 * R * (1 + 1e-6)
+    # the limited presses (the first and third draws) went to the limit, past where a 10 N press on this block stops
+    limited = [d for d in deepest if d > 0.75 * R * (1 - 1e-3)]
+    assert len(limited) == 2
+    assert all(r.truth.force.max() > 10.0 for r, d in zip(recs, deepest, strict=True) if d in limited)
+
+
 @pytest.mark.parametrize("skin", [0.00005, 0.0002, 0.0005])
 def test_flex_refuses_a_skin_thinner_than_it_resolves_naming_the_limit_and_analytic(skin):
     """It returned the bare block bit for bit (a 0.5 mm skin: +68% / +47% at 1 / 2 mm)."""
