@@ -9,7 +9,7 @@ import pytest
 from palpate.core.boundary.moduli import MaterialModuli, material_moduli
 from palpate.core.boundary.reading import NoiseModel, read_boundary
 from palpate.core.errors import ValidationError
-from palpate.core.mapping.fine import fine_map
+from palpate.core.mapping.fine import REACH, REACH_MAX, fine_map, reading_reach
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.session.boundaries import shipped_templates
 
@@ -90,9 +90,32 @@ def test_bad_maps_are_refused():
     for w in (-0.1, np.inf, np.nan):
         with pytest.raises(ValidationError, match="far_weight"):
             fine_map(geometry, np.full((2, 3, 2), 0.5), [], far_weight=w)
+    for lo, hi, k in ((0.006, 0.005, 0.6), (0.006, np.inf, 0.6), (0.006, 0.009, -1.0), (0.006, 0.009, np.nan)):
+        with pytest.raises(ValidationError, match="reach_max"):
+            fine_map(geometry, np.full((2, 3, 2), 0.5), [], reach=lo, reach_max=hi, spacing=k)
     voxel = MapGeometry("voxel", ("a", "b"), (0.0, 0.0), 0.01, (3, 2, 2), z_top=0.03)
     with pytest.raises(ValidationError, match="2-D"):
         fine_map(voxel, np.full((2, 3, 2), 0.5), [])
+
+
+def _raster(cell: float, nx: int, ny: int, stride: int = 1) -> list:
+    return [(((ix + 0.5) * cell, (iy + 0.5) * cell), None) for ix in range(0, nx, stride) for iy in range(ny)]
+
+
+def test_a_reading_reaches_further_the_farther_apart_the_presses_lie():
+    """0.6 of the presses' mean spacing, within 6-9 mm: a raster of 10 mm cells keeps 6 mm (its walls stay sharp),
+    one of 12 mm cells 7.2 mm, a third of the 10 mm cells or a raster of 20 mm cells 9 mm."""
+    def reach(cell, presses, nx=12, ny=9):
+        return reading_reach(MapGeometry("grid2d", ("a", "b"), (0.0, 0.0), cell, (nx, ny)), presses)
+
+    assert reach(0.010, _raster(0.010, 12, 9)) == pytest.approx(REACH)
+    assert reach(0.012, _raster(0.012, 12, 9)) == pytest.approx(0.0072)
+    assert reach(0.010, _raster(0.010, 12, 9, stride=3)) == pytest.approx(REACH_MAX)
+    assert reach(0.020, _raster(0.020, 12, 9)) == pytest.approx(REACH_MAX)
+    assert reach(0.010, []) == pytest.approx(REACH_MAX)
+    # a place pressed again, or a press at the same millimetre, is one place
+    twice = _raster(0.012, 12, 9) + [((x + 2e-4, y), r) for (x, y), r in _raster(0.012, 12, 9)]
+    assert reach(0.012, twice) == pytest.approx(0.0072)
 
 
 def test_a_reading_reaches_only_points_near_its_press_and_that_changes_nothing_visible(templates):
@@ -154,5 +177,10 @@ def test_a_point_no_press_reaches_takes_its_nearest_press_material(templates):
     assert np.array_equal(with_far.labels()[0], (x > 0.040).astype(int))
     assert np.all(with_far.probabilities[0, middle].max(axis=-1) < 0.8)
     assert np.allclose(near_only.probabilities[0, (x > 0.035) & (x < 0.045)], 0.5, atol=1e-3)
+    # two presses 70 mm apart reach 9 mm: 7-9 mm from the soft one its reading outweighs the unknowing cell more
+    # than a 6 mm reach would let it
+    fixed = fine_map(geometry, probs, readings, moduli=moduli, reach_max=REACH)
+    beside = (x > 0.012) & (x < 0.014)
+    assert np.all(with_far.probabilities[0, beside, 0] > fixed.probabilities[0, beside, 0] + 0.02)
     # near the presses the far term changes nothing visible
     assert np.array_equal(near_only.labels()[0, x < 0.015], with_far.labels()[0, x < 0.015])

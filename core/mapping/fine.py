@@ -5,7 +5,8 @@ The cell map says which material each cell holds; a press's boundary reading say
 material gives way to a harder one. Each fine point's distribution mixes:
 
 - its own cell's distribution, with a small weight (what is known without a reading);
-- per press with a reading, weighted by closeness to the press (a Gaussian of ``reach``): when the press read a
+- per press with a reading, weighted by closeness to the press (a Gaussian whose width follows the presses'
+  spacing: far apart, early in an exploration or on coarse cells, a reading reaches further): when the press read a
   wall (probability p_boundary), the distribution of the nearest cell on the point's side whose centre is clear of
   the wall (a press there felt one material; cells astride a wall are judged on a mixture), each side in proportion
   to the probability that the point lies there given the reading's offset and angle spreads; when it read none
@@ -20,6 +21,7 @@ itself (the seed's grid and eq. 6.15) is unchanged; this layer is computed from 
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,8 +38,17 @@ from palpate.core.mapping.geometry import MapGeometry
 RESOLUTION = 1e-3
 #: Weight of a point's own cell against the readings near it.
 CELL_WEIGHT = 0.05
-#: Distance from a press over which its reading's weight falls by e, m (about the contact radius at depth).
+#: Least distance from a press over which its reading's weight falls by e, m (about the contact radius at depth).
 REACH = 6e-3
+#: Most such distance, m: where presses lie far apart.
+REACH_MAX = 9e-3
+#: Between the two, the readings reach this share of the presses' mean spacing (the root of the map's area over the
+#: places pressed): a raster of 10 mm cells 6 mm, of 15 mm cells 9 mm, a third of a raster of 10 mm cells 9 mm. The
+#: boundary policy plans with the same reach. Chosen on its exploration of tuning scenes 0-89
+#: (benchmarks/exploration_fine.py) against 6 mm, 9 mm and reaches following the cell size or each press's nearest
+#: press: as good as 9 mm there, which blurred the walls of heterogeneous.toml's 10 mm raster (median boundary error
+#: 0 -> 1 mm, ECE near a wall 0.045 -> 0.108).
+SPACING = 0.6
 #: Temperature of the mixed distributions (below 1: sharper). A mixture of the cell map's and the readings'
 #: distributions is under-confident (points it calls 0.75 are right 0.92 of the time); chosen, with FAR_WEIGHT, on
 #: raster's physics maps of tuning scenes 0-17 (benchmarks/fine_map_families.py) as the grid point 0.70-0.84 with the
@@ -135,17 +146,19 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
              BoundaryReading]], *, resolution: float = RESOLUTION, reach: float = REACH,
              cell_weight: float = CELL_WEIGHT, clear: float = REACH, moduli: MaterialModuli | None = None,
              cutoff: float | None = CUTOFF, temperature: float = TEMPERATURE,
-             far_weight: float = FAR_WEIGHT) -> FineMap:
+             far_weight: float = FAR_WEIGHT, reach_max: float = REACH_MAX, spacing: float = SPACING) -> FineMap:
     """The fine map of a 2-D cell map (see the module docstring).
 
     Args:
         geometry: the cell map's geometry (2-D only).
         probabilities: the cell map's distributions, (ny, nx, M) (e.g. the post-processed map's).
         readings: per press, its measured (x, y) location, m, and its boundary reading in the world's frame.
-        resolution: fine point side, m; reach: distance scale of a reading's weight, m; cell_weight: see above;
+        resolution: fine point side, m; cell_weight: see above;
             clear: distance from a wall at which a cell's centre counts as clear of it, m (about the contact radius).
         moduli: the reference materials' moduli as the reading reads them (:mod:`palpate.core.boundary.moduli`):
             when given, each side of a read wall is the material its read modulus matches, not a neighbour cell's.
+        reach, reach_max, spacing: the distance scale of the readings' weights, m: ``spacing`` times the presses'
+            mean spacing (:func:`reading_reach`), clipped to [reach, reach_max]; reach_max = reach: that one scale.
         cutoff: a reading reaches points within this many ``reach`` of its press (None: every point).
         far_weight: weight of each point's nearest reading, however far (0: none; a point out of every reading's
             reach then keeps its cell's distribution).
@@ -163,9 +176,9 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     if probs.shape[:2] != (ny, nx) or probs.ndim != 3:
         raise ValidationError(f"fine_map: probabilities must be ({ny}, {nx}, M), got {probs.shape}")
     if not (0 < resolution <= geometry.cell_size and reach > 0 and cell_weight > 0 and 0 < temperature < np.inf
-            and 0 <= far_weight < np.inf):
+            and 0 <= far_weight < np.inf and reach <= reach_max < np.inf and 0 <= spacing < np.inf):
         raise ValidationError("fine_map: resolution must be in (0, cell size], reach, cell_weight and temperature "
-                              "> 0 and finite, far_weight >= 0 and finite")
+                              "> 0 and finite, far_weight, spacing >= 0 and finite, reach_max in [reach, inf)")
     n = int(round(geometry.cell_size / resolution))
     out = FineMap(geometry.origin, geometry.cell_size / n, np.zeros((ny * n, nx * n, probs.shape[2])),
                   geometry.materials)
@@ -176,6 +189,7 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     # which cells' presses straddle a wall: only needed when neighbour cells name the sides
     astride = _astride(geometry, readings, clear) if moduli is None else None
     res = out.resolution
+    reach = reading_reach(geometry, readings, reach, reach_max, spacing)
     radius = None if cutoff is None else cutoff * reach
     fields = []  # per reading on the map: (location, the reading's field at points relative to it)
     for (x0, y0), r in readings:
@@ -217,6 +231,18 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         mixed = np.power(mixed / mixed.max(axis=-1, keepdims=True), 1.0 / temperature)
         mixed /= mixed.sum(axis=-1, keepdims=True)
     return FineMap(out.origin, out.resolution, mixed, out.materials)
+
+
+def reading_reach(geometry: MapGeometry, readings, reach: float = REACH, reach_max: float = REACH_MAX,
+                  spacing: float = SPACING) -> float:
+    """The distance scale of the readings' weights on a fine map, m: ``spacing`` times the presses' mean spacing,
+    the root of the map's area over the number of places pressed (presses rounded to the same millimetre are one
+    place), clipped to [reach, reach_max]; reach_max with no reading."""
+    if not readings:
+        return float(reach_max)
+    places = len(np.unique(np.round(np.array([xy for xy, _ in readings], dtype=float) / 1e-3), axis=0))
+    nx, ny = geometry.plane_shape
+    return float(np.clip(spacing * geometry.cell_size * math.sqrt(nx * ny / places), reach, reach_max))
 
 
 def _reading_field(r: BoundaryReading, own: np.ndarray, hard: np.ndarray, soft: np.ndarray, res: float,

@@ -2,13 +2,13 @@
 the point of the map where a press would settle most of it, not only at cell centres.
 
 A press reads a wall within about a contact radius of its axis (:mod:`palpate.core.boundary`), so a wall half-way
-between two pressed cell centres (up to half a cell from both) is out of reach of every cell-centred press; the
-fine map can only guess it. This policy scores every point of the fine raster by the fine map's expected errors
-within a reading's reach of it (a Gaussian of the fine map's ``reach``), discounted where presses already landed,
-and adds :class:`~palpate.core.planning.info_gain.InfoGain`'s value of the point's cell (what a press can reveal
-that no reading near a known wall will: a feature hidden between lattice presses). It presses the best point
-within the inner part of its cell (``shift``): the cell map judges the cell by that press, and a press far off the
-centre feels the neighbour's material as much as its own.
+between two pressed cell centres (up to half a cell from both) is out of reach of every cell-centred press; the fine
+map can only guess it. This policy scores every point of the fine raster by the fine map's expected errors within a
+reading's reach of it (a Gaussian of the fine map's reach, which follows the presses' spacing), discounted where
+presses already landed, and adds :class:`~palpate.core.planning.info_gain.InfoGain`'s value of the point's cell
+(what a press can reveal that no reading near a known wall will: a feature hidden between lattice presses). It
+presses the best point within the inner part of its cell (``shift``): the cell map judges the cell by that press,
+and a press far off the centre feels the neighbour's material as much as its own.
 
 It starts with info_gain's even lattice; it needs the presses' boundary readings (``observe``), which the run gives
 it on 2-D maps when the pad has templates; without them the fine map is the cell map spread on the raster and the
@@ -24,7 +24,17 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 from palpate.core.errors import ValidationError
-from palpate.core.mapping.fine import CUTOFF, FAR_WEIGHT, REACH, RESOLUTION, FineMap, fine_map, window_around
+from palpate.core.mapping.fine import (
+    CUTOFF,
+    FAR_WEIGHT,
+    REACH,
+    REACH_MAX,
+    RESOLUTION,
+    FineMap,
+    fine_map,
+    reading_reach,
+    window_around,
+)
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.planning.info_gain import InfoGain
 from palpate.core.planning.map_views import plane_shape, postprocess
@@ -52,7 +62,8 @@ class BoundarySeeking:
         far_weight: the fine map's weight of a point's nearest reading however far (0: plan on the readings in
             reach only; the default, the reported map's, took tuning scenes 0-17 to 95% of the area right in 0.25 of
             raster's presses against 0.26 with 0).
-        resolution, reach: the fine map's (m).
+        resolution: the fine map's (m); reach: the fine map's least reach, m (its reach follows the presses'
+            spacing, :func:`palpate.core.mapping.fine.reading_reach`; a press settles the errors within it).
     """
 
     memory: object
@@ -102,13 +113,15 @@ class BoundarySeeking:
         its points' (x, y), m, (NY, NX, 2)."""
         # the plain mixture, as the planner's weights were chosen on it (the calibrated sharpening is for reports)
         fine = fine_map(self.geometry, post.probabilities, self._readings, resolution=self.resolution,
-                        reach=self.reach, moduli=self.moduli, temperature=1.0, far_weight=self.far_weight)
+                        reach=self.reach, reach_max=max(self.reach, REACH_MAX), moduli=self.moduli, temperature=1.0,
+                        far_weight=self.far_weight)
         wrong = self.expected_errors(fine)
         res = fine.resolution
         n = int(round(self.geometry.cell_size / res))
         # sum of wrong(p) exp(-|p - q|^2 / reach^2) over the points p, in cells of area
-        sigma = self.reach / (res * math.sqrt(2))
-        errors = gaussian_filter(wrong, sigma, mode="constant", truncate=3.0) * (math.pi * (self.reach / res) ** 2
+        reach = reading_reach(self.geometry, self._readings, self.reach, max(self.reach, REACH_MAX))
+        sigma = reach / (res * math.sqrt(2))
+        errors = gaussian_filter(wrong, sigma, mode="constant", truncate=3.0) * (math.pi * (reach / res) ** 2
                                                                               / n**2)
         pts = fine.centres()
         if self._pressed and self.crowding > 0:
