@@ -111,15 +111,15 @@ class BoundarySeeking:
         """(errors, fine, centres): the fine map's expected errors a press at each point of the fine raster would
         settle (cells of area, weighted by ``fine_weight``, discounted by crowding), shape (NY, NX); the fine map;
         its points' (x, y), m, (NY, NX, 2)."""
+        # one reach, the fine map's, for the map and for the errors a press there settles
+        reach = reading_reach(self.geometry, self._readings, self.reach, max(self.reach, REACH_MAX))
         # the plain mixture, as the planner's weights were chosen on it (the calibrated sharpening is for reports)
         fine = fine_map(self.geometry, post.probabilities, self._readings, resolution=self.resolution,
-                        reach=self.reach, reach_max=max(self.reach, REACH_MAX), moduli=self.moduli, temperature=1.0,
-                        far_weight=self.far_weight)
+                        reach=reach, reach_max=reach, moduli=self.moduli, temperature=1.0, far_weight=self.far_weight)
         wrong = self.expected_errors(fine)
         res = fine.resolution
         n = int(round(self.geometry.cell_size / res))
         # sum of wrong(p) exp(-|p - q|^2 / reach^2) over the points p, in cells of area
-        reach = reading_reach(self.geometry, self._readings, self.reach, max(self.reach, REACH_MAX))
         sigma = reach / (res * math.sqrt(2))
         errors = gaussian_filter(wrong, sigma, mode="constant", truncate=3.0) * (math.pi * (reach / res) ** 2
                                                                               / n**2)
