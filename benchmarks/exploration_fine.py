@@ -19,10 +19,14 @@ the end of the run (the first press there can be a lucky guess a later press und
 after every press, which costs about twice the run): per policy its median and p95, and against max_entropy scene by
 scene (fewer / more presses, one-sided Wilcoxon signed-rank p).
 
+--calibration also keeps, per policy and scene, the fine map's reliability bins after 0.1, 0.25, 0.5 and all of the
+raster's presses, over all points and within 5 mm of a wall, and prints the ECE pooled over a split's scenes: how
+honest the map is while the presses are still sparse.
+
 --jobs J runs J scenes at once in separate processes (rows and tables as with one; the wall time printed last).
 
 Run: .venv/bin/python benchmarks/exploration_fine.py [--first 0] [--scenes 9] [--policies raster,boundary]
-     [--clairvoyant] [--share S] [--stays] [--boundary FIELD=VALUE ...] [--jobs J] [--json PATH]
+     [--clairvoyant] [--share S] [--stays] [--calibration] [--boundary FIELD=VALUE ...] [--jobs J] [--json PATH]
      [--from-json PATH ...]
 """
 
@@ -36,12 +40,14 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 from fine_map_families import trained_scene
 from scene_families import is_report_seed
+from scipy.ndimage import distance_transform_edt
 
 from palpate.api import register_policy
-from palpate.core.mapping.fine import fine_map
+from palpate.core.mapping.calibration import calibration_sample, reliability_table
+from palpate.core.mapping.fine import edges, fine_map
 from palpate.core.mapping.grids import new_map
 from palpate.core.planning.boundary_seeking import BoundarySeeking
-from palpate.core.session.boundaries import fine_truth, training_moduli
+from palpate.core.session.boundaries import NEAR_BOUNDARY, fine_truth, training_moduli
 from palpate.core.session.explore import MapPostprocessing, apply_press, explore_object
 from palpate.core.session.progress import Progress
 from palpate.core.world.workspace import object_geometry
@@ -80,13 +86,36 @@ TARGET = 0.95
 TENTH = 0.1
 #: Shares of raster's presses at which each row keeps the fine map's area right.
 SHARES = (0.1, 0.2, 0.25, 0.3, 0.4, 0.5, 1.0)
+#: Shares of raster's presses at which --calibration keeps the fine map's reliability bins.
+CALIBRATION_SHARES = (0.1, 0.25, 0.5, 1.0)
+BINS = 10
 
 
-def fine_curve(sc, res, memory, moduli, truth, keep: set[int] = frozenset()) -> tuple[np.ndarray, np.ndarray]:
+def reliability_bins(fine, truth: np.ndarray) -> dict:
+    """Per region ("all" known points, "near": within NEAR_BOUNDARY of a true wall), the count, summed confidence
+    and right count of the fine map's decided points in each of BINS equal confidence bins (pooled ECE adds them)."""
+    known = truth >= 0
+    near = known & (distance_transform_edt(~edges(truth)) * fine.resolution <= NEAR_BOUNDARY)
+    out = {}
+    for where, mask in (("all", known), ("near", near)):
+        t = reliability_table(*calibration_sample(fine.probabilities[mask], truth[mask])[:2], bins=BINS)
+        out[where] = [t.count.tolist(), (t.count * t.confidence).tolist(), (t.count * t.accuracy).tolist()]
+    return out
+
+
+def pooled_ece(bins: list) -> float:
+    """The ECE of reliability bins summed over scenes (a list of [count, confidence sum, right sum] triples)."""
+    count, conf, right = (np.sum([np.asarray(b[i], dtype=float) for b in bins], axis=0) for i in range(3))
+    return float(np.sum(np.abs(right - conf)) / max(count.sum(), 1.0))
+
+
+def fine_curve(sc, res, memory, moduli, truth, keep: set[int] = frozenset(),
+               on_rebuild=None) -> tuple[np.ndarray, np.ndarray]:
     """Per press k = 1..N of an exploration, the share of the known area the fine map and the cell map label
     right, rebuilt press by press as the run's maps are: every press until the fine map first reaches
     :data:`TARGET`, then only the press counts in ``keep`` (1-based) and the last; NaN where not rebuilt (the maps
-    are rebuilt from all the presses so far, so a rebuild costs as much as the press count)."""
+    are rebuilt from all the presses so far, so a rebuild costs as much as the press count). ``on_rebuild(k, fine)``
+    is called with each rebuilt fine map."""
     ex = sc.exploration
     grid = new_map(res.geometry)
     settings = MapPostprocessing.of(ex)
@@ -102,6 +131,8 @@ def fine_curve(sc, res, memory, moduli, truth, keep: set[int] = frozenset()) -> 
             continue
         post = settings.apply(grid, ex.calibration)
         fine = fine_map(res.geometry, post.probabilities, readings, moduli=moduli)
+        if on_rebuild is not None:
+            on_rebuild(k, fine)
         cells = fine.cells_on_raster(np.argmax(post.probabilities, axis=-1))
         fine_acc[k - 1] = float(np.mean(fine.labels()[known] == truth[known]))
         cell_acc[k - 1] = float(np.mean(cells[known] == truth[known]))
@@ -122,7 +153,8 @@ def stays_at(curve: np.ndarray, level: float) -> int | None:
     return int(below[-1]) + 2 if len(below) else 1
 
 
-def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0, stays: bool = False) -> list[dict]:
+def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0, stays: bool = False,
+               calibration: bool = False) -> list[dict]:
     fs, base, reader, make, training = trained_scene(seed)
     moduli = training_moduli(training.readings)
     rows = []
@@ -140,7 +172,15 @@ def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0, stays: 
         keep = {min(tenth, len(res.steps))} | {max(1, int(round(q * n))) for q in SHARES}
         if stays:
             keep = set(range(1, len(res.steps) + 1))
-        fine, cell = fine_curve(sc, res, training.memory, moduli, truth, keep)
+        at_share = {max(1, int(round(q * n))): f"{q:g}" for q in CALIBRATION_SHARES} if calibration else {}
+        keep |= {k for k in at_share if k <= len(res.steps)}
+        bins = {}
+
+        def keep_bins(k, fine, at_share=at_share, bins=bins):
+            if k in at_share:
+                bins[at_share[k]] = reliability_bins(fine, truth)
+
+        fine, cell = fine_curve(sc, res, training.memory, moduli, truth, keep, keep_bins)
         rows.append({"seed": seed, "family": fs.family, "split": "report" if is_report_seed(seed) else "tuning",
                      "policy": policy, "cells": n, "presses": len(res.steps), "to_target": first_at(fine, TARGET),
                      "fine_final": float(fine[-1]), "cell_final": float(cell[-1]),
@@ -149,7 +189,8 @@ def scene_rows(seed: int, policies: tuple[str, ...], share: float = 1.0, stays: 
                                  if (k := max(1, int(round(q * n)))) <= len(fine)},
                      "off_centre": sum(1 for s in res.steps if s.target != tuple(
                          res.geometry.cell_centres()[s.cell[1], s.cell[0]])),
-                     "cpu_s": time.process_time() - t0} | ({"stays": stays_at(fine, TARGET)} if stays else {}))
+                     "cpu_s": time.process_time() - t0} | ({"stays": stays_at(fine, TARGET)} if stays else {})
+                    | ({"calibration": bins} if calibration else {}))
     return rows
 
 
@@ -204,6 +245,23 @@ def report_paired(part: list[dict], policies: tuple[str, ...]) -> None:
           f"falls near the run's end): {sum(r['fine_final'] < 0.96 for r in near)} of {len(near)}")
 
 
+def report_calibration(part: list[dict], policies: tuple[str, ...]) -> None:
+    """The --calibration reading of one split: per policy and share of raster's presses, the fine map's ECE
+    pooled over the scenes, over all points / within 5 mm of a wall."""
+    shares = [f"{q:g}" for q in CALIBRATION_SHARES]
+    print("fine map's ECE pooled over the scenes after a share of raster's presses, all points / within "
+          f"{NEAR_BOUNDARY * 1e3:g} mm of a wall:")
+    print(f"  {'policy':12} " + " ".join(f"{q:>13}" for q in shares))
+    for p in policies:
+        mine = [r["calibration"] for r in part if r["policy"] == p]
+        cells = []
+        for q in shares:
+            got = [c[q] for c in mine if q in c]
+            cells.append(f"{pooled_ece([g['all'] for g in got]):.3f} / {pooled_ece([g['near'] for g in got]):.3f}"
+                         if got else "-")
+        print(f"  {p:12} " + " ".join(f"{c:>13}" for c in cells))
+
+
 def report(rows: list[dict], policies: tuple[str, ...]) -> None:
     for split in ("tuning", "report"):
         part = [r for r in rows if r["split"] == split]
@@ -226,6 +284,8 @@ def report(rows: list[dict], policies: tuple[str, ...]) -> None:
         report_paired(part, policies)
         if all("stays" in r for r in part):
             report_stays(part, policies)
+        if all("calibration" in r for r in part):
+            report_calibration(part, policies)
         fams = sorted({r["family"] for r in part})
         print(f"per family, median ratio: {'family':10} " + " ".join(f"{p:>11}" for p in policies))
         for f in fams:
@@ -244,6 +304,8 @@ def main() -> None:
     parser.add_argument("--share", type=float, default=1.0, help="end runs after this share of raster's presses")
     parser.add_argument("--stays", action="store_true", help="also score the press from which the fine map stays "
                         "at the target (rebuilds the fine map after every press)")
+    parser.add_argument("--calibration", action="store_true", help="also keep the fine map's reliability bins "
+                        "after 0.1, 0.25, 0.5 and all of raster's presses and print its pooled ECE")
     parser.add_argument("--jobs", type=int, default=1, help="scenes run at once, one process each (default 1)")
     parser.add_argument("--json", default=None, help="write every row to this JSON file")
     parser.add_argument("--from-json", nargs="+", default=None, metavar="PATH",
@@ -262,8 +324,8 @@ def main() -> None:
     pool = ProcessPoolExecutor(args.jobs, initializer=register_tuned, initargs=(settings,)) if args.jobs > 1 else None
     try:
         scenes = pool.map(scene_rows, seeds, [policies] * len(seeds), [args.share] * len(seeds),
-                          [args.stays] * len(seeds)) if pool else (
-            scene_rows(seed, policies, args.share, args.stays) for seed in seeds)
+                          [args.stays] * len(seeds), [args.calibration] * len(seeds)) if pool else (
+            scene_rows(seed, policies, args.share, args.stays, args.calibration) for seed in seeds)
         for got in scenes:  # in seed order either way
             rows.extend(got)
             print(f"scene {got[0]['seed']} ({got[0]['family']}, {got[0]['cells']} cells): " + ", ".join(

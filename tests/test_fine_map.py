@@ -9,7 +9,7 @@ import pytest
 from palpate.core.boundary.moduli import MaterialModuli, material_moduli
 from palpate.core.boundary.reading import NoiseModel, read_boundary
 from palpate.core.errors import ValidationError
-from palpate.core.mapping.fine import REACH, REACH_MAX, fine_map, reading_reach
+from palpate.core.mapping.fine import REACH, REACH_MAX, fine_map, reading_reach, unseen_walls
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.session.boundaries import shipped_templates
 
@@ -93,6 +93,9 @@ def test_bad_maps_are_refused():
     for lo, hi, k in ((0.006, 0.005, 0.6), (0.006, np.inf, 0.6), (0.006, 0.009, -1.0), (0.006, 0.009, np.nan)):
         with pytest.raises(ValidationError, match="reach_max"):
             fine_map(geometry, np.full((2, 3, 2), 0.5), [], reach=lo, reach_max=hi, spacing=k)
+    for spread, start in ((-0.5, 0.006), (np.inf, 0.006), (1.0, -0.001), (1.0, np.nan)):
+        with pytest.raises(ValidationError, match="wall_spread"):
+            fine_map(geometry, np.full((2, 3, 2), 0.5), [], wall_spread=spread, wall_spread_from=start)
     voxel = MapGeometry("voxel", ("a", "b"), (0.0, 0.0), 0.01, (3, 2, 2), z_top=0.03)
     with pytest.raises(ValidationError, match="2-D"):
         fine_map(voxel, np.full((2, 3, 2), 0.5), [])
@@ -148,7 +151,7 @@ def test_the_temperature_sharpens_each_point_without_moving_its_label(templates)
     wall_at = 0.021
     img = _image(templates, soft, wall_at, 0.018, hard / soft)
     readings = [((0.018, 0.01), read_boundary(img, DEPTH, templates, NOISE))]
-    plain, sharp = (fine_map(geometry, probs, readings, temperature=t) for t in (1.0, 0.5))
+    plain, sharp = (fine_map(geometry, probs, readings, temperature=t, wall_spread=0.0) for t in (1.0, 0.5))
     assert np.array_equal(plain.labels(), sharp.labels())
     # at temperature 1/2 each point is its mixture squared and renormalised; a point's largest share only grows
     squared = plain.probabilities**2 / np.sum(plain.probabilities**2, axis=-1, keepdims=True)
@@ -161,7 +164,9 @@ def test_the_temperature_sharpens_each_point_without_moving_its_label(templates)
     np.testing.assert_allclose(extreme.probabilities.sum(axis=-1), 1.0)
 
 
-def test_a_point_no_press_reaches_takes_its_nearest_press_material(templates):
+def _two_presses(templates):
+    """An 80 mm strip of 10 mm cells the cell map knows only at its ends, pressed there: soft at 5 mm, hard at 75 mm:
+    (geometry, cell probabilities, readings, moduli)."""
     soft, hard = 20e3, 120e3
     geometry = MapGeometry("grid2d", ("soft", "hard"), (0.0, 0.0), 0.01, (8, 1))
     probs = np.full((1, 8, 2), 0.5)  # the cell map knows nothing yet
@@ -170,6 +175,11 @@ def test_a_point_no_press_reaches_takes_its_nearest_press_material(templates):
                 ((0.075, 0.005), read_boundary(_image(templates, hard, None, 0, 1), DEPTH, templates, NOISE))]
     moduli = material_moduli({name: [read_boundary(_image(templates, e, None, 0, 1), DEPTH, templates, NOISE)]
                               for name, e in (("soft", soft), ("hard", hard))})
+    return geometry, probs, readings, moduli
+
+
+def test_a_point_no_press_reaches_takes_its_nearest_press_material(templates):
+    geometry, probs, readings, moduli = _two_presses(templates)
     near_only, with_far = (fine_map(geometry, probs, readings, moduli=moduli, far_weight=w) for w in (0.0, 0.05))
     x = with_far.centres()[0, :, 0]
     # 30-50 mm from both presses: beyond their reach, the nearest one decides, with little confidence
@@ -184,3 +194,30 @@ def test_a_point_no_press_reaches_takes_its_nearest_press_material(templates):
     assert np.all(with_far.probabilities[0, beside, 0] > fixed.probabilities[0, beside, 0] + 0.02)
     # near the presses the far term changes nothing visible
     assert np.array_equal(near_only.labels()[0, x < 0.015], with_far.labels()[0, x < 0.015])
+
+
+def test_a_wall_drawn_far_from_every_press_is_placed_only_roughly(templates):
+    geometry, probs, readings, moduli = _two_presses(templates)
+    sure, rough = (fine_map(geometry, probs, readings, moduli=moduli, wall_spread=w) for w in (0.0, 1.0))
+    x = rough.centres()[0, :, 0]
+    assert np.array_equal(sure.labels(), rough.labels())
+    # the map draws the wall midway, 35 mm from both presses: beside it a point is nearly undecided
+    beside = np.abs(x - 0.040) < 0.0015
+    assert np.all(rough.labels()[0, x < 0.039] == 0) and np.all(rough.labels()[0, x > 0.041] == 1)
+    assert np.all(rough.probabilities[0, beside].max(axis=-1) < 0.55)
+    assert np.all(sure.probabilities[0, beside].max(axis=-1) > rough.probabilities[0, beside].max(axis=-1) + 0.05)
+    # a point b from the drawn wall, d from its nearest press swaps sides with probability Phi(-b / (d - 7 mm))
+    from scipy.special import ndtr
+
+    wall = x[np.argmax(rough.labels()[0] == 1)] - 0.0005  # where the labels change
+    k = int(np.argmin(np.abs(x - 0.0305)))  # about 10 mm left of the wall, 25.5 mm right of the soft press
+    d = np.hypot(x[k] - 0.005, rough.centres()[0, k, 1] - 0.005)
+    f = ndtr(-(wall - x[k]) / (d - 0.007))
+    p1, p2 = sure.probabilities[0, k].max(), sure.probabilities[0, k].min()
+    assert rough.probabilities[0, k].max() == pytest.approx((1 - f) * p1 + f * p2, rel=1e-9)
+    # within 7 mm of a press the readings place walls themselves: nothing changes there
+    close = np.min(np.abs(x[:, None] - np.array([0.005, 0.075])), axis=1) <= 0.007
+    np.testing.assert_array_equal(rough.probabilities[0, close], sure.probabilities[0, close])
+    # a map of one material has no wall to misplace
+    one = np.full((1, 8, 2), [0.9, 0.1])
+    np.testing.assert_array_equal(unseen_walls(one, rough.centres(), np.array([[0.005, 0.005]]), 1e-3), one)

@@ -14,8 +14,10 @@ material gives way to a harder one. Each fine point's distribution mixes:
 - its nearest press's reading as above, with a small weight however far: where no press reaches and the
   cell map knows nothing (a uniform cell beyond eq. 6.15's neighbours), the nearest press decides the point.
 
-The mixture is then sharpened by a temperature (calibrated: the mixture alone is under-confident). The cell map
-itself (the seed's grid and eq. 6.15) is unchanged; this layer is computed from it.
+The mixture is then sharpened by a temperature (the mixture alone is under-confident), and where the map draws a
+wall far from every press, the wall's place is known only roughly: a point beside such a wall may lie on its other
+side (see :func:`unseen_walls`). The cell map itself (the seed's grid and eq. 6.15) is unchanged; this layer is
+computed from it.
 """
 
 from __future__ import annotations
@@ -50,11 +52,18 @@ REACH_MAX = 9e-3
 #: 0 -> 1 mm, ECE near a wall 0.045 -> 0.108).
 SPACING = 0.6
 #: Temperature of the mixed distributions (below 1: sharper). A mixture of the cell map's and the readings'
-#: distributions is under-confident (points it calls 0.75 are right 0.92 of the time); chosen, with FAR_WEIGHT, on
-#: raster's physics maps of tuning scenes 0-17 (benchmarks/fine_map_families.py) as the grid point 0.70-0.84 with the
-#: lowest worse of the pooled ECE over all points and within 5 mm of a boundary. It never changes a point's most
-#: probable material.
-TEMPERATURE = 0.82
+#: distributions is under-confident (points it calls 0.75 are right 0.92 of the time). Chosen with WALL_SPREAD and
+#: WALL_SPREAD_FROM on the boundary policy's and raster's maps of tuning scenes 0-23 after 0.1, 0.25, 0.5 and all of
+#: raster's presses (benchmarks/exploration_fine.py --calibration): of the grid 0.6-0.75 x 1.0-1.6 x 5-7 mm, the
+#: triple whose pooled ECE stays <= 0.05 over all points at every share and within 5 mm of a wall on the full maps,
+#: with the lowest worst ECE within 5 mm of a wall on the sparse ones. It never changes a point's most probable
+#: material.
+TEMPERATURE = 0.65
+#: How far a wall the map draws may lie from where it is drawn, per metre that its points lie beyond
+#: WALL_SPREAD_FROM from every press (midway between presses 30 mm apart, a wall is placed to within 9 mm).
+WALL_SPREAD = 1.0
+#: Distance from the nearest press within which the readings place walls themselves, m (about their reach).
+WALL_SPREAD_FROM = 7e-3
 #: Weight of a point's nearest press's reading, however far, against CELL_WEIGHT (see :func:`fine_map`): of 0.003-1,
 #: the one with the most area right after a tenth of raster's presses (boundary policy, tuning scenes 0-17: median
 #: 0.76 -> 0.86) among those that keep the area right after a full raster.
@@ -146,7 +155,8 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
              BoundaryReading]], *, resolution: float = RESOLUTION, reach: float = REACH,
              cell_weight: float = CELL_WEIGHT, clear: float = REACH, moduli: MaterialModuli | None = None,
              cutoff: float | None = CUTOFF, temperature: float = TEMPERATURE,
-             far_weight: float = FAR_WEIGHT, reach_max: float = REACH_MAX, spacing: float = SPACING) -> FineMap:
+             far_weight: float = FAR_WEIGHT, reach_max: float = REACH_MAX, spacing: float = SPACING,
+             wall_spread: float = WALL_SPREAD, wall_spread_from: float = WALL_SPREAD_FROM) -> FineMap:
     """The fine map of a 2-D cell map (see the module docstring).
 
     Args:
@@ -164,6 +174,8 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
             reach then keeps its cell's distribution).
         temperature: each point's distribution is raised to 1 / temperature and renormalised (1: the mixture as it
             is; below 1 sharper); the most probable material stays.
+        wall_spread, wall_spread_from: see :func:`unseen_walls` (m per m, m); wall_spread 0: the sharpened mixture
+            as it is.
 
     Raises:
         ValidationError: a voxel geometry, probabilities of another shape, or a resolution that is not a positive
@@ -176,9 +188,11 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     if probs.shape[:2] != (ny, nx) or probs.ndim != 3:
         raise ValidationError(f"fine_map: probabilities must be ({ny}, {nx}, M), got {probs.shape}")
     if not (0 < resolution <= geometry.cell_size and reach > 0 and cell_weight > 0 and 0 < temperature < np.inf
-            and 0 <= far_weight < np.inf and reach <= reach_max < np.inf and 0 <= spacing < np.inf):
+            and 0 <= far_weight < np.inf and reach <= reach_max < np.inf and 0 <= spacing < np.inf
+            and 0 <= wall_spread < np.inf and 0 <= wall_spread_from < np.inf):
         raise ValidationError("fine_map: resolution must be in (0, cell size], reach, cell_weight and temperature "
-                              "> 0 and finite, far_weight, spacing >= 0 and finite, reach_max in [reach, inf)")
+                              "> 0 and finite, far_weight, spacing, wall_spread and wall_spread_from >= 0 and finite, "
+                              "reach_max in [reach, inf)")
     n = int(round(geometry.cell_size / resolution))
     out = FineMap(geometry.origin, geometry.cell_size / n, np.zeros((ny * n, nx * n, probs.shape[2])),
                   geometry.materials)
@@ -230,7 +244,54 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         # scaled by each point's largest first: no underflow to 0/0 however sharp
         mixed = np.power(mixed / mixed.max(axis=-1, keepdims=True), 1.0 / temperature)
         mixed /= mixed.sum(axis=-1, keepdims=True)
+    if wall_spread > 0 and readings:
+        mixed = unseen_walls(mixed, pts, np.array([xy for xy, _ in readings], dtype=float), res, wall_spread,
+                             wall_spread_from)
     return FineMap(out.origin, out.resolution, mixed, out.materials)
+
+
+def unseen_walls(probabilities: np.ndarray, points: np.ndarray, presses: np.ndarray, resolution: float,
+                 spread: float = WALL_SPREAD, spread_from: float = WALL_SPREAD_FROM) -> np.ndarray:
+    """A fine map's distributions with the uncertainty of walls drawn far from every press.
+
+    Within about a contact radius of a press its reading places a wall; farther out the map draws walls where cells
+    change material, and such a wall may lie anywhere within about the distance to the nearest press. A point at
+    distance b from the map's nearest drawn wall and d from the nearest press lies on the wall's other side with
+    probability Phi(-b / sigma), sigma = ``spread`` * max(0, d - ``spread_from``); its two most probable materials
+    swap with that probability (a point exactly on a drawn wall far from every press is undecided between its
+    sides). Points within ``spread_from`` of a press keep their distribution.
+
+    Args:
+        probabilities: (ny, nx, M) distributions on a raster of square points ``resolution`` m a side.
+        points: (ny, nx, 2) the points' centres, m.
+        presses: (K, 2) press locations, m (K >= 1).
+        spread: m of a wall's place per m of distance beyond ``spread_from``; spread_from: m.
+
+    Returns:
+        The new (ny, nx, M) distributions (the input is not changed).
+    """
+    p = np.asarray(probabilities, dtype=float)
+    if p.shape[-1] < 2:
+        return p
+    labels = np.argmax(p, axis=-1)
+    # the points on both sides of every drawn wall
+    drawn = edges(labels)
+    drawn[:, :-1] |= labels[:, :-1] != labels[:, 1:]
+    drawn[:-1, :] |= labels[:-1, :] != labels[1:, :]
+    if not drawn.any():  # one material everywhere: no wall to misplace
+        return p.copy()
+    d, _ = cKDTree(np.asarray(presses, dtype=float)).query(points.reshape(-1, 2))
+    sigma = spread * np.maximum(0.0, d.reshape(p.shape[:2]) - spread_from)
+    # distance from a point's centre to the drawn wall: to the centre of the nearest point beside it, plus half a point
+    b = distance_transform_edt(~drawn) * resolution + 0.5 * resolution
+    swap = np.where(sigma > 0, ndtr(-b / np.where(sigma > 0, sigma, 1.0)), 0.0)[..., None]
+    order = np.argsort(p, axis=-1)
+    top, second = order[..., -1:], order[..., -2:-1]
+    p_top, p_second = np.take_along_axis(p, top, -1), np.take_along_axis(p, second, -1)
+    out = p.copy()
+    np.put_along_axis(out, top, (1 - swap) * p_top + swap * p_second, -1)
+    np.put_along_axis(out, second, (1 - swap) * p_second + swap * p_top, -1)
+    return out
 
 
 def reading_reach(geometry: MapGeometry, readings, reach: float = REACH, reach_max: float = REACH_MAX,

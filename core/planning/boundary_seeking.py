@@ -115,7 +115,8 @@ class BoundarySeeking:
         reach = reading_reach(self.geometry, self._readings, self.reach, max(self.reach, REACH_MAX))
         # the plain mixture, as the planner's weights were chosen on it (the calibrated sharpening is for reports)
         fine = fine_map(self.geometry, post.probabilities, self._readings, resolution=self.resolution,
-                        reach=reach, reach_max=reach, moduli=self.moduli, temperature=1.0, far_weight=self.far_weight)
+                        reach=reach, reach_max=reach, moduli=self.moduli, temperature=1.0, far_weight=self.far_weight,
+                        wall_spread=0.0)
         wrong = self.expected_errors(fine)
         res = fine.resolution
         n = int(round(self.geometry.cell_size / res))
