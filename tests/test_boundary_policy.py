@@ -15,6 +15,7 @@ from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.mapping.grids import Grid2D
 from palpate.core.perception.memory import HapticMemory
 from palpate.core.planning.boundary_seeking import BoundarySeeking
+from palpate.core.planning.map_views import postprocess
 from palpate.core.planning.policies import Target
 from palpate.core.planning.registry import make_policy
 from palpate.core.session.boundaries import shipped_templates
@@ -74,6 +75,30 @@ def test_it_presses_the_wall_between_two_cell_centres_then_not_there_again(templ
     policy.observe((x, y), _reading(templates, x))
     nxt = policy.next_target(grid)
     assert np.hypot(nxt.xy[0] - x, nxt.xy[1] - y) > 3e-3
+
+
+def test_it_expects_errors_beside_a_wall_drawn_far_from_every_press(templates, memory):
+    # an 8 x 1 strip of 10 mm cells pressed at its two ends only, soft at 5 mm and hard at 75 mm: the map draws the
+    # wall between them where nothing was felt, and a wall drawn there may lie anywhere near
+    geometry = MapGeometry("grid2d", ("soft", "hard"), (0.0, 0.0), 0.01, (8, 1))
+    grid = Grid2D(["soft", "hard"], (8, 1), cell_size=0.01)
+    grid.update_cell(0, 0, np.array([0.9, 0.1]))
+    grid.update_cell(7, 0, np.array([0.1, 0.9]))
+    refs = {name: [read_boundary(_image(templates, e, None, 0, 1), DEPTH, templates, NOISE)]
+            for name, e in (("soft", SOFT), ("hard", HARD))}
+    errors = {}
+    for spread in (0.0, 1.0):
+        policy = BoundarySeeking(memory, geometry, material_moduli(refs), wall_spread=spread)
+        for x0, e in ((0.005, SOFT), (0.075, HARD)):
+            policy.observe((x0, 0.005), read_boundary(_image(templates, e, None, 0, 1), DEPTH, templates, NOISE))
+        errors[spread], fine, pts = policy.point_scores(grid, postprocess(grid, 1, 1.0, False))
+    x = pts[0, :, 0]
+    wall = x[np.argmax(fine.labels()[0] == 1)]
+    beside = np.abs(x - wall) < 0.005
+    assert np.all(errors[1.0][:, beside] > errors[0.0][:, beside])
+    # the press that would settle most is beside the drawn wall, not beside a press
+    assert abs(x[np.argmax(errors[1.0][0])] - wall) < 0.01
+    np.testing.assert_allclose(errors[1.0][:, x < 0.002], errors[0.0][:, x < 0.002], rtol=0.05)
 
 
 def test_it_starts_with_info_gains_lattice_at_cell_centres(memory):
