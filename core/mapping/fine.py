@@ -254,12 +254,13 @@ def unseen_walls(probabilities: np.ndarray, points: np.ndarray, presses: np.ndar
                  spread: float = WALL_SPREAD, spread_from: float = WALL_SPREAD_FROM) -> np.ndarray:
     """A fine map's distributions with the uncertainty of walls drawn far from every press.
 
-    Within about a contact radius of a press its reading places a wall; farther out the map draws walls where cells
+    Near a press (within ``spread_from``) its reading places a wall; farther out the map draws walls where cells
     change material, and such a wall may lie anywhere within about the distance to the nearest press. A point at
     distance b from the map's nearest drawn wall and d from the nearest press lies on the wall's other side with
     probability Phi(-b / sigma), sigma = ``spread`` * max(0, d - ``spread_from``); its two most probable materials
-    swap with that probability (a point exactly on a drawn wall far from every press is undecided between its
-    sides). Points within ``spread_from`` of a press keep their distribution.
+    swap with that probability (a point beside a drawn wall far from every press is nearly undecided between its
+    sides; none changes its most probable material). Points within ``spread_from`` of a press keep their
+    distribution.
 
     Args:
         probabilities: (ny, nx, M) distributions on a raster of square points ``resolution`` m a side.
@@ -272,7 +273,7 @@ def unseen_walls(probabilities: np.ndarray, points: np.ndarray, presses: np.ndar
     """
     p = np.asarray(probabilities, dtype=float)
     if p.shape[-1] < 2:
-        return p
+        return p.copy()
     labels = np.argmax(p, axis=-1)
     # the points on both sides of every drawn wall
     drawn = edges(labels)
