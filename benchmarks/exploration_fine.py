@@ -40,14 +40,13 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 from fine_map_families import trained_scene
 from scene_families import is_report_seed
-from scipy.ndimage import distance_transform_edt
 
 from palpate.api import register_policy
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
-from palpate.core.mapping.fine import edges, fine_map
+from palpate.core.mapping.fine import fine_map
 from palpate.core.mapping.grids import new_map
 from palpate.core.planning.boundary_seeking import BoundarySeeking
-from palpate.core.session.boundaries import NEAR_BOUNDARY, fine_truth, training_moduli
+from palpate.core.session.boundaries import NEAR_BOUNDARY, fine_truth, near_boundaries, training_moduli
 from palpate.core.session.explore import MapPostprocessing, apply_press, explore_object
 from palpate.core.session.progress import Progress
 from palpate.core.world.workspace import object_geometry
@@ -95,7 +94,7 @@ def reliability_bins(fine, truth: np.ndarray) -> dict:
     """Per region ("all" known points, "near": within NEAR_BOUNDARY of a true wall), the count, summed confidence
     and right count of the fine map's decided points in each of BINS equal confidence bins (pooled ECE adds them)."""
     known = truth >= 0
-    near = known & (distance_transform_edt(~edges(truth)) * fine.resolution <= NEAR_BOUNDARY)
+    near = known & near_boundaries(truth, fine.resolution)
     out = {}
     for where, mask in (("all", known), ("near", near)):
         t = reliability_table(*calibration_sample(fine.probabilities[mask], truth[mask])[:2], bins=BINS)

@@ -16,11 +16,9 @@ import time
 import numpy as np
 from exploration import make_source_for
 from scene_families import FAMILIES, is_report_seed, make_scene
-from scipy.ndimage import distance_transform_edt
 
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
-from palpate.core.mapping.fine import edges
-from palpate.core.session.boundaries import NEAR_BOUNDARY, boundary_reader, object_fine_map, training_moduli
+from palpate.core.session.boundaries import boundary_reader, near_boundaries, object_fine_map, training_moduli
 from palpate.core.session.explore import explore_object
 from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory
@@ -48,7 +46,7 @@ def scene_row(seed: int) -> dict:
     fine = object_fine_map(res, sc.objects[0], sc, training_moduli(training.readings))
     s = fine.summary
     known = fine.truth >= 0
-    near = known & (distance_transform_edt(~edges(fine.truth)) * fine.fine.resolution <= NEAR_BOUNDARY)
+    near = known & near_boundaries(fine.truth, fine.fine.resolution)
     samples = {where: calibration_sample(fine.fine.probabilities[m], fine.truth[m])[:2]
                for where, m in (("all", known), ("near", near))}
     return {"samples": samples, "seed": seed, "family": fs.family, "cells": len(res.steps), "walls": s["walls_read"],

@@ -274,11 +274,7 @@ def unseen_walls(probabilities: np.ndarray, points: np.ndarray, presses: np.ndar
     p = np.asarray(probabilities, dtype=float)
     if p.shape[-1] < 2:
         return p.copy()
-    labels = np.argmax(p, axis=-1)
-    # the points on both sides of every drawn wall
-    drawn = edges(labels)
-    drawn[:, :-1] |= labels[:, :-1] != labels[:, 1:]
-    drawn[:-1, :] |= labels[:-1, :] != labels[1:, :]
+    drawn = edges(np.argmax(p, axis=-1), both_sides=True)
     if not drawn.any():  # one material everywhere: no wall to misplace
         return p.copy()
     d, _ = cKDTree(np.asarray(presses, dtype=float)).query(points.reshape(-1, 2))
@@ -320,11 +316,15 @@ def _reading_field(r: BoundaryReading, own: np.ndarray, hard: np.ndarray, soft: 
     return p_wall * (q * hard + (1 - q) * soft) + (1 - p_wall) * own
 
 
-def edges(labels: np.ndarray) -> np.ndarray:
-    """Points of a label raster whose label differs from the point before them along x or y."""
+def edges(labels: np.ndarray, both_sides: bool = False) -> np.ndarray:
+    """Points of a label raster whose label differs from the point before them along x or y (``both_sides``: or
+    from the point after them, so both sides of every boundary are marked)."""
     e = np.zeros(labels.shape, dtype=bool)
     e[:, 1:] |= labels[:, 1:] != labels[:, :-1]
     e[1:, :] |= labels[1:, :] != labels[:-1, :]
+    if both_sides:
+        e[:, :-1] |= labels[:, :-1] != labels[:, 1:]
+        e[:-1, :] |= labels[:-1, :] != labels[1:, :]
     return e
 
 

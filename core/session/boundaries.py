@@ -189,11 +189,17 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
     return FineResult(fine, summary, truth)
 
 
+def near_boundaries(truth: np.ndarray, resolution: float) -> np.ndarray:
+    """Points of a material raster (``resolution`` m a point) within NEAR_BOUNDARY of a boundary between two of its
+    labels, (ny, nx) bool."""
+    return distance_transform_edt(~edges(truth)) * resolution <= NEAR_BOUNDARY
+
+
 def fine_calibration(fine: FineMap, truth: np.ndarray, mask: np.ndarray) -> dict[str, float]:
     """Expected calibration error of the fine map's most probable material against ``truth`` (material index per
     point) over the points of ``mask``: "all" of them and "near_boundary", those within NEAR_BOUNDARY of a true
     boundary (where the cell map cannot be sure); a key is left out where it has no point."""
-    near = distance_transform_edt(~edges(truth)) * fine.resolution <= NEAR_BOUNDARY
+    near = near_boundaries(truth, fine.resolution)
     return {where: reliability_table(*calibration_sample(fine.probabilities[m], truth[m])[:2]).ece
             for where, m in (("all", mask), ("near_boundary", mask & near)) if m.any()}
 
