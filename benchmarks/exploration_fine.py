@@ -44,7 +44,7 @@ from fine_map_families import trained_scene
 from scene_families import is_report_seed
 
 from palpate.api import register_policy
-from palpate.core.mapping.calibration import calibration_sample, reliability_table
+from palpate.core.mapping.calibration import binned_calibration, calibration_sample, reliability_table
 from palpate.core.mapping.fine import fine_map
 from palpate.core.mapping.grids import new_map
 from palpate.core.planning.boundary_seeking import BoundarySeeking
@@ -109,8 +109,7 @@ def reliability_bins(fine, truth: np.ndarray) -> dict:
 
 def pooled_ece(bins: list) -> float:
     """The ECE of reliability bins summed over scenes (a list of [count, confidence sum, right sum] triples)."""
-    count, conf, right = (np.sum([np.asarray(b[i], dtype=float) for b in bins], axis=0) for i in range(3))
-    return float(np.sum(np.abs(right - conf)) / max(count.sum(), 1.0))
+    return binned_calibration(*(np.sum([np.asarray(b[i], dtype=float) for b in bins], axis=0) for i in range(3)))[2]
 
 
 def fine_curve(sc, res, memory, moduli, truth, keep: set[int] = frozenset(),

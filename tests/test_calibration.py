@@ -12,6 +12,7 @@ from palpate.core.mapping.calibration import (
     DEFAULT_CALIBRATION,
     SEED_CALIBRATION,
     MapCalibration,
+    binned_calibration,
     calibration_sample,
     press_evidence,
     reliability_table,
@@ -171,3 +172,19 @@ def test_scenario_calibration_keys_default_to_calibrated_and_are_validated():
     raw["exploration"]["press_temperature"] = 1.2
     with pytest.raises(ValidationError, match="exploration.press_temperature: must be <= 1.0"):
         parse_scenario(raw, "c.toml")
+
+
+def test_bins_summed_over_samples_give_the_ece_of_the_samples_pooled():
+    rng = np.random.default_rng(5)
+    samples = [(rng.uniform(0.3, 1.0, n), rng.random(n) < 0.8) for n in (40, 300, 7)]
+    tables = [reliability_table(c, r) for c, r in samples]
+    count = sum(t.count for t in tables)
+    conf_sum = sum(t.count * t.confidence for t in tables)
+    right_sum = sum(t.count * t.accuracy for t in tables)
+    pooled = reliability_table(np.concatenate([c for c, _ in samples]), np.concatenate([r for _, r in samples]))
+    mean_conf, acc, ece = binned_calibration(count, conf_sum, right_sum)
+    np.testing.assert_allclose(mean_conf, pooled.confidence, rtol=1e-12)
+    np.testing.assert_allclose(acc, pooled.accuracy, rtol=1e-12)
+    assert ece == pytest.approx(pooled.ece, rel=1e-12)
+    assert ece != pytest.approx(np.mean([t.ece for t in tables]), rel=1e-3)  # not the mean of the samples' ECEs
+    assert binned_calibration(np.zeros(10), np.zeros(10), np.zeros(10))[2] == 0.0

@@ -225,9 +225,17 @@ def reliability_table(confidence, right, *, bins: int = 10, undecided: int = 0) 
     count = np.bincount(which, minlength=bins)
     conf_sum = np.bincount(which, weights=conf, minlength=bins)
     right_sum = np.bincount(which, weights=ok.astype(float), minlength=bins)
+    mean_conf, acc, ece = binned_calibration(count, conf_sum, right_sum)
+    return ReliabilityTable(edges, count, mean_conf, acc, ece, int(count.sum()), int(undecided))
+
+
+def binned_calibration(count, conf_sum, right_sum) -> tuple[np.ndarray, np.ndarray, float]:
+    """(mean confidence, accuracy, ECE) of reliability bins given per bin its count, summed confidence and number
+    right (0 where a bin is empty; ECE 0 with no count). Bins of several samples summed bin by bin pool them."""
+    count = np.asarray(count)
+    conf_sum, right_sum = np.asarray(conf_sum, dtype=float), np.asarray(right_sum, dtype=float)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_conf = np.where(count > 0, conf_sum / np.maximum(count, 1), 0.0)
         acc = np.where(count > 0, right_sum / np.maximum(count, 1), 0.0)
-    total = int(count.sum())
-    ece = float(np.sum(count * np.abs(acc - mean_conf)) / total) if total else 0.0
-    return ReliabilityTable(edges, count, mean_conf, acc, ece, total, int(undecided))
+    total = count.sum()
+    return mean_conf, acc, float(np.sum(count * np.abs(acc - mean_conf)) / total) if total else 0.0
