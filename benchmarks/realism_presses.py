@@ -1,13 +1,17 @@
-"""Per-press anatomy of scenarios/thesis_ch6.toml's training presses: what sets each material's cutaneous a1.
+"""Per-press anatomy of scenarios/thesis_ch6.toml's training presses: what sets each material's cutaneous a1 and a2.
 
 For each seed and reference material, every training press with its peak force (N), the object's indentation d and
 the pulp's compression delta at their deepest (mm), the press's factor on the pulp's stiffness, the perceived
 indentation c_D (mm) and contact area c_A (mm^2), the peak intensity c_P (counts), the active and saturated sensels
-of the peak frame, the fit's n1, n2 (counts: its sign is the realism targets' n2 < 0) and a1, and
-``a1 / (n1 (c_D / c_A)^1.5)``. When the patch covers the pad before the press ends, both fits end at the same c_P,
-so a1 / n1 is (c_D / c_A)^1.5 at the deepest point whatever the pad's gain, non-linearity or saturation and the
-material's modulus: the last column stays near 1 and a1 follows n1 and where the press stops (docs/results.md,
-"Realism"). The last lines give per material the means over the seeds.
+of the peak frame, the fit's n1, n2 (counts: its sign is the realism targets' n2 < 0), a1 and a2, the perceived
+indentation at which the contact area stopped growing ("filled", mm), and ``a1 / (n1 (c_D / c_A)^1.5)``.
+
+When the patch covers the pad before the press ends, both fits end at the same c_P, so a1 / n1 is
+(c_D / c_A)^1.5 at the deepest point whatever the pad's gain, non-linearity or saturation and the material's
+modulus: the last column stays near 1 and a1 follows n1 and where the press stops (docs/results.md, "Realism").
+a2 says how early the pad filled: an area that stops growing well before the press ends while c_P keeps rising
+makes the cutaneous fit steep and a2 negative; seed 000's small a2 on the sponge and the rubber (13, 4) say their
+area grew to the end. The last lines give per material the means over the seeds.
 
     .venv/bin/python benchmarks/realism_presses.py [--seeds 101,102,103,104] [--scenario S.toml]
         [--profile NAME_OR_PATH] [--set KEY=VALUE ...] [--scenario-set training.depth_mm=1.8 ...] [--quiet]
@@ -33,8 +37,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from realism_targets import REPO, _pairs, with_scenario_values  # noqa: E402
 
 #: columns of one press's row (units in the module docstring)
-COLUMNS = ("force", "d", "delta", "pulp", "c_D", "c_A", "c_P", "active", "saturated", "n1", "n2", "a1",
-           "a1/identity")
+COLUMNS = ("force", "d", "delta", "pulp", "c_D", "c_A", "c_P", "active", "saturated", "n1", "n2", "a1", "a2",
+           "filled", "a1/identity")
 
 
 @dataclass(frozen=True)
@@ -70,11 +74,13 @@ def press_rows(scenario, profile, seed: int) -> dict[str, np.ndarray]:
             counts = np.array([f.counts for f in rec.frames], dtype=float)
             peak = counts[int(np.argmax(counts.sum(axis=(1, 2))))]
             c_d, c_a = res.press.depth * 1e3, float(np.max(res.press.c_A)) * 1e6
+            area = np.asarray(res.press.c_A, dtype=float)
+            filled = float(np.asarray(res.press.c_D, dtype=float)[int(np.argmax(area >= area.max()))]) * 1e3
             finger = rec.meta["physics"].get("finger", {})
             rows.append([float(np.max(rec.truth.force)), float(np.max(rec.truth.indentation)) * 1e3,
                          finger.get("max_compression_m", 0.0) * 1e3, finger.get("stiffness_scale", 1.0), c_d,
                          c_a, peak.sum(), (peak > 0).sum(), (peak >= 255).sum(), res.fit.n1, res.fit.n2, res.fit.a1,
-                         res.fit.a1 / (res.fit.n1 * (c_d / c_a) ** 1.5)])
+                         res.fit.a2, filled, res.fit.a1 / (res.fit.n1 * (c_d / c_a) ** 1.5)])
         out[name] = np.array(rows)
     return out
 
