@@ -13,13 +13,14 @@ trials that pass (truth) or fail (the others), with the trial count and a 95% Wi
 realism profile (seeds from 1001 on until S finished; a failed one is said and replaced: neither tuning, report nor
 main-job seeds) and judges the real table against them, printing per material the classifier accuracy, the energy
 distance and its rank, and the bands. ``--profile PATH`` judges that profile file (e.g. a candidate refit) the same
-way, on the same seeds, instead of the scenario's.
+way, on the same seeds, instead of the scenario's; ``--scenario`` a copy of thesis_ch6.toml with the candidate's
+moduli, pad or tracker (its profile, unless ``--profile`` names one, and its real table).
 
     .venv/bin/python benchmarks/realism_predictive.py [--trials 100] [--sessions 100] [--rng 0]
         [--truths "simulator,0.6x spread"]
     .venv/bin/python benchmarks/realism_predictive.py --shipped [--sessions 100] [--fidelity analytic]
         [--presses-csv CACHE.csv]
-    .venv/bin/python benchmarks/realism_predictive.py --profile CANDIDATE.toml [--sessions 100]
+    .venv/bin/python benchmarks/realism_predictive.py --profile CANDIDATE.toml [--scenario S.toml] [--sessions 100]
 
 ``--presses-csv`` keeps the simulated sessions (realism_targets.py's ``--write-presses`` format, with each seed's
 leave-one-out posteriors recomputed on reading) so a second judgement does not simulate again.
@@ -166,9 +167,10 @@ def read_sessions(path: Path, materials: Sequence[str]) -> list[PressTable]:
             for _, t in sorted(by_seed.items(), key=lambda kv: int(kv[0]))]
 
 
-def shipped(sessions: int, fidelity: str | None, cache: Path | None, profile_path: Path | None = None) -> None:
-    """Simulate ``sessions`` fresh seeds of thesis_ch6 with its profile (or the one at ``profile_path``) and judge
-    the real table against them."""
+def shipped(sessions: int, fidelity: str | None, cache: Path | None, profile_path: Path | None = None,
+            scenario_path: Path | None = None) -> None:
+    """Simulate ``sessions`` fresh seeds of thesis_ch6 (or the scenario at ``scenario_path``) with its profile (or
+    the one at ``profile_path``) and judge the real table against them."""
     from palpate.core.world.scenario_file import load_scenario
     from palpate.sim.realism.calibrate import simulate_seed
     from palpate.sim.realism.profile_file import resolve_profile
@@ -176,7 +178,7 @@ def shipped(sessions: int, fidelity: str | None, cache: Path | None, profile_pat
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from realism_targets import write_presses
 
-    scenario = load_scenario(REPO / "scenarios" / "thesis_ch6.toml")
+    scenario = load_scenario(scenario_path or REPO / "scenarios" / "thesis_ch6.toml")
     refs = list(scenario.references)
     real = table_from_csv(scenario.realism.real_params)
     fid = fidelity or scenario.fidelity
@@ -222,9 +224,10 @@ def main() -> int:
     ap.add_argument("--presses-csv", type=Path, help="read the sessions from (or write them to) this CSV")
     ap.add_argument("--profile", type=Path, help="judge this profile file instead of the scenario's (implies "
                     "--shipped)")
+    ap.add_argument("--scenario", type=Path, help="a copy of thesis_ch6.toml to simulate instead (implies --shipped)")
     args = ap.parse_args()
-    if args.shipped or args.profile:
-        shipped(args.sessions, args.fidelity, args.presses_csv, args.profile)
+    if args.shipped or args.profile or args.scenario:
+        shipped(args.sessions, args.fidelity, args.presses_csv, args.profile, args.scenario)
     else:
         truths = [t.strip() for t in args.truths.split(",")]
         if any(t not in TRUTHS for t in truths):
