@@ -9,7 +9,7 @@ import pytest
 from palpate.core.boundary.moduli import MaterialModuli, material_moduli
 from palpate.core.boundary.reading import NoiseModel, read_boundary
 from palpate.core.errors import ValidationError
-from palpate.core.mapping.fine import REACH, REACH_MAX, fine_map, reading_reach, unseen_walls
+from palpate.core.mapping.fine import ELONGATION, REACH, REACH_MAX, fine_map, reading_reach, unseen_walls
 from palpate.core.mapping.geometry import MapGeometry
 from palpate.core.session.boundaries import shipped_templates
 
@@ -221,3 +221,34 @@ def test_a_wall_drawn_far_from_every_press_is_placed_only_roughly(templates):
     # a map of one material has no wall to misplace
     one = np.full((1, 8, 2), [0.9, 0.1])
     np.testing.assert_array_equal(unseen_walls(one, rough.centres(), np.array([[0.005, 0.005]]), 1e-3), one)
+
+
+def test_a_read_wall_goes_on_past_its_press(templates):
+    """Along a wall one press read, beside it, that press outweighs one 10 mm off on the wall's far side that felt
+    one material for longer than if its reading reached the same way in every direction."""
+    soft, hard = 20e3, 120e3
+    geometry = MapGeometry("grid2d", ("soft", "hard"), (0.0, 0.0), 0.01, (6, 4))
+    probs = np.full((4, 6, 2), 0.5)  # the cell map knows nothing
+    wall_at = 0.023
+    moduli = material_moduli({name: [read_boundary(_image(templates, e, None, 0, 1), DEPTH, templates, NOISE)]
+                              for name, e in (("soft", soft), ("hard", hard))})
+    on_wall = read_boundary(_image(templates, soft, wall_at, 0.020, hard / soft), DEPTH, templates, NOISE)
+    plain = read_boundary(_image(templates, hard, None, 0.030, 1), DEPTH, templates, NOISE)
+    assert on_wall.p_plain < 0.1 and plain.p_plain > 0.9
+    readings = [((0.020, 0.005), on_wall), ((0.030, 0.025), plain)]
+    stretched, round_ = (fine_map(geometry, probs, readings, moduli=moduli, elongation=e) for e in (ELONGATION, 1.0))
+    column = int(0.0215 / stretched.resolution)  # 1.5 mm on the wall's soft side
+
+    def soft_until(fine):  # how far along the wall the soft side reaches, mm from the press
+        return int(np.argmax(fine.labels()[:, column] == 1)) - 5
+
+    assert soft_until(round_) >= 9  # a reach of 9 mm (two presses far apart)
+    assert soft_until(stretched) >= soft_until(round_) + 2
+    # across the wall, near the press that read it, both agree with the truth
+    x = stretched.centres()[5, :, 0]
+    across = (np.abs(x - wall_at) > 0.0015) & (x < 0.03)
+    assert np.array_equal(stretched.labels()[5, across], (x[across] > wall_at).astype(int))
+    assert np.array_equal(round_.labels()[5, across], stretched.labels()[5, across])
+    for e in (0.5, np.inf, np.nan):
+        with pytest.raises(ValidationError, match="elongation"):
+            fine_map(geometry, probs, readings, moduli=moduli, elongation=e)

@@ -56,9 +56,11 @@ SPACING = 0.6
 #: WALL_SPREAD_FROM on the boundary policy's and raster's maps of tuning scenes 0-23 after 0.1, 0.25, 0.5 and all of
 #: raster's presses (benchmarks/exploration_fine.py --calibration): of the grid 0.6-0.75 x 1.0-1.6 x 5-7 mm, the
 #: triple whose pooled ECE stays <= 0.05 over all points at every share and within 5 mm of a wall on the full maps,
-#: with the lowest worst ECE within 5 mm of a wall on the sparse ones. It never changes a point's most probable
-#: material.
-TEMPERATURE = 0.65
+#: with the lowest worst ECE within 5 mm of a wall on the sparse ones. With readings stretched along their walls
+#: (ELONGATION) the mixture beside walls is less sharp: of 0.5-0.65 on the boundary policy's maps of tuning scenes 0-89,
+#: the one with the lowest worst ECE on the sparse maps whose full maps stay within 0.04 near walls (0.65: 0.049). It
+#: never changes a point's most probable material.
+TEMPERATURE = 0.6
 #: How far a wall the map draws may lie from where it is drawn, per metre that its points lie beyond
 #: WALL_SPREAD_FROM from every press (midway between presses 30 mm apart, a wall is placed to within 9 mm).
 WALL_SPREAD = 1.0
@@ -68,6 +70,12 @@ WALL_SPREAD_FROM = 7e-3
 #: the one with the most area right after a tenth of raster's presses (boundary policy, tuning scenes 0-17: median
 #: 0.76 -> 0.86) among those that keep the area right after a full raster.
 FAR_WEIGHT = 0.05
+#: How far a reading that read a wall reaches along that wall, in reaches (across it, one reach): a wall goes on
+#: past the contact patch, so beside it the press that felt it outweighs a farther press that felt one material.
+#: Where the wall is curved the side's probability widens with the reading's angle spread (:func:`_reading_field`).
+#: Chosen on the boundary policy's exploration of tuning scenes 0-89 (benchmarks/exploration_fine.py) among 1, 1.5,
+#: 2 and 3.
+ELONGATION = 1.5
 #: Points farther than this many reaches from a press take nothing from its reading (weight below 1.4e-11): a
 #: reading costs the same on any size of map.
 CUTOFF = 5.0
@@ -156,7 +164,8 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
              cell_weight: float = CELL_WEIGHT, clear: float = REACH, moduli: MaterialModuli | None = None,
              cutoff: float | None = CUTOFF, temperature: float = TEMPERATURE,
              far_weight: float = FAR_WEIGHT, reach_max: float = REACH_MAX, spacing: float = SPACING,
-             wall_spread: float = WALL_SPREAD, wall_spread_from: float = WALL_SPREAD_FROM) -> FineMap:
+             wall_spread: float = WALL_SPREAD, wall_spread_from: float = WALL_SPREAD_FROM,
+             elongation: float = ELONGATION) -> FineMap:
     """The fine map of a 2-D cell map (see the module docstring).
 
     Args:
@@ -169,7 +178,10 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
             when given, each side of a read wall is the material its read modulus matches, not a neighbour cell's.
         reach, reach_max, spacing: the distance scale of the readings' weights, m: ``spacing`` times the presses'
             mean spacing (:func:`reading_reach`), clipped to [reach, reach_max]; reach_max = reach: that one scale.
-        cutoff: a reading reaches points within this many ``reach`` of its press (None: every point).
+        cutoff: a reading reaches points within this many ``reach`` (along a read wall, ``elongation`` times that)
+            of its press (None: every point).
+        elongation: a reading's reach along the wall it read over its reach across it, >= 1 (1: the same every
+            way); it applies in proportion to the reading's probability of a wall.
         far_weight: weight of each point's nearest reading, however far (0: none; a point out of every reading's
             reach then keeps its cell's distribution).
         temperature: each point's distribution is raised to 1 / temperature and renormalised (1: the mixture as it
@@ -189,10 +201,10 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         raise ValidationError(f"fine_map: probabilities must be ({ny}, {nx}, M), got {probs.shape}")
     if not (0 < resolution <= geometry.cell_size and reach > 0 and cell_weight > 0 and 0 < temperature < np.inf
             and 0 <= far_weight < np.inf and reach <= reach_max < np.inf and 0 <= spacing < np.inf
-            and 0 <= wall_spread < np.inf and 0 <= wall_spread_from < np.inf):
+            and 0 <= wall_spread < np.inf and 0 <= wall_spread_from < np.inf and 1 <= elongation < np.inf):
         raise ValidationError("fine_map: resolution must be in (0, cell size], reach, cell_weight and temperature "
                               "> 0 and finite, far_weight, spacing, wall_spread and wall_spread_from >= 0 and finite, "
-                              "reach_max in [reach, inf)")
+                              "reach_max in [reach, inf), elongation in [1, inf)")
     n = int(round(geometry.cell_size / resolution))
     out = FineMap(geometry.origin, geometry.cell_size / n, np.zeros((ny * n, nx * n, probs.shape[2])),
                   geometry.materials)
@@ -204,7 +216,7 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     astride = _astride(geometry, readings, clear) if moduli is None else None
     res = out.resolution
     reach = reading_reach(geometry, readings, reach, reach_max, spacing)
-    radius = None if cutoff is None else cutoff * reach
+    radius = None if cutoff is None else cutoff * reach * elongation
     fields = []  # per reading on the map: (location, the reading's field at points relative to it)
     for (x0, y0), r in readings:
         window = window_around(pts.shape[:2], geometry.origin, res, (x0, y0), radius)
@@ -222,7 +234,7 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
             soft = _clear_cell(geometry, probs, astride, foot, -r.normal, clear)
         field = functools.partial(_reading_field, r, own, hard, soft, res)
         rel = pts[window] - np.array([x0, y0])
-        w = np.exp(-np.sum(rel**2, axis=-1) / reach**2)
+        w = _weights(r, rel, reach, elongation)
         acc[window] += w[..., None] * field(rel)
         weight[window] += w
         fields.append(((x0, y0), field))
@@ -301,6 +313,18 @@ def reading_reach(geometry: MapGeometry, readings, reach: float = REACH, reach_m
     places = len(np.unique(np.round(np.array([xy for xy, _ in readings], dtype=float) / 1e-3), axis=0))
     nx, ny = geometry.plane_shape
     return float(np.clip(spacing * geometry.cell_size * math.sqrt(nx * ny / places), reach, reach_max))
+
+
+def _weights(r: BoundaryReading, rel: np.ndarray, reach: float, elongation: float) -> np.ndarray:
+    """A reading's weight at points ``rel`` (..., 2) m from its press: a Gaussian of width ``reach``, stretched
+    ``elongation`` times along the wall it read as far as it read one (1 - p_plain)."""
+    w = np.exp(-np.sum(rel**2, axis=-1) / reach**2)
+    if elongation == 1.0:
+        return w
+    across = rel @ r.normal
+    along = rel @ np.array([-r.normal[1], r.normal[0]])
+    p_wall = 1.0 - r.p_plain
+    return (1.0 - p_wall) * w + p_wall * np.exp(-(across**2 + (along / elongation) ** 2) / reach**2)
 
 
 def _reading_field(r: BoundaryReading, own: np.ndarray, hard: np.ndarray, soft: np.ndarray, res: float,
