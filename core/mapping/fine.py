@@ -6,7 +6,8 @@ material gives way to a harder one. Each fine point's distribution mixes:
 
 - its own cell's distribution, with a small weight (what is known without a reading);
 - per press with a reading, weighted by closeness to the press (a Gaussian whose width follows the presses'
-  spacing: far apart, early in an exploration or on coarse cells, a reading reaches further): when the press read a
+  spacing: far apart, early in an exploration or on coarse cells, a reading reaches further; along a wall it read,
+  further still, as a wall goes on past the contact patch): when the press read a
   wall (probability p_boundary), the distribution of the nearest cell on the point's side whose centre is clear of
   the wall (a press there felt one material; cells astride a wall are judged on a mixture), each side in proportion
   to the probability that the point lies there given the reading's offset and angle spreads; when it read none
