@@ -75,7 +75,7 @@ def press_rows(scenario, profile, seed: int) -> dict[str, np.ndarray]:
             peak = counts[int(np.argmax(counts.sum(axis=(1, 2))))]
             area = np.asarray(res.press.c_A, dtype=float)
             c_d, c_a = res.press.depth * 1e3, float(area.max()) * 1e6
-            filled = float(np.asarray(res.press.c_D, dtype=float)[int(np.argmax(area >= area.max()))]) * 1e3
+            filled = float(np.asarray(res.press.c_D, dtype=float)[int(np.argmax(area))]) * 1e3
             finger = rec.meta["physics"].get("finger", {})
             rows.append([float(np.max(rec.truth.force)), float(np.max(rec.truth.indentation)) * 1e3,
                          finger.get("max_compression_m", 0.0) * 1e3, finger.get("stiffness_scale", 1.0), c_d,

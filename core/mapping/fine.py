@@ -77,8 +77,9 @@ FAR_WEIGHT = 0.05
 #: Chosen on the boundary policy's exploration of tuning scenes 0-89 (benchmarks/exploration_fine.py) among 1, 1.5,
 #: 2 and 3.
 ELONGATION = 1.5
-#: Points farther than this many reaches from a press take nothing from its reading (weight below 1.4e-11): a
-#: reading costs the same on any size of map.
+#: Points farther than this many reaches from a press take nothing from its reading (weight below 2.8e-11; along a
+#: wall it read, the reach stretches only as far as the stretched weight stays above that): a reading costs the same
+#: on any size of map.
 CUTOFF = 5.0
 
 
@@ -179,7 +180,7 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
             when given, each side of a read wall is the material its read modulus matches, not a neighbour cell's.
         reach, reach_max, spacing: the distance scale of the readings' weights, m: ``spacing`` times the presses'
             mean spacing (:func:`reading_reach`), clipped to [reach, reach_max]; reach_max = reach: that one scale.
-        cutoff: a reading reaches points within this many ``reach`` (along a read wall, ``elongation`` times that)
+        cutoff: a reading reaches points within this many ``reach`` (along a read wall, up to ``elongation`` times that)
             of its press (None: every point).
         elongation: a reading's reach along the wall it read over its reach across it, >= 1 (1: the same every
             way); it applies in proportion to the reading's probability of a wall.
@@ -217,10 +218,9 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
     astride = _astride(geometry, readings, clear) if moduli is None else None
     res = out.resolution
     reach = reading_reach(geometry, readings, reach, reach_max, spacing)
-    radius = None if cutoff is None else cutoff * reach * elongation
     fields = []  # per reading on the map: (location, the reading's field at points relative to it)
     for (x0, y0), r in readings:
-        window = window_around(pts.shape[:2], geometry.origin, res, (x0, y0), radius)
+        window = window_around(pts.shape[:2], geometry.origin, res, (x0, y0), _radius(r, reach, cutoff, elongation))
         if window is None:
             continue
         own = probs[geometry.cells_at(np.array([x0, y0]))[::-1]]
@@ -314,6 +314,18 @@ def reading_reach(geometry: MapGeometry, readings, reach: float = REACH, reach_m
     places = len(np.unique(np.round(np.array([xy for xy, _ in readings], dtype=float) / 1e-3), axis=0))
     nx, ny = geometry.plane_shape
     return float(np.clip(spacing * geometry.cell_size * math.sqrt(nx * ny / places), reach, reach_max))
+
+
+def _radius(r: BoundaryReading, reach: float, cutoff: float | None, elongation: float) -> float | None:
+    """How far a reading reaches, m: ``cutoff`` reaches, and along a read wall as far as its stretched weight stays
+    above exp(-cutoff^2) (so a reading that read no wall costs no more than an unstretched one); None: everywhere."""
+    if cutoff is None:
+        return None
+    p_wall = 1.0 - r.p_plain
+    if elongation == 1.0 or p_wall <= 0.0:
+        return cutoff * reach
+    # p_wall exp(-(d / (elongation reach))^2) = exp(-cutoff^2) at d = elongation reach sqrt(cutoff^2 + ln p_wall)
+    return reach * max(cutoff, elongation * math.sqrt(max(0.0, cutoff**2 + math.log(p_wall))))
 
 
 def _weights(r: BoundaryReading, rel: np.ndarray, reach: float, elongation: float) -> np.ndarray:
