@@ -77,10 +77,11 @@ FAR_WEIGHT = 0.05
 #: Chosen on the boundary policy's exploration of tuning scenes 0-89 (benchmarks/exploration_fine.py) among 1, 1.5,
 #: 2 and 3.
 ELONGATION = 1.5
-#: Points farther than this many reaches from a press take nothing from its reading (weight below 2.8e-11; along a
-#: wall it read, the reach stretches only as far as the stretched weight stays above that): a reading costs the same
-#: on any size of map.
-CUTOFF = 5.0
+#: Points farther than this many reaches from a press take nothing from its reading (its weight there is below
+#: 1e-5, a 5000th of a point's own cell's; along a wall it read, the reach stretches only as far as the stretched
+#: weight stays above that): a reading costs the same on any size of map. 3.5 against 5 (weight below 2.8e-11):
+#: the same presses to 95% of the area right on every one of tuning scenes 0-89, a fifth less CPU in exploration.
+CUTOFF = 3.5
 
 
 @dataclass(frozen=True)
