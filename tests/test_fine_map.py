@@ -138,7 +138,7 @@ def test_a_reading_reaches_only_points_near_its_press_and_that_changes_nothing_v
     cut, everywhere = (fine_map(geometry, probs, readings, moduli=moduli, cutoff=c) for c in (5.0, None))
     np.testing.assert_allclose(cut.probabilities, everywhere.probabilities, rtol=0, atol=1e-9)
     assert np.array_equal(cut.labels(), everywhere.labels())
-    # the shipped cut-off drops weights below 1e-5, a 5000th of a point's own cell's: no probability moves by 2e-4
+    # the shipped cut-off drops weights below 1e-5, a 5000th of a point's own cell's: none moves by more than 2e-4
     shipped = fine_map(geometry, probs, readings, moduli=moduli)
     np.testing.assert_allclose(shipped.probabilities, everywhere.probabilities, rtol=0, atol=2e-4)
     assert np.array_equal(shipped.labels(), everywhere.labels())

@@ -97,6 +97,11 @@ class BoundaryReading:
         return np.array([np.cos(self.angle), np.sin(self.angle)])
 
     @property
+    def tangent(self) -> np.ndarray:
+        """Unit vector along the wall, the normal turned a quarter turn anticlockwise, (2,)."""
+        return np.array([-np.sin(self.angle), np.cos(self.angle)])
+
+    @property
     def foot(self) -> np.ndarray:
         """The wall's nearest point to the press axis, m, relative to the axis, (2,)."""
         return self.offset * self.normal

@@ -336,7 +336,7 @@ def _weights(r: BoundaryReading, rel: np.ndarray, reach: float, elongation: floa
     if elongation == 1.0:
         return w
     across = rel @ r.normal
-    along = rel @ np.array([-r.normal[1], r.normal[0]])
+    along = rel @ r.tangent
     p_wall = 1.0 - r.p_plain
     return (1.0 - p_wall) * w + p_wall * np.exp(-(across**2 + (along / elongation) ** 2) / reach**2)
 
@@ -347,7 +347,7 @@ def _reading_field(r: BoundaryReading, own: np.ndarray, hard: np.ndarray, soft: 
     to the probability that the point lies there, the press's own material where no wall was read."""
     n_vec = r.normal
     s = rel @ n_vec - r.offset
-    along = np.abs(rel @ np.array([-n_vec[1], n_vec[0]]))
+    along = np.abs(rel @ r.tangent)
     spread = np.sqrt(r.offset_sd**2 + (r.angle_sd * along) ** 2 + (0.25 * res) ** 2)
     q = ndtr(s / spread)[..., None]
     p_wall = 1.0 - r.p_plain
