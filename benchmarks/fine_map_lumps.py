@@ -24,6 +24,7 @@ from fine_map_families import trained_scene
 from lump_scenes import (
     footprint_area_mm2,
     lump_footprint,
+    lump_read_line,
     lump_top_mm,
     make_lump_scene,
     scene_arguments,
@@ -32,8 +33,9 @@ from lump_scenes import (
 from scene_families import REFERENCES, is_report_seed
 from scipy.ndimage import distance_transform_edt
 
+from palpate.core.boundary.templates import Pad
 from palpate.core.mapping.regions import map_region_report
-from palpate.core.session.boundaries import object_fine_map, training_moduli
+from palpate.core.session.boundaries import lump_evidence, object_fine_map, training_moduli
 from palpate.core.session.explore import explore_object
 from palpate.core.session.progress import Progress
 
@@ -84,7 +86,8 @@ def scene_row(seed: int) -> dict:
     _, sc, reader, make, training = trained_scene(seed, fs)
     res = explore_object(sc, sc.objects[0], training.memory, make, 7000 + seed, Progress(enabled=False),
                          boundary_reader=reader)
-    fine = object_fine_map(res, sc.objects[0], sc, training_moduli(training.readings))
+    fine = object_fine_map(res, sc.objects[0], sc, training_moduli(training.readings),
+                           lump_evidence(training.presses, Pad.of(sc.fingertip)))
     g = res.geometry
     maps = {"cell": map_region_report(g, res.post.probabilities),
             "fine": fine.summary["material_regions"]}
@@ -95,15 +98,19 @@ def scene_row(seed: int) -> dict:
     near_any = np.zeros(x.shape, dtype=bool)
     locations = np.array([s.result.location[:2] for s in res.steps])
     laws: dict = {}
+    found = fine.summary["stiffness_anomalies"] or []
     spots = [np.unravel_index(np.argmin(np.hypot(x - a["centroid_m"][0] * 1e3, y - a["centroid_m"][1] * 1e3)),
-                              x.shape) for a in fine.summary["stiffness_anomalies"] or ()]
+                              x.shape) for a in found]
     lumps = []
     for lump in fs.lumps:
         ref = like[lump["material"]]
         change, sensed = force_change(sc, lump, locations, laws)
         near = distance_transform_edt(~lump_footprint(lump, x, y)) * fine.fine.resolution * 1e3 <= NEAR_MM
+        # the lump the strongest spot on it reads (spots come strongest first)
+        read = next((a["lump"] for a, i in zip(found, spots, strict=True) if near[i] and a.get("lump")), None)
         lumps.append({"top": lump_top_mm(lump), "shape": lump["shape"], "harder": _harder(ref, block),
-                      "change": change, "felt": sensed, "spotted": any(near[i] for i in spots)}
+                      "change": change, "felt": sensed, "spotted": any(near[i] for i in spots), "material": ref,
+                      "read": None if read is None else (read["material"], read["top_m"] * 1e3)}
                      | {m: judge(regions, lump, block, ref) for m, regions in maps.items()})
         near_any |= near
     spurious = 0
@@ -135,7 +142,8 @@ def main() -> None:
     for r in scene_results(scene_row, args):
         rows.append(r)
         desc = "; ".join(f"{lu['top']:.1f} {lu['shape']} {'harder' if lu['harder'] else 'softer'}"
-                         f"{' felt' if lu['felt'] else ''}{' spotted' if lu['spotted'] else ''}: "
+                         f"{' felt' if lu['felt'] else ''}{' spotted' if lu['spotted'] else ''}"
+                         f"{'' if lu['read'] is None else ' read {} {:.1f} mm'.format(*lu['read'])}: "
                          + " | ".join(_mark(lu[m]) for m in ("cell", "fine")) for lu in r["lumps"])
         away = "-" if r["away"] is None else f"{r['away']:.1%}"
         print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} {desc}"
@@ -164,6 +172,8 @@ def main() -> None:
         print(f"{lo:.0f}-{hi:.0f} mm | {len(band)} | {change:.0%} | {len(sensed)} | {cols[0]} | {cols[1]} | "
               f"{sum(sensed)}/{len(sensed)} | harder {sum(hard)}/{len(hard)}, softer {sum(soft)}/{len(soft)} | "
               f"spotted {spotted}, located or spotted {either}")
+    if (line := lump_read_line(lumps)) is not None:
+        print(line)
     away = [r["away"] for r in rows if r["away"] is not None]
     print(f"stray stiffness spots (on no lump) {sum(r['stray_spots'] for r in rows)} in {len(rows)} scenes")
     print(f"spurious regions on the fine map {sum(r['spurious'] for r in rows)} in {len(rows)} scenes; area right "

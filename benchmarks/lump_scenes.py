@@ -77,6 +77,19 @@ def scene_results(scene_row, args: argparse.Namespace):
         yield from pool.map(scene_row, range(args.first, args.first + args.scenes))
 
 
+def lump_read_line(lumps: list[dict]) -> str | None:
+    """The summary of the lumps read from spots' presses: per lump dicts with ``spotted``, ``material``, ``top``
+    (mm) and ``read`` ((material, top mm) or None); None when none was read."""
+    read = [lu for lu in lumps if lu["read"] is not None]
+    if not read:
+        return None
+    err = np.array([lu["read"][1] - lu["top"] for lu in read])
+    return (f"lumps read from a spot's press: {len(read)} of {sum(lu['spotted'] for lu in lumps)} spotted; material "
+            f"right {sum(lu['read'][0] == lu['material'] for lu in read)}; top depth error (read - true) median "
+            f"{np.median(err):+.2f} mm, |error| median {np.median(np.abs(err)):.2f} mm, within 1 / 2 mm "
+            f"{np.mean(np.abs(err) <= 1):.0%} / {np.mean(np.abs(err) <= 2):.0%}")
+
+
 def make_lump_scene(seed: int) -> FamilyScene:
     """The seeded lump scene of ``seed`` (family "lumps")."""
     rng = np.random.default_rng([seed, 21])

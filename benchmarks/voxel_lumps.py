@@ -24,12 +24,13 @@ from functools import cache
 import numpy as np
 from exploration import make_source_for
 from exploration_voxels import CELL_MM, DEPTH_MM, FORCE_N, MATERIALS, NAMES
-from lump_scenes import footprint_gap_mm, lump_top_mm, scene_arguments, scene_results
+from lump_scenes import footprint_gap_mm, lump_read_line, lump_top_mm, scene_arguments, scene_results
 from scene_families import HEIGHT_MM, is_report_seed
 
+from palpate.core.boundary.templates import Pad
 from palpate.core.mapping.regions import map_region_report
 from palpate.core.perception.layered_memory import train_layered_memory
-from palpate.core.session.boundaries import boundary_reader, object_fine_map, training_moduli
+from palpate.core.session.boundaries import boundary_reader, lump_evidence, object_fine_map, training_moduli
 from palpate.core.session.explore import explore_object
 from palpate.core.session.progress import Progress
 from palpate.core.session.training import train_memory
@@ -103,7 +104,8 @@ def _judges():
     training = train_memory(base, make_source_for(base), np.arange(3) + 1000, Progress(enabled=False),
                             boundary_reader=reader)
     return (training.memory, train_layered_memory(training.memory, training.presses, CELL_MM * 1e-3,
-                                                  int(DEPTH_MM / CELL_MM)), reader, training_moduli(training.readings))
+                                                  int(DEPTH_MM / CELL_MM)), reader, training_moduli(training.readings),
+            lump_evidence(training.presses, Pad.of(base.fingertip)))
 
 
 def _near(lump: dict, spot: dict) -> bool:
@@ -113,12 +115,12 @@ def _near(lump: dict, spot: dict) -> bool:
 
 def scene_row(seed: int) -> dict:
     t0 = time.process_time()
-    memory, layers, reader, moduli = _judges()
+    memory, layers, reader, moduli, evidence = _judges()
     raw, lumps = voxel_lump_scene(seed)
     sc = parse_scenario(raw, f"voxel_lumps{seed}")
     res = explore_object(sc, sc.objects[0], memory, make_source_for(sc), 9000 + seed, Progress(enabled=False),
                          layers=layers, boundary_reader=reader)
-    spots = object_fine_map(res, sc.objects[0], sc, moduli).summary["stiffness_anomalies"] or []
+    spots = object_fine_map(res, sc.objects[0], sc, moduli, evidence).summary["stiffness_anomalies"] or []
     young = {m["name"]: m["young_kpa"] for m in MATERIALS}
     regions = [r for r in map_region_report(res.geometry, res.post.probabilities)
                if r["material"] != raw["objects"][0]["material"]]
@@ -131,12 +133,14 @@ def scene_row(seed: int) -> dict:
         top = lump_top_mm(lump)
         sign = "harder" if young[lump["material"]] > young[raw["objects"][0]["material"]] else "softer"
         near = [a for a in spots if _near(lump, a)]
+        read = next((a["lump"] for a in near if a.get("lump")), None)  # the strongest spot's that reads a lump
         rows.append({"top": top, "shape": lump["shape"], "located": bool(fits), "spotted": bool(near),
                      "sign": any(a["sign"] == sign for a in near),
                      "named": any(r["material"] == lump["material"] for r in fits),
                      "top_right": any(int(r["top_depth_m"] * 1e3 / CELL_MM + 0.5) == int(top // CELL_MM)
                                       for r in fits),
-                     "error": min(dist) if dist else None})
+                     "error": min(dist) if dist else None, "material": lump["material"],
+                     "read": None if read is None else (read["material"], read["top_m"] * 1e3, read["shape"])})
     stray = sum(not any(_near(lump, a) for lump in lumps) for a in spots)
     return {"seed": seed, "presses": len(res.steps), "lumps": rows, "cpu": time.process_time() - t0,
             "accuracy": res.steps[-1].accuracy_postprocessed, "stray": stray}
@@ -153,7 +157,9 @@ def main() -> None:
         desc = "; ".join(f"{lu['top']:.1f} {lu['shape']}: {'L' if lu['located'] else '-'}"
                          f"{'N' if lu['named'] else '-'}{'T' if lu['top_right'] else '-'}"
                          f"{('S' if lu['sign'] else 's') if lu['spotted'] else '-'} "
-                         f"{'-' if lu['error'] is None else format(lu['error'], '.1f')}" for lu in r["lumps"])
+                         f"{'-' if lu['error'] is None else format(lu['error'], '.1f')}"
+                         + ("" if lu["read"] is None else f" read {lu['read'][0]} {lu['read'][1]:.1f} mm")
+                         for lu in r["lumps"])
         print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} "
               f"{r['accuracy']:12.1%}  {desc}; stray spots {r['stray']} ({r['cpu']:.0f} s CPU)", flush=True)
     lumps = [lu for r in rows for lu in r["lumps"]]
@@ -167,6 +173,8 @@ def main() -> None:
                   f"{sum(lu['named'] for lu in band)} | {sum(lu['top_right'] for lu in band)} | "
                   f"{np.median(err) if err else float('nan'):.1f} | {sum(lu['spotted'] for lu in band)} | "
                   f"{sum(lu['sign'] for lu in band)}")
+    if (line := lump_read_line(lumps)) is not None:
+        print(f"\n{line}")
 
 
 if __name__ == "__main__":

@@ -107,7 +107,9 @@ def test_spots_are_recorded_as_scene_entities_that_a_replay_reads_past(tmp_path)
     from palpate.core.io.mcap_reader import read_recording
     from palpate.core.io.mcap_writer import RecordingWriter
 
-    spots = [{"sign": "harder", "material": "medium", "presses": 3, "centroid_m": [0.035, 0.025], "z": 4.7},
+    spots = [{"sign": "harder", "material": "medium", "presses": 3, "centroid_m": [0.035, 0.025], "z": 4.7,
+              "lump": {"material": "hard", "top_m": 0.0025, "shape": "layer", "radius_m": 0.0, "rms_log": 0.05,
+                       "rms_log_plain": 0.4}},
              {"sign": "softer", "material": "medium", "presses": 1, "centroid_m": [0.015, 0.045], "z": -4.7}]
     path = tmp_path / "spots.mcap"
     with RecordingWriter(path, {"scenario": "spots"}) as writer:
@@ -120,7 +122,10 @@ def test_spots_are_recorded_as_scene_entities_that_a_replay_reads_past(tmp_path)
     assert harder["id"] == "spot/slab/0" and harder["cubes"][0]["pose"]["position"]["x"] == pytest.approx(0.035)
     assert harder["cubes"][0]["color"]["r"] > harder["cubes"][0]["color"]["b"]  # red
     assert softer["cubes"][0]["color"]["b"] > softer["cubes"][0]["color"]["r"]  # blue
-    assert softer["texts"][0]["text"] == "softer -4.7"
+    assert softer["texts"][0]["text"] == "softer -4.7" and len(softer["cubes"]) == 1
+    # the lump a spot reads: its material and depth in the text, a second marker at its top
+    assert harder["texts"][0]["text"] == "harder +4.7, hard from 2.5 mm"
+    assert harder["cubes"][1]["pose"]["position"]["z"] == pytest.approx(0.03 - 0.0025 - 0.001)
     assert read_recording(path).frames == []  # a view: the reader skips it
 
 

@@ -37,6 +37,22 @@ class Pad:
     pitch: float
     sensel_size: float
 
+    @classmethod
+    def of(cls, tip) -> Pad:
+        """The pad of a fingertip (a :class:`~palpate.core.world.scene.FingertipSpec`)."""
+        return cls(tip.radius, tip.rows, tip.cols, tip.pitch, tip.sensel_size)
+
+    @classmethod
+    def from_dict(cls, doc: dict) -> Pad:
+        """The pad of a templates file's ``pad`` object (KeyError, TypeError or ValueError when malformed)."""
+        return cls(float(doc["radius"]), int(doc["rows"]), int(doc["cols"]), float(doc["pitch"]),
+                   float(doc["sensel_size"]))
+
+    def to_dict(self) -> dict:
+        """The pad as a templates file holds it."""
+        return {"radius": self.radius, "rows": self.rows, "cols": self.cols, "pitch": self.pitch,
+                "sensel_size": self.sensel_size}
+
     def matches(self, other: Pad, rtol: float = 1e-6) -> bool:
         """True when ``other`` is the same pad (lengths within ``rtol``)."""
         same = (self.rows, self.cols) == (other.rows, other.cols)
@@ -118,8 +134,7 @@ def templates_from_document(doc: object, source: str) -> BoundaryTemplates:
     if not isinstance(doc, dict) or doc.get("format") != FORMAT or doc.get("version") != VERSION:
         raise ValidationError(f"{source}: not a {FORMAT} file of version {VERSION}")
     try:
-        p = doc["pad"]
-        pad = Pad(float(p["radius"]), int(p["rows"]), int(p["cols"]), float(p["pitch"]), float(p["sensel_size"]))
+        pad = Pad.from_dict(doc["pad"])
         poisson = float(doc["poisson"])
         depths = number_array(doc["depths"], f"{source}: depths", 1, 64)
         angles = number_array(doc["angles_deg"], f"{source}: angles_deg", 1, 64)
@@ -167,8 +182,7 @@ def templates_document(pad: Pad, poisson: float, depths, angles_deg, offsets, co
                        source: str) -> dict:
     """The JSON document :func:`read_templates` reads (angles 0-45 deg; see :class:`BoundaryTemplates`)."""
     return {"format": FORMAT, "version": VERSION, "source": source,
-            "pad": {"radius": pad.radius, "rows": pad.rows, "cols": pad.cols, "pitch": pad.pitch,
-                    "sensel_size": pad.sensel_size},
+            "pad": pad.to_dict(),
             "poisson": poisson, "depths": list(map(float, depths)), "angles_deg": list(map(float, angles_deg)),
             "offsets": list(map(float, offsets)), "contrasts": list(map(float, contrasts)),
             "wall": pack_decimals(wall, 1), "plain": pack_decimals(plain, 1)}

@@ -173,11 +173,16 @@ def _fine_map_lines(fine: dict, most: int = 4) -> list[str]:
     spots = fine.get("stiffness_anomalies") or []
     if spots:
         where = ", ".join(f"{a['sign']} at ({a['centroid_m'][0] * 100:.1f}, {a['centroid_m'][1] * 100:.1f}) cm"
-                          for a in spots[:most])
+                          + _lump_words(a.get("lump")) for a in spots[:most])
         more = f" and {len(spots) - most} more" if len(spots) > most else ""
         lines.append(f"    {len(spots)} spot(s) reading harder or softer than the map names (a lump under the "
                      f"surface?): {where}{more}")
     return lines
+
+
+def _lump_words(lump: dict | None) -> str:
+    """How a spot's lump reads, in a few words ("" when none was read)."""
+    return "" if not lump else f" ({lump['material']} from {lump['top_m'] * 1e3:.1f} mm down)"
 
 
 def _pct(v) -> str:

@@ -200,18 +200,25 @@ SPOT_COLOURS = {"harder": {"r": 0.85, "g": 0.1, "b": 0.1, "a": 0.9}, "softer": {
 def spots_message(ns: int, name: str, anomalies: Sequence[dict], surface_z: float) -> dict:
     """``foxglove.SceneUpdate`` with one entity per stiffness spot of object ``name`` (summary.json's
     ``stiffness_anomalies``): a flat 4 mm marker on the surface at ``surface_z`` m, red harder, blue softer, and
-    its sign and z as text."""
+    its sign and z as text; a spot that reads a lump (its ``lump``) has a second marker at the lump's top and its
+    material and depth in the text."""
     entities = []
     for k, a in enumerate(anomalies):
         x, y = a["centroid_m"]
         colour = SPOT_COLOURS[a["sign"]]
-        cube = {"pose": _identity_pose(x, y, surface_z + 0.001), "size": {"x": 0.004, "y": 0.004, "z": 0.002},
-                "color": colour}
+        cubes = [{"pose": _identity_pose(x, y, surface_z + 0.001), "size": {"x": 0.004, "y": 0.004, "z": 0.002},
+                  "color": colour}]
+        words = f"{a['sign']} {a['z']:+.1f}"
+        lump = a.get("lump")
+        if lump:
+            cubes.append({"pose": _identity_pose(x, y, surface_z - lump["top_m"] - 0.001),
+                          "size": {"x": 0.004, "y": 0.004, "z": 0.002}, "color": colour | {"a": 0.5}})
+            words += f", {lump['material']} from {lump['top_m'] * 1e3:.1f} mm"
         text = {"pose": _identity_pose(x, y, surface_z + 0.006), "billboard": True, "font_size": 12.0,
-                "scale_invariant": True, "color": colour, "text": f"{a['sign']} {a['z']:+.1f}"}
+                "scale_invariant": True, "color": colour, "text": words}
         entities.append({"timestamp": stamp(ns), "frame_id": WORLD_FRAME, "id": f"spot/{name}/{k}",
                          "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
                          "metadata": [{"key": key, "value": str(a[key])} for key in ("sign", "material", "presses",
                                                                                         "z")],
-                         "cubes": [cube], "cylinders": [], "texts": [text], **{k: [] for k in UNUSED_PRIMITIVES}})
+                         "cubes": cubes, "cylinders": [], "texts": [text], **{k: [] for k in UNUSED_PRIMITIVES}})
     return {"deletions": [], "entities": entities}

@@ -20,6 +20,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from palpate.core.boundary.lump_depth import LumpEvidence, read_lump_depth
 from palpate.core.boundary.moduli import MaterialModuli
 from palpate.core.boundary.reading import BoundaryReading
 from palpate.core.errors import ValidationError
@@ -47,6 +48,7 @@ class StiffnessAnomaly:
         centroid_m: (x, y) of its presses weighted by |z|, m.
         z: its strongest press's distance from the named material's mean log modulus, in that material's spreads
             (signed: > 0 harder).
+        press: the index of its strongest press in the readings it was found in.
     """
 
     sign: str
@@ -54,6 +56,7 @@ class StiffnessAnomaly:
     presses: int
     centroid_m: tuple[float, float]
     z: float
+    press: int = -1
 
     def to_dict(self) -> dict:
         """JSON-ready form (summary.json)."""
@@ -145,15 +148,26 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
         centre = (w @ xy[members]) / w.sum()
         out.append(StiffnessAnomaly("harder" if zk[strongest] > 0 else "softer",
                                     geometry.materials[int(labels[cy[at], cx[at]])], len(members),
-                                    (float(centre[0]), float(centre[1])), float(zk[strongest])))
+                                    (float(centre[0]), float(centre[1])), float(zk[strongest]), at))
     return sorted(out, key=lambda a: -abs(a.z))
 
 
 def anomaly_report(geometry: MapGeometry, probabilities: np.ndarray,
                    readings: list[tuple[tuple[float, float], BoundaryReading]],
-                   moduli: MaterialModuli | None, edge_reach: float = 0.0) -> list[dict] | None:
-    """summary.json's ``stiffness_anomalies`` of a 2-D map (None without the reference materials' moduli)."""
+                   moduli: MaterialModuli | None, edge_reach: float = 0.0,
+                   lumps: LumpEvidence | None = None) -> list[dict] | None:
+    """summary.json's ``stiffness_anomalies`` of a 2-D map (None without the reference materials' moduli); with
+    ``lumps`` (its curves one per reading), each spot's ``lump``: the lump its strongest press reads (its material,
+    top depth and shape; :func:`~palpate.core.boundary.lump_depth.read_lump_depth`), or None."""
     if moduli is None:
         return None
-    return [a.to_dict() for a in stiffness_anomalies(geometry, probabilities, readings, moduli,
-                                                     edge_reach=edge_reach)]
+    if lumps is not None and len(lumps.curves) != len(readings):
+        raise ValidationError(f"anomaly_report: {len(lumps.curves)} press curves for {len(readings)} readings")
+    out = []
+    for a in stiffness_anomalies(geometry, probabilities, readings, moduli, edge_reach=edge_reach):
+        row = a.to_dict()
+        if lumps is not None:
+            lump = read_lump_depth(lumps.curves[a.press], a.material, lumps, moduli, a.sign)
+            row["lump"] = None if lump is None else lump.to_dict()
+        out.append(row)
+    return out

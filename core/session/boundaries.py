@@ -10,6 +10,7 @@ run has no fine map and says why in its summary.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -19,6 +20,8 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt
 
 from palpate.core import __version__
+from palpate.core.boundary.lump_depth import LumpEvidence, reference_curves, result_curve
+from palpate.core.boundary.lump_templates import LUMP_TEMPLATES_FILE, read_lump_templates
 from palpate.core.boundary.moduli import MaterialModuli, material_moduli
 from palpate.core.boundary.press import read_press
 from palpate.core.boundary.reading import NoiseModel
@@ -51,7 +54,7 @@ def noise_of(spec: TaxelSensorSpec, **kw) -> NoiseModel:
 
 def pad_matches(templates: BoundaryTemplates, tip: FingertipSpec) -> bool:
     """True when ``templates`` were made for ``tip``'s pad."""
-    return templates.pad.matches(Pad(tip.radius, tip.rows, tip.cols, tip.pitch, tip.sensel_size))
+    return templates.pad.matches(Pad.of(tip))
 
 
 def boundary_reader(scenario: Scenario):
@@ -64,6 +67,38 @@ def boundary_reader(scenario: Scenario):
         return None, ("the shipped boundary templates are for another pad (make templates for this one with "
                       "benchmarks/boundary_templates.py)")
     return functools.partial(_read_or_none, templates=templates, noise=noise_of(scenario.taxels)), None
+
+
+def lump_evidence(presses: dict[str, tuple] | None, pad: Pad) -> LumpEvidence | None:
+    """The shipped lump templates with the reference materials' curves from their training ``presses``
+    (PressResults by material) and no press curves yet; None without training presses, or when the templates are
+    missing or for another pad than ``pad``."""
+    if not presses:
+        return None
+    try:
+        templates = read_lump_templates(models_dir() / LUMP_TEMPLATES_FILE)
+    except ValidationError:
+        return None
+    if not templates.pad.matches(pad):
+        return None
+    return LumpEvidence(templates, reference_curves(presses, templates.depths), ())
+
+
+def replay_lump_evidence(presses: dict[str, list]) -> LumpEvidence | None:
+    """:func:`lump_evidence` for a replay: the recording's pad is the one the shipped boundary templates read (a
+    run reads lumps only where it read boundaries with them)."""
+    try:
+        pad = shipped_templates().pad
+    except ValidationError:
+        return None
+    return lump_evidence(presses, pad)
+
+
+def with_curves(evidence: LumpEvidence | None, results) -> LumpEvidence | None:
+    """``evidence`` with the press curves of ``results`` (PressResults, one per boundary reading of a map)."""
+    if evidence is None:
+        return None
+    return dataclasses.replace(evidence, curves=tuple(result_curve(r, evidence.templates.depths) for r in results))
 
 
 #: Points within this distance of a true boundary are "near" it in the calibration summary, m.
@@ -146,31 +181,36 @@ def fine_truth(entry: ObjectEntry, scenario: Scenario, fine: FineMap) -> np.ndar
 
 
 def fine_map_findings(fine: FineMap, geometry, probabilities: np.ndarray, readings, moduli: MaterialModuli | None,
-                      edge_reach: float = 0.0) -> dict:
+                      edge_reach: float = 0.0, lumps: LumpEvidence | None = None) -> dict:
     """What a fine map's summary says it found, for a run and a replay alike: where each material lies at its
     resolution (a buried lump is one region) and the spots that read harder or softer than the cell map
-    (``probabilities``, post-processed) names (``edge_reach``, m: see :data:`EDGE_KEY`)."""
+    (``probabilities``, post-processed) names (``edge_reach``, m: see :data:`EDGE_KEY`), with the lump each spot's
+    strongest press reads when ``lumps`` holds the readings' press curves."""
     return {"material_regions": region_report(fine.probabilities, fine.origin, fine.resolution, fine.materials,
                                               cell=geometry.cell_size),
-            "stiffness_anomalies": anomaly_report(geometry, probabilities, readings, moduli, edge_reach)}
+            "stiffness_anomalies": anomaly_report(geometry, probabilities, readings, moduli, edge_reach, lumps)}
 
 
 def plane_fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings, moduli: MaterialModuli | None,
-                   edge_reach: float = 0.0) -> tuple[FineMap, dict]:
+                   edge_reach: float = 0.0, lumps: LumpEvidence | None = None) -> tuple[FineMap, dict]:
     """The fine map of a map's plane (a voxel map's surface layer) from its post-processed ``probabilities`` and
     its presses' ``readings`` ((location, reading) pairs), and its findings (:func:`fine_map_findings`): a run's and
     a replay's alike."""
     plane, cells = geometry.plane(), plane_probabilities(probabilities)
     fine = fine_map(plane, cells, readings, moduli=moduli)
-    return fine, fine_map_findings(fine, plane, cells, readings, moduli, edge_reach)
+    return fine, fine_map_findings(fine, plane, cells, readings, moduli, edge_reach, lumps)
 
 
-def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: MaterialModuli | None) -> FineResult:
+def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: MaterialModuli | None,
+                    lumps: LumpEvidence | None = None) -> FineResult:
     """The fine map of an explored object's plane from its post-processed map and its presses' readings, with its
-    summary: walls read, and with ground truth the share of the area each map labels right on the fine raster and
-    how far their boundaries lie from the true ones."""
-    readings = [(s.result.location, s.boundary) for s in obj.steps if s.boundary is not None]
-    fine, findings = plane_fine_map(obj.geometry, obj.post.probabilities, readings, moduli, contact_radius(scenario))
+    summary: walls read, lumps under its stiffness spots (``lumps``: :func:`lump_evidence`), and with ground truth
+    the share of the area each map labels right on the fine raster and how far their boundaries lie from the true
+    ones."""
+    steps = [s for s in obj.steps if s.boundary is not None]
+    readings = [(s.result.location, s.boundary) for s in steps]
+    fine, findings = plane_fine_map(obj.geometry, obj.post.probabilities, readings, moduli, contact_radius(scenario),
+                                    with_curves(lumps, [s.result for s in steps]))
     summary = {"resolution_m": fine.resolution, "presses_read": len(readings),
                "walls_read": sum(1 for _, r in readings if r.p_boundary > 0.5),
                "sides_named_by": "modulus" if moduli is not None else "neighbour cells"} | findings

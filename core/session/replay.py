@@ -43,9 +43,11 @@ from palpate.core.perception.streams import GroundTruth, PressRecording
 from palpate.core.session.boundaries import (
     plane_fine_map,
     replay_edge_reach,
+    replay_lump_evidence,
     replay_reader,
     save_fine_map,
     training_moduli,
+    with_curves,
 )
 from palpate.core.session.explore import MapPostprocessing, apply_press
 from palpate.core.session.output_guard import prepare_output_folder
@@ -94,7 +96,7 @@ class _Replayed:
     geometry: MapGeometry
     grid: object
     rows: list = field(default_factory=list)
-    readings: list = field(default_factory=list)
+    readings: list = field(default_factory=list)  # (location, boundary reading or None, press result)
 
 
 @dataclass
@@ -178,15 +180,19 @@ def press_window(data, where: str) -> PressWindow:
     return PressWindow(phase, obj, t_start, t_end, (float(target[0]), float(target[1])), k, cell)
 
 
-def _training_readings(presses, annotations, timeline, reader) -> dict[str, list]:
-    """Per reference material, the boundary readings of its training presses in the recording."""
-    out: dict[str, list] = {}
+def _training_presses(presses, annotations, timeline, reader) -> tuple[dict[str, list], dict[str, list]]:
+    """Per reference material, the boundary readings of its training presses in the recording, and the presses as
+    perceived."""
+    readings: dict[str, list] = {}
+    results: dict[str, list] = {}
     for w in presses:
         material = annotations[id(w)].data.get("material") if w.phase == "training" else None
         if isinstance(material, str):
             sub = timeline.window(w.t_start, w.t_end)
-            out.setdefault(material, []).append(reader(sub, perceive_press(sub)))
-    return out
+            res = perceive_press(sub)
+            readings.setdefault(material, []).append(reader(sub, res))
+            results.setdefault(material, []).append(res)
+    return readings, results
 
 
 def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, out_dir: str | Path, *,
@@ -251,9 +257,11 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
     annotations = {id(w): rec.annotations[i] for (i, _), w in zip(windows, presses_all, strict=True)}
     reader = replay_reader(rec.metadata, str(path))
     edge_reach = replay_edge_reach(rec.metadata, str(path))
-    moduli = None
+    moduli = lumps = None
     if windows and reader is not None:  # the references' moduli from their training presses, as the run read them
-        moduli = training_moduli(_training_readings(presses, annotations, timeline, reader))
+        training_readings, training_results = _training_presses(presses, annotations, timeline, reader)
+        moduli = training_moduli(training_readings)
+        lumps = replay_lump_evidence(training_results)
     if windows:
         progress.start("replaying presses", len(explore))
         for i, w in enumerate(explore):
@@ -272,7 +280,7 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
                                       f"({brief(w.object)}, {w.t_start:g}..{w.t_end:g} s): {exc}"
                                       f"{timeline.span()}") from None
             if reader is not None:
-                state.readings.append((res.location, reader(sub, res)))
+                state.readings.append((res.location, reader(sub, res), res))
             posterior = apply_press(state.grid, res, memory, _layers_for(state.geometry, memory, layers),
                                     fallback_xy=w.target, calibration=calibration)
             state.rows.append(_row(w.k if w.k is not None else len(state.rows) + 1, w.cell, res, posterior,
@@ -324,8 +332,9 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
             "material_regions": map_region_report(g, post.probabilities),
         })
         if state.readings:
-            read = [(xy, r) for xy, r in state.readings if r is not None]
-            fine, findings = plane_fine_map(g, post.probabilities, read, moduli, edge_reach)
+            read = [(xy, r, res) for xy, r, res in state.readings if r is not None]
+            fine, findings = plane_fine_map(g, post.probabilities, [(xy, r) for xy, r, _ in read], moduli, edge_reach,
+                                            with_curves(lumps, [res for _, _, res in read]))
             save_fine_map(inside(out, out / "maps" / f"{stems[name]}_fine.npz"), fine)
             summary_objects[-1]["fine_map"] = {
                 "resolution_m": fine.resolution, "presses_read": len(state.readings),

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from palpate.core import files, plugins
+from palpate.core.boundary.templates import Pad
 from palpate.core.errors import ValidationError
 from palpate.core.io.realism_figures import compared_materials, plot_sim_vs_real
 from palpate.core.names import file_stem, inside
@@ -41,6 +42,7 @@ from palpate.core.session.boundaries import (
     NOISE_KEY,
     boundary_reader,
     export_fine_map,
+    lump_evidence,
     noise_metadata,
     object_fine_map,
     save_fine_map,
@@ -230,12 +232,13 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
             _say_fidelity(entry, scenario, make_source, progress)
     objects: list[ObjectResult] = []
     moduli = None if training is None else training_moduli(training.readings)
+    lumps = lump_evidence(None if training is None else training.presses, Pad.of(scenario.fingertip))
     fines = []
     for i, entry in enumerate(scenario.objects):
         seed_i = int(seeds[4 + len(scenario.references) + i])
         objects.append(explore_object(scenario, entry, memory, make_actuator, seed_i, progress, log, layers,
                                       reader, moduli))
-        fines.append(None if reader is None else object_fine_map(objects[-1], entry, scenario, moduli))
+        fines.append(None if reader is None else object_fine_map(objects[-1], entry, scenario, moduli, lumps))
         if fines[-1] is not None:
             log.show_fine_map(objects[-1].name, fines[-1].fine, entry.spec.height)
             log.show_spots(objects[-1].name, fines[-1].summary.get("stiffness_anomalies"), entry.spec.height)

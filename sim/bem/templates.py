@@ -25,11 +25,6 @@ CONTRASTS = (1.5, 2.5, 4.0, 6.0, 10.0, 20.0)
 POISSON = 0.45
 
 
-def pad_of(tip: FingertipSpec) -> Pad:
-    """The templates' description of ``tip``'s pad."""
-    return Pad(tip.radius, tip.rows, tip.cols, tip.pitch, tip.sensel_size)
-
-
 def _image(case: ImageCase, depths: tuple[float, ...], tip: FingertipSpec, walls: WallTable) -> np.ndarray:
     image, _ = rung_image(dataclasses.replace(case, depths=depths), "bem", tip, walls)
     return image.pressure
@@ -52,5 +47,5 @@ def make_templates(tip: FingertipSpec, walls: WallTable, *, depths=DEPTHS, angle
                 wall[:, a, o, c] = _image(case, depths, tip, walls)
                 if progress is not None:
                     progress(1)
-    return templates_document(pad_of(tip), poisson, depths, angles_deg, offsets, contrasts, wall, plain,
+    return templates_document(Pad.of(tip), poisson, depths, angles_deg, offsets, contrasts, wall, plain,
                               "bem rung on the image reference's block (sim/bem/templates.py)")
