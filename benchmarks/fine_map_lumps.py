@@ -110,7 +110,7 @@ def scene_row(seed: int) -> dict:
         read = next((a["lump"] for a, i in zip(found, spots, strict=True) if near[i] and a.get("lump")), None)
         lumps.append({"top": lump_top_mm(lump), "shape": lump["shape"], "harder": _harder(ref, block),
                       "change": change, "felt": sensed, "spotted": any(near[i] for i in spots), "material": ref,
-                      "read": None if read is None else (read["material"], read["top_m"] * 1e3)}
+                      "read": None if read is None else (read["material"], read["top_m"] * 1e3, read["top_sd_m"] * 1e3)}
                      | {m: judge(regions, lump, block, ref) for m, regions in maps.items()})
         near_any |= near
     spurious = 0
@@ -143,7 +143,7 @@ def main() -> None:
         rows.append(r)
         desc = "; ".join(f"{lu['top']:.1f} {lu['shape']} {'harder' if lu['harder'] else 'softer'}"
                          f"{' felt' if lu['felt'] else ''}{' spotted' if lu['spotted'] else ''}"
-                         f"{'' if lu['read'] is None else ' read {} {:.1f} mm'.format(*lu['read'])}: "
+                         f"{'' if lu['read'] is None else ' read {} {:.1f} +- {:.1f} mm'.format(*lu['read'])}: "
                          + " | ".join(_mark(lu[m]) for m in ("cell", "fine")) for lu in r["lumps"])
         away = "-" if r["away"] is None else f"{r['away']:.1%}"
         print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} {desc}"

@@ -79,15 +79,18 @@ def scene_results(scene_row, args: argparse.Namespace):
 
 def lump_read_line(lumps: list[dict]) -> str | None:
     """The summary of the lumps read from spots' presses: per lump dicts with ``spotted``, ``material``, ``top``
-    (mm) and ``read`` ((material, top mm) or None); None when none was read."""
+    (mm) and ``read`` ((material, top mm, its spread mm) or None); None when none was read."""
     read = [lu for lu in lumps if lu["read"] is not None]
     if not read:
         return None
     err = np.array([lu["read"][1] - lu["top"] for lu in read])
+    spread = np.array([lu["read"][2] for lu in read])
     return (f"lumps read from a spot's press: {len(read)} of {sum(lu['spotted'] for lu in lumps)} spotted; material "
             f"right {sum(lu['read'][0] == lu['material'] for lu in read)}; top depth error (read - true) median "
             f"{np.median(err):+.2f} mm, |error| median {np.median(np.abs(err)):.2f} mm, within 1 / 2 mm "
-            f"{np.mean(np.abs(err) <= 1):.0%} / {np.mean(np.abs(err) <= 2):.0%}")
+            f"{np.mean(np.abs(err) <= 1):.0%} / {np.mean(np.abs(err) <= 2):.0%}, within 1 / 2 of its spreads "
+            f"{np.mean(np.abs(err) <= spread):.0%} / {np.mean(np.abs(err) <= 2 * spread):.0%} (median spread "
+            f"{np.median(spread):.2f} mm)")
 
 
 def make_lump_scene(seed: int) -> FamilyScene:

@@ -140,7 +140,7 @@ def scene_row(seed: int) -> dict:
                      "top_right": any(int(r["top_depth_m"] * 1e3 / CELL_MM + 0.5) == int(top // CELL_MM)
                                       for r in fits),
                      "error": min(dist) if dist else None, "material": lump["material"],
-                     "read": None if read is None else (read["material"], read["top_m"] * 1e3, read["shape"])})
+                     "read": None if read is None else (read["material"], read["top_m"] * 1e3, read["top_sd_m"] * 1e3)})
     stray = sum(not any(_near(lump, a) for lump in lumps) for a in spots)
     return {"seed": seed, "presses": len(res.steps), "lumps": rows, "cpu": time.process_time() - t0,
             "accuracy": res.steps[-1].accuracy_postprocessed, "stray": stray}
@@ -158,7 +158,7 @@ def main() -> None:
                          f"{'N' if lu['named'] else '-'}{'T' if lu['top_right'] else '-'}"
                          f"{('S' if lu['sign'] else 's') if lu['spotted'] else '-'} "
                          f"{'-' if lu['error'] is None else format(lu['error'], '.1f')}"
-                         + ("" if lu["read"] is None else f" read {lu['read'][0]} {lu['read'][1]:.1f} mm")
+                         + ("" if lu["read"] is None else " read {} {:.1f} +- {:.1f} mm".format(*lu["read"]))
                          for lu in r["lumps"])
         print(f"{r['seed']:7d} {'report' if is_report_seed(r['seed']) else 'tuning':6} {r['presses']:7d} "
               f"{r['accuracy']:12.1%}  {desc}; stray spots {r['stray']} ({r['cpu']:.0f} s CPU)", flush=True)

@@ -90,6 +90,9 @@ def test_a_lump_off_the_grid_is_read_at_its_depth_and_as_its_material(deep, e_to
     assert lump is not None and lump.material == deep
     assert lump.top == pytest.approx(top, abs=0.45e-3)
     assert lump.rms < 0.05 < lump.rms_plain
+    # its spread covers what one press cannot tell apart (a lump's size against its depth), and no more
+    assert 0.3e-3 < lump.top_sd < 3e-3 and abs(lump.top - top) <= lump.top_sd
+    assert 0.4 < lump.p_material <= 1.0
     if shape == "layer":
         assert lump.shape == "layer"
 
