@@ -96,6 +96,9 @@ def test_the_run_report_names_the_strongest_spots_and_counts_the_rest():
              for k in range(6)]
     (line,) = _fine_map_lines({"stiffness_anomalies": spots}, most=4)
     assert line.count(" at (") == 4 and "and 2 more" in line and "softer at (0.0, 2.0) cm" in line
+    spots[1]["lump"] = {"material": "hard", "top_m": 0.0031}
+    (line,) = _fine_map_lines({"stiffness_anomalies": spots}, most=4)
+    assert "harder at (1.0, 2.0) cm (hard from 3.1 mm down)" in line and line.count("mm down") == 1
     assert _fine_map_lines({"stiffness_anomalies": []}) == []
 
 
