@@ -18,6 +18,7 @@ import numpy as np
 
 from palpate.core.boundary.lump_templates import LumpTemplates
 from palpate.core.boundary.moduli import MaterialModuli
+from palpate.core.boundary.templates import bracket
 from palpate.core.errors import ValidationError
 
 #: Fewest indentations of the templates a press must reach to be read.
@@ -107,9 +108,7 @@ def _fine_tops(templates: LumpTemplates) -> tuple[np.ndarray, np.ndarray, np.nda
     """Tops every TOP_STEP over the stored range and, per fine top, the stored pair and weight around it."""
     tops = templates.tops
     fine = np.arange(tops[0], tops[-1] + TOP_STEP / 2, TOP_STEP) if len(tops) > 1 else tops.copy()
-    k = np.clip(np.searchsorted(tops, fine) - 1, 0, max(len(tops) - 2, 0))
-    w = (fine - tops[k]) / (tops[np.minimum(k + 1, len(tops) - 1)] - tops[k]) if len(tops) > 1 else np.zeros(1)
-    return fine, k, np.clip(w, 0.0, 1.0)
+    return (fine, *bracket(tops, fine))
 
 
 def read_lump_depth(curve: np.ndarray, top: str, evidence: LumpEvidence, moduli: MaterialModuli,

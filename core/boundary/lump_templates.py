@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from palpate.core.boundary.templates import Pad
+from palpate.core.boundary.templates import Pad, bracket, read_template_document
 from palpate.core.errors import ValidationError
-from palpate.core.files import decimal_array, number_array, pack_decimals, read_json
+from palpate.core.files import decimal_array, number_array, pack_decimals
 
 FORMAT = "palpate-lump-templates"
 VERSION = 1
@@ -62,11 +62,9 @@ class LumpTemplates:
             raise ValidationError(f"LumpTemplates.at_contrast: no template is {'harder' if contrast > 1 else 'softer'}"
                                   " than its top")
         logs, table = np.log(self.contrasts[side]), self.log_ratio[:, side]
-        x = float(np.clip(np.log(contrast), logs[0], logs[-1]))
         if len(logs) == 1:
             return table[:, 0]
-        k = int(np.clip(np.searchsorted(logs, x) - 1, 0, len(logs) - 2))
-        w = (x - logs[k]) / (logs[k + 1] - logs[k])
+        k, w = bracket(logs, np.log(contrast))
         return (1 - w) * table[:, k] + w * table[:, k + 1]
 
 
@@ -116,11 +114,8 @@ def read_lump_templates(path: str | Path) -> LumpTemplates:
     Raises:
         ValidationError: missing, not JSON, of another format, or any array of the wrong shape or out of range.
     """
-    path = Path(path)
-    if not path.exists():
-        raise ValidationError(f"{path}: lump templates not found; make them with "
-                              "`python benchmarks/lump_templates.py --write`")
-    return lump_templates_from_document(read_json(path, "lump templates"), str(path))
+    doc = read_template_document(path, "lump templates", "benchmarks/lump_templates.py")
+    return lump_templates_from_document(doc, str(path))
 
 
 def lump_templates_document(pad: Pad, poisson: float, depths, tops, contrasts, shapes, radii, log_ratio,

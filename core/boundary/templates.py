@@ -88,12 +88,30 @@ class BoundaryTemplates:
     def at_depth(self, depth: float) -> tuple[np.ndarray, np.ndarray]:
         """The wall (A, O, C, rows, cols) and plain (rows, cols) images at ``depth`` (m), linear between the stored
         depths and clamped to their range."""
-        d = float(np.clip(depth, self.depths[0], self.depths[-1]))
-        k = int(np.clip(np.searchsorted(self.depths, d) - 1, 0, len(self.depths) - 2)) if len(self.depths) > 1 else 0
         if len(self.depths) == 1:
             return self.wall[0], self.plain[0]
-        w = (d - self.depths[k]) / (self.depths[k + 1] - self.depths[k])
+        k, w = bracket(self.depths, float(depth))
         return ((1 - w) * self.wall[k] + w * self.wall[k + 1], (1 - w) * self.plain[k] + w * self.plain[k + 1])
+
+
+def bracket(grid: np.ndarray, x):
+    """Where ``x`` (a number or an array) lies on an increasing ``grid``, clamped to its range: the index ``k`` of
+    the node below and the weight ``w`` of node k + 1 in a linear interpolation, value = (1 - w) v[k] + w v[k + 1]
+    (0 and 0 on a one-node grid)."""
+    x = np.clip(np.asarray(x, dtype=float), grid[0], grid[-1])
+    if len(grid) == 1:
+        return np.zeros(x.shape, dtype=int), np.zeros(x.shape)
+    k = np.clip(np.searchsorted(grid, x) - 1, 0, len(grid) - 2)
+    return k, (x - grid[k]) / (grid[k + 1] - grid[k])
+
+
+def read_template_document(path: str | Path, what: str, maker: str) -> object:
+    """The JSON document of a templates file (``what``, e.g. "boundary templates"); a missing one is a
+    ValidationError that says how to make it (``maker``: the script that writes it)."""
+    path = Path(path)
+    if not path.exists():
+        raise ValidationError(f"{path}: {what} not found; make them with `python {maker} --write`")
+    return read_json(path, what)
 
 
 def _diagonal(image: np.ndarray) -> np.ndarray:
@@ -171,11 +189,8 @@ def read_templates(path: str | Path) -> BoundaryTemplates:
     Raises:
         ValidationError: missing, not JSON, of another format, or any array of the wrong shape or out of range.
     """
-    path = Path(path)
-    if not path.exists():
-        raise ValidationError(f"{path}: boundary templates not found; make them with "
-                              "`python benchmarks/boundary_templates.py --write`")
-    return templates_from_document(read_json(path, "boundary templates"), str(path))
+    doc = read_template_document(path, "boundary templates", "benchmarks/boundary_templates.py")
+    return templates_from_document(doc, str(path))
 
 
 def templates_document(pad: Pad, poisson: float, depths, angles_deg, offsets, contrasts, wall, plain,
