@@ -11,9 +11,10 @@ trials that pass (truth) or fail (the others), with the trial count and a 95% Wi
 
 **The shipped profile**: ``--shipped`` simulates S fresh sessions of the scenario's training protocol with its
 realism profile (seeds from 1001 on until S finished; a failed one is said and replaced: neither tuning, report nor
-main-job seeds) and judges the real table against them, printing per material the classifier accuracy, the energy
-distance and its rank, and the bands. ``--profile PATH`` judges that profile file (e.g. a candidate refit) the same
-way, on the same seeds, instead of the scenario's; ``--scenario`` a copy of thesis_ch6.toml with the candidate's
+main-job seeds; ``--first-seed 3001`` for the seeds candidates are chosen on) and judges the real table against
+them, printing per material the classifier accuracy, the energy distance and its rank, and the bands.
+``--profile PATH`` judges that profile file (e.g. a candidate refit) the same way, on the same seeds, instead of the
+scenario's; ``--scenario`` a copy of thesis_ch6.toml with the candidate's
 moduli, pad or tracker (its profile, unless ``--profile`` names one, and its real table).
 
     .venv/bin/python benchmarks/realism_predictive.py [--trials 100] [--sessions 100] [--rng 0]
@@ -21,6 +22,7 @@ moduli, pad or tracker (its profile, unless ``--profile`` names one, and its rea
     .venv/bin/python benchmarks/realism_predictive.py --shipped [--sessions 100] [--fidelity analytic]
         [--presses-csv CACHE.csv]
     .venv/bin/python benchmarks/realism_predictive.py --profile CANDIDATE.toml [--scenario S.toml] [--sessions 100]
+        [--first-seed 3001]
 
 ``--presses-csv`` keeps the simulated sessions (realism_targets.py's ``--write-presses`` format, with each seed's
 leave-one-out posteriors recomputed on reading) so a second judgement does not simulate again.
@@ -168,9 +170,9 @@ def read_sessions(path: Path, materials: Sequence[str]) -> list[PressTable]:
 
 
 def shipped(sessions: int, fidelity: str | None, cache: Path | None, profile_path: Path | None = None,
-            scenario_path: Path | None = None) -> None:
+            scenario_path: Path | None = None, first_seed: int = 1001) -> None:
     """Simulate ``sessions`` fresh seeds of thesis_ch6 (or the scenario at ``scenario_path``) with its profile (or
-    the one at ``profile_path``) and judge the real table against them."""
+    the one at ``profile_path``), from ``first_seed`` on, and judge the real table against them."""
     from palpate.core.world.scenario_file import load_scenario
     from palpate.sim.realism.calibrate import simulate_seed
     from palpate.sim.realism.profile_file import resolve_profile
@@ -189,7 +191,7 @@ def shipped(sessions: int, fidelity: str | None, cache: Path | None, profile_pat
     else:
         profile = resolve_profile(profile_path or scenario.realism.profile)
         tables, rows, dropped, failed = [], [], 0, []
-        seed = 1000
+        seed = first_seed - 1
         while len(tables) < sessions:  # a failed session is replaced by the next seed's
             seed += 1
             try:
@@ -220,6 +222,8 @@ def main() -> int:
     ap.add_argument("--rng", type=int, default=0)
     ap.add_argument("--truths", default=",".join(TRUTHS), help=f"comma-separated, of: {', '.join(TRUTHS)}")
     ap.add_argument("--shipped", action="store_true", help="judge the shipped profile instead")
+    ap.add_argument("--first-seed", type=int, default=1001,
+                    help="first session seed (default 1001, the report seeds; candidates are chosen on others)")
     ap.add_argument("--fidelity", help="fidelity of the shipped profile's sessions (default: the scenario's)")
     ap.add_argument("--presses-csv", type=Path, help="read the sessions from (or write them to) this CSV")
     ap.add_argument("--profile", type=Path, help="judge this profile file instead of the scenario's (implies "
@@ -227,7 +231,7 @@ def main() -> int:
     ap.add_argument("--scenario", type=Path, help="a copy of thesis_ch6.toml to simulate instead (implies --shipped)")
     args = ap.parse_args()
     if args.shipped or args.profile or args.scenario:
-        shipped(args.sessions, args.fidelity, args.presses_csv, args.profile, args.scenario)
+        shipped(args.sessions, args.fidelity, args.presses_csv, args.profile, args.scenario, args.first_seed)
     else:
         truths = [t.strip() for t in args.truths.split(",")]
         if any(t not in TRUTHS for t in truths):

@@ -42,7 +42,7 @@ def test_moments_of_a_table_are_its_statistics():
     expected = {"log_mean_n1": np.log(13.0), "log_mean_a1": np.log(3.0),
                 "log_cv_n1": np.log(np.std(rows[:, 0], ddof=1) / 13.0),
                 "log_cv_a1": np.log(np.std(rows[:, 3], ddof=1) / 3.0), "negative_n2": 0.5, "negative_a2": 0.5,
-                "loo_self": 0.7}
+                "loo_self": 0.7, "intercept_n": 0.0, "intercept_a": 0.75 / 3.0}
     np.testing.assert_allclose(m, [expected[k] for k in MOMENTS], atol=1e-8)
     smooth = table_moments(PressTable(("m",), (rows,)), ["m"], np.array([0.7]), smooth=True)[0]
     assert 0.3 < smooth[MOMENTS.index("negative_n2")] < 0.7
@@ -54,6 +54,11 @@ def test_the_seed_tables_moments_include_table_6_7():
     loo = m[:, MOMENTS.index("loo_self")]
     assert loo[0] == pytest.approx(0.809, abs=0.005) and loo[1] > 0.99 and loo[2] > 0.99
     np.testing.assert_allclose(m[:, MOMENTS.index("negative_n2")], [0.1, 0.4, 0.8])
+    # seed 000's mean intercepts over its mean slopes (Tables 6.3-6.5)
+    np.testing.assert_allclose(m[:, MOMENTS.index("intercept_n")], [13.92 / 75.24, 9.63 / 432.62, -2.69 / 1683.28],
+                               rtol=0.01)
+    np.testing.assert_allclose(m[:, MOMENTS.index("intercept_a")], [13.46 / 3.02, 3.52 / 2.88, -69.68 / 10.91],
+                               rtol=0.01)
     assert objective(m, m) == 0.0
     shifted = m.copy()
     shifted[0, 0] += SCALES[0]
