@@ -56,7 +56,7 @@ FREE_PARAMETERS = {p.key: p for p in (
     # old box's 4.
     FreeParameter("finger.area_factor", 1.0, 9.5),
     FreeParameter("finger.stiffness_cv", 0.0, 0.8),
-    FreeParameter("finger.pressure_exponent", 0.0, 2.5),
+    FreeParameter("finger.pressure_exponent", 0.5, 2.5),
     FreeParameter("press.speed_cv", 0.0, 0.4),
     FreeParameter("press.depth_cv", 0.0, 0.4),
     FreeParameter("press.tilt_deg", 0.0, 12.0),
@@ -73,7 +73,7 @@ FREE_PARAMETERS = {p.key: p for p in (
     FreeParameter("taxels.hysteresis", 0.0, 0.3),
     FreeParameter("taxels.creep", 0.0, 0.2),
     FreeParameter("taxels.nonlinearity", 0.0, 3.0),
-    FreeParameter("taxels.activation_kpa", 0.0, 20.0),
+    FreeParameter("taxels.activation_kpa", 0.0, 5.0),
     FreeParameter("taxels.activation_cv", 0.0, 1.5),
     FreeParameter("pose.latency_ms", -30.0, 30.0),
     FreeParameter("pose.clock_offset_ms", 0.0, 60.0),

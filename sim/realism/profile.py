@@ -69,7 +69,7 @@ class FingerPulp:
         _check("FingerPulp", {"stiffness": (self.stiffness, 1.0, 1e6), "stiffening": (self.stiffening, 0.0, 1e5),
                               "area_factor": (self.area_factor, 0.0, 10.0),
                               "stiffness_cv": (self.stiffness_cv, 0.0, 2.0),
-                              "pressure_exponent": (self.pressure_exponent, 0.0, 3.0)})
+                              "pressure_exponent": (self.pressure_exponent, 0.5, 3.0)})
 
     def compression(self, force: np.ndarray, stiffness_scale: float = 1.0) -> np.ndarray:
         """Pulp compression delta, m, under contact force F (N, clipped at 0); 0 everywhere when rigid."""

@@ -105,7 +105,7 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
             stiffening=f.number("stiffening_per_mm", d.stiffening * 1e-3, lo=0.0) * 1e3,
             area_factor=f.number("area_factor", d.area_factor, lo=0.0),
             stiffness_cv=f.number("stiffness_cv", d.stiffness_cv, lo=0.0),
-            pressure_exponent=f.number("pressure_exponent", d.pressure_exponent, lo=0.0, hi=2.99),
+            pressure_exponent=f.number("pressure_exponent", d.pressure_exponent, lo=0.5, hi=2.99),
         )
         f.finish()
         pr = top.sub("press")
