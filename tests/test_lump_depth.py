@@ -11,6 +11,7 @@ import pytest
 
 from palpate.core.boundary.lump_depth import (
     MIN_POINTS,
+    TOP_SD_FLOOR,
     LumpEvidence,
     press_curve,
     read_lump_depth,
@@ -91,7 +92,7 @@ def test_a_lump_off_the_grid_is_read_at_its_depth_and_as_its_material(deep, e_to
     assert lump.top == pytest.approx(top, abs=0.45e-3)
     assert lump.rms < 0.05 < lump.rms_plain
     # its spread covers what one press cannot tell apart (a lump's size against its depth), and no more
-    assert 0.3e-3 < lump.top_sd < 3e-3 and abs(lump.top - top) <= lump.top_sd
+    assert TOP_SD_FLOOR <= lump.top_sd < 3e-3 and abs(lump.top - top) <= lump.top_sd
     assert 0.4 < lump.p_material <= 1.0
     if shape == "layer":
         assert lump.shape == "layer"

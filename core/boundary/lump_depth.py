@@ -30,6 +30,11 @@ TOP_STEP = 1e-4
 #: 0-47, 44 lumps read) as the smallest value whose spread holds the true top within one / two spreads of the read
 #: one 68% / 95% of the time (0.2: 50 / 86%, 0.25: 59 / 91%, 0.3: 64 / 95%, 0.4: 70 / 98%).
 MISFIT_SD = 0.3
+#: Spread added in quadrature to the posterior's, m: one press cannot tell a small shallow lump from a large deep one,
+#: and the posterior, whose templates are all on the press's axis, does not see how far that trade reaches. Chosen on
+#: tuning scenes (voxel_lumps.py seeds 0-95, 88 lumps read) as the value whose spread holds the true top within one /
+#: two spreads 68% / 95% of the time (0: 52 / 85%, 1: 61 / 91%, 1.5: 66 / 93%, 1.75: 70 / 95%, 2: 73 / 97%).
+TOP_SD_FLOOR = 1.75e-3
 
 
 @dataclass(frozen=True)
@@ -115,10 +120,10 @@ def read_lump_depth(curve: np.ndarray, top: str, evidence: LumpEvidence, moduli:
                     sign: str | None = None) -> LumpDepth | None:
     """The lump under a press whose :func:`press_curve` is ``curve``, on the material ``top``, among reference
     materials harder (``sign`` "harder"), softer ("softer") or either (None) than ``top``: the material, template
-    and top depth that fit the curve's ratio to ``top``'s best, with the top's spread about it and the material's
-    probability under a posterior over all of them (flat prior, Gaussian misfit of :data:`MISFIT_SD` per depth in
-    log). None when fewer than :data:`MIN_POINTS` depths are known, no material qualifies, or no lump fits better
-    than none.
+    and top depth that fit the curve's ratio to ``top``'s best, with the top's spread about it (with
+    :data:`TOP_SD_FLOOR`) and the material's probability under a posterior over all of them (flat prior, Gaussian
+    misfit of :data:`MISFIT_SD` per depth in log). None when fewer than :data:`MIN_POINTS` depths are known, no
+    material qualifies, or no lump fits better than none.
 
     Raises:
         ValidationError: a curve of another length than the templates' depths.
@@ -156,6 +161,6 @@ def read_lump_depth(curve: np.ndarray, top: str, evidence: LumpEvidence, moduli:
     log_like = -0.5 * ok.sum() * (rms_all / MISFIT_SD) ** 2
     post = np.exp(log_like - log_like.max())
     post /= post.sum()
-    spread = float(np.sqrt(post.sum(axis=(0, 1)) @ (fine - fine[j]) ** 2))
+    spread = float(np.sqrt(post.sum(axis=(0, 1)) @ (fine - fine[j]) ** 2 + TOP_SD_FLOOR**2))
     return LumpDepth(names[m], float(fine[j]), spread, min(float(post[m].sum()), 1.0), t.shapes[s], float(t.radii[s]),
                      float(rms_all[m, s, j]), rms_plain)
