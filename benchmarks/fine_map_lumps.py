@@ -24,6 +24,7 @@ from fine_map_families import trained_scene
 from lump_scenes import (
     footprint_area_mm2,
     lump_footprint,
+    lump_read,
     lump_read_line,
     lump_top_mm,
     make_lump_scene,
@@ -110,7 +111,7 @@ def scene_row(seed: int) -> dict:
         read = next((a["lump"] for a, i in zip(found, spots, strict=True) if near[i] and a.get("lump")), None)
         lumps.append({"top": lump_top_mm(lump), "shape": lump["shape"], "harder": _harder(ref, block),
                       "change": change, "felt": sensed, "spotted": any(near[i] for i in spots), "material": ref,
-                      "read": None if read is None else (read["material"], read["top_m"] * 1e3, read["top_sd_m"] * 1e3)}
+                      "read": lump_read(read)}
                      | {m: judge(regions, lump, block, ref) for m, regions in maps.items()})
         near_any |= near
     spurious = 0

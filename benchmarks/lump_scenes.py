@@ -77,6 +77,12 @@ def scene_results(scene_row, args: argparse.Namespace):
         yield from pool.map(scene_row, range(args.first, args.first + args.scenes))
 
 
+def lump_read(lump: dict | None) -> tuple[str, float, float] | None:
+    """A spot's lump as summary.json gives it, as the ``read`` entry :func:`lump_read_line` takes: (material, top mm,
+    its spread mm), or None."""
+    return None if lump is None else (lump["material"], lump["top_m"] * 1e3, lump["top_sd_m"] * 1e3)
+
+
 def lump_read_line(lumps: list[dict]) -> str | None:
     """The summary of the lumps read from spots' presses: per lump dicts with ``spotted``, ``material``, ``top``
     (mm) and ``read`` ((material, top mm, its spread mm) or None); None when none was read."""

@@ -24,7 +24,7 @@ from functools import cache
 import numpy as np
 from exploration import make_source_for
 from exploration_voxels import CELL_MM, DEPTH_MM, FORCE_N, MATERIALS, NAMES
-from lump_scenes import footprint_gap_mm, lump_read_line, lump_top_mm, scene_arguments, scene_results
+from lump_scenes import footprint_gap_mm, lump_read, lump_read_line, lump_top_mm, scene_arguments, scene_results
 from scene_families import HEIGHT_MM, is_report_seed
 
 from palpate.core.boundary.templates import Pad
@@ -140,7 +140,7 @@ def scene_row(seed: int) -> dict:
                      "top_right": any(int(r["top_depth_m"] * 1e3 / CELL_MM + 0.5) == int(top // CELL_MM)
                                       for r in fits),
                      "error": min(dist) if dist else None, "material": lump["material"],
-                     "read": None if read is None else (read["material"], read["top_m"] * 1e3, read["top_sd_m"] * 1e3)})
+                     "read": lump_read(read)})
     stray = sum(not any(_near(lump, a) for lump in lumps) for a in spots)
     return {"seed": seed, "presses": len(res.steps), "lumps": rows, "cpu": time.process_time() - t0,
             "accuracy": res.steps[-1].accuracy_postprocessed, "stray": stray}
