@@ -6,7 +6,9 @@ with 1-2 buried boxes or spheres of another (8-20 mm across, tops 0.5-8 mm down)
 the block. Per lump, from summary.json's ``material_regions`` of the post-processed voxel map: **located** when a
 region of another material than the block's has its centroid within 5 mm of the lump's centre laterally and at most
 twice the lump's volume within the map's depth (and two voxels); **named** when it is the lump's material;
-**top right** when that region's shallowest voxel holds the lump's top. **Spotted** when a stiffness spot of the
+**top right** when that region's shallowest voxel holds the lump's top. **In the lump layer** when the layer of 1 mm
+cubes the run writes beside the voxel map (summary.json's ``fine_map.lump_layer``) has such a region (named: of the
+lump's material; its top's error against the lump's, mm). **Spotted** when a stiffness spot of the
 surface layer's fine map (a press reading harder or softer than the material the surface layer names) lies within
 5 mm of the lump's footprint, **its sign right** when the spot says harder for a harder lump, softer for a softer.
 Seeds below 100000 are tuning seeds, from 100000 on report seeds. The layered judges are trained once, on tuning
@@ -120,7 +122,10 @@ def scene_row(seed: int) -> dict:
     sc = parse_scenario(raw, f"voxel_lumps{seed}")
     res = explore_object(sc, sc.objects[0], memory, make_source_for(sc), 9000 + seed, Progress(enabled=False),
                          layers=layers, boundary_reader=reader)
-    spots = object_fine_map(res, sc.objects[0], sc, moduli, evidence).summary["stiffness_anomalies"] or []
+    fine = object_fine_map(res, sc.objects[0], sc, moduli, evidence).summary
+    spots = fine["stiffness_anomalies"] or []
+    layered = [r for r in (fine.get("lump_layer") or {}).get("material_regions", [])
+               if r["material"] != raw["objects"][0]["material"]]
     young = {m["name"]: m["young_kpa"] for m in MATERIALS}
     regions = [r for r in map_region_report(res.geometry, res.post.probabilities)
                if r["material"] != raw["objects"][0]["material"]]
@@ -134,7 +139,11 @@ def scene_row(seed: int) -> dict:
         sign = "harder" if young[lump["material"]] > young[raw["objects"][0]["material"]] else "softer"
         near = [a for a in spots if _near(lump, a)]
         read = next((a["lump"] for a in near if a.get("lump")), None)  # the strongest spot's that reads a lump
+        in_layer = [r for r in layered if np.hypot(*(np.array(r["centroid_m"][:2]) * 1e3 - centre)) <= NEAR_MM
+                    and r["volume_m3"] * 1e9 <= limit]
         rows.append({"top": top, "shape": lump["shape"], "located": bool(fits), "spotted": bool(near),
+                     "layer": bool(in_layer), "layer_named": any(r["material"] == lump["material"] for r in in_layer),
+                     "layer_top": min((abs(r["top_depth_m"] * 1e3 - top) for r in in_layer), default=None),
                      "sign": any(a["sign"] == sign for a in near),
                      "named": any(r["material"] == lump["material"] for r in fits),
                      "top_right": any(int(r["top_depth_m"] * 1e3 / CELL_MM + 0.5) == int(top // CELL_MM)
@@ -146,15 +155,21 @@ def scene_row(seed: int) -> dict:
             "accuracy": res.steps[-1].accuracy_postprocessed, "stray": stray}
 
 
+def _median_or_nan(values) -> float:
+    kept = [v for v in values if v is not None]
+    return float(np.median(kept)) if kept else float("nan")
+
+
 def main() -> None:
     args = scene_arguments(__doc__)
-    print(f"{'seed':>7} {'split':6} {'presses':>7} {'voxels right':>12}  lumps (top mm, shape: located L, named N, "
-          "top's layer right T, spotted S (s: with the wrong sign); distance to the nearest region of another "
-          "material, mm)")
+    print(f"{'seed':>7} {'split':6} {'presses':>7} {'voxels right':>12}  lumps (top mm, shape: located L, "
+          "in the lump layer F (n: named), named N, top's layer right T, spotted S (s: with the wrong sign); "
+          "distance to the nearest region of another material, mm)")
     rows = []
     for r in scene_results(scene_row, args):
         rows.append(r)
         desc = "; ".join(f"{lu['top']:.1f} {lu['shape']}: {'L' if lu['located'] else '-'}"
+                         f"{'F' if lu['layer'] else '-'}{'n' if lu['layer_named'] else '-'}"
                          f"{'N' if lu['named'] else '-'}{'T' if lu['top_right'] else '-'}"
                          f"{('S' if lu['sign'] else 's') if lu['spotted'] else '-'} "
                          f"{'-' if lu['error'] is None else format(lu['error'], '.1f')}"
@@ -164,7 +179,8 @@ def main() -> None:
               f"{r['accuracy']:12.1%}  {desc}; stray spots {r['stray']} ({r['cpu']:.0f} s CPU)", flush=True)
     lumps = [lu for r in rows for lu in r["lumps"]]
     print(f"\n{len(lumps)} lumps in {len(rows)} scenes ({sum(r['stray'] for r in rows)} stray spots); per band of the "
-          "top's depth: lumps, located, named, top's layer right, median distance mm, spotted, spotted with its sign")
+          "top's depth: lumps, located, named, top's layer right, median distance mm, spotted, spotted with its sign; "
+          "in the lump layer: located, named, median error of the top mm")
     for lo, hi in BANDS:
         band = [lu for lu in lumps if lo <= lu["top"] < hi]
         if band:
@@ -172,7 +188,8 @@ def main() -> None:
             print(f"{lo:.0f}-{hi:.0f} mm | {len(band)} | {sum(lu['located'] for lu in band)} | "
                   f"{sum(lu['named'] for lu in band)} | {sum(lu['top_right'] for lu in band)} | "
                   f"{np.median(err) if err else float('nan'):.1f} | {sum(lu['spotted'] for lu in band)} | "
-                  f"{sum(lu['sign'] for lu in band)}")
+                  f"{sum(lu['sign'] for lu in band)} | {sum(lu['layer'] for lu in band)} | "
+                  f"{sum(lu['layer_named'] for lu in band)} | {_median_or_nan([lu['layer_top'] for lu in band]):.1f}")
     if (line := lump_read_line(lumps)) is not None:
         print(f"\n{line}")
 

@@ -69,6 +69,12 @@ def test_replay_rebuilds_the_voxel_map_exactly(voxel_run, tmp_path):
     with np.load(out / "maps" / "Object_1_fine.npz") as ran, np.load(tmp_path / "maps" / "Object_1_fine.npz") as again:
         np.testing.assert_array_equal(again["probabilities"], ran["probabilities"])
         assert ran["probabilities"].shape[:2] == (16, 16)  # 20 mm at the fine raster's 1.25 mm (of 2.5 mm voxels)
+    # the lump layer under it: 15 mm deep in cubes of the fine raster's side
+    assert replayed["fine_map"]["lump_layer"] == run["fine_map"]["lump_layer"]
+    lumps = "maps/Object_1_lumps.npz"
+    with np.load(out / lumps) as ran, np.load(tmp_path / lumps) as again:
+        np.testing.assert_array_equal(again["probabilities"], ran["probabilities"])
+        assert ran["probabilities"].shape[:3] == (16, 16, 12)
 
 
 def test_layer_fits_cut_the_press_at_each_layer():

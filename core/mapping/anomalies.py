@@ -49,6 +49,7 @@ class StiffnessAnomaly:
         z: its strongest press's distance from the named material's mean log modulus, in that material's spreads
             (signed: > 0 harder).
         press: the index of its strongest press in the readings it was found in.
+        locations: (x, y) of each of its presses, m.
     """
 
     sign: str
@@ -57,11 +58,13 @@ class StiffnessAnomaly:
     centroid_m: tuple[float, float]
     z: float
     press: int = -1
+    locations: tuple[tuple[float, float], ...] = ()
 
     def to_dict(self) -> dict:
         """JSON-ready form (summary.json)."""
         return {"sign": self.sign, "material": self.material, "presses": self.presses,
-                "centroid_m": list(self.centroid_m), "z": self.z}
+                "centroid_m": list(self.centroid_m), "z": self.z,
+                "press_locations_m": [list(xy) for xy in self.locations]}
 
 
 def press_z(geometry: MapGeometry, probabilities: np.ndarray, readings, moduli: MaterialModuli) -> np.ndarray:
@@ -148,7 +151,8 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
         centre = (w @ xy[members]) / w.sum()
         out.append(StiffnessAnomaly("harder" if zk[strongest] > 0 else "softer",
                                     geometry.materials[int(labels[cy[at], cx[at]])], len(members),
-                                    (float(centre[0]), float(centre[1])), float(zk[strongest]), at))
+                                    (float(centre[0]), float(centre[1])), float(zk[strongest]), at,
+                                    tuple((float(x), float(y)) for x, y in xy[members])))
     return sorted(out, key=lambda a: -abs(a.z))
 
 

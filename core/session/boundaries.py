@@ -32,7 +32,8 @@ from palpate.core.mapping.anomalies import anomaly_report
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
 from palpate.core.mapping.fine import FineMap, boundary_error, edges, fine_map
 from palpate.core.mapping.geometry import MapGeometry, plane_probabilities
-from palpate.core.mapping.regions import region_report
+from palpate.core.mapping.lump_layer import LumpLayer, lump_layer
+from palpate.core.mapping.regions import MAX_REGIONS, region_report, volume_regions
 from palpate.core.perception.streams import SATURATED
 from palpate.core.world.haptic_material import HapticMaterialMap
 from palpate.core.world.resources import models_dir
@@ -171,6 +172,7 @@ class FineResult:
     fine: FineMap
     summary: dict
     truth: np.ndarray | None = None
+    lumps: LumpLayer | None = None
 
 
 def fine_truth(entry: ObjectEntry, scenario: Scenario, fine: FineMap) -> np.ndarray:
@@ -201,6 +203,31 @@ def plane_fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings, m
     return fine, fine_map_findings(fine, plane, cells, readings, moduli, edge_reach, lumps)
 
 
+def voxel_lump_layer(geometry: MapGeometry, fine: FineMap, findings: dict) -> tuple[LumpLayer | None, dict | None]:
+    """A voxel map's lump layer (:func:`~palpate.core.mapping.lump_layer.lump_layer`) from its fine map and that
+    map's findings, with summary.json's ``lump_layer``: its resolution, depth, the lumps it holds and its largest
+    regions (those of a quarter of a cell's footprint or more); (None, None) for a 2-D map or one with no spots."""
+    spots = findings.get("stiffness_anomalies")
+    if not geometry.voxel or spots is None:
+        return None, None
+    depth = geometry.shape[2] * geometry.cell_size
+    layer = lump_layer(fine, geometry.z_top, depth, geometry.cell_size, spots)
+    least = (geometry.cell_size / layer.resolution) ** 2 / 4
+    regions = [r for r in volume_regions(layer.probabilities, layer.origin, layer.z_top, layer.resolution,
+                                         layer.materials) if r.voxels >= least]
+    return layer, {"resolution_m": layer.resolution, "depth_m": layer.probabilities.shape[2] * layer.resolution,
+                   "lumps": layer.lumps, "material_regions": [r.to_dict() for r in regions[:MAX_REGIONS]]}
+
+
+def save_lump_layer(path: Path, layer: LumpLayer) -> None:
+    """``path`` (.npz, no pickled objects): probabilities (nx, ny, nz, M), origin_m, z_top_m, resolution_m,
+    materials."""
+    with writing(path):
+        np.savez_compressed(path, probabilities=layer.probabilities, origin_m=np.asarray(layer.origin),
+                            z_top_m=np.asarray(layer.z_top), resolution_m=np.asarray(layer.resolution),
+                            materials=np.asarray(layer.materials))
+
+
 def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: MaterialModuli | None,
                     lumps: LumpEvidence | None = None) -> FineResult:
     """The fine map of an explored object's plane from its post-processed map and its presses' readings, with its
@@ -214,10 +241,13 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
     summary = {"resolution_m": fine.resolution, "presses_read": len(readings),
                "walls_read": sum(1 for _, r in readings if r.p_boundary > 0.5),
                "sides_named_by": "modulus" if moduli is not None else "neighbour cells"} | findings
+    layer, layer_summary = voxel_lump_layer(obj.geometry, fine, findings)
+    if layer_summary is not None:
+        summary["lump_layer"] = layer_summary
     truth = fine_truth(entry, scenario, fine)
     known = truth >= 0
     if not known.any():
-        return FineResult(fine, summary)
+        return FineResult(fine, summary, lumps=layer)
     cells = fine.cells_on_raster(np.argmax(plane_probabilities(obj.post.probabilities), axis=-1))
     labels = fine.labels()
     cell_err, fine_err = (boundary_error(lab, truth, known, fine.resolution) for lab in (cells, labels))
@@ -226,7 +256,7 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
     summary["boundary_error_m"] = {name: {"median": _finite(e[0]), "p90": _finite(e[1])}
                                    for name, e in (("cell_map", cell_err), ("fine_map", fine_err))}
     summary["calibration_ece"] = fine_calibration(fine, truth, known)
-    return FineResult(fine, summary, truth)
+    return FineResult(fine, summary, truth, layer)
 
 
 def near_boundaries(truth: np.ndarray, resolution: float) -> np.ndarray:

@@ -46,7 +46,9 @@ from palpate.core.session.boundaries import (
     replay_lump_evidence,
     replay_reader,
     save_fine_map,
+    save_lump_layer,
     training_moduli,
+    voxel_lump_layer,
     with_curves,
 )
 from palpate.core.session.explore import MapPostprocessing, apply_press
@@ -339,6 +341,10 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
             summary_objects[-1]["fine_map"] = {
                 "resolution_m": fine.resolution, "presses_read": len(state.readings),
                 "sides_named_by": "modulus" if moduli else "neighbour cells"} | findings
+            layer, layer_summary = voxel_lump_layer(g, fine, findings)
+            if layer is not None:
+                save_lump_layer(inside(out, out / "maps" / f"{stems[name]}_lumps.npz"), layer)
+                summary_objects[-1]["fine_map"]["lump_layer"] = layer_summary
         if figures and not g.voxel:
             (out / "figures").mkdir(exist_ok=True)
             fig.plot_map_snapshots(inside(out, out / "figures" / f"{stems[name]}_map.png"), name,

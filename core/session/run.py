@@ -46,6 +46,7 @@ from palpate.core.session.boundaries import (
     noise_metadata,
     object_fine_map,
     save_fine_map,
+    save_lump_layer,
     training_moduli,
 )
 from palpate.core.session.ceiling import Ceiling, attainable_accuracy, ceiling_summary, is_full_raster
@@ -268,6 +269,8 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
     for obj, fine in zip(objects, fines, strict=True):
         if fine is not None:
             save_fine_map(inside(out, out / "maps" / f"{file_stem(obj.name)}_fine.npz"), fine.fine)
+            if fine.lumps is not None:
+                save_lump_layer(inside(out, out / "maps" / f"{file_stem(obj.name)}_lumps.npz"), fine.lumps)
             if scenario.outputs.haptic_material:
                 export_fine_map(inside(out, out / "haptic_materials" / f"{file_stem(obj.name)}_fine"), fine.fine,
                                 obj.name, scenario)
