@@ -151,7 +151,9 @@ def scene_row(seed: int) -> dict:
                      "error": min(dist) if dist else None, "material": lump["material"],
                      "read": lump_read(read)})
     stray = sum(not any(_near(lump, a) for lump in lumps) for a in spots)
+    layer = fine.get("lump_layer") or {}
     return {"seed": seed, "presses": len(res.steps), "lumps": rows, "cpu": time.process_time() - t0,
+            "volume": layer.get("volume_accuracy"), "below": layer.get("below_surface_accuracy"),
             "accuracy": res.steps[-1].accuracy_postprocessed, "stray": stray}
 
 
@@ -190,6 +192,12 @@ def main() -> None:
                   f"{np.median(err) if err else float('nan'):.1f} | {sum(lu['spotted'] for lu in band)} | "
                   f"{sum(lu['sign'] for lu in band)} | {sum(lu['layer'] for lu in band)} | "
                   f"{sum(lu['layer_named'] for lu in band)} | {_median_or_nan([lu['layer_top'] for lu in band]):.1f}")
+    for key, what in (("volume", "every cube"), ("below", "cubes whose material is not the surface's")):
+        acc = [r[key] for r in rows if r[key]]
+        if acc:
+            voxel, layer = (np.mean([a[k] for a in acc]) for k in ("voxel_map", "lump_layer"))
+            print(f"share of {what} labelled right (1 mm cubes), mean over {len(acc)} scenes: voxel map "
+                  f"{voxel:.3f}, lump layer {layer:.3f}")
     if (line := lump_read_line(lumps)) is not None:
         print(f"\n{line}")
 

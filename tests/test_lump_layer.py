@@ -70,3 +70,17 @@ def test_a_bad_lump_is_refused_by_name(bad):
 def test_a_bad_depth_or_cell_is_refused(depth, cell):
     with pytest.raises(ValidationError, match="lump_layer"):
         lump_layer(FINE, 0.05, depth, cell, [])
+
+
+def test_the_figure_cuts_the_layer_at_its_depths_above_the_truth(tmp_path):
+    from palpate.core.io.fine_figures import LAYER_SLICES, lump_layer_figure, plot_lump_layer
+
+    layer = lump_layer(FINE, 0.05, 8e-3, 5e-3, [_spot([(0.0025, 0.0025)])])
+    truth = np.zeros(layer.probabilities.shape[:3], dtype=int)
+    truth[:5, :5, 3:] = 2
+    fig = lump_layer_figure("block", layer, truth, [((0.0025, 0.0025), "harder")])
+    titles = [ax.get_title() for ax in fig.axes]
+    assert len(titles) == 2 * LAYER_SLICES and titles[0] == "lump layer, 1.5 mm down" and titles[-1].startswith("truth")
+    assert len(lump_layer_figure("block", layer, None).axes) == LAYER_SLICES
+    path = plot_lump_layer(tmp_path / "lumps.png", "block", layer, truth)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

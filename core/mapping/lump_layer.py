@@ -48,6 +48,23 @@ class LumpLayer:
     materials: tuple[str, ...]
     lumps: int
 
+    def centres(self) -> np.ndarray:
+        """(nx, ny, nz, 3) cube centres (x, y, z), m."""
+        nx, ny, nz = self.probabilities.shape[:3]
+        ix, iy, iz = np.indices((nx, ny, nz))
+        return np.stack([self.origin[0] + (ix + 0.5) * self.resolution, self.origin[1] + (iy + 0.5) * self.resolution,
+                         self.z_top - (iz + 0.5) * self.resolution], axis=-1)
+
+
+def voxels_on_layer(layer: LumpLayer, origin: tuple[float, float], cell: float, voxels: np.ndarray) -> np.ndarray:
+    """A voxel map's per-voxel values, (nx, ny, nz, ...) of ``cell`` m cubes from ``origin`` down from the layer's
+    surface, at each of the layer's cubes (the voxel holding its centre; the deepest where the layer reaches below)."""
+    c = layer.centres()
+    shape = voxels.shape[:3]
+    ix, iy = (np.clip(((c[..., k] - origin[k]) // cell).astype(int), 0, shape[k] - 1) for k in (0, 1))
+    iz = np.clip(((layer.z_top - c[..., 2]) // cell).astype(int), 0, shape[2] - 1)
+    return voxels[ix, iy, iz]
+
 
 def lump_layer(fine: FineMap, z_top: float, depth: float, cell: float, spots: list[dict]) -> LumpLayer:
     """The lump layer of a voxel map (see the module docstring).

@@ -32,7 +32,7 @@ from palpate.core.mapping.anomalies import anomaly_report
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
 from palpate.core.mapping.fine import FineMap, boundary_error, edges, fine_map
 from palpate.core.mapping.geometry import MapGeometry, plane_probabilities
-from palpate.core.mapping.lump_layer import LumpLayer, lump_layer
+from palpate.core.mapping.lump_layer import LumpLayer, lump_layer, voxels_on_layer
 from palpate.core.mapping.regions import MAX_REGIONS, region_report, volume_regions
 from palpate.core.perception.streams import SATURATED
 from palpate.core.world.haptic_material import HapticMaterialMap
@@ -173,6 +173,7 @@ class FineResult:
     summary: dict
     truth: np.ndarray | None = None
     lumps: LumpLayer | None = None
+    lumps_truth: np.ndarray | None = None
 
 
 def fine_truth(entry: ObjectEntry, scenario: Scenario, fine: FineMap) -> np.ndarray:
@@ -219,6 +220,26 @@ def voxel_lump_layer(geometry: MapGeometry, fine: FineMap, findings: dict) -> tu
                    "lumps": layer.lumps, "material_regions": [r.to_dict() for r in regions[:MAX_REGIONS]]}
 
 
+def lump_layer_accuracy(geometry: MapGeometry, probabilities: np.ndarray, layer: LumpLayer,
+                        truth: np.ndarray) -> dict:
+    """summary.json's share of the layer's cubes each map labels right (``truth``: material index per cube, -1
+    unknown): the voxel map (``probabilities`` (nx, ny, nz, M), each cube labelled as the voxel holding its
+    centre) and the lump layer, over every known cube (``volume_accuracy``) and over those whose true material is
+    not the surface's above them (``below_surface_accuracy``: the lumps; absent where there are none)."""
+    known = truth >= 0
+    if not known.any():
+        return {}
+    voxel = voxels_on_layer(layer, geometry.origin, geometry.cell_size, np.argmax(probabilities, axis=-1))
+    labels = np.argmax(layer.probabilities, axis=-1)
+    out = {"volume_accuracy": {"voxel_map": float(np.mean(voxel[known] == truth[known])),
+                               "lump_layer": float(np.mean(labels[known] == truth[known]))}}
+    below = known & (truth != truth[:, :, :1])
+    if below.any():
+        out["below_surface_accuracy"] = {"voxel_map": float(np.mean(voxel[below] == truth[below])),
+                                         "lump_layer": float(np.mean(labels[below] == truth[below]))}
+    return out
+
+
 def save_lump_layer(path: Path, layer: LumpLayer) -> None:
     """``path`` (.npz, no pickled objects): probabilities (nx, ny, nz, M), origin_m, z_top_m, resolution_m,
     materials."""
@@ -242,12 +263,16 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
                "walls_read": sum(1 for _, r in readings if r.p_boundary > 0.5),
                "sides_named_by": "modulus" if moduli is not None else "neighbour cells"} | findings
     layer, layer_summary = voxel_lump_layer(obj.geometry, fine, findings)
-    if layer_summary is not None:
+    layer_truth = None
+    if layer is not None:
+        layer_truth = ground_truth_cells(entry, scenario, layer.centres()[..., :2].reshape(-1, 2),
+                                         layer.centres()[..., 2].ravel()).reshape(layer.probabilities.shape[:3])
+        layer_summary |= lump_layer_accuracy(obj.geometry, obj.post.probabilities, layer, layer_truth)
         summary["lump_layer"] = layer_summary
     truth = fine_truth(entry, scenario, fine)
     known = truth >= 0
     if not known.any():
-        return FineResult(fine, summary, lumps=layer)
+        return FineResult(fine, summary, lumps=layer, lumps_truth=layer_truth)
     cells = fine.cells_on_raster(np.argmax(plane_probabilities(obj.post.probabilities), axis=-1))
     labels = fine.labels()
     cell_err, fine_err = (boundary_error(lab, truth, known, fine.resolution) for lab in (cells, labels))
@@ -256,7 +281,7 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
     summary["boundary_error_m"] = {name: {"median": _finite(e[0]), "p90": _finite(e[1])}
                                    for name, e in (("cell_map", cell_err), ("fine_map", fine_err))}
     summary["calibration_ece"] = fine_calibration(fine, truth, known)
-    return FineResult(fine, summary, truth, layer)
+    return FineResult(fine, summary, truth, layer, layer_truth)
 
 
 def near_boundaries(truth: np.ndarray, resolution: float) -> np.ndarray:

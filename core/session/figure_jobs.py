@@ -158,3 +158,11 @@ def fine_map_job(obj: ObjectResult, fine, truth: np.ndarray | None, anomalies: l
     spots = [(tuple(a["centroid_m"]), a["sign"]) for a in anomalies or ()]
     return FigureJob(f"{file_stem(obj.name)}_fine_map.png", fine_figures.plot_fine_map,
                      (obj.name, fine, cells, truth, walls, spots))
+
+
+def lump_layer_job(obj: ObjectResult, layer, truth: np.ndarray | None,
+                   anomalies: list[dict] | None = None) -> FigureJob:
+    """A voxel map's lump layer cut at a few depths above the truth there (:mod:`palpate.core.io.fine_figures`),
+    with its stiffness spots (``anomalies``: summary.json's ``stiffness_anomalies``)."""
+    spots = [(tuple(a["centroid_m"]), a["sign"]) for a in anomalies or ()]
+    return FigureJob(f"{file_stem(obj.name)}_lumps.png", fine_figures.plot_lump_layer, (obj.name, layer, truth, spots))

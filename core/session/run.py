@@ -55,6 +55,7 @@ from palpate.core.session.figure_jobs import (
     FigureDrawer,
     FigureJob,
     fine_map_job,
+    lump_layer_job,
     object_jobs,
     progress_job,
     training_jobs,
@@ -276,6 +277,9 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
                                 obj.name, scenario)
             if draw:
                 drawer.submit([fine_map_job(obj, fine.fine, fine.truth, fine.summary.get("stiffness_anomalies"))])
+                if fine.lumps is not None and fine.lumps.lumps:
+                    drawer.submit([lump_layer_job(obj, fine.lumps, fine.lumps_truth,
+                                                  fine.summary.get("stiffness_anomalies"))])
     timing["maps_s"] = time.perf_counter() - t0
     cpu["maps_s"] = time.process_time() - c0
 
