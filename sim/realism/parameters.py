@@ -57,6 +57,8 @@ FREE_PARAMETERS = {p.key: p for p in (
     FreeParameter("finger.area_factor", 1.0, 9.5),
     FreeParameter("finger.stiffness_cv", 0.0, 0.8),
     FreeParameter("finger.pressure_exponent", 0.5, 2.5),
+    FreeParameter("finger.aspect", 1.0, 2.0),
+    FreeParameter("finger.cover", 0.0, 1.5),
     FreeParameter("press.speed_cv", 0.0, 0.4),
     FreeParameter("press.depth_cv", 0.0, 0.4),
     FreeParameter("press.tilt_deg", 0.0, 12.0),

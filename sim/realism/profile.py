@@ -56,6 +56,10 @@ class FingerPulp:
             (a stiff object): 1/2 is Hertz's half-space, 1 a thin compressible layer, 2 a thin incompressible
             layer bonded to bone (Johnson 1985, section 5.9); a press's exponent goes from 1/2 towards it with the
             pulp's share of the approach (:mod:`palpate.sim.realism.patch`). 1/2: Hertz's on every object.
+        aspect: the patch's length along the finger over its width, at the same area (1: a circle; fingertip
+            contacts on a flat are ellipses about 1.3-1.7 long, the long axis along the finger, the pad's rows).
+        cover: a sensel reads only while its centre lies within ``cover`` times the patch's radius (0: every
+            sensel the patch reaches reads).
     """
 
     compliant: bool = False
@@ -64,12 +68,15 @@ class FingerPulp:
     area_factor: float = 2.0
     stiffness_cv: float = 0.0
     pressure_exponent: float = 0.5
+    aspect: float = 1.0
+    cover: float = 0.0
 
     def __post_init__(self) -> None:
         _check("FingerPulp", {"stiffness": (self.stiffness, 1.0, 1e6), "stiffening": (self.stiffening, 0.0, 1e5),
                               "area_factor": (self.area_factor, 0.0, 10.0),
                               "stiffness_cv": (self.stiffness_cv, 0.0, 2.0),
-                              "pressure_exponent": (self.pressure_exponent, 0.5, 3.0)})
+                              "pressure_exponent": (self.pressure_exponent, 0.5, 3.0),
+                              "aspect": (self.aspect, 0.5, 3.0), "cover": (self.cover, 0.0, 3.0)})
 
     def compression(self, force: np.ndarray, stiffness_scale: float = 1.0) -> np.ndarray:
         """Pulp compression delta, m, under contact force F (N, clipped at 0); 0 everywhere when rigid."""

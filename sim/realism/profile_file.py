@@ -106,6 +106,8 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
             area_factor=f.number("area_factor", d.area_factor, lo=0.0),
             stiffness_cv=f.number("stiffness_cv", d.stiffness_cv, lo=0.0),
             pressure_exponent=f.number("pressure_exponent", d.pressure_exponent, lo=0.5, hi=2.99),
+            aspect=f.number("aspect", d.aspect, lo=0.5, hi=3.0),
+            cover=f.number("cover", d.cover, lo=0.0, hi=3.0),
         )
         f.finish()
         pr = top.sub("press")
@@ -229,7 +231,8 @@ def profile_tables(profile: RealismProfile) -> dict:
         "profile": {"name": profile.name, "description": profile.description},
         "finger": {"compliant": f.compliant, "stiffness_n_per_mm": f.stiffness * 1e-3,
                    "stiffening_per_mm": f.stiffening * 1e-3, "area_factor": f.area_factor,
-                   "stiffness_cv": f.stiffness_cv, "pressure_exponent": f.pressure_exponent},
+                   "stiffness_cv": f.stiffness_cv, "pressure_exponent": f.pressure_exponent,
+                   "aspect": f.aspect, "cover": f.cover},
         "press": {"speed_cv": p.speed_cv, "depth_cv": p.depth_cv, "lateral_mm": p.lateral_std * 1e3,
                   "hold_s": p.hold_std, "smooth": p.smooth, "tilt_deg": float(np.rad2deg(p.tilt_std)),
                   "slip": p.slip_std, "tremor_mm": p.tremor * 1e3, "force_scale": p.force_scale,
