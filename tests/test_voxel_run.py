@@ -90,3 +90,17 @@ def test_layer_fits_cut_the_press_at_each_layer():
     assert len(fits) == 3  # 6 mm reaches layers 0, 1 and 2 of 2.5 mm
     for params in fits:
         assert params is not None and params[0] == pytest.approx(20.0, rel=1e-6)
+
+
+def test_a_lump_layer_beyond_the_cube_limit_is_skipped_with_its_reason(monkeypatch):
+    from palpate.core.mapping.fine import FineMap
+    from palpate.core.mapping.geometry import MapGeometry
+    from palpate.core.session.boundaries import voxel_lump_layer
+
+    geometry = MapGeometry("voxel", ("a", "b"), (0.0, 0.0), 5e-3, (4, 4, 2), z_top=0.05)
+    fine = FineMap((0.0, 0.0), 1e-3, np.full((20, 20, 2), 0.5), ("a", "b"))
+    layer, summary = voxel_lump_layer(geometry, fine, {"stiffness_anomalies": []})
+    assert layer.probabilities.shape == (20, 20, 10, 2) and summary["lumps"] == 0
+    monkeypatch.setenv("PALPATE_LIMITS", "map_cells=3999")
+    layer, summary = voxel_lump_layer(geometry, fine, {"stiffness_anomalies": []})
+    assert layer is None and "4000 cubes, beyond the limit map_cells" in summary["skipped"]

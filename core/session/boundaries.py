@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
-from palpate.core import __version__
+from palpate.core import __version__, limits
 from palpate.core.boundary.lump_depth import LumpEvidence, reference_curves, result_curve
 from palpate.core.boundary.lump_templates import LUMP_TEMPLATES_FILE, read_lump_templates
 from palpate.core.boundary.moduli import MaterialModuli, material_moduli
@@ -207,11 +207,16 @@ def plane_fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings, m
 def voxel_lump_layer(geometry: MapGeometry, fine: FineMap, findings: dict) -> tuple[LumpLayer | None, dict | None]:
     """A voxel map's lump layer (:func:`~palpate.core.mapping.lump_layer.lump_layer`) from its fine map and that
     map's findings, with summary.json's ``lump_layer``: its resolution, depth, the lumps it holds and its largest
-    regions (those of a quarter of a cell's footprint or more); (None, None) for a 2-D map or one with no spots."""
+    regions (those of a quarter of a cell's footprint or more); (None, None) for a 2-D map or one with no spots;
+    (None, {"skipped": why}) for a layer of more cubes than the limit ``map_cells``."""
     spots = findings.get("stiffness_anomalies")
     if not geometry.voxel or spots is None:
         return None, None
     depth = geometry.shape[2] * geometry.cell_size
+    cubes = fine.probabilities.shape[0] * fine.probabilities.shape[1] * max(1, round(depth / fine.resolution))
+    if cubes > limits.limit("map_cells"):
+        return None, {"skipped": f"{cubes} cubes, beyond the limit map_cells ({limits.limit('map_cells'):g}; "
+                                 "palpate --limit map_cells=N raises it)"}
     layer = lump_layer(fine, geometry.z_top, depth, geometry.cell_size, spots)
     least = (geometry.cell_size / layer.resolution) ** 2 / 4
     regions = [r for r in volume_regions(layer.probabilities, layer.origin, layer.z_top, layer.resolution,
@@ -268,6 +273,7 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
         layer_truth = ground_truth_cells(entry, scenario, layer.centres()[..., :2].reshape(-1, 2),
                                          layer.centres()[..., 2].ravel()).reshape(layer.probabilities.shape[:3])
         layer_summary |= lump_layer_accuracy(obj.geometry, obj.post.probabilities, layer, layer_truth)
+    if layer_summary is not None:
         summary["lump_layer"] = layer_summary
     truth = fine_truth(entry, scenario, fine)
     known = truth >= 0

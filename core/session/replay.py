@@ -344,6 +344,7 @@ def replay_recording(path: str | Path, memory: HapticMemory | ClassifierMemory, 
             layer, layer_summary = voxel_lump_layer(g, fine, findings)
             if layer is not None:
                 save_lump_layer(inside(out, out / "maps" / f"{stems[name]}_lumps.npz"), layer)
+            if layer_summary is not None:
                 summary_objects[-1]["fine_map"]["lump_layer"] = layer_summary
         if figures and not g.voxel:
             (out / "figures").mkdir(exist_ok=True)
