@@ -75,6 +75,7 @@ FREE_PARAMETERS = {p.key: p for p in (
     FreeParameter("taxels.hysteresis", 0.0, 0.3),
     FreeParameter("taxels.creep", 0.0, 0.2),
     FreeParameter("taxels.nonlinearity", 0.0, 3.0),
+    FreeParameter("taxels.response_exponent", 0.3, 1.0),
     FreeParameter("taxels.activation_kpa", 0.0, 5.0),
     FreeParameter("taxels.activation_cv", 0.0, 1.5),
     FreeParameter("pose.latency_ms", -30.0, 30.0),

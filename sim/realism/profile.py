@@ -105,6 +105,9 @@ class TaxelRealism:
         creep: output rise per decade of time a sensel stays loaded, relative (Tekscan: < 3-5% per log time).
         nonlinearity: compression of the response at full scale: raw / (1 + nonlinearity raw / 255) (the ink's
             conductance grows sub-linearly with load).
+        response_exponent: the ink's power law before the compression: full_scale (raw / full_scale) **
+            response_exponent (1: linear; below 1 a small load already reads high, as a resistive ink's
+            conductance does).
         crosstalk: fraction of each sensel's output that reads on each of its four neighbours (row/column
             ghosting of the matrix scan).
         activation: mean pressure a sensel needs before its ink conducts, Pa: below it the sensel reads nothing,
@@ -125,9 +128,11 @@ class TaxelRealism:
     crosstalk: float = 0.0
     activation: float = 0.0
     activation_cv: float = 0.0
+    response_exponent: float = 1.0
 
     def __post_init__(self) -> None:
         _check("TaxelRealism", {"sensitivity": (self.sensitivity, 0.01, 100.0),
+                                "response_exponent": (self.response_exponent, 0.1, 2.0),
                                 "activation": (self.activation, 0.0, 1e5),
                                 "activation_cv": (self.activation_cv, 0.0, 3.0),
                                 "gain_spread": (self.gain_spread, 0.0, 0.5), "gain_drift": (self.gain_drift, 0.0, 0.5),
@@ -139,8 +144,9 @@ class TaxelRealism:
     def active(self) -> bool:
         """True when any non-ideality is on."""
         # a spread of the turn-on pressure changes nothing without a turn-on pressure
-        return self.sensitivity != 1.0 or any(getattr(self, f.name) > 0 for f in fields(self)
-                                              if f.name not in ("sensitivity", "activation_cv"))
+        return (self.sensitivity != 1.0 or self.response_exponent != 1.0
+                or any(getattr(self, f.name) > 0 for f in fields(self)
+                       if f.name not in ("sensitivity", "activation_cv", "response_exponent")))
 
 
 @dataclass(frozen=True)

@@ -132,7 +132,8 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
                               **{k: tx.number(k, 0.0, lo=0.0) for k in
                                  ("gain_spread", "gain_drift", "hysteresis", "creep", "nonlinearity", "crosstalk")},
                               activation=tx.number("activation_kpa", 0.0, lo=0.0, hi=100.0) * 1e3,
-                              activation_cv=tx.number("activation_cv", 0.0, lo=0.0, hi=2.99))
+                              activation_cv=tx.number("activation_cv", 0.0, lo=0.0, hi=2.99),
+                              response_exponent=tx.number("response_exponent", 1.0, lo=0.1, hi=1.0))
         tx.finish()
         po = top.sub("pose")
         pose = PoseRealism(latency=po.number("latency_ms", 0.0) * 1e-3,
@@ -242,7 +243,7 @@ def profile_tables(profile: RealismProfile) -> dict:
         "taxels": {"sensitivity": t.sensitivity, "gain_spread": t.gain_spread, "gain_drift": t.gain_drift,
                    "hysteresis": t.hysteresis, "creep": t.creep, "nonlinearity": t.nonlinearity,
                    "crosstalk": t.crosstalk, "activation_kpa": t.activation * 1e-3,
-                   "activation_cv": t.activation_cv},
+                   "activation_cv": t.activation_cv, "response_exponent": t.response_exponent},
         "pose": {"latency_ms": o.latency * 1e3, "clock_offset_ms": o.clock_offset_std * 1e3,
                  "clock_wander_ms": o.clock_wander * 1e3},
         "material": {"relaxation": m.relaxation, "relaxation_time_s": m.relaxation_time, "softening": m.softening,
