@@ -154,17 +154,8 @@ def finger_trace(trace: PhysicsTrace, profile: PressProfile, pulp: FingerPulp, s
         touching &= np.asarray(rows, dtype=bool)
     if touching.any():
         exponent = press_exponent(pulp.pressure_exponent, trace.indentation[touching], delta[touching])
-        # An elliptical patch of the circle's area is the circle in coordinates stretched across the finger and
-        # shrunk along it; a mean over a sensel is the same mean over its image (the map is linear).
-        s = np.sqrt(pulp.aspect)
-        stretch = np.array([s, s, 1 / s, 1 / s])
-        bounds, at = sensel_bounds(tip) * stretch, np.broadcast_to(centre, (2,)) * stretch[1:3]
-        pressure[touching] = patch_sensel_pressure(patch[touching], force[touching], exponent, radius, bounds, at)
-        if pulp.cover > 0:
-            cx = 0.5 * (bounds[..., 0] + bounds[..., 1]) - at[0]
-            cy = 0.5 * (bounds[..., 2] + bounds[..., 3]) - at[1]
-            inside = (cx**2 + cy**2)[None] < pulp.cover**2 * radius * patch[touching][:, None, None]
-            pressure[touching] = np.where(inside, pressure[touching], 0.0)
+        pressure[touching] = patch_sensel_pressure(patch[touching], force[touching], exponent, radius,
+                                                   sensel_bounds(tip), np.broadcast_to(centre, (2,)))
     meta = dict(trace.meta, finger={"compliant": pulp.compliant, "max_compression_m": float(np.max(delta)),
                                     "stiffness_scale": float(stiffness_scale),
                                     "pad_offset_m": [float(c) for c in np.broadcast_to(centre, (2,))]})

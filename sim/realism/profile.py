@@ -56,10 +56,6 @@ class FingerPulp:
             (a stiff object): 1/2 is Hertz's half-space, 1 a thin compressible layer, 2 a thin incompressible
             layer bonded to bone (Johnson 1985, section 5.9); a press's exponent goes from 1/2 towards it with the
             pulp's share of the approach (:mod:`palpate.sim.realism.patch`). 1/2: Hertz's on every object.
-        aspect: the patch's length along the finger over its width, at the same area (1: a circle; fingertip
-            contacts on a flat are ellipses about 1.3-1.7 long, the long axis along the finger, the pad's rows).
-        cover: a sensel reads only while its centre lies within ``cover`` times the patch's radius (0: every
-            sensel the patch reaches reads).
     """
 
     compliant: bool = False
@@ -68,15 +64,12 @@ class FingerPulp:
     area_factor: float = 2.0
     stiffness_cv: float = 0.0
     pressure_exponent: float = 0.5
-    aspect: float = 1.0
-    cover: float = 0.0
 
     def __post_init__(self) -> None:
         _check("FingerPulp", {"stiffness": (self.stiffness, 1.0, 1e6), "stiffening": (self.stiffening, 0.0, 1e5),
                               "area_factor": (self.area_factor, 0.0, 10.0),
                               "stiffness_cv": (self.stiffness_cv, 0.0, 2.0),
-                              "pressure_exponent": (self.pressure_exponent, 0.5, 3.0),
-                              "aspect": (self.aspect, 0.5, 3.0), "cover": (self.cover, 0.0, 3.0)})
+                              "pressure_exponent": (self.pressure_exponent, 0.5, 3.0)})
 
     def compression(self, force: np.ndarray, stiffness_scale: float = 1.0) -> np.ndarray:
         """Pulp compression delta, m, under contact force F (N, clipped at 0); 0 everywhere when rigid."""
@@ -105,9 +98,6 @@ class TaxelRealism:
         creep: output rise per decade of time a sensel stays loaded, relative (Tekscan: < 3-5% per log time).
         nonlinearity: compression of the response at full scale: raw / (1 + nonlinearity raw / 255) (the ink's
             conductance grows sub-linearly with load).
-        response_exponent: the ink's power law before the compression: full_scale (raw / full_scale) **
-            response_exponent (1: linear; below 1 a small load already reads high, as a resistive ink's
-            conductance does).
         crosstalk: fraction of each sensel's output that reads on each of its four neighbours (row/column
             ghosting of the matrix scan).
         activation: mean pressure a sensel needs before its ink conducts, Pa: below it the sensel reads nothing,
@@ -128,11 +118,9 @@ class TaxelRealism:
     crosstalk: float = 0.0
     activation: float = 0.0
     activation_cv: float = 0.0
-    response_exponent: float = 1.0
 
     def __post_init__(self) -> None:
         _check("TaxelRealism", {"sensitivity": (self.sensitivity, 0.01, 100.0),
-                                "response_exponent": (self.response_exponent, 0.1, 2.0),
                                 "activation": (self.activation, 0.0, 1e5),
                                 "activation_cv": (self.activation_cv, 0.0, 3.0),
                                 "gain_spread": (self.gain_spread, 0.0, 0.5), "gain_drift": (self.gain_drift, 0.0, 0.5),
@@ -144,9 +132,8 @@ class TaxelRealism:
     def active(self) -> bool:
         """True when any non-ideality is on."""
         # a spread of the turn-on pressure changes nothing without a turn-on pressure
-        return (self.sensitivity != 1.0 or self.response_exponent != 1.0
-                or any(getattr(self, f.name) > 0 for f in fields(self)
-                       if f.name not in ("sensitivity", "activation_cv", "response_exponent")))
+        return self.sensitivity != 1.0 or any(getattr(self, f.name) > 0 for f in fields(self)
+                                              if f.name not in ("sensitivity", "activation_cv"))
 
 
 @dataclass(frozen=True)

@@ -106,8 +106,6 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
             area_factor=f.number("area_factor", d.area_factor, lo=0.0),
             stiffness_cv=f.number("stiffness_cv", d.stiffness_cv, lo=0.0),
             pressure_exponent=f.number("pressure_exponent", d.pressure_exponent, lo=0.5, hi=2.99),
-            aspect=f.number("aspect", d.aspect, lo=0.5, hi=3.0),
-            cover=f.number("cover", d.cover, lo=0.0, hi=3.0),
         )
         f.finish()
         pr = top.sub("press")
@@ -132,8 +130,7 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
                               **{k: tx.number(k, 0.0, lo=0.0) for k in
                                  ("gain_spread", "gain_drift", "hysteresis", "creep", "nonlinearity", "crosstalk")},
                               activation=tx.number("activation_kpa", 0.0, lo=0.0, hi=100.0) * 1e3,
-                              activation_cv=tx.number("activation_cv", 0.0, lo=0.0, hi=2.99),
-                              response_exponent=tx.number("response_exponent", 1.0, lo=0.1, hi=1.0))
+                              activation_cv=tx.number("activation_cv", 0.0, lo=0.0, hi=2.99))
         tx.finish()
         po = top.sub("pose")
         pose = PoseRealism(latency=po.number("latency_ms", 0.0) * 1e-3,
@@ -232,8 +229,7 @@ def profile_tables(profile: RealismProfile) -> dict:
         "profile": {"name": profile.name, "description": profile.description},
         "finger": {"compliant": f.compliant, "stiffness_n_per_mm": f.stiffness * 1e-3,
                    "stiffening_per_mm": f.stiffening * 1e-3, "area_factor": f.area_factor,
-                   "stiffness_cv": f.stiffness_cv, "pressure_exponent": f.pressure_exponent,
-                   "aspect": f.aspect, "cover": f.cover},
+                   "stiffness_cv": f.stiffness_cv, "pressure_exponent": f.pressure_exponent},
         "press": {"speed_cv": p.speed_cv, "depth_cv": p.depth_cv, "lateral_mm": p.lateral_std * 1e3,
                   "hold_s": p.hold_std, "smooth": p.smooth, "tilt_deg": float(np.rad2deg(p.tilt_std)),
                   "slip": p.slip_std, "tremor_mm": p.tremor * 1e3, "force_scale": p.force_scale,
@@ -243,7 +239,7 @@ def profile_tables(profile: RealismProfile) -> dict:
         "taxels": {"sensitivity": t.sensitivity, "gain_spread": t.gain_spread, "gain_drift": t.gain_drift,
                    "hysteresis": t.hysteresis, "creep": t.creep, "nonlinearity": t.nonlinearity,
                    "crosstalk": t.crosstalk, "activation_kpa": t.activation * 1e-3,
-                   "activation_cv": t.activation_cv, "response_exponent": t.response_exponent},
+                   "activation_cv": t.activation_cv},
         "pose": {"latency_ms": o.latency * 1e3, "clock_offset_ms": o.clock_offset_std * 1e3,
                  "clock_wander_ms": o.clock_wander * 1e3},
         "material": {"relaxation": m.relaxation, "relaxation_time_s": m.relaxation_time, "softening": m.softening,

@@ -96,8 +96,6 @@ class TaxelResponse:
             padded = np.pad(p, ((0, 0), (1, 1), (1, 1)))
             p = p + r.crosstalk * (padded[:, :-2, 1:-1] + padded[:, 2:, 1:-1] + padded[:, 1:-1, :-2]
                                    + padded[:, 1:-1, 2:])
-        if r.response_exponent != 1.0:
-            p = self.full_scale * (p / self.full_scale) ** r.response_exponent
         if r.nonlinearity > 0:
             p = p / (1.0 + r.nonlinearity * p / self.full_scale)
         return p
