@@ -35,9 +35,6 @@ Z_MIN = 3.0
 P_PLAIN_MIN = 0.2
 #: Anomalous presses within this many cells of each other make one spot.
 LINK_CELLS = 1.5
-#: A press beside a spot (within LINK_CELLS of one of its presses) whose modulus reads this many spreads or more to
-#: the spot's side is on its fringe: the lump under the spot reaches it, though too weakly to make a spot.
-FRINGE_Z = 1.5
 
 
 @dataclass(frozen=True)
@@ -53,7 +50,6 @@ class StiffnessAnomaly:
             (signed: > 0 harder).
         press: the index of its strongest press in the readings it was found in.
         locations: (x, y) of each of its presses, m.
-        fringe: (x, y) of each press on its fringe (see :data:`FRINGE_Z`), m.
     """
 
     sign: str
@@ -63,14 +59,12 @@ class StiffnessAnomaly:
     z: float
     press: int = -1
     locations: tuple[tuple[float, float], ...] = ()
-    fringe: tuple[tuple[float, float], ...] = ()
 
     def to_dict(self) -> dict:
         """JSON-ready form (summary.json)."""
         return {"sign": self.sign, "material": self.material, "presses": self.presses,
                 "centroid_m": list(self.centroid_m), "z": self.z,
-                "press_locations_m": [list(xy) for xy in self.locations],
-                "fringe_locations_m": [list(xy) for xy in self.fringe]}
+                "press_locations_m": [list(xy) for xy in self.locations]}
 
 
 def press_z(geometry: MapGeometry, probabilities: np.ndarray, readings, moduli: MaterialModuli) -> np.ndarray:
@@ -95,8 +89,7 @@ def _named_z(geometry: MapGeometry, labels: np.ndarray, readings, moduli: Materi
 def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
                         readings: list[tuple[tuple[float, float], BoundaryReading]], moduli: MaterialModuli, *,
                         z_min: float = Z_MIN, p_plain_min: float = P_PLAIN_MIN,
-                        link_cells: float = LINK_CELLS, edge_reach: float = 0.0,
-                        fringe_z: float = FRINGE_Z) -> list[StiffnessAnomaly]:
+                        link_cells: float = LINK_CELLS, edge_reach: float = 0.0) -> list[StiffnessAnomaly]:
     """The spots of a 2-D map (``probabilities`` (ny, nx, M), e.g. post-processed) where presses read harder or
     softer than it says (see the module docstring), strongest first.
 
@@ -105,8 +98,7 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
         probabilities: its distributions.
         readings: per press, its measured (x, y) location, m, and its boundary reading.
         moduli: the reference materials' read moduli.
-        z_min, p_plain_min, link_cells, fringe_z: see :data:`Z_MIN`, :data:`P_PLAIN_MIN`, :data:`LINK_CELLS`,
-            :data:`FRINGE_Z` (inf: no fringe).
+        z_min, p_plain_min, link_cells: see :data:`Z_MIN`, :data:`P_PLAIN_MIN`, :data:`LINK_CELLS`.
         edge_reach: m; a softer press this close to the map's edge is taken for the object's free edge, as one in a
             rim cell is (the contact radius at the press's depth: a deep press feels an edge two cells away).
 
@@ -150,10 +142,6 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
     pairs = pairs[np.sign(zk[pairs[:, 0]]) == np.sign(zk[pairs[:, 1]])]
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(keep), len(keep)))
     _, spot = connected_components(graph, directed=False)
-    everywhere = np.array([loc[:2] for loc, _ in readings], dtype=float)
-    weak = np.isfinite(z) & (np.abs(z) >= fringe_z) & (np.abs(z) < z_min)
-    weak[keep] = False
-    near = cKDTree(everywhere[weak]) if weak.any() else None
     out = []
     for s in np.unique(spot):
         members = np.flatnonzero(spot == s)
@@ -161,17 +149,10 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
         strongest = members[int(np.argmax(w))]
         at = keep[strongest]
         centre = (w @ xy[members]) / w.sum()
-        fringe = []
-        if near is not None:
-            hits = sorted({j for row in near.query_ball_point(xy[members], link_cells * geometry.cell_size)
-                           for j in row})
-            candidates = np.flatnonzero(weak)[hits] if hits else np.zeros(0, dtype=int)
-            fringe = [everywhere[i] for i in candidates if np.sign(z[i]) == np.sign(zk[strongest])]
         out.append(StiffnessAnomaly("harder" if zk[strongest] > 0 else "softer",
                                     geometry.materials[int(labels[cy[at], cx[at]])], len(members),
                                     (float(centre[0]), float(centre[1])), float(zk[strongest]), at,
-                                    tuple((float(x), float(y)) for x, y in xy[members]),
-                                    tuple((float(x), float(y)) for x, y in fringe)))
+                                    tuple((float(x), float(y)) for x, y in xy[members])))
     return sorted(out, key=lambda a: -abs(a.z))
 
 

@@ -98,8 +98,7 @@ def lump_layer(fine: FineMap, z_top: float, depth: float, cell: float, spots: li
         if not lump:
             continue
         k, top, sd, p = _checked(lump, fine.materials)
-        where = np.asarray((spot.get("press_locations_m") or [spot["centroid_m"]])
-                           + list(spot.get("fringe_locations_m") or ()), dtype=float).reshape(-1, 2)
+        where = np.asarray(spot.get("press_locations_m") or [spot["centroid_m"]], dtype=float).reshape(-1, 2)
         gap = np.abs(centres[:, :, None, :] - where[None, None, :, :]).max(axis=-1)  # (nx, ny, presses), m
         under = (gap <= cell / 2).any(axis=-1)
         if not under.any():
