@@ -132,6 +132,32 @@ def test_spots_are_recorded_as_scene_entities_that_a_replay_reads_past(tmp_path)
     assert read_recording(path).frames == []  # a view: the reader skips it
 
 
+def test_a_voxel_maps_read_lump_is_recorded_as_boxes_under_its_spots_presses(tmp_path):
+    import json
+
+    from mcap.reader import make_reader
+
+    from palpate.core.io.mcap_writer import RecordingWriter
+
+    spot = {"sign": "harder", "material": "medium", "presses": 2, "centroid_m": [0.0375, 0.025], "z": 4.7,
+            "press_locations_m": [[0.035, 0.025], [0.04, 0.025]],
+            "lump": {"material": "hard", "top_m": 0.003, "top_sd_m": 0.002, "p_material": 0.5, "shape": "sphere",
+                     "radius_m": 0.008, "rms_log": 0.05, "rms_log_plain": 0.4}}
+    path = tmp_path / "spots.mcap"
+    with RecordingWriter(path, {"scenario": "spots"}) as writer:
+        writer.write_spots(2.0, "block", [spot], 0.03, footprint=(0.005, 0.01))
+        writer.write_spots(3.0, "slab", [spot], 0.03)
+    with open(path, "rb") as f:
+        voxel, plane = (json.loads(m.data)["entities"][0] for _, _, m in make_reader(f).iter_messages())
+    boxes = voxel["cubes"][2:]
+    assert len(boxes) == 2 and len(plane["cubes"]) == 2  # a 2-D map's spot keeps its two markers
+    for box, (x, y) in zip(boxes, spot["press_locations_m"], strict=True):
+        assert box["size"] == pytest.approx({"x": 0.005, "y": 0.005, "z": 0.007})  # from 3 mm down to 10 mm
+        at = box["pose"]["position"]
+        assert (at["x"], at["y"], at["z"]) == pytest.approx((x, y, 0.03 - 0.0065))
+        assert box["color"]["a"] == pytest.approx(0.2)
+
+
 def test_a_voxel_maps_spots_are_those_of_its_surface_layer_as_a_2d_map():
     labels = np.ones((6, 8), dtype=int)
     # a lump under the press at (45, 25) mm; the press at (35, 25) mm reads hard, as its surface voxel says

@@ -197,11 +197,14 @@ def scene_message(ns: int, objects: Sequence[ObjectSpec]) -> dict:
 SPOT_COLOURS = {"harder": {"r": 0.85, "g": 0.1, "b": 0.1, "a": 0.9}, "softer": {"r": 0.1, "g": 0.3, "b": 0.9, "a": 0.9}}
 
 
-def spots_message(ns: int, name: str, anomalies: Sequence[dict], surface_z: float) -> dict:
+def spots_message(ns: int, name: str, anomalies: Sequence[dict], surface_z: float,
+                  footprint: tuple[float, float] | None = None) -> dict:
     """``foxglove.SceneUpdate`` with one entity per stiffness spot of object ``name`` (summary.json's
     ``stiffness_anomalies``): a flat 4 mm marker on the surface at ``surface_z`` m, red harder, blue softer, and
     its sign and z as text; a spot that reads a lump (its ``lump``) has a second marker at the lump's top and its
-    material and depth in the text."""
+    material and depth in the text. With ``footprint`` (a voxel map's cell side and depth, m), the lump as the lump
+    layer holds it (:mod:`palpate.core.mapping.lump_layer`): a translucent box under each of the spot's presses
+    from the read top to the map's depth, as opaque as the reading is sure of its material."""
     entities = []
     for k, a in enumerate(anomalies):
         x, y = a["centroid_m"]
@@ -214,6 +217,13 @@ def spots_message(ns: int, name: str, anomalies: Sequence[dict], surface_z: floa
             cubes.append({"pose": _identity_pose(x, y, surface_z - lump["top_m"] - 0.001),
                           "size": {"x": 0.004, "y": 0.004, "z": 0.002}, "color": colour | {"a": 0.5}})
             words += f", {lump['material']} from {lump['top_m'] * 1e3:.1f} mm"
+            if footprint is not None and lump["top_m"] < footprint[1]:
+                cell, depth = footprint
+                mid = surface_z - (lump["top_m"] + depth) / 2
+                cubes += [{"pose": _identity_pose(px, py, mid),
+                           "size": {"x": cell, "y": cell, "z": depth - lump["top_m"]},
+                           "color": colour | {"a": 0.4 * float(lump.get("p_material", 1.0))}}
+                          for px, py in a.get("press_locations_m") or ()]
         text = {"pose": _identity_pose(x, y, surface_z + 0.006), "billboard": True, "font_size": 12.0,
                 "scale_invariant": True, "color": colour, "text": words}
         entities.append({"timestamp": stamp(ns), "frame_id": WORLD_FRAME, "id": f"spot/{name}/{k}",

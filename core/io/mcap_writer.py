@@ -284,12 +284,14 @@ class RecordingWriter:
         ns = fm.time_ns(t, "/scene")
         self._write("/scene", "foxglove.SceneUpdate", ns, fm.scene_message(ns, objects))
 
-    def write_spots(self, t: float, name: str, anomalies, surface_z: float) -> None:
+    def write_spots(self, t: float, name: str, anomalies, surface_z: float,
+                    footprint: tuple[float, float] | None = None) -> None:
         """Append an object's stiffness spots (summary.json's ``stiffness_anomalies``) as scene entities on
-        ``/spots/<name>``."""
+        ``/spots/<name>`` (``footprint``: a voxel map's cell side and depth, m, to draw the lumps they read as
+        the lump layer holds them)."""
         topic = f"/spots/{file_stem(name)}"
         ns = fm.time_ns(t, topic)
-        self._write(topic, "foxglove.SceneUpdate", ns, fm.spots_message(ns, name, anomalies, surface_z))
+        self._write(topic, "foxglove.SceneUpdate", ns, fm.spots_message(ns, name, anomalies, surface_z, footprint))
 
     def flush(self) -> None:
         """Finish the chunk in progress and push it to the operating system (nothing is lost if killed now)."""

@@ -79,11 +79,12 @@ class PressLog:
         self.writer.write_map(max(self.clock - self.GAP, 0.0), f"{name}_fine", fine.probabilities,
                               np.ones((ny, nx), dtype=bool), geometry, surface_z)
 
-    def show_spots(self, name: str, anomalies, surface_z: float) -> None:
-        """Record (and send live) an object's stiffness spots on ``/spots/<name>`` (none: nothing written)."""
+    def show_spots(self, name: str, anomalies, surface_z: float, footprint: tuple[float, float] | None = None) -> None:
+        """Record (and send live) an object's stiffness spots on ``/spots/<name>`` (none: nothing written;
+        ``footprint``: a voxel map's cell side and depth, m, to draw the lumps they read)."""
         if self.writer is None or not anomalies:
             return
-        self.writer.write_spots(max(self.clock - self.GAP, 0.0), name, anomalies, surface_z)
+        self.writer.write_spots(max(self.clock - self.GAP, 0.0), name, anomalies, surface_z, footprint)
 
     def close(self) -> None:
         """Finish the recording (idempotent): called when exploration ends, so the file is complete on disk

@@ -243,7 +243,9 @@ def _stages(scenario: Scenario, out: Path, progress: Progress, make_source, make
         fines.append(None if reader is None else object_fine_map(objects[-1], entry, scenario, moduli, lumps))
         if fines[-1] is not None:
             log.show_fine_map(objects[-1].name, fines[-1].fine, entry.spec.height)
-            log.show_spots(objects[-1].name, fines[-1].summary.get("stiffness_anomalies"), entry.spec.height)
+            g = objects[-1].geometry
+            log.show_spots(objects[-1].name, fines[-1].summary.get("stiffness_anomalies"), entry.spec.height,
+                           (g.cell_size, g.shape[2] * g.cell_size) if g.voxel else None)
         _warn(progress, saturation_warning(entry.spec.name, saturation([s.result for s in objects[-1].steps])))
         _warn(progress, solver_warning(entry.spec.name, solver_warnings([s.result for s in objects[-1].steps])))
         if draw:
