@@ -270,8 +270,9 @@ def object_fine_map(obj, entry: ObjectEntry, scenario: Scenario, moduli: Materia
     layer, layer_summary = voxel_lump_layer(obj.geometry, fine, findings)
     layer_truth = None
     if layer is not None:
-        layer_truth = ground_truth_cells(entry, scenario, layer.centres()[..., :2].reshape(-1, 2),
-                                         layer.centres()[..., 2].ravel()).reshape(layer.probabilities.shape[:3])
+        c = layer.centres()
+        layer_truth = ground_truth_cells(entry, scenario, c[..., :2].reshape(-1, 2),
+                                         c[..., 2].ravel()).reshape(c.shape[:3])
         layer_summary |= lump_layer_accuracy(obj.geometry, obj.post.probabilities, layer, layer_truth)
     if layer_summary is not None:
         summary["lump_layer"] = layer_summary
