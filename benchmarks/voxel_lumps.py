@@ -154,6 +154,7 @@ def scene_row(seed: int) -> dict:
     layer = fine.get("lump_layer") or {}
     return {"seed": seed, "presses": len(res.steps), "lumps": rows, "cpu": time.process_time() - t0,
             "volume": layer.get("volume_accuracy"), "below": layer.get("below_surface_accuracy"),
+            "ece": layer.get("calibration_ece"),
             "accuracy": res.steps[-1].accuracy_postprocessed, "stray": stray}
 
 
@@ -198,6 +199,11 @@ def main() -> None:
             voxel, layer = (np.mean([a[k] for a in acc]) for k in ("voxel_map", "lump_layer"))
             print(f"share of {what} labelled right (1 mm cubes), mean over {len(acc)} scenes: voxel map "
                   f"{voxel:.3f}, lump layer {layer:.3f}")
+    for where in ("all", "under_spots"):
+        ece = [r["ece"][where] for r in rows if r["ece"] and where in r["ece"]]
+        if ece:
+            print(f"lump layer's calibration error ({where.replace('_', ' ')} cubes), median over {len(ece)} scenes: "
+                  f"{np.median(ece):.3f}")
     if (line := lump_read_line(lumps)) is not None:
         print(f"\n{line}")
 

@@ -23,7 +23,7 @@ def _spot(presses, top=3e-3, sd=1e-3, p=0.8, material="hard"):
 
 def test_without_lumps_the_layer_is_the_surface_reaching_down():
     layer = lump_layer(FINE, 0.05, 8e-3, 5e-3, [{"centroid_m": [0.005, 0.005], "lump": None}])
-    assert layer.probabilities.shape == (20, 10, 8, 3) and layer.lumps == 0
+    assert layer.probabilities.shape == (20, 10, 8, 3) and layer.lumps == 0 and not layer.footprint.any()
     for iz in range(8):
         np.testing.assert_array_equal(layer.probabilities[:, :, iz], np.transpose(SURFACE, (1, 0, 2)))
 
@@ -34,6 +34,9 @@ def test_a_read_lump_fills_the_cubes_under_its_presses_below_its_top():
     p = layer.probabilities
     np.testing.assert_allclose(p.sum(axis=-1), 1.0)
     assert layer.lumps == 1
+    footprint = np.zeros((20, 10), dtype=bool)
+    footprint[:10, :5] = True  # x 0-10 mm, y 0-5 mm
+    np.testing.assert_array_equal(layer.footprint, footprint)
     depth = (np.arange(8) + 0.5) * 1e-3
     inside = 0.8 * norm.cdf((depth - 3e-3) / 1e-3)
     # under the presses: the surface's distribution, less the lump's share, plus the lump's share as "hard"

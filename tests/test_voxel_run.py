@@ -71,10 +71,12 @@ def test_replay_rebuilds_the_voxel_map_exactly(voxel_run, tmp_path):
         assert ran["probabilities"].shape[:2] == (16, 16)  # 20 mm at the fine raster's 1.25 mm (of 2.5 mm voxels)
     # the lump layer under it: 15 mm deep in cubes of the fine raster's side
     ran_layer, replayed_layer = run["fine_map"]["lump_layer"], replayed["fine_map"]["lump_layer"]
-    assert replayed_layer == {k: v for k, v in ran_layer.items() if not k.endswith("accuracy")}
+    truth_only = ("volume_accuracy", "below_surface_accuracy", "calibration_ece")
+    assert replayed_layer == {k: v for k, v in ran_layer.items() if k not in truth_only}
     # against the truth (a run only): no spot, so the layer is the plain block the surface says, as the map
     assert ran_layer["lumps"] == 0 and "below_surface_accuracy" not in ran_layer
     assert ran_layer["volume_accuracy"] == {"voxel_map": 1.0, "lump_layer": 1.0}
+    assert ran_layer["calibration_ece"]["all"] < 0.01 and "under_spots" not in ran_layer["calibration_ece"]
     lumps = "maps/Object_1_lumps.npz"
     with np.load(out / lumps) as ran, np.load(tmp_path / lumps) as again:
         np.testing.assert_array_equal(again["probabilities"], ran["probabilities"])

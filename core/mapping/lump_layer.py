@@ -39,6 +39,7 @@ class LumpLayer:
         probabilities: (nx, ny, nz, M), indexed as a voxel map's (iz = 0 at the surface).
         materials: their names.
         lumps: how many read lumps the layer holds.
+        footprint: (nx, ny) the columns a read lump reaches (under its spot's presses).
     """
 
     origin: tuple[float, float]
@@ -47,6 +48,7 @@ class LumpLayer:
     probabilities: np.ndarray
     materials: tuple[str, ...]
     lumps: int
+    footprint: np.ndarray
 
     def centres(self) -> np.ndarray:
         """(nx, ny, nz, 3) cube centres (x, y, z), m."""
@@ -93,6 +95,7 @@ def lump_layer(fine: FineMap, z_top: float, depth: float, cell: float, spots: li
     centres = np.transpose(fine.centres(), (1, 0, 2))  # (nx, ny, 2)
     z = (np.arange(nz) + 0.5) * res
     lumps = 0
+    footprint = np.zeros((nx, ny), dtype=bool)
     for spot in spots:
         lump = spot.get("lump")
         if not lump:
@@ -104,13 +107,14 @@ def lump_layer(fine: FineMap, z_top: float, depth: float, cell: float, spots: li
         if not under.any():
             continue
         lumps += 1
+        footprint |= under
         inside = p * ndtr((z - top) / sd)  # (nz,)
         q = inside[None, :, None]
         block = probs[under] * (1.0 - q)
         block[..., k] += q[..., 0]
         probs[under] = block
     return LumpLayer((float(fine.origin[0]), float(fine.origin[1])), float(z_top), res, probs,
-                     tuple(fine.materials), lumps)
+                     tuple(fine.materials), lumps, footprint)
 
 
 def _checked(lump: dict, materials) -> tuple[int, float, float, float]:

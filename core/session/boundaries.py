@@ -230,18 +230,22 @@ def lump_layer_accuracy(geometry: MapGeometry, probabilities: np.ndarray, layer:
     """summary.json's share of the layer's cubes each map labels right (``truth``: material index per cube, -1
     unknown): the voxel map (``probabilities`` (nx, ny, nz, M), each cube labelled as the voxel holding its
     centre) and the lump layer, over every known cube (``volume_accuracy``) and over those whose true material is
-    not the surface's above them (``below_surface_accuracy``: the lumps; absent where there are none)."""
+    not the surface's above them (``below_surface_accuracy``: the lumps; absent where there are none); and the
+    layer's expected calibration error (``calibration_ece``) over every known cube (``all``) and over the columns
+    a read lump reaches (``under_spots``)."""
     known = truth >= 0
     if not known.any():
         return {}
     voxel = voxels_on_layer(layer, geometry.origin, geometry.cell_size, np.argmax(probabilities, axis=-1))
     labels = np.argmax(layer.probabilities, axis=-1)
-    out = {"volume_accuracy": {"voxel_map": float(np.mean(voxel[known] == truth[known])),
-                               "lump_layer": float(np.mean(labels[known] == truth[known]))}}
     below = known & (truth != truth[:, :, :1])
-    if below.any():
-        out["below_surface_accuracy"] = {"voxel_map": float(np.mean(voxel[below] == truth[below])),
-                                         "lump_layer": float(np.mean(labels[below] == truth[below]))}
+    out = {}
+    for key, mask in (("volume_accuracy", known), ("below_surface_accuracy", below)):
+        if mask.any():
+            out[key] = {"voxel_map": float(np.mean(voxel[mask] == truth[mask])),
+                        "lump_layer": float(np.mean(labels[mask] == truth[mask]))}
+    spotted = known & layer.footprint[:, :, None]
+    out["calibration_ece"] = masked_ece(layer.probabilities, truth, {"all": known, "under_spots": spotted})
     return out
 
 
@@ -302,8 +306,14 @@ def fine_calibration(fine: FineMap, truth: np.ndarray, mask: np.ndarray) -> dict
     point) over the points of ``mask``: "all" of them and "near_boundary", those within NEAR_BOUNDARY of a true
     boundary (where the cell map cannot be sure); a key is left out where it has no point."""
     near = near_boundaries(truth, fine.resolution)
-    return {where: reliability_table(*calibration_sample(fine.probabilities[m], truth[m])[:2]).ece
-            for where, m in (("all", mask), ("near_boundary", mask & near)) if m.any()}
+    return masked_ece(fine.probabilities, truth, {"all": mask, "near_boundary": mask & near})
+
+
+def masked_ece(probabilities: np.ndarray, truth: np.ndarray, masks: dict[str, np.ndarray]) -> dict[str, float]:
+    """Per named mask, the expected calibration error of ``probabilities`` (points x M) against ``truth`` (material
+    index per point) over the mask's points; a mask with no point is left out."""
+    return {where: reliability_table(*calibration_sample(probabilities[m], truth[m])[:2]).ece
+            for where, m in masks.items() if m.any()}
 
 
 def _finite(v: float) -> float | None:
