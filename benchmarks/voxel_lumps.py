@@ -110,6 +110,19 @@ def _judges():
             lump_evidence(training.presses, Pad.of(base.fingertip)))
 
 
+def _lateral_mm(region: dict, centre: np.ndarray) -> float:
+    """How far a region's centroid (summary.json's ``material_regions`` entry) lies from ``centre`` (x, y mm)
+    laterally, mm."""
+    return float(np.hypot(*(np.array(region["centroid_m"][:2]) * 1e3 - centre)))
+
+
+def _locating(regions: list[dict], lump: dict) -> list[dict]:
+    """The regions that locate ``lump``: centroid within NEAR_MM of its centre laterally, volume at most twice the
+    lump's within the map's depth (and two voxels)."""
+    centre, limit = np.array(lump["center_mm"][:2]), 2 * _volume_in_map_mm3(lump) + 2 * CELL_MM**3
+    return [r for r in regions if _lateral_mm(r, centre) <= NEAR_MM and r["volume_m3"] * 1e9 <= limit]
+
+
 def _near(lump: dict, spot: dict) -> bool:
     """Whether ``spot`` (summary.json's stiffness_anomalies entry) lies within NEAR_MM of the lump's footprint."""
     return footprint_gap_mm(lump, *(np.array(spot["centroid_m"]) * 1e3)) <= NEAR_MM
@@ -124,23 +137,20 @@ def scene_row(seed: int) -> dict:
                          layers=layers, boundary_reader=reader)
     fine = object_fine_map(res, sc.objects[0], sc, moduli, evidence).summary
     spots = fine["stiffness_anomalies"] or []
-    layered = [r for r in (fine.get("lump_layer") or {}).get("material_regions", [])
-               if r["material"] != raw["objects"][0]["material"]]
+    layer = fine.get("lump_layer") or {}
+    block = raw["objects"][0]["material"]
+    layered = [r for r in layer.get("material_regions", []) if r["material"] != block]
     young = {m["name"]: m["young_kpa"] for m in MATERIALS}
-    regions = [r for r in map_region_report(res.geometry, res.post.probabilities)
-               if r["material"] != raw["objects"][0]["material"]]
+    regions = [r for r in map_region_report(res.geometry, res.post.probabilities) if r["material"] != block]
     rows = []
     for lump in lumps:
         centre = np.array(lump["center_mm"][:2])
-        dist = [float(np.hypot(*(np.array(r["centroid_m"][:2]) * 1e3 - centre))) for r in regions]
-        limit = 2 * _volume_in_map_mm3(lump) + 2 * CELL_MM**3
-        fits = [r for r, d in zip(regions, dist, strict=True) if d <= NEAR_MM and r["volume_m3"] * 1e9 <= limit]
+        dist = [_lateral_mm(r, centre) for r in regions]
+        fits, in_layer = _locating(regions, lump), _locating(layered, lump)
         top = lump_top_mm(lump)
-        sign = "harder" if young[lump["material"]] > young[raw["objects"][0]["material"]] else "softer"
+        sign = "harder" if young[lump["material"]] > young[block] else "softer"
         near = [a for a in spots if _near(lump, a)]
         read = next((a["lump"] for a in near if a.get("lump")), None)  # the strongest spot's that reads a lump
-        in_layer = [r for r in layered if np.hypot(*(np.array(r["centroid_m"][:2]) * 1e3 - centre)) <= NEAR_MM
-                    and r["volume_m3"] * 1e9 <= limit]
         rows.append({"top": top, "shape": lump["shape"], "located": bool(fits), "spotted": bool(near),
                      "layer": bool(in_layer), "layer_named": any(r["material"] == lump["material"] for r in in_layer),
                      "layer_top": min((abs(r["top_depth_m"] * 1e3 - top) for r in in_layer), default=None),
@@ -151,7 +161,6 @@ def scene_row(seed: int) -> dict:
                      "error": min(dist) if dist else None, "material": lump["material"],
                      "read": lump_read(read)})
     stray = sum(not any(_near(lump, a) for lump in lumps) for a in spots)
-    layer = fine.get("lump_layer") or {}
     return {"seed": seed, "presses": len(res.steps), "lumps": rows, "cpu": time.process_time() - t0,
             "volume": layer.get("volume_accuracy"), "below": layer.get("below_surface_accuracy"),
             "ece": layer.get("calibration_ece"),

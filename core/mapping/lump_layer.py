@@ -58,6 +58,11 @@ class LumpLayer:
                          self.z_top - (iz + 0.5) * self.resolution], axis=-1)
 
 
+def layer_depths(depth: float, resolution: float) -> int:
+    """How many cubes of ``resolution`` m a layer ``depth`` m deep holds (at least one)."""
+    return max(1, int(round(depth / resolution)))
+
+
 def voxels_on_layer(layer: LumpLayer, origin: tuple[float, float], cell: float, voxels: np.ndarray) -> np.ndarray:
     """A voxel map's per-voxel values, (nx, ny, nz, ...) of ``cell`` m cubes from ``origin`` down from the layer's
     surface, at each of the layer's cubes (the voxel holding its centre; the deepest where the layer reaches below)."""
@@ -88,7 +93,7 @@ def lump_layer(fine: FineMap, z_top: float, depth: float, cell: float, spots: li
     if not (np.isfinite(depth) and depth > 0 and np.isfinite(cell) and cell > 0 and np.isfinite(z_top)):
         raise ValidationError(f"lump_layer: depth and cell must be finite lengths > 0 m and z_top finite, got depth "
                               f"{depth!r}, cell {cell!r}, z_top {z_top!r}")
-    nz = max(1, int(round(depth / res)))
+    nz = layer_depths(depth, res)
     column = np.transpose(np.asarray(fine.probabilities, dtype=float), (1, 0, 2))  # (nx, ny, M)
     nx, ny, m = column.shape
     probs = np.repeat(column[:, :, None, :], nz, axis=2)

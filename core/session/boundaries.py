@@ -32,7 +32,7 @@ from palpate.core.mapping.anomalies import anomaly_report
 from palpate.core.mapping.calibration import calibration_sample, reliability_table
 from palpate.core.mapping.fine import FineMap, boundary_error, edges, fine_map
 from palpate.core.mapping.geometry import MapGeometry, plane_probabilities
-from palpate.core.mapping.lump_layer import LumpLayer, lump_layer, voxels_on_layer
+from palpate.core.mapping.lump_layer import LumpLayer, layer_depths, lump_layer, voxels_on_layer
 from palpate.core.mapping.regions import MAX_REGIONS, region_report, volume_regions
 from palpate.core.perception.streams import SATURATED
 from palpate.core.world.haptic_material import HapticMaterialMap
@@ -213,7 +213,7 @@ def voxel_lump_layer(geometry: MapGeometry, fine: FineMap, findings: dict) -> tu
     if not geometry.voxel or spots is None:
         return None, None
     depth = geometry.shape[2] * geometry.cell_size
-    cubes = fine.probabilities.shape[0] * fine.probabilities.shape[1] * max(1, round(depth / fine.resolution))
+    cubes = fine.probabilities.shape[0] * fine.probabilities.shape[1] * layer_depths(depth, fine.resolution)
     if cubes > limits.limit("map_cells"):
         return None, {"skipped": f"{cubes} cubes, beyond the limit map_cells ({limits.limit('map_cells'):g}; "
                                  "palpate --limit map_cells=N raises it)"}
