@@ -77,6 +77,8 @@ def test_a_wall_the_map_shows_makes_no_spot_and_nor_does_a_material_read_as_itse
 @pytest.mark.parametrize(("kwargs", "match"), [
     ({"probabilities": np.zeros((6, 8, 2))}, r"\(6, 8, 3\)"),
     ({"z_min": 0.0}, "z_min"),
+    ({"pool_z_min": 0.0}, "pool_z_min"),
+    ({"pool_z_min": float("nan")}, "pool_z_min"),
     ({"probabilities": np.full((6, 8, 3), np.nan)}, "finite"),
     ({"geometry": MapGeometry("voxel", MATERIALS, (0.0, 0.0), 0.01, (8, 6, 2), z_top=0.03)}, "2-D"),
     ({"edge_reach": -1e-3}, "edge_reach"),
@@ -206,3 +208,24 @@ def test_a_recordings_edge_reach_is_read_or_refused_by_name(value):
     assert replay_edge_reach({EDGE_KEY: 0.0089}, "rec.mcap") == 0.0089
     with pytest.raises(ValidationError, match=f"rec.mcap: metadata {EDGE_KEY}"):
         replay_edge_reach({EDGE_KEY: value}, "rec.mcap")
+
+
+def test_a_deeper_lump_that_moves_each_press_a_little_makes_a_spot_with_its_neighbours():
+    labels = np.ones((6, 8), dtype=int)
+    # six neighbouring presses read 2.3-2.9 spreads harder (none reaches Z_MIN alone), 0.3 of which every press
+    # reads, as exploration presses may read a little apart from the training presses: that is no lump
+    lump = {(0.025, 0.025): 2.0, (0.035, 0.025): 2.6, (0.045, 0.025): 2.2,
+            (0.025, 0.035): 2.1, (0.035, 0.035): 2.4, (0.045, 0.035): 2.3}
+    offset = 0.3 * 0.15
+    readings = _raster(lambda x, y: 1.7 + offset + 0.15 * lump.get((round(x, 3), round(y, 3)),
+                                                                   0.2 * np.sin(90 * x + 50 * y)))
+    (spot,) = stiffness_anomalies(GEOMETRY, _map(labels), readings, MODULI)
+    assert spot.sign == "harder" and spot.presses == 6 and spot.z == pytest.approx(2.6 + 0.3)
+    assert spot.centroid_m == pytest.approx((0.035, 0.03), abs=1e-3)
+    assert stiffness_anomalies(GEOMETRY, _map(labels), readings, MODULI, pool_z_min=np.inf) == []
+    # one such press alone, or the same lean spread thinly, is not enough
+    one = _raster(lambda x, y: 1.7 + offset + 0.15 * (2.0 if (round(x, 3), round(y, 3)) == (0.035, 0.025) else 0.0))
+    assert stiffness_anomalies(GEOMETRY, _map(labels), one, MODULI) == []
+    # on the map's rim a softer lean is the object's edge, pooled or not
+    rim = _raster(lambda x, y: 1.7 - 0.15 * (2.0 if x < 0.02 else 0.0))
+    assert stiffness_anomalies(GEOMETRY, _map(labels), rim, MODULI, edge_reach=0.0151) == []
