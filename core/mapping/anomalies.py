@@ -10,12 +10,13 @@ reads as a wall (``p_plain`` below :data:`P_PLAIN_MIN`) and the map names anothe
 map's rim, and within a press's contact radius of the map's edge, only harder presses count (an object's free edge
 within reach reads softer). Nearby anomalous presses of one sign (harder or softer) make one spot.
 
-A deeper lump moves each press over it by only one or two spreads, but it moves all of them. So a press is also
-anomalous when it and its neighbours agree: its z, less the median z of the presses of its material (exploration
-presses read a little apart from the training presses every material's spread comes from), is at least
+A deeper harder lump moves each press over it by only one or two spreads, but it moves all of them. So a press is
+also anomalous when it and its neighbours agree: its z, less the median z of the presses of its material
+(exploration presses read a little apart from the training presses every material's spread comes from), is at least
 :data:`POOL_PRESS_Z` and the sum of those centred z over the presses within :data:`LINK_CELLS` of it that name the
-same material, divided by the square root of their number, is at least :data:`POOL_Z_MIN` of the same sign (only
-presses judged as above, away from walls and the map's edge, take part).
+same material, divided by the square root of their number, is at least :data:`POOL_Z_MIN` (only presses judged as
+above, away from walls and the map's edge, take part). Only harder leans pool: pooling softer ones as well added as
+many spots on no lump as lumps on tuning scenes (:data:`POOL_Z_MIN`).
 """
 
 from __future__ import annotations
@@ -42,10 +43,10 @@ Z_MIN = 3.0
 P_PLAIN_MIN = 0.2
 #: Anomalous presses within this many cells of each other make one spot.
 LINK_CELLS = 1.5
-#: Pooled evidence (the module docstring) at which a press and its neighbours make a spot together. Chosen on
+#: Pooled evidence (the module docstring) at which a press and its neighbours make a harder spot together. Chosen on
 #: tuning scenes 0-23 of voxel_lumps.py, fine_map_lumps.py and fine_map_families.py (72 scenes, 84 lumps; raster,
-#: physics presses): lumps spotted / spots on no lump 34 / 9 without it, 35 / 9 at 3 and 3.5, 41 / 12 at 2.5
-#: (seven more lumps, most 2-5 mm deep, for three more stray spots).
+#: physics presses) as the most lumps for no more spots on no lump than single presses make: lumps spotted / stray
+#: spots 34 / 9 without pooling, 35 / 9 at 3 and 3.5, 38 / 9 at 2.5; pooling softer leans too at 2.5: 41 / 12.
 POOL_Z_MIN = 2.5
 #: The least centred z of a press that pooled evidence may make anomalous (its own reading must lean that way).
 POOL_PRESS_Z = 1.0
@@ -191,8 +192,7 @@ def _pooled(xy: np.ndarray, named: np.ndarray, z: np.ndarray, eligible: np.ndarr
         pool = idx[near]
         pool = pool[named[pool] == named[i]]
         evidence = centred[pool].sum() / np.sqrt(len(pool))
-        out[i] = (abs(centred[i]) >= POOL_PRESS_Z and abs(evidence) >= pool_z_min
-                  and evidence * centred[i] > 0 and evidence * z[i] > 0)
+        out[i] = centred[i] >= POOL_PRESS_Z and evidence >= pool_z_min and z[i] > 0
     return out
 
 
