@@ -191,7 +191,7 @@ def _pooled(xy: np.ndarray, named: np.ndarray, z: np.ndarray, eligible: np.ndarr
     pairs = idx[cKDTree(xy[idx]).query_pairs(radius, output_type="ndarray")].reshape(-1, 2)
     pairs = pairs[named[pairs[:, 0]] == named[pairs[:, 1]]]
     # each press pools itself and every same-material neighbour within the radius (pairs are listed once)
-    total = centred.copy() + np.bincount(pairs[:, 0], centred[pairs[:, 1]], len(z)) \
+    total = centred + np.bincount(pairs[:, 0], centred[pairs[:, 1]], len(z)) \
         + np.bincount(pairs[:, 1], centred[pairs[:, 0]], len(z))
     count = 1.0 + np.bincount(pairs.ravel(), minlength=len(z))
     out[idx] = (centred[idx] >= POOL_PRESS_Z) & (total[idx] / np.sqrt(count[idx]) >= pool_z_min) & (z[idx] > 0)
