@@ -232,3 +232,29 @@ def test_a_deeper_lump_that_moves_each_press_a_little_makes_a_spot_with_its_neig
     # on the map's rim a softer lean is the object's edge, pooled or not
     rim = _raster(lambda x, y: 1.7 - 0.15 * (2.0 if x < 0.02 else 0.0))
     assert stiffness_anomalies(GEOMETRY, _map(labels), rim, MODULI, edge_reach=0.0151) == []
+
+
+def test_pooled_evidence_is_each_press_summed_with_its_same_material_neighbours():
+    # against a plain double loop over presses: the pooled sum and count over neighbours within the radius
+    from palpate.core.mapping import anomalies
+
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        n = int(rng.integers(2, 50))
+        xy = rng.uniform(0.0, 0.05, (n, 2))
+        xy[: n // 4] = xy[n // 4: 2 * (n // 4)]  # some presses repeated at one place
+        named, z = rng.integers(0, 3, n), rng.normal(0.8, 1.5, n)
+        eligible = rng.random(n) < 0.8
+        centred = z.copy()
+        for m in np.unique(named[eligible]):
+            of = eligible & (named == m)
+            if of.sum() >= anomalies.POOL_CENTRE_MIN:
+                centred[of] -= np.median(z[of])
+        want = np.zeros(n, dtype=bool)
+        if eligible.sum() >= 2:
+            for i in np.flatnonzero(eligible):
+                near = [j for j in np.flatnonzero(eligible) if named[j] == named[i]
+                        and np.hypot(*(xy[j] - xy[i])) <= 0.0075]
+                evidence = centred[near].sum() / np.sqrt(len(near))
+                want[i] = centred[i] >= anomalies.POOL_PRESS_Z and evidence >= 2.5 and z[i] > 0
+        np.testing.assert_array_equal(anomalies._pooled(xy, named, z, eligible, 0.0075, 2.5), want)
