@@ -9,6 +9,7 @@ import pytest
 from palpate.core.boundary.moduli import MaterialModuli
 from palpate.core.boundary.reading import BoundaryReading
 from palpate.core.errors import ValidationError
+from palpate.core.mapping import anomalies
 from palpate.core.mapping.anomalies import stiffness_anomalies
 from palpate.core.mapping.geometry import MapGeometry, plane_probabilities
 
@@ -236,8 +237,6 @@ def test_a_deeper_lump_that_moves_each_press_a_little_makes_a_spot_with_its_neig
 
 def test_pooled_evidence_is_each_press_summed_with_its_same_material_neighbours():
     # against a plain double loop over presses: the pooled sum and count over neighbours within the radius
-    from palpate.core.mapping import anomalies
-
     rng = np.random.default_rng(7)
     for _ in range(40):
         n = int(rng.integers(2, 50))

@@ -150,7 +150,7 @@ def stiffness_anomalies(geometry: MapGeometry, probabilities: np.ndarray,
     clear = np.array([r.p_plain >= p_plain_min or bool(np.all(
         labels[max(iy - 1, 0):iy + 2, max(ix - 1, 0):ix + 2] == labels[iy, ix]))
         for (_, r), ix, iy in zip(readings, cx, cy, strict=True)], dtype=bool) & np.isfinite(z)
-    single = clear & (np.abs(np.nan_to_num(z)) >= z_min) & (inner | (np.nan_to_num(z) > 0))
+    single = clear & (np.abs(z) >= z_min) & (inner | (z > 0))  # clear holds only finite z
     keep = np.flatnonzero(single | _pooled(at, labels[cy, cx], z, clear & inner, link_cells * geometry.cell_size,
                                            pool_z_min))
     if not len(keep):
