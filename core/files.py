@@ -58,9 +58,23 @@ def writing(path):
 
 
 def write_text(path, text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path``; an I/O error names the file."""
+    """Write ``text`` (UTF-8) to ``path`` whole or not at all; an I/O error names the file.
+
+    The text goes to a hidden file beside ``path`` that then replaces it, so a process killed mid-write leaves
+    the old file (or none), never a truncated one: a sweep takes a run with a readable summary.json as finished.
+    """
+    p = Path(path)
+    tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
     with writing(path):
-        Path(path).write_text(text, encoding="utf-8")
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), 0o666)
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
+                f.write(text)
+            os.replace(tmp, p)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise
 
 
 def _os_error(path: Path, what: str, exc: OSError) -> ValidationError:

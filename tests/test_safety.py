@@ -14,7 +14,7 @@ import pytest
 from palpate.core import limits
 from palpate.core.cli import main
 from palpate.core.errors import ValidationError
-from palpate.core.files import parse_json, read_json, read_text, read_toml
+from palpate.core.files import parse_json, read_json, read_text, read_toml, write_text
 from palpate.core.io.mcap_reader import read_recording
 from palpate.core.io.mcap_writer import RecordingWriter
 from palpate.core.mapping.grids import Grid2D
@@ -494,3 +494,15 @@ def test_a_list_that_starts_with_numbers_and_holds_long_strings_is_read_without_
     finally:
         tracemalloc.stop()
     assert peak < 20 * len(text)
+
+
+def test_a_write_that_fails_midway_leaves_the_old_file_whole_and_no_temporary(tmp_path):
+    # a run killed while writing summary.json must not leave a truncated one that a sweep would have to judge
+    path = tmp_path / "summary.json"
+    write_text(path, '{"presses": 12}')
+    with pytest.raises(UnicodeEncodeError):
+        write_text(path, '{"name": "' + "x" * 100_000 + "\ud800" + '"}')
+    assert path.read_text(encoding="utf-8") == '{"presses": 12}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["summary.json"]
+    write_text(path, "{}")
+    assert path.read_text(encoding="utf-8") == "{}"

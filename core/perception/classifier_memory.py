@@ -19,7 +19,7 @@ from typing import Protocol
 
 import numpy as np
 
-from palpate.core import __version__, plugins
+from palpate.core import __version__, files, plugins
 from palpate.core.errors import ValidationError
 from palpate.core.perception.crossval import CrossValidation, crossval_result
 from palpate.core.perception.estimator import ClassifierParams, check_fitted
@@ -199,7 +199,7 @@ class ClassifierMemory(ClassifierParams):
 
     def save(self, path: str | Path) -> None:
         """Write :meth:`to_dict` as JSON to ``path``."""
-        Path(path).write_text(json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+        files.write_text(path, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
 
     def crossval(self, X, labels: Sequence[str]) -> CrossValidation:
         """Leave-one-out: each press judged by a copy of this memory fitted to every other press."""
