@@ -67,13 +67,14 @@ def write_text(path, text: str) -> None:
     tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
     with writing(path):
         try:
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), 0o666)
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                f.write(text)
+            tmp.unlink(missing_ok=True)  # a leftover (or a symlink planted there) is never written through
+            tmp.write_text(text, encoding="utf-8")
             os.replace(tmp, p)
-        except BaseException:
+        except BaseException as exc:
             with contextlib.suppress(OSError):
-                os.unlink(tmp)
+                tmp.unlink()
+            if isinstance(exc, OSError) and exc.filename == str(tmp):  # name the file the user knows
+                raise OSError(exc.errno, exc.strerror or str(exc), str(p)) from None
             raise
 
 
