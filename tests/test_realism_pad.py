@@ -122,36 +122,3 @@ def test_the_pulps_exponent_peaks_the_pad_on_stiff_objects_and_leaves_soft_ones_
     gain_stiff = spread(stiff, 2.0) / spread(stiff, 0.5)
     gain_soft = spread(soft, 2.0) / spread(soft, 0.5)
     assert gain_stiff > 1.5 and gain_stiff > gain_soft
-
-
-def _pad_through_finger(pulp, indentation, force, stiffness_scale=1.0):
-    """The pad's pressures (Pa) of one state pressed with ``force`` N at ``indentation`` m, seen through ``pulp``."""
-    from palpate.sim.controller import PressProfile
-    from palpate.sim.realism.finger import finger_trace
-    from palpate.sim.trace import PhysicsTrace
-
-    tip = Scene((ObjectSpec("b", "box", (0.08, 0.08, 0.04), (0.0, 0.0), Material("m", 1e5, 0.4)),)).fingertip
-    trace = PhysicsTrace(t=np.array([0.0]), tip_position=np.zeros((1, 3)), tip_quaternion=np.array([[1.0, 0, 0, 0]]),
-                         sensel_pressure=np.zeros((1, tip.rows, tip.cols)), force=np.array([force]),
-                         indentation=np.array([indentation]), surface_z=0.0)
-    profile = PressProfile(t=np.array([0.0]), z=np.zeros(1), x=0.0, y=0.0, surface_z=0.0)
-    return finger_trace(trace, profile, pulp, stiffness_scale, tip).sensel_pressure[0]
-
-
-def test_a_pulp_that_conforms_to_the_dent_lights_the_pad_by_the_bones_travel_alone():
-    # object_area_factor = area_factor: the patch is the pulp sphere's section at the bone's whole approach, so a
-    # press 1 mm into an object with the pulp 0.4 mm compressed lights the pad as the pulp 1.4 mm compressed on a
-    # rigid surface does, at the same force; Hertz's sink-in (1) concentrates the object's share
-    force, dent = 1.5, 1e-3
-    for oaf, same in ((2.0, True), (1.0, False)):
-        pulp = FingerPulp(compliant=True, stiffness=800.0, stiffening=1500.0, area_factor=2.0,
-                          object_area_factor=oaf)
-        delta = float(pulp.compression(np.array([force]))[0])
-        m, b = pulp.stiffening, pulp.stiffness
-        scale = m * force / (b * np.expm1(m * (delta + dent)))  # the rigid press's pulp takes delta + dent
-        assert np.isclose(float(pulp.compression(np.array([force]), scale)[0]), delta + dent)
-        on_object = _pad_through_finger(pulp, dent, force)
-        on_rigid = _pad_through_finger(pulp, 0.0, force, scale)
-        assert np.allclose(on_object, on_rigid, rtol=1e-9) is same
-        if not same:  # the smaller patch carries the same force on fewer, fuller sensels
-            assert on_object.max() > 1.2 * on_rigid.max()

@@ -10,8 +10,8 @@ The contact mechanics of every fidelity are used as they are: the press profile 
 person's hand), turned into the object's indentation with a Hertz law through the object's own force-depth point
 (:func:`planning_modulus`, from the fidelity's ``depth_for_force``), the physics runs on that, and afterwards the
 pose is put back on the bone with the compression the physics' *actual* force gives, and the pad's pressure is
-spread over the larger patch of two deforming bodies, a^2 = R (object_area_factor d + area_factor delta), keeping
-the physics' force (Hertz's distribution over that patch, more peaked the more of the approach the pulp takes,
+spread over the larger patch of two deforming bodies, a^2 = R (d + area_factor delta), keeping the physics' force
+(Hertz's distribution over that patch, more peaked the more of the approach the pulp takes,
 :mod:`palpate.sim.realism.patch`; centred where the tilted finger meets the object).
 """
 
@@ -137,8 +137,8 @@ def finger_trace(trace: PhysicsTrace, profile: PressProfile, pulp: FingerPulp, s
 
     Returns:
         a new trace: tip_position on the bone (moved by the compression along -normal), sensel_pressure spread
-        over the patch a^2 = R (object_area_factor d + area_factor delta) centred at the tilted contact point
-        (its shape: :func:`~palpate.sim.realism.patch.press_exponent`), same force and
+        over the patch a^2 = R (d + area_factor delta) centred at the tilted contact point (its shape:
+        :func:`~palpate.sim.realism.patch.press_exponent`), same force and
         indentation (the object's), meta["finger"] saying what was applied.
     """
     radius = tip.radius
@@ -147,7 +147,7 @@ def finger_trace(trace: PhysicsTrace, profile: PressProfile, pulp: FingerPulp, s
     normal = np.asarray(profile.meta.get("normal", (0.0, 0.0, 1.0)), dtype=float)
     position = trace.tip_position - delta[:, None] * normal[None, :]
     centre = -radius * normal[:2] + (pad_offset(radius, tilt) if tilt is not None else 0.0)
-    patch = pulp.object_area_factor * np.maximum(trace.indentation, 0.0) + pulp.area_factor * delta
+    patch = np.maximum(trace.indentation, 0.0) + pulp.area_factor * delta
     pressure = np.zeros_like(trace.sensel_pressure)
     touching = (force > 0) & (patch > 0)
     if rows is not None:

@@ -55,8 +55,6 @@ FREE_PARAMETERS = {p.key: p for p in (
     # pi R area_factor delta, R 8 mm, delta 0.51 mm at 1 N on the shipped pulp; docs/realism.md), beyond the
     # old box's 4.
     FreeParameter("finger.area_factor", 1.0, 9.5),
-    # Hertz's sink-in (1) to the geometric section (2): beyond 2 the patch would exceed where the surfaces meet.
-    FreeParameter("finger.object_area_factor", 1.0, 2.0),
     FreeParameter("finger.stiffness_cv", 0.0, 0.8),
     FreeParameter("finger.pressure_exponent", 0.5, 2.5),
     FreeParameter("press.speed_cv", 0.0, 0.4),

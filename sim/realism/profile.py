@@ -42,8 +42,7 @@ class FingerPulp:
 
     The pulp carries the contact force F with compression delta = ln(1 + m F / b) / m (F = b/m (e^{m delta} - 1)),
     so the bone, where the pose sensor sits, moves d_object + delta: the stiffer the object, the larger the share
-    of the movement the finger takes. The contact patch grows with both:
-    a^2 = R (object_area_factor d_object + area_factor delta).
+    of the movement the finger takes. The contact patch grows with both: a^2 = R (d_object + area_factor delta).
 
     Attributes:
         compliant: False for a rigid fingertip (a robot's, or the ideal simulation).
@@ -51,9 +50,6 @@ class FingerPulp:
         stiffening: m, how fast the pulp stiffens with compression, 1/m (Serina: ~0.5-2.5 /mm).
         area_factor: contact-radius growth with pulp compression relative to Hertz (1: Hertz; 2: geometric
             flattening of a soft shell over bone; fingertip areas of ~1 cm^2 at 1 N, Serina et al. 1998, give 2-3).
-        object_area_factor: contact-radius growth with the object's indentation relative to Hertz (1: an elastic
-            half-space's sink-in, Hertz's a^2 = R d; 2: the pulp conforms to the object's dent, so the patch is the
-            pulp sphere's geometric section at the bone's whole approach, as on a stiff surface).
         stiffness_cv: press-to-press coefficient of variation of b (finger pitch and which part of the pulp
             touches; Serina: stiffness depends on the contact angle).
         pressure_exponent: k of the pad's pressure p ~ (1 - r^2/a^2)^k when the pulp takes the whole approach
@@ -66,14 +62,12 @@ class FingerPulp:
     stiffness: float = 500.0
     stiffening: float = 1000.0
     area_factor: float = 2.0
-    object_area_factor: float = 1.0
     stiffness_cv: float = 0.0
     pressure_exponent: float = 0.5
 
     def __post_init__(self) -> None:
         _check("FingerPulp", {"stiffness": (self.stiffness, 1.0, 1e6), "stiffening": (self.stiffening, 0.0, 1e5),
                               "area_factor": (self.area_factor, 0.0, 10.0),
-                              "object_area_factor": (self.object_area_factor, 0.0, 10.0),
                               "stiffness_cv": (self.stiffness_cv, 0.0, 2.0),
                               "pressure_exponent": (self.pressure_exponent, 0.5, 3.0)})
 

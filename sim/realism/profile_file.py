@@ -12,7 +12,6 @@ is an error naming the file and the key (``x.toml: press.tilt_deg: must be <= 29
     stiffness_n_per_mm = 0.5
     stiffening_per_mm = 1.0
     area_factor = 2.0
-    object_area_factor = 1.0
     stiffness_cv = 0.2
     pressure_exponent = 0.5
 
@@ -105,7 +104,6 @@ def parse_profile(raw: dict, file: str = "<profile>", default_name: str = "profi
             stiffness=f.number("stiffness_n_per_mm", d.stiffness * 1e-3, lo=0.0, lo_open=True) * 1e3,
             stiffening=f.number("stiffening_per_mm", d.stiffening * 1e-3, lo=0.0) * 1e3,
             area_factor=f.number("area_factor", d.area_factor, lo=0.0),
-            object_area_factor=f.number("object_area_factor", d.object_area_factor, lo=0.0),
             stiffness_cv=f.number("stiffness_cv", d.stiffness_cv, lo=0.0),
             pressure_exponent=f.number("pressure_exponent", d.pressure_exponent, lo=0.5, hi=2.99),
         )
@@ -231,7 +229,6 @@ def profile_tables(profile: RealismProfile) -> dict:
         "profile": {"name": profile.name, "description": profile.description},
         "finger": {"compliant": f.compliant, "stiffness_n_per_mm": f.stiffness * 1e-3,
                    "stiffening_per_mm": f.stiffening * 1e-3, "area_factor": f.area_factor,
-                   "object_area_factor": f.object_area_factor,
                    "stiffness_cv": f.stiffness_cv, "pressure_exponent": f.pressure_exponent},
         "press": {"speed_cv": p.speed_cv, "depth_cv": p.depth_cv, "lateral_mm": p.lateral_std * 1e3,
                   "hold_s": p.hold_std, "smooth": p.smooth, "tilt_deg": float(np.rad2deg(p.tilt_std)),
