@@ -1,7 +1,7 @@
 """The fine (1 mm) material map against the cell map on a scenario with walls (default: heterogeneous.toml), a
 raster of every cell (or --policy with --budget presses) with physics presses: the share of the area each labels
-right on a 1 mm raster (all of it, outside the first buried inclusion's footprint, outside every buried one's) and
-how far their boundaries lie from the true ones.
+right on a 1 mm raster (all of it, outside the first buried inclusion's footprint, outside every buried one's), how
+far their boundaries lie from the true ones, and per buried box whether a stiffness spot lies within 5 mm of it.
 
 Run: .venv/bin/python benchmarks/fine_map.py [--scenario heterogeneous] [--seed 11] [--readings]
      [--policy boundary --budget 24]
@@ -73,6 +73,18 @@ def main() -> None:
               f"{np.mean(fine.labels()[mask] == truth[mask]):.1%}; boundary error median / p90 cell map "
               f"{ec[0] * 1e3:.1f} / {ec[1] * 1e3:.1f} mm, fine map {ef[0] * 1e3:.1f} / {ef[1] * 1e3:.1f} mm; fine map "
               f"ECE {ece['all']:.3f}, within {NEAR_BOUNDARY * 1e3:g} mm of a boundary {ece['near_boundary']:.3f}")
+    # the buried lump reported at its true position: a stiffness spot within 5 mm of its footprint
+    spots = summary.get("stiffness_anomalies") or []
+    for inc in buried:
+        (cx, cy, cz), size = inc.center, inc.size
+        gaps = [float(np.hypot(max(abs(sp["centroid_m"][0] - cx) - size[0] / 2, 0.0),
+                               max(abs(sp["centroid_m"][1] - cy) - size[1] / 2, 0.0))) for sp in spots]
+        k = int(np.argmin(gaps)) if gaps else -1
+        near = "no spot" if k < 0 else (f"nearest spot {gaps[k] * 1e3:.1f} mm from its footprint ({spots[k]['sign']}, "
+                                        f"{spots[k]['presses']} presses)")
+        print(f"buried {inc.material.name} box at ({cx * 1e3:.0f}, {cy * 1e3:.0f}) mm, top "
+              f"{(entry.spec.height - cz - size[-1] / 2) * 1e3:.1f} mm down: {near}; reported within 5 mm: "
+              f"{'yes' if k >= 0 and gaps[k] <= 5e-3 else 'no'}")
     if args.readings:
         for s in res.steps:
             r = s.boundary
