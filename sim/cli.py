@@ -17,6 +17,7 @@ import os
 import sys
 from pathlib import Path
 
+from palpate.core import files
 from palpate.core.errors import RecordingError, ValidationError
 
 
@@ -80,14 +81,14 @@ def run_bench(args: argparse.Namespace) -> int:
     doc["validity"] = validity.to_dict()
     image_text = _image_columns(args.quick)
     try:
-        (args.out / "tradeoff.txt").write_text(table + "\n")
-        (args.out / "tradeoff.json").write_text(json.dumps(doc, indent=1, allow_nan=False))
-        (args.out / "validity.txt").write_text(validity_text + "\n")
-        (args.out / "validity.json").write_text(json.dumps(doc["validity"], indent=1, allow_nan=False))
-        (args.out / "image_validity.txt").write_text(image_text + "\n")
+        files.write_text(args.out / "tradeoff.txt", table + "\n")
+        files.write_text(args.out / "tradeoff.json", json.dumps(doc, indent=1, allow_nan=False))
+        files.write_text(args.out / "validity.txt", validity_text + "\n")
+        files.write_text(args.out / "validity.json", json.dumps(doc["validity"], indent=1, allow_nan=False))
+        files.write_text(args.out / "image_validity.txt", image_text + "\n")
         tradeoff_report.pareto_plot(report, args.out / "pareto.png")
         if args.write_table and not args.quick:
-            validity_table.TABLE_PATH.write_text(json.dumps(doc["validity"], indent=1, allow_nan=False) + "\n")
+            files.write_text(validity_table.TABLE_PATH, json.dumps(doc["validity"], indent=1, allow_nan=False) + "\n")
     except OSError as exc:
         raise RecordingError(f"bench: cannot write into {args.out}: {exc}") from exc
     print(json.dumps(doc, indent=1) if args.json else table + "\n\n" + validity_text + "\n\n" + image_text)

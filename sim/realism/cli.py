@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from palpate.core import files
 from palpate.core.errors import RecordingError, ValidationError
 from palpate.sim.realism.moments import MOMENTS
 from palpate.sim.realism.search import SEARCHES
@@ -131,7 +132,7 @@ def run_calibrate_realism(args: argparse.Namespace) -> int:
                        log=lambda s: print(s, file=sys.stderr, flush=True))
     try:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(profile_to_toml(result.profile), encoding="utf-8")
+        files.write_text(args.out, profile_to_toml(result.profile))  # a killed write keeps an older profile whole
     except OSError as exc:
         raise RecordingError(f"calibrate realism: cannot write {args.out}: {exc}") from exc
     print(format_calibration(result))
