@@ -1,9 +1,13 @@
 """The fine (1 mm) material map against the cell map on a scenario with walls (default: heterogeneous.toml), a
 raster of every cell (or --policy with --budget presses) with physics presses: the share of the area each labels
 right on a 1 mm raster (all of it, outside the first buried inclusion's footprint, outside every buried one's), how
-far their boundaries lie from the true ones, and per buried box whether a stiffness spot lies within 5 mm of it.
+far their boundaries lie from the true ones, and per buried box whether a stiffness spot lies within 5 mm of it and
+which of the fine map's material regions (summary.json's) lies nearest its centre: a lump that feels like another
+reference material than its surround is reported as a region of that material. --fe also presses each buried box's
+middle with the 3-D FE (the box in a block of the material beside it, under the material above it) and prints its
+force beside the contact law's there and each reference material's alone: what a press over the box feels like.
 
-Run: .venv/bin/python benchmarks/fine_map.py [--scenario heterogeneous] [--seed 11] [--readings]
+Run: .venv/bin/python benchmarks/fine_map.py [--scenario heterogeneous] [--seed 11] [--readings] [--fe]
      [--policy boundary --budget 24]
 """
 
@@ -29,6 +33,9 @@ from palpate.core.session.progress import Progress
 from palpate.core.session.sources import scenario_source_maker
 from palpate.core.session.training import train_memory, training_seeds
 
+#: Indentations at which --fe compares the 3-D FE with the contact law and the reference materials, m.
+FE_DEPTHS = np.array([1.0, 2.0, 3.0, 4.0]) * 1e-3
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -37,6 +44,7 @@ def main() -> None:
     parser.add_argument("--readings", action="store_true", help="print every press's reading")
     parser.add_argument("--policy", default="raster", help="exploration policy (default raster: every cell)")
     parser.add_argument("--budget", type=int, default=10**6, help="press budget (default: no limit)")
+    parser.add_argument("--fe", action="store_true", help="press each buried box's middle with the 3-D FE too")
     args = parser.parse_args()
     t0 = time.process_time()
     sc = load_scenario(args.scenario)
@@ -85,6 +93,10 @@ def main() -> None:
         print(f"buried {inc.material.name} box at ({cx * 1e3:.0f}, {cy * 1e3:.0f}) mm, top "
               f"{(entry.spec.height - cz - size[-1] / 2) * 1e3:.1f} mm down: {near}; reported within 5 mm: "
               f"{'yes' if k >= 0 and gaps[k] <= 5e-3 else 'no'}")
+        print("    " + _nearest_region(summary.get("material_regions") or [], inc, fine.labels(), pts,
+                                    fine.materials))
+        if args.fe:
+            print("    " + _felt(sc, entry.spec, inc))
     if args.readings:
         for s in res.steps:
             r = s.boundary
@@ -93,6 +105,52 @@ def main() -> None:
                       f"{r.p_boundary:.2f} angle {np.degrees(r.angle):6.1f} offset {r.offset * 1e3:+5.1f} "
                       f"+-{r.offset_sd * 1e3:.1f} mm contrast {r.contrast:g}")
     print(f"CPU {time.process_time() - t0:.0f} s")
+
+
+def _nearest_region(regions: list[dict], inc, labels: np.ndarray, pts: np.ndarray, materials) -> str:
+    """The fine map's region whose centroid lies nearest the box's centre, against the material the map names
+    around the box (a 5 mm ring outside its footprint): its distance, material and area over the footprint's."""
+    (cx, cy, _), size = inc.center, inc.size
+    gx, gy = np.abs(pts[..., 0] - cx) - size[0] / 2, np.abs(pts[..., 1] - cy) - size[1] / 2
+    ring = (np.maximum(gx, gy) > 0) & (np.maximum(gx, gy) <= 5e-3)
+    if not regions or not ring.any():
+        return "no region"
+    around = int(np.bincount(labels[ring]).argmax())
+    d = [float(np.hypot(r["centroid_m"][0] - cx, r["centroid_m"][1] - cy)) for r in regions]
+    r = regions[int(np.argmin(d))]
+    return (f"nearest region: {r['material']} (p {r['probability']:.2f}), centroid {min(d) * 1e3:.1f} mm from the "
+            f"box's centre, area {r['area_m2'] / (size[0] * size[1]):.2f} of its footprint; around it: "
+            f"{materials[around]}")
+
+
+def _felt(sc, obj, inc) -> str:
+    """The 3-D FE's force pressing the box's middle (N at FE_DEPTHS), the contact law's at that point of the scene's
+    object, and each reference material's alone on a block as thick, as ratios to the FE's."""
+    from palpate.core.world.scene import Layer, ObjectSpec, material_at
+    from palpate.sim.contact.stack import object_law
+    from palpate.sim.reference.fe3d import BoxBlock, BoxLump
+    from palpate.sim.reference.fe3d_solve import fe3d_press
+
+    (cx, cy, cz), (sx, sy, sz) = inc.center, inc.size
+    top = obj.height - cz - sz / 2
+    above, beside = material_at(obj, np.array([[cx, cy, obj.height - top / 2], [cx + sx / 2 + 3e-3, cy, cz]]))
+    half = max(sx, sy) / 2 + 0.02
+    skin = None if above == beside else Layer(above, top)
+    block = BoxBlock(beside, obj.height, half, half, BoxLump(inc.material, -sx / 2, sx, sy, top, sz), skin=skin)
+    tip = sc.fingertip.radius
+    fe = fe3d_press(block, tip, FE_DEPTHS).force
+    law = object_law(obj, cx, cy, obj.height, tip, float(FE_DEPTHS[-1])).force_at(FE_DEPTHS)
+    ratios = {}
+    for name in sc.references:
+        plain = ObjectSpec("plain", "box", (2 * half, 2 * half, obj.height), (0.0, 0.0), sc.materials[name].material)
+        force = object_law(plain, 0.0, 0.0, obj.height, tip, float(FE_DEPTHS[-1])).force_at(FE_DEPTHS)
+        ratios[name] = float(np.mean(fe / force))
+    nearest = min(ratios, key=lambda k: abs(np.log(ratios[k])))
+    return (f"3-D FE over its middle ({inc.material.name} in {beside.name}"
+            + ("" if skin is None else f" under {top * 1e3:g} mm of {above.name}") + "): "
+            + " / ".join(f"{f:.2f}" for f in fe) + f" N at {' / '.join(f'{d * 1e3:g}' for d in FE_DEPTHS)} mm, "
+            + f"the law's {np.mean(law / fe):.2f}x that; the FE's over each reference alone: "
+            + ", ".join(f"{k} {v:.2f}" for k, v in ratios.items()) + f" (feels like {nearest})")
 
 
 if __name__ == "__main__":
