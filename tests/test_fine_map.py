@@ -101,6 +101,21 @@ def test_bad_maps_are_refused():
         fine_map(voxel, np.full((2, 3, 2), 0.5), [])
 
 
+def test_a_map_too_large_for_a_millimetre_raster_gets_a_coarser_one_within_the_limit(monkeypatch, templates):
+    geometry = MapGeometry("grid2d", ("soft", "hard"), (0.0, 0.0), 0.01, (20, 10))
+    probs = np.tile([0.7, 0.3], (10, 20, 1))
+    img = _image(templates, 20e3, None, 0.0, 1.0)
+    reading = read_boundary(img, DEPTH, templates, NOISE)
+    assert fine_map(geometry, probs, [((0.05, 0.05), reading)]).resolution == pytest.approx(1e-3)
+    # 200 cells under a limit of 5000 points: 5 points a cell side (2 mm), not 10
+    monkeypatch.setenv("PALPATE_LIMITS", "map_cells=5000")
+    fine = fine_map(geometry, probs, [((0.05, 0.05), reading)])
+    assert fine.resolution == pytest.approx(2e-3) and fine.probabilities.shape == (50, 100, 2)
+    assert np.all(fine.labels() == 0) and np.allclose(fine.probabilities.sum(axis=-1), 1.0)
+    monkeypatch.setenv("PALPATE_LIMITS", "map_cells=250")
+    assert fine_map(geometry, probs, []).resolution == pytest.approx(1e-2)
+
+
 def _raster(cell: float, nx: int, ny: int, stride: int = 1) -> list:
     return [(((ix + 0.5) * cell, (iy + 0.5) * cell), None) for ix in range(0, nx, stride) for iy in range(ny)]
 

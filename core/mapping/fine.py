@@ -32,6 +32,7 @@ from scipy.ndimage import distance_transform_edt
 from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
+from palpate.core import limits
 from palpate.core.boundary.moduli import MaterialModuli
 from palpate.core.boundary.reading import BoundaryReading
 from palpate.core.errors import ValidationError
@@ -118,6 +119,15 @@ class FineMap:
         return np.repeat(np.repeat(cell_values, n, axis=0), n, axis=1)
 
 
+def points_per_cell(geometry: MapGeometry, resolution: float = RESOLUTION) -> int:
+    """Fine points along a cell's side for ``resolution`` (m): the nearest whole number, lowered as far as needed
+    to keep the raster within the limit ``map_cells`` (a map over metres of cells would otherwise take gigabytes
+    after its last press); at least 1."""
+    nx, ny = geometry.plane_shape
+    n = max(1, int(round(geometry.cell_size / resolution)))
+    return max(1, min(n, math.isqrt(int(limits.limit("map_cells") // (nx * ny)))))
+
+
 def _clear_cell(geometry: MapGeometry, probs: np.ndarray, astride: np.ndarray, foot: np.ndarray, step: np.ndarray,
                 clear: float) -> np.ndarray:
     """The distribution of the first cell along ``step`` (a unit vector) from the wall's foot whose centre lies at
@@ -175,7 +185,8 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         geometry: the cell map's geometry (2-D only).
         probabilities: the cell map's distributions, (ny, nx, M) (e.g. the post-processed map's).
         readings: per press, its measured (x, y) location, m, and its boundary reading in the world's frame.
-        resolution: fine point side, m; cell_weight: see above;
+        resolution: fine point side, m (coarsened, to a whole number of points a cell side, where the raster would
+            hold more points than the limit ``map_cells``: see :func:`points_per_cell`); cell_weight: see above;
             clear: distance from a wall at which a cell's centre counts as clear of it, m (about the contact radius).
         moduli: the reference materials' moduli as the reading reads them (:mod:`palpate.core.boundary.moduli`):
             when given, each side of a read wall is the material its read modulus matches, not a neighbour cell's.
@@ -208,7 +219,7 @@ def fine_map(geometry: MapGeometry, probabilities: np.ndarray, readings: list[tu
         raise ValidationError("fine_map: resolution must be in (0, cell size], reach, cell_weight and temperature "
                               "> 0 and finite, far_weight, spacing, wall_spread and wall_spread_from >= 0 and finite, "
                               "reach_max in [reach, inf), elongation in [1, inf)")
-    n = int(round(geometry.cell_size / resolution))
+    n = points_per_cell(geometry, resolution)
     out = FineMap(geometry.origin, geometry.cell_size / n, np.zeros((ny * n, nx * n, probs.shape[2])),
                   geometry.materials)
     pts = out.centres()
