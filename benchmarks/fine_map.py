@@ -125,31 +125,19 @@ def _nearest_region(regions: list[dict], inc, labels: np.ndarray, pts: np.ndarra
 
 def _felt(sc, obj, inc) -> str:
     """The 3-D FE's force pressing the box's middle (N at FE_DEPTHS), the contact law's at that point of the scene's
-    object, and each reference material's alone on a block as thick, as ratios to the FE's."""
-    from palpate.core.world.scene import Layer, ObjectSpec, material_at
-    from palpate.sim.contact.stack import object_law
-    from palpate.sim.reference.fe3d import BoxBlock, BoxLump
-    from palpate.sim.reference.fe3d_solve import fe3d_press
+    object, and the FE's over each reference material's alone on a block as thick."""
+    from palpate.sim.validity.offaxis import buried_box_press
 
-    (cx, cy, cz), (sx, sy, sz) = inc.center, inc.size
-    top = obj.height - cz - sz / 2
-    above, beside = material_at(obj, np.array([[cx, cy, obj.height - top / 2], [cx + sx / 2 + 3e-3, cy, cz]]))
-    half = max(sx, sy) / 2 + 0.02
-    skin = None if above == beside else Layer(above, top)
-    block = BoxBlock(beside, obj.height, half, half, BoxLump(inc.material, -sx / 2, sx, sy, top, sz), skin=skin)
-    tip = sc.fingertip.radius
-    fe = fe3d_press(block, tip, FE_DEPTHS).force
-    law = object_law(obj, cx, cy, obj.height, tip, float(FE_DEPTHS[-1])).force_at(FE_DEPTHS)
-    ratios = {}
-    for name in sc.references:
-        plain = ObjectSpec("plain", "box", (2 * half, 2 * half, obj.height), (0.0, 0.0), sc.materials[name].material)
-        force = object_law(plain, 0.0, 0.0, obj.height, tip, float(FE_DEPTHS[-1])).force_at(FE_DEPTHS)
-        ratios[name] = float(np.mean(fe / force))
+    press = buried_box_press(obj, inc, sc.fingertip.radius, FE_DEPTHS,
+                             {name: sc.materials[name].material for name in sc.references})
+    fe, block = press.fe, press.block
+    ratios = {name: float(np.mean(fe / force)) for name, force in press.plain.items()}
     nearest = min(ratios, key=lambda k: abs(np.log(ratios[k])))
-    return (f"3-D FE over its middle ({inc.material.name} in {beside.name}"
-            + ("" if skin is None else f" under {top * 1e3:g} mm of {above.name}") + "): "
-            + " / ".join(f"{f:.2f}" for f in fe) + f" N at {' / '.join(f'{d * 1e3:g}' for d in FE_DEPTHS)} mm, "
-            + f"the law's {np.mean(law / fe):.2f}x that; the FE's over each reference alone: "
+    return (f"3-D FE over its middle ({inc.material.name} in {block.material.name}"
+            + ("" if block.skin is None else f" under {block.skin.thickness * 1e3:g} mm of {block.skin.material.name}")
+            + "): " + " / ".join(f"{f:.2f}" for f in fe)
+            + f" N at {' / '.join(f'{d * 1e3:g}' for d in FE_DEPTHS)} mm, "
+            + f"the law's {np.mean(press.law / fe):.2f}x that; the FE's over each reference alone: "
             + ", ".join(f"{k} {v:.2f}" for k, v in ratios.items()) + f" (feels like {nearest})")
 
 

@@ -84,11 +84,12 @@ def run_bench(args: argparse.Namespace) -> int:
         files.write_text(args.out / "tradeoff.txt", table + "\n")
         files.write_text(args.out / "tradeoff.json", json.dumps(doc, indent=1, allow_nan=False))
         files.write_text(args.out / "validity.txt", validity_text + "\n")
-        files.write_text(args.out / "validity.json", json.dumps(doc["validity"], indent=1, allow_nan=False))
+        validity_json = json.dumps(doc["validity"], indent=1, allow_nan=False)
+        files.write_text(args.out / "validity.json", validity_json)
         files.write_text(args.out / "image_validity.txt", image_text + "\n")
         tradeoff_report.pareto_plot(report, args.out / "pareto.png")
         if args.write_table and not args.quick:
-            files.write_text(validity_table.TABLE_PATH, json.dumps(doc["validity"], indent=1, allow_nan=False) + "\n")
+            files.write_text(validity_table.TABLE_PATH, validity_json + "\n")
     except OSError as exc:
         raise RecordingError(f"bench: cannot write into {args.out}: {exc}") from exc
     print(json.dumps(doc, indent=1) if args.json else table + "\n\n" + validity_text + "\n\n" + image_text)

@@ -47,28 +47,15 @@ def test_the_boundary_policy_maps_the_heterogeneous_scene_with_a_quarter_of_the_
 def test_the_heterogeneous_lump_feels_like_rubber_by_the_3d_fe_and_the_law_agrees():
     # why the map names the buried box Material_2: it rides on 9 mm of foam, so a press over its middle gives
     # about a rubber block's force, not the hard material's (the map's Material_2 region over it is right)
-    from palpate.core.world.scene import ObjectSpec, material_at
-    from palpate.sim.contact.stack import object_law
-    from palpate.sim.reference.fe3d import BoxBlock, BoxLump
-    from palpate.sim.reference.fe3d_solve import fe3d_press
+    from palpate.sim.validity.offaxis import buried_box_press
 
     sc = load_scenario("heterogeneous")
     obj = sc.objects[0].spec
-    lump = obj.inclusions[0]
-    (cx, cy, cz), (sx, sy, sz) = lump.center, lump.size
-    top = obj.height - cz - sz / 2
-    (foam,) = material_at(obj, np.array([[cx + sx / 2 + 3e-3, cy, cz]]))
-    assert foam.name == "foam_A"
-    depths = np.array([1.0, 2.0, 3.0, 4.0]) * 1e-3
-    tip = sc.fingertip.radius
-    fe = fe3d_press(BoxBlock(foam, obj.height, 0.03, 0.03, BoxLump(lump.material, -sx / 2, sx, sy, top, sz)),
-                    tip, depths).force
-    law = object_law(obj, cx, cy, obj.height, tip, float(depths[-1])).force_at(depths)
-    np.testing.assert_allclose(law, fe, rtol=0.06)
-
-    def plain(name):
-        block = ObjectSpec("plain", "box", (0.06, 0.06, obj.height), (0.0, 0.0), sc.materials[name].material)
-        return object_law(block, 0.0, 0.0, obj.height, tip, float(depths[-1])).force_at(depths)
-
-    rubber, hard = (np.mean(np.log(fe / plain(m))) for m in ("Material_2", "Material_3"))
+    press = buried_box_press(obj, obj.inclusions[0], sc.fingertip.radius, np.array([1.0, 2.0, 3.0, 4.0]) * 1e-3,
+                             {m: sc.materials[m].material for m in ("Material_2", "Material_3")})
+    # the FE's block: the hard box in the foam band around it, its top 1 mm under the same foam (no other skin)
+    assert press.block.material.name == "foam_A" and press.block.skin is None
+    assert press.block.lump.material.name == "hard_C" and press.block.lump.depth == pytest.approx(1e-3)
+    np.testing.assert_allclose(press.law, press.fe, rtol=0.06)
+    rubber, hard = (np.mean(np.log(press.fe / press.plain[m])) for m in ("Material_2", "Material_3"))
     assert abs(rubber) < 0.5 < abs(hard)

@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from palpate.core.world.scene import Inclusion, Material, ObjectSpec
+from palpate.core.world.scene import Inclusion, Layer, Material, ObjectSpec, material_at
 from palpate.sim.contact.stack import object_law
 from palpate.sim.reference.fe3d import BoxBlock, BoxLump
 from palpate.sim.reference.fe3d_solve import fe3d_press
@@ -135,3 +135,34 @@ def compare(case: OffAxisCase, h: float = H, cache: dict | None = None) -> OffAx
     law = law_force(case) / cache[("law", case.poisson)]
     fe = fe_force(case, h) / cache[key]
     return OffAxisRow(case, DEPTHS.copy(), law, fe)
+
+
+@dataclass(frozen=True)
+class BuriedBoxPress:
+    """A scene's buried box pressed over its middle: the 3-D FE's block, its force and the contact law's (N at
+    ``depth``, m), and each reference material's force alone on a block as thick (name -> N)."""
+
+    block: BoxBlock
+    depth: np.ndarray
+    fe: np.ndarray
+    law: np.ndarray
+    plain: dict[str, np.ndarray]
+
+
+def buried_box_press(obj: ObjectSpec, box: Inclusion, tip_radius: float, depths, references: dict[str, Material],
+                     margin: float = 0.02) -> BuriedBoxPress:
+    """What a press over the middle of ``obj``'s box inclusion feels like: the 3-D FE with the box in a block of
+    the material beside it (``margin`` m past it on every side), under the material above it where that differs,
+    beside the contact law at that point of ``obj`` and each of ``references`` (name -> material) alone."""
+    depths = np.asarray(depths, dtype=float)
+    (cx, cy, cz), (sx, sy, sz) = box.center, box.size
+    top = obj.height - cz - sz / 2
+    above, beside = material_at(obj, np.array([[cx, cy, obj.height - top / 2], [cx + sx / 2 + 3e-3, cy, cz]]))
+    half = max(sx, sy) / 2 + margin
+    block = BoxBlock(beside, obj.height, half, half, BoxLump(box.material, -sx / 2, sx, sy, top, sz),
+                     skin=None if above == beside else Layer(above, top))
+    deepest = float(depths[-1])
+    plain = {name: object_law(ObjectSpec("plain", "box", (2 * half, 2 * half, obj.height), (0.0, 0.0), m), 0.0, 0.0,
+                              obj.height, tip_radius, deepest).force_at(depths) for name, m in references.items()}
+    return BuriedBoxPress(block, depths, fe3d_press(block, tip_radius, depths).force,
+                          object_law(obj, cx, cy, obj.height, tip_radius, deepest).force_at(depths), plain)
